@@ -1,0 +1,1 @@
+//! Streaming, allocation-free depth metrics.

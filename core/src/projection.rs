@@ -1,0 +1,1 @@
+//! Zones → sparse depth map at camera resolution.

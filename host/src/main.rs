@@ -1,0 +1,2 @@
+//! The `depthor` command line.
+fn main() {}
