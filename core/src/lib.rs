@@ -13,6 +13,8 @@
 #![warn(missing_docs)]
 
 pub mod calibration;
+pub mod drivers;
+mod fmath;
 pub mod hal;
 pub mod metrics;
 pub mod projection;
