@@ -1,6 +1,54 @@
 //! Sensor hardware abstraction: the traits a board's dToF and RGB camera drivers implement, in the
 //! style of embedded-hal 1.0 (an `ErrorType` with an associated error whose `kind()` maps onto a
 //! small, `#[non_exhaustive]` [`ErrorKind`]). Every frame buffer is provided by the caller.
+//!
+//! # Writing a driver
+//!
+//! A driver owns its embedded-hal bus and delay (embassy style), keeps its precise error and maps
+//! it onto [`ErrorKind`]. A complete example is [`crate::drivers::zone_bridge`]; the skeleton for
+//! a made-up one-zone ranger (register `0x00` = ready flag, `0x01..=0x02` = distance, `u16` LE mm):
+//!
+//! ```
+//! use depthor_core::calibration::{DistanceKind, DtofGeometry};
+//! use depthor_core::hal::{self, DtofSensor, ErrorKind, ZoneFrame};
+//! use embedded_hal::{delay::DelayNs, i2c::I2c};
+//!
+//! #[derive(Debug)]
+//! enum RangerError<E> { Bus(E), Timeout, Shape }
+//! impl<E: embedded_hal::i2c::Error> hal::Error for RangerError<E> {
+//!     fn kind(&self) -> ErrorKind {
+//!         match self {
+//!             RangerError::Bus(_) => ErrorKind::Bus,
+//!             RangerError::Timeout => ErrorKind::Timeout,
+//!             RangerError::Shape => ErrorKind::BufferShape,
+//!         }
+//!     }
+//! }
+//!
+//! struct Ranger<I, D> { i2c: I, delay: D }
+//! impl<I: I2c, D: DelayNs> hal::ErrorType for Ranger<I, D> { type Error = RangerError<I::Error>; }
+//! impl<I: I2c, D: DelayNs> DtofSensor for Ranger<I, D> {
+//!     fn geometry(&self) -> DtofGeometry {
+//!         DtofGeometry { rows: 1, cols: 1, fov_deg: [27.0, 27.0], distance: DistanceKind::Z,
+//!                        max_range_m: 4.0 }
+//!     }
+//!     fn read_frame<const N: usize>(&mut self, frame: &mut ZoneFrame<N>) -> Result<(), Self::Error> {
+//!         frame.set_shape(1, 1).map_err(|_| RangerError::Shape)?;
+//!         let mut ready = [0u8];
+//!         for _ in 0..100 {            // poll up to 100 ms
+//!             self.i2c.write_read(0x52, &[0x00], &mut ready).map_err(RangerError::Bus)?;
+//!             if ready[0] & 1 != 0 { break; }
+//!             self.delay.delay_ms(1);
+//!         }
+//!         if ready[0] & 1 == 0 { return Err(RangerError::Timeout); }
+//!         let mut mm = [0u8; 2];
+//!         self.i2c.write_read(0x52, &[0x01], &mut mm).map_err(RangerError::Bus)?;
+//!         frame.distance_mm[0] = f32::from(u16::from_le_bytes(mm));  // N >= 1 after set_shape
+//!         frame.status[0] = hal::STATUS_VALID;
+//!         Ok(())
+//!     }
+//! }
+//! ```
 
 /// Generic sensor error categories, so pipeline code can react without knowing the driver.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
