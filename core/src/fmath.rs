@@ -137,7 +137,10 @@ mod tests {
         for &x in &[
             1e-310, 1e-300, 1e-12, 0.01, 0.5, 1.0, 2.0, 3.0, 10.0, 12345.678, 1e100, 1.7e308,
         ] {
-            assert!(rel(sqrt(x), std::primitive::f64::sqrt(x)) < 4e-16, "sqrt({x})");
+            assert!(
+                rel(sqrt(x), std::primitive::f64::sqrt(x)) < 4e-16,
+                "sqrt({x})"
+            );
         }
         assert!(sqrt(-1.0).is_nan());
         assert!(sqrt(f64::NAN).is_nan());
@@ -154,7 +157,10 @@ mod tests {
             let got = ln(x);
             assert!((got - want).abs() <= 1e-15 * want.abs().max(1.0), "ln({x})");
             let want10 = std::primitive::f64::log10(x);
-            assert!((log10(x) - want10).abs() <= 1e-15 * want10.abs().max(1.0), "log10({x})");
+            assert!(
+                (log10(x) - want10).abs() <= 1e-15 * want10.abs().max(1.0),
+                "log10({x})"
+            );
         }
         assert_eq!(ln(1.0), 0.0);
         assert!(ln(-1.0).is_nan());

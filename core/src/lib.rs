@@ -5,7 +5,8 @@
 //!
 //! The pipeline, per frame, in the order of the modules below:
 //! 1. [`hal`]: the board's [`hal::DtofSensor`] fills a [`hal::ZoneFrame`], its
-//!    [`hal::RgbCamera`] fills an [`hal::RgbFrame`].
+//!    [`hal::RgbCamera`] fills an [`hal::RgbFrame`]. [`drivers`] holds embedded-hal drivers that
+//!    implement those traits (the I2C [`drivers::zone_bridge`]).
 //! 2. [`projection`]: zones → sparse depth at camera resolution through the [`calibration`].
 //! 3. prior → fusion → bins → refinement: the int8 engine (see the model-path issue).
 //! 4. [`metrics`]: δ1–3, AbsRel, RMSE, log10, MAE and EWMAE against a reference.

@@ -143,7 +143,6 @@ impl MetricsAccumulator {
         self.max_depth_m
     }
 
-
     /// Clamps a prediction into `[MIN_DEPTH_M, max_depth_m]`; the flag says it was not finite > 0.
     fn clamp_pred(&self, pred: f32) -> (f32, bool) {
         if pred.is_nan() || pred <= 0.0 {

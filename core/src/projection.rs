@@ -320,8 +320,7 @@ impl Prepared<'_> {
                 };
                 let p = [scale * tx, scale * ty, scale];
                 let q = [0, 1, 2].map(|i| r[i][0] * p[0] + r[i][1] * p[1] + r[i][2] * p[2] + t[i]);
-                // Written so that NaN also counts as "behind".
-                if !(q[2] > 0.0) {
+                if q[2].is_nan() || q[2] <= 0.0 {
                     return Err(Skip::BehindCamera);
                 }
                 let u = self.fx * q[0] / q[2] + self.cx;
@@ -346,12 +345,12 @@ impl Prepared<'_> {
         if depth_m.is_infinite() {
             return Err(Skip::BadDistance);
         }
-        if !(depth_m > 0.0) {
+        if depth_m.is_nan() || depth_m <= 0.0 {
             return Err(Skip::BehindCamera);
         }
         let (px, py) = (u + 0.5, v + 0.5);
-        // Negated comparisons so NaN coordinates land here too.
-        if !(px >= 0.0 && px < self.width && py >= 0.0 && py < self.height) {
+        // `contains` is false for NaN, so undefined coordinates land here too.
+        if !((0.0..self.width).contains(&px) && (0.0..self.height).contains(&py)) {
             return Err(Skip::OutOfImage);
         }
         Ok(ProjectedPoint {
@@ -386,7 +385,11 @@ pub fn zone_ray(cal: &Calibration, zone: usize) -> Option<[f32; 3]> {
 /// Returns the skip reason when the zone leaves no point. An invalid calibration or a zone index
 /// outside the grid also gives [`Skip::OutOfImage`] here (there is no pixel to give);
 /// [`for_each_point`] and [`project_to_sparse`] report those as [`ProjectionError`] instead.
-pub fn project_zone(cal: &Calibration, zone: usize, distance_mm: f32) -> Result<ProjectedPoint, Skip> {
+pub fn project_zone(
+    cal: &Calibration,
+    zone: usize,
+    distance_mm: f32,
+) -> Result<ProjectedPoint, Skip> {
     let prepared = prepare(cal).map_err(|_| Skip::OutOfImage)?;
     if zone >= cal.dtof.zones() {
         return Err(Skip::OutOfImage);
@@ -441,11 +444,12 @@ pub fn project_to_sparse(
     prepare(cal)?;
     check_zones(cal, zones)?;
     let width = cal.camera.width as usize;
-    let expected = width
-        .checked_mul(cal.camera.height as usize)
-        .ok_or(ProjectionError::BadCalibration(
-            "camera width * height overflows usize",
-        ))?;
+    let expected =
+        width
+            .checked_mul(cal.camera.height as usize)
+            .ok_or(ProjectionError::BadCalibration(
+                "camera width * height overflows usize",
+            ))?;
     if out_depth_m.len() != expected {
         return Err(ProjectionError::OutputSize {
             expected,

@@ -104,7 +104,12 @@ fn identity_extrinsics_z_distance() {
     // P = 2·(tx, ty, 1); u = 200·tx + 320, v = 200·ty + 240; depth = 2.
     // zone 0: (220, 140), zone 1: (420, 140), zone 2: (220, 340), zone 3: (420, 340).
     let cal = cal_2x2(DistanceKind::Z, Extrinsics::IDENTITY);
-    let want = [(220.0, 140.0), (420.0, 140.0), (220.0, 340.0), (420.0, 340.0)];
+    let want = [
+        (220.0, 140.0),
+        (420.0, 140.0),
+        (220.0, 340.0),
+        (420.0, 340.0),
+    ];
     for (zone, &(u, v)) in want.iter().enumerate() {
         let p = project_zone(&cal, zone, 2000.0).unwrap();
         assert_eq!(p.zone as usize, zone);
@@ -162,7 +167,12 @@ fn radial_versus_z() {
     };
     let r = project_zone(&cal_2x2(DistanceKind::Radial, ext), 0, 3000.0).unwrap();
     let q = [-0.5 * s + 0.1, -0.5 * s - 0.05, s + 0.02];
-    assert_point(&r, 200.0 * q[0] / q[2] + 320.0, 200.0 * q[1] / q[2] + 240.0, q[2]);
+    assert_point(
+        &r,
+        200.0 * q[0] / q[2] + 320.0,
+        200.0 * q[1] / q[2] + 240.0,
+        q[2],
+    );
 }
 
 #[test]
@@ -201,7 +211,8 @@ fn zone_rects_use_rect_centres() {
 fn pixel_rounding_and_image_border() {
     // Pixel centres at integers: x = floor(u + 0.5). u = 219.5 → 220; u = −0.5 → 0 (inside);
     // u = 639.5 → 640 (outside a 640-wide image); v = 479.49 → 479.
-    let cases: [([f32; 4], Result<(u32, u32), Skip>); 5] = [
+    type Pixel = Result<(u32, u32), Skip>;
+    let cases: [([f32; 4], Pixel); 5] = [
         ([0.0, 0.0, 0.0, 439.0], Ok((220, 0))),
         ([0.0, -0.5, 0.0, -0.5], Ok((0, 0))),
         ([0.0, -0.6, 0.0, -0.6], Err(Skip::OutOfImage)),

@@ -168,7 +168,10 @@ impl<E: core::fmt::Debug> core::fmt::Display for ZoneBridgeError<E> {
             ZoneBridgeError::Bus(e) => write!(f, "zone bridge bus error: {e:?}"),
             ZoneBridgeError::Timeout => f.write_str("zone bridge: no frame before the timeout"),
             ZoneBridgeError::WrongId(id) => {
-                write!(f, "zone bridge: ID reads {id:#04x}, expected {CHIP_ID:#04x}")
+                write!(
+                    f,
+                    "zone bridge: ID reads {id:#04x}, expected {CHIP_ID:#04x}"
+                )
             }
             ZoneBridgeError::BadHeader(what) => write!(f, "zone bridge: bad header: {what}"),
             ZoneBridgeError::BufferShape { zones, capacity } => write!(
@@ -205,7 +208,9 @@ fn parse_header<E>(h: &[u8; reg::HEADER_LEN]) -> Result<DtofGeometry, ZoneBridge
         return Err(ZoneBridgeError::BadHeader("zero rows or columns"));
     }
     if usize::from(rows) * usize::from(cols) > MAX_ZONES {
-        return Err(ZoneBridgeError::BadHeader("frame larger than the register space"));
+        return Err(ZoneBridgeError::BadHeader(
+            "frame larger than the register space",
+        ));
     }
     let fov = |lo: u8, hi: u8| {
         let centi = u16::from_le_bytes([lo, hi]);
@@ -214,7 +219,9 @@ fn parse_header<E>(h: &[u8; reg::HEADER_LEN]) -> Result<DtofGeometry, ZoneBridge
             .then(|| f32::from(centi) / 100.0)
     };
     let (Some(fov_h), Some(fov_v)) = (fov(fh0, fh1), fov(fv0, fv1)) else {
-        return Err(ZoneBridgeError::BadHeader("field of view outside (0, 180) degrees"));
+        return Err(ZoneBridgeError::BadHeader(
+            "field of view outside (0, 180) degrees",
+        ));
     };
     let distance = match kind {
         0 => DistanceKind::Z,
@@ -446,14 +453,14 @@ impl<'a> ZoneBridgeDevice<'a> {
         }
         let centi = |deg: f32| {
             let c = deg * 100.0 + 0.5;
-            (c >= 1.0 && c < 18_000.0).then_some(c as u16)
+            (1.0..18_000.0).contains(&c).then_some(c as u16)
         };
         let (Some(fov_h), Some(fov_v)) = (centi(geometry.fov_deg[0]), centi(geometry.fov_deg[1]))
         else {
             return Err(unsupported("field of view outside (0, 180) degrees"));
         };
         let range_mm = geometry.max_range_m * 1000.0 + 0.5;
-        if !(range_mm >= 0.0 && range_mm < 65_536.0) {
+        if !(0.0..65_536.0).contains(&range_mm) {
             return Err(unsupported("max range outside 0-65.535 m"));
         }
         let [fh0, fh1] = fov_h.to_le_bytes();
@@ -490,7 +497,11 @@ impl<'a> ZoneBridgeDevice<'a> {
 
     /// Latches a new frame: sets `DATA_READY` (after the configured latency) and increments
     /// `FRAME_COUNT`. A frame not yet released is replaced.
-    pub fn set_frame(&mut self, distance_mm: &'a [f32], status: &'a [u8]) -> Result<(), DeviceError> {
+    pub fn set_frame(
+        &mut self,
+        distance_mm: &'a [f32],
+        status: &'a [u8],
+    ) -> Result<(), DeviceError> {
         let expected = usize::from(self.header[2]) * usize::from(self.header[3]);
         for got in [distance_mm.len(), status.len()] {
             if got != expected {
