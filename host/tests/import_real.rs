@@ -35,7 +35,12 @@ fn load_ok(kind: ImportKind, src: &Path) -> ImportedSet {
         );
         assert!(f.camera.fx > 0.0 && f.camera.fy > 0.0);
     }
-    println!("{}: {} frame(s); notes: {:#?}", set.name, set.frames.len(), set.notes);
+    println!(
+        "{}: {} frame(s); notes: {:#?}",
+        set.name,
+        set.frames.len(),
+        set.notes
+    );
     set
 }
 
@@ -48,8 +53,16 @@ fn check(what: &str, s: DepthStats, min_m: f32, max_m: f32, tol_m: f32, frac: Op
         s.max_m,
         100.0 * s.valid_fraction()
     );
-    assert!((s.min_m - min_m).abs() <= tol_m, "{what}: min {} vs README {min_m}", s.min_m);
-    assert!((s.max_m - max_m).abs() <= tol_m, "{what}: max {} vs README {max_m}", s.max_m);
+    assert!(
+        (s.min_m - min_m).abs() <= tol_m,
+        "{what}: min {} vs README {min_m}",
+        s.min_m
+    );
+    assert!(
+        (s.max_m - max_m).abs() <= tol_m,
+        "{what}: max {} vs README {max_m}",
+        s.max_m
+    );
     if let Some((f, tol)) = frac {
         let got = s.valid_fraction();
         assert!((got - f).abs() <= tol, "{what}: valid {got} vs README {f}");
@@ -65,27 +78,65 @@ const PCT: f64 = 0.000_6;
 
 #[test]
 fn middlebury_scenes() {
-    let Some(src) = real("middlebury2014-Q") else { return };
+    let Some(src) = real("middlebury2014-Q") else {
+        return;
+    };
     let set = load_ok(ImportKind::Middlebury, &src);
     assert_eq!(set.frames.len(), 8);
     let get = |id: &str| {
-        set.frames.iter().find(|f| f.id == id).unwrap_or_else(|| panic!("no scene {id}"))
+        set.frames
+            .iter()
+            .find(|f| f.id == id)
+            .unwrap_or_else(|| panic!("no scene {id}"))
     };
     let a = get("Adirondack");
     assert_eq!(a.rgb.dimensions(), (718, 496));
-    assert_eq!((a.camera.fx, a.camera.cx, a.camera.cy), (1038.018, 322.037, 243.393));
-    check("Adirondack", a.depth_stats(), 1.573, 2.916, 0.001, Some((0.997, PCT)));
-    check("Teddy", get("Teddy").depth_stats(), 1.146, 1.791, 0.001, None);
+    assert_eq!(
+        (a.camera.fx, a.camera.cx, a.camera.cy),
+        (1038.018, 322.037, 243.393)
+    );
+    check(
+        "Adirondack",
+        a.depth_stats(),
+        1.573,
+        2.916,
+        0.001,
+        Some((0.997, PCT)),
+    );
+    check(
+        "Teddy",
+        get("Teddy").depth_stats(),
+        1.146,
+        1.791,
+        0.001,
+        None,
+    );
     assert_eq!(get("Teddy").rgb.dimensions(), (450, 375));
-    check("Motorcycle", get("Motorcycle").depth_stats(), 2.017, 4.597, 0.001, None);
+    check(
+        "Motorcycle",
+        get("Motorcycle").depth_stats(),
+        2.017,
+        4.597,
+        0.001,
+        None,
+    );
     assert_eq!(get("Motorcycle").rgb.dimensions(), (741, 497));
-    check("Vintage", get("Vintage").depth_stats(), 0.980, 3.951, 0.001, None);
+    check(
+        "Vintage",
+        get("Vintage").depth_stats(),
+        0.980,
+        3.951,
+        0.001,
+        None,
+    );
     assert_eq!(get("Vintage").rgb.dimensions(), (722, 480));
 }
 
 #[test]
 fn nyu_demo_frames() {
-    let Some(src) = real("metric3d-nyu-demo") else { return };
+    let Some(src) = real("metric3d-nyu-demo") else {
+        return;
+    };
     let set = load_ok(ImportKind::Nyu, &src);
     let want = [
         ("rgb_00000", 1.390, 6.625, 0.733),
@@ -96,39 +147,72 @@ fn nyu_demo_frames() {
     for (f, (id, lo, hi, frac)) in set.frames.iter().zip(want) {
         assert_eq!(f.id, id);
         let c = f.camera;
-        assert_eq!((c.fx, c.fy, c.cx, c.cy), (518.8579, 519.46961, 325.58245, 253.73617));
+        assert_eq!(
+            (c.fx, c.fy, c.cx, c.cy),
+            (518.8579, 519.469_6, 325.58245, 253.73617)
+        );
         check(id, f.depth_stats(), lo, hi, MM, Some((frac, PCT)));
     }
 }
 
 #[test]
 fn open3d_redwood_sequence() {
-    let Some(src) = real("open3d-rgbd-testdata") else { return };
+    let Some(src) = real("open3d-rgbd-testdata") else {
+        return;
+    };
     let set = load_ok(ImportKind::Redwood, &src);
     assert_eq!(set.frames.len(), 5);
     let c = set.frames[0].camera;
     assert_eq!((c.fx, c.fy, c.cx, c.cy), (525.0, 525.0, 319.5, 239.5));
-    check("redwood", set.depth_stats(), 0.955, 2.702, MM, Some((0.87, 0.01)));
+    check(
+        "redwood",
+        set.depth_stats(),
+        0.955,
+        2.702,
+        MM,
+        Some((0.87, 0.01)),
+    );
 }
 
 #[test]
 fn open3d_single_frames() {
-    let Some(src) = real("open3d-rgbd-testdata") else { return };
+    let Some(src) = real("open3d-rgbd-testdata") else {
+        return;
+    };
     let tum = load_ok(ImportKind::Tum, &src);
     check("tum", tum.depth_stats(), 1.46, 9.33, CM, Some((0.808, PCT)));
     assert!(tum.notes.iter().any(|n| n.contains("Freiburg 1")));
     let sun = load_ok(ImportKind::Sun, &src);
-    check("sun", sun.depth_stats(), 1.057, 9.870, MM, Some((0.818, PCT)));
+    check(
+        "sun",
+        sun.depth_stats(),
+        1.057,
+        9.870,
+        MM,
+        Some((0.818, PCT)),
+    );
     assert!(sun.notes.iter().any(|n| n.contains("assumed")));
     let raw = load_ok(ImportKind::NyuRaw, &src);
-    check("nyu-raw", raw.depth_stats(), 1.39, 6.69, CM, Some((0.928, PCT)));
-    assert!(raw.notes.iter().any(|n| n.contains("little-endian")), "this file is byte-swapped");
+    check(
+        "nyu-raw",
+        raw.depth_stats(),
+        1.39,
+        6.69,
+        CM,
+        Some((0.928, PCT)),
+    );
+    assert!(
+        raw.notes.iter().any(|n| n.contains("little-endian")),
+        "this file is byte-swapped"
+    );
     assert!(raw.notes.iter().any(|n| n.contains("NOT registered")));
 }
 
 #[test]
 fn promptda_arkit_frame() {
-    let Some(src) = real("promptda-iphone-lidar") else { return };
+    let Some(src) = real("promptda-iphone-lidar") else {
+        return;
+    };
     let set = load_ok(ImportKind::Arkit, &src);
     let f = &set.frames[0];
     assert_eq!(f.rgb.dimensions(), (640, 480));
@@ -160,7 +244,9 @@ fn assert_names(e: ImportError, file: &Path, what: &str) {
 
 #[test]
 fn malformed_middlebury_copies() {
-    let Some(src) = real("middlebury2014-Q") else { return };
+    let Some(src) = real("middlebury2014-Q") else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     let scene = dir.path().join("Teddy");
     copy_dir(&src.join("Teddy"), &scene);
@@ -171,14 +257,21 @@ fn malformed_middlebury_copies() {
     let bytes = fs::read(&pfm).unwrap();
     fs::write(&pfm, &bytes[..bytes.len() - 100]).unwrap();
     let e = load(ImportKind::Middlebury, dir.path()).unwrap_err();
-    assert_names(e, &pfm, "truncated: 450×375 floats need 675000 data bytes, found 674900");
+    assert_names(
+        e,
+        &pfm,
+        "truncated: 450×375 floats need 675000 data bytes, found 674900",
+    );
     fs::write(&pfm, &bytes).unwrap();
 
     // calib.txt without its baseline line.
     let calib = scene.join("calib.txt");
     let text = fs::read_to_string(&calib).unwrap();
-    let cut: String =
-        text.lines().filter(|l| !l.contains("baseline")).map(|l| format!("{l}\n")).collect();
+    let cut: String = text
+        .lines()
+        .filter(|l| !l.contains("baseline"))
+        .map(|l| format!("{l}\n"))
+        .collect();
     fs::write(&calib, cut).unwrap();
     let e = load(ImportKind::Middlebury, dir.path()).unwrap_err();
     assert_names(e, &calib, "missing field baseline");
@@ -196,16 +289,24 @@ fn malformed_middlebury_copies() {
 
 #[test]
 fn malformed_depth_images() {
-    let Some(src) = real("open3d-rgbd-testdata") else { return };
+    let Some(src) = real("open3d-rgbd-testdata") else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     let other = dir.path().join("other_formats");
     copy_dir(&src.join("other_formats"), &other);
 
     // An 8-bit depth PNG where 16-bit is expected.
     let depth = other.join("TUM_depth.png");
-    image::GrayImage::from_pixel(640, 480, image::Luma([7])).save(&depth).unwrap();
+    image::GrayImage::from_pixel(640, 480, image::Luma([7]))
+        .save(&depth)
+        .unwrap();
     let e = load(ImportKind::Tum, dir.path()).unwrap_err();
-    assert_names(e, &depth, "expected a 16-bit greyscale depth image, found L8");
+    assert_names(
+        e,
+        &depth,
+        "expected a 16-bit greyscale depth image, found L8",
+    );
 
     // A missing file.
     let sun = other.join("SUN_depth.png");
@@ -221,7 +322,9 @@ fn malformed_depth_images() {
 
 #[test]
 fn malformed_nyu_annotations() {
-    let Some(src) = real("metric3d-nyu-demo") else { return };
+    let Some(src) = real("metric3d-nyu-demo") else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     let ann = dir.path().join("test_annotations.json");
     let text = fs::read_to_string(src.join("test_annotations.json")).unwrap();

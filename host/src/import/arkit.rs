@@ -32,7 +32,14 @@ const FULL_FRAME_DIAGONAL_MM: f64 = 43.267;
 pub(crate) fn assumed_intrinsics(w: u32, h: u32) -> CameraIntrinsics {
     let diag = f64::from(w).hypot(f64::from(h));
     let f = (EQUIV_FOCAL_MM / FULL_FRAME_DIAGONAL_MM * diag) as f32;
-    CameraIntrinsics { width: w, height: h, fx: f, fy: f, cx: (w as f32 - 1.0) / 2.0, cy: (h as f32 - 1.0) / 2.0 }
+    CameraIntrinsics {
+        width: w,
+        height: h,
+        fx: f,
+        fy: f,
+        cx: (w as f32 - 1.0) / 2.0,
+        cy: (h as f32 - 1.0) / 2.0,
+    }
 }
 
 /// Loads the single ARKit frame at 640×480.
@@ -44,7 +51,10 @@ pub(crate) fn load(src: &Path) -> Result<Loaded, ImportError> {
     if k == 0 || (w, h) != (OUT.0 * k, OUT.1 * k) {
         return Err(ImportError::invalid(
             &rgb_path,
-            format!("size {w}×{h}: expected an integer multiple of {}×{} (ARKit 4:3 capture)", OUT.0, OUT.1),
+            format!(
+                "size {w}×{h}: expected an integer multiple of {}×{} (ARKit 4:3 capture)",
+                OUT.0, OUT.1
+            ),
         ));
     }
     let (dw, dh, raw) = read_u16_grey(&depth_path)?;
@@ -61,7 +71,7 @@ pub(crate) fn load(src: &Path) -> Result<Loaded, ImportError> {
         format!(
             "arkit: intrinsics assumed from the iPhone wide camera's 26 mm equivalent focal length on the \
              image diagonal: f = {:.1} px at {w}×{h} (horizontal FoV {:.1}°), centred principal point; \
-             real ARKit intrinsics vary by device by a few percent",
+             the device's true values (ARKit reports them per frame) may differ by several percent",
             assumed_intrinsics(w, h).fx,
             2.0 * (f64::from(w) / 2.0 / f64::from(assumed_intrinsics(w, h).fx)).atan().to_degrees()
         ),
@@ -71,7 +81,13 @@ pub(crate) fn load(src: &Path) -> Result<Loaded, ImportError> {
             OUT.0, OUT.1, OUT.0, OUT.1
         ),
     ];
-    let frame = ImportedFrame { id: "000000".to_owned(), t_s: 0.0, rgb, depth_m, camera };
+    let frame = ImportedFrame {
+        id: "000000".to_owned(),
+        t_s: 0.0,
+        rgb,
+        depth_m,
+        camera,
+    };
     Ok((vec![frame], notes))
 }
 

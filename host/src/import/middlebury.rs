@@ -36,11 +36,17 @@ pub(crate) fn parse_calib(text: &str) -> Result<Calib, String> {
     };
     let number = |key: &str| -> Result<f64, String> {
         let v = field(key)?;
-        v.parse::<f64>().ok().filter(|x| x.is_finite()).ok_or_else(|| format!("{key}: {v:?} is not a number"))
+        v.parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("{key}: {v:?} is not a number"))
     };
     let positive_int = |key: &str| -> Result<u32, String> {
         let v = field(key)?;
-        v.parse::<u32>().ok().filter(|&x| x > 0).ok_or_else(|| format!("{key}: {v:?} is not a positive integer"))
+        v.parse::<u32>()
+            .ok()
+            .filter(|&x| x > 0)
+            .ok_or_else(|| format!("{key}: {v:?} is not a positive integer"))
     };
     let cam = field("cam0")?;
     let inner = cam
@@ -50,16 +56,26 @@ pub(crate) fn parse_calib(text: &str) -> Result<Calib, String> {
     let m: Vec<f64> = inner
         .split(|c: char| c == ';' || c.is_whitespace())
         .filter(|t| !t.is_empty())
-        .map(|t| t.parse::<f64>().ok().filter(|x| x.is_finite()).ok_or_else(|| format!("cam0: {t:?} is not a number")))
+        .map(|t| {
+            t.parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| format!("cam0: {t:?} is not a number"))
+        })
         .collect::<Result<_, _>>()?;
     if m.len() != 9 {
         return Err(format!("cam0: expected 9 numbers, found {}", m.len()));
     }
     if m[3] != 0.0 || m[6] != 0.0 || m[7] != 0.0 || m[8] != 1.0 {
-        return Err(format!("cam0: not a pinhole matrix [fx s cx; 0 fy cy; 0 0 1]: {inner:?}"));
+        return Err(format!(
+            "cam0: not a pinhole matrix [fx s cx; 0 fy cy; 0 0 1]: {inner:?}"
+        ));
     }
     if m[0] <= 0.0 || m[4] <= 0.0 {
-        return Err(format!("cam0: focal lengths must be positive, found fx={} fy={}", m[0], m[4]));
+        return Err(format!(
+            "cam0: focal lengths must be positive, found fx={} fy={}",
+            m[0], m[4]
+        ));
     }
     let baseline_mm = number("baseline")?;
     if baseline_mm <= 0.0 {
@@ -95,14 +111,18 @@ pub(crate) fn depth_from_disparity(d: f32, calib: &Calib) -> f32 {
 /// Loads one scene folder.
 fn load_scene(dir: &Path, id: String, t_s: f64) -> Result<ImportedFrame, ImportError> {
     let calib_path = dir.join("calib.txt");
-    let calib = parse_calib(&read_text(&calib_path)?).map_err(|w| ImportError::invalid(&calib_path, w))?;
+    let calib =
+        parse_calib(&read_text(&calib_path)?).map_err(|w| ImportError::invalid(&calib_path, w))?;
     let (w, h) = (calib.cam0.width, calib.cam0.height);
     let pfm_path = dir.join("disp0GT.pfm");
     let disp = read_pfm(&pfm_path)?;
     if (disp.width, disp.height) != (w, h) {
         return Err(ImportError::invalid(
             &pfm_path,
-            format!("size {}×{} differs from calib.txt's {w}×{h}", disp.width, disp.height),
+            format!(
+                "size {}×{} differs from calib.txt's {w}×{h}",
+                disp.width, disp.height
+            ),
         ));
     }
     let rgb_path = dir.join("im0.png");
@@ -110,32 +130,57 @@ fn load_scene(dir: &Path, id: String, t_s: f64) -> Result<ImportedFrame, ImportE
     if rgb.dimensions() != (w, h) {
         return Err(ImportError::invalid(
             &rgb_path,
-            format!("size {}×{} differs from calib.txt's {w}×{h}", rgb.width(), rgb.height()),
+            format!(
+                "size {}×{} differs from calib.txt's {w}×{h}",
+                rgb.width(),
+                rgb.height()
+            ),
         ));
     }
-    let depth_m = disp.data.iter().map(|&d| depth_from_disparity(d, &calib)).collect();
-    Ok(ImportedFrame { id, t_s, rgb, depth_m, camera: calib.cam0 })
+    let depth_m = disp
+        .data
+        .iter()
+        .map(|&d| depth_from_disparity(d, &calib))
+        .collect();
+    Ok(ImportedFrame {
+        id,
+        t_s,
+        rgb,
+        depth_m,
+        camera: calib.cam0,
+    })
 }
 
 /// Loads every scene (sub-folder with a `calib.txt`) of `src`, in name order.
 pub(crate) fn load(src: &Path) -> Result<Loaded, ImportError> {
-    let entries = std::fs::read_dir(src).map_err(|err| ImportError::Io { path: src.to_path_buf(), err })?;
+    let entries = std::fs::read_dir(src).map_err(|err| ImportError::Io {
+        path: src.to_path_buf(),
+        err,
+    })?;
     let mut scenes = Vec::new();
     for e in entries {
-        let e = e.map_err(|err| ImportError::Io { path: src.to_path_buf(), err })?;
+        let e = e.map_err(|err| ImportError::Io {
+            path: src.to_path_buf(),
+            err,
+        })?;
         if e.path().join("calib.txt").is_file() {
             scenes.push(e.path());
         }
     }
     scenes.sort();
     if scenes.is_empty() {
-        return Err(ImportError::invalid(src, "no scene folder with a calib.txt"));
+        return Err(ImportError::invalid(
+            src,
+            "no scene folder with a calib.txt",
+        ));
     }
     let frames = scenes
         .iter()
         .enumerate()
         .map(|(i, dir)| {
-            let id = dir.file_name().map_or_else(|| format!("{i:06}"), |n| n.to_string_lossy().into_owned());
+            let id = dir
+                .file_name()
+                .map_or_else(|| format!("{i:06}"), |n| n.to_string_lossy().into_owned());
             load_scene(dir, id, i as f64)
         })
         .collect::<Result<Vec<_>, _>>()?;
@@ -162,10 +207,20 @@ mod tests {
     #[test]
     fn parses_calib_and_converts_disparity() {
         let c = parse_calib(ADIRONDACK).unwrap();
-        assert_eq!(c.cam0, CameraIntrinsics { width: 718, height: 496, fx: 1038.018, fy: 1038.018, cx: 322.037, cy: 243.393 });
+        assert_eq!(
+            c.cam0,
+            CameraIntrinsics {
+                width: 718,
+                height: 496,
+                fx: 1038.018,
+                fy: 1038.018,
+                cx: 322.037,
+                cy: 243.393
+            }
+        );
         assert_eq!((c.doffs, c.baseline_mm), (53.271, 176.252));
-        // 176.252 · 1038.018 / (8 + 53.271) = 2986.03 mm (README: vmin 8 ↔ the far end).
-        assert!((depth_from_disparity(8.0, &c) - 2.98603).abs() < 1e-5);
+        // 176.252 · 1038.018 / (8 + 53.271) = 2985.96 mm (README: vmin 8 ↔ the far end).
+        assert!((depth_from_disparity(8.0, &c) - 2.985_96).abs() < 1e-5);
         for bad in [f32::INFINITY, f32::NAN, 0.0, -3.0] {
             assert_eq!(depth_from_disparity(bad, &c), 0.0);
         }
@@ -176,10 +231,19 @@ mod tests {
         let no_doffs = ADIRONDACK.replace("doffs", "dofs");
         assert_eq!(parse_calib(&no_doffs).unwrap_err(), "missing field doffs");
         let short = ADIRONDACK.replacen(" 0 0 1 ]", " 0 0 ]", 1);
-        assert_eq!(parse_calib(&short).unwrap_err(), "cam0: expected 9 numbers, found 8");
+        assert_eq!(
+            parse_calib(&short).unwrap_err(),
+            "cam0: expected 9 numbers, found 8"
+        );
         let nan = ADIRONDACK.replace("baseline= 176.252", "baseline= abc");
-        assert_eq!(parse_calib(&nan).unwrap_err(), "baseline: \"abc\" is not a number");
+        assert_eq!(
+            parse_calib(&nan).unwrap_err(),
+            "baseline: \"abc\" is not a number"
+        );
         let w0 = ADIRONDACK.replace("width= 718", "width= 0");
-        assert_eq!(parse_calib(&w0).unwrap_err(), "width: \"0\" is not a positive integer");
+        assert_eq!(
+            parse_calib(&w0).unwrap_err(),
+            "width: \"0\" is not a positive integer"
+        );
     }
 }

@@ -89,7 +89,12 @@ pub struct DepthStats {
 impl DepthStats {
     /// Statistics of one depth map.
     pub fn of(depth_m: &[f32]) -> Self {
-        let mut s = DepthStats { valid: 0, total: depth_m.len(), min_m: f32::INFINITY, max_m: f32::NEG_INFINITY };
+        let mut s = DepthStats {
+            valid: 0,
+            total: depth_m.len(),
+            min_m: f32::INFINITY,
+            max_m: f32::NEG_INFINITY,
+        };
         for &z in depth_m {
             if z.is_finite() && z > 0.0 {
                 s.valid += 1;
@@ -182,12 +187,17 @@ impl ImportError {
     /// The file the error is about.
     pub fn path(&self) -> &Path {
         match self {
-            ImportError::Io { path, .. } | ImportError::Decode { path, .. } | ImportError::Invalid { path, .. } => path,
+            ImportError::Io { path, .. }
+            | ImportError::Decode { path, .. }
+            | ImportError::Invalid { path, .. } => path,
         }
     }
 
     pub(crate) fn invalid(path: &Path, what: impl Into<String>) -> Self {
-        ImportError::Invalid { path: path.to_path_buf(), what: what.into() }
+        ImportError::Invalid {
+            path: path.to_path_buf(),
+            what: what.into(),
+        }
     }
 }
 
@@ -208,8 +218,40 @@ pub fn load(kind: ImportKind, src: &Path) -> Result<ImportedSet, ImportError> {
         .ok()
         .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
         .unwrap_or_else(|| "set".to_owned());
-    Ok(ImportedSet { name: format!("{folder}-{}", kind.cli_name()), frames, notes })
+    Ok(ImportedSet {
+        name: format!("{folder}-{}", kind.cli_name()),
+        frames,
+        notes,
+    })
 }
 
 /// What every per-kind loader returns: frames and notes.
 type Loaded = (Vec<ImportedFrame>, Vec<String>);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::ValueEnum;
+
+    #[test]
+    fn cli_names_match_clap() {
+        for k in ImportKind::value_variants() {
+            let v = k.to_possible_value().unwrap();
+            assert_eq!(v.get_name(), k.cli_name());
+        }
+        assert_eq!(
+            ImportKind::from_str("nyu-raw", false),
+            Ok(ImportKind::NyuRaw)
+        );
+    }
+
+    #[test]
+    fn depth_stats_skip_unknown() {
+        let s = DepthStats::of(&[0.0, 1.5, f32::NAN, 0.5, -1.0]);
+        assert_eq!((s.valid, s.total, s.min_m, s.max_m), (2, 5, 0.5, 1.5));
+        assert_eq!(s.valid_fraction(), 0.4);
+        let m = s.merge(DepthStats::of(&[2.0, 0.0, 0.0]));
+        assert_eq!((m.valid, m.total, m.min_m, m.max_m), (3, 8, 0.5, 2.0));
+        assert_eq!(DepthStats::of(&[]).valid_fraction(), 0.0);
+    }
+}

@@ -16,8 +16,14 @@ use super::{ImportError, ImportedFrame, Loaded};
 
 /// NYU Depth v2 colour camera intrinsics at 640×480 (NYU toolbox `camera_params.m`:
 /// fx_rgb 518.8579, fy_rgb 519.4696, cx_rgb 325.5824, cy_rgb 253.7362).
-pub(crate) const NYU_RGB: CameraIntrinsics =
-    CameraIntrinsics { width: 640, height: 480, fx: 518.857_9, fy: 519.469_6, cx: 325.582_45, cy: 253.736_17 };
+pub(crate) const NYU_RGB: CameraIntrinsics = CameraIntrinsics {
+    width: 640,
+    height: 480,
+    fx: 518.857_9,
+    fy: 519.469_6,
+    cx: 325.582_45,
+    cy: 253.736_17,
+};
 
 /// Largest raw Kinect v1 disparity; it also marks "no reading".
 const RAW_INVALID: u16 = 2047;
@@ -48,7 +54,10 @@ fn kinect_order(path: &Path, samples: Vec<u16>) -> Result<(Vec<u16>, bool), Impo
     if swapped.iter().all(|&v| v <= RAW_INVALID) {
         return Ok((swapped, true));
     }
-    Err(ImportError::invalid(path, "samples exceed the 11-bit Kinect range (0..=2047) in either byte order"))
+    Err(ImportError::invalid(
+        path,
+        "samples exceed the 11-bit Kinect range (0..=2047) in either byte order",
+    ))
 }
 
 /// Loads the single raw NYU frame.
@@ -61,8 +70,7 @@ pub(crate) fn load(src: &Path) -> Result<Loaded, ImportError> {
     let (raw, swapped) = kinect_order(&depth_path, samples)?;
     let mut notes = vec![
         format!(
-            "nyu-raw: {} samples read {} (Kinect disparity must fit 0..=2047)",
-            depth_path.display(),
+            "nyu-raw: NYU_depth.pgm samples read {} (Kinect disparity must fit 0..=2047)",
             if swapped { "little-endian, against the PGM spec's big-endian" } else { "big-endian as the PGM spec says" }
         ),
         "nyu-raw: depth = 351.3/(1092.5 − raw) m (NYU toolbox), raw 2047 or depth ≤ 0 → unknown".to_owned(),
@@ -73,7 +81,13 @@ pub(crate) fn load(src: &Path) -> Result<Loaded, ImportError> {
     ];
     let depth_m: Vec<f32> = raw.iter().map(|&r| depth_from_raw(r)).collect();
     let depth_m = depth_at_rgb_size("nyu-raw", &depth_path, depth_m, (dw, dh), &rgb, &mut notes);
-    let frame = ImportedFrame { id: "000000".to_owned(), t_s: 0.0, rgb, depth_m, camera: NYU_RGB };
+    let frame = ImportedFrame {
+        id: "000000".to_owned(),
+        t_s: 0.0,
+        rgb,
+        depth_m,
+        camera: NYU_RGB,
+    };
     Ok((vec![frame], notes))
 }
 
@@ -93,8 +107,14 @@ mod tests {
     #[test]
     fn picks_byte_order() {
         let p = Path::new("x.pgm");
-        assert_eq!(kinect_order(p, vec![2047, 839]).unwrap(), (vec![2047, 839], false));
-        assert_eq!(kinect_order(p, vec![0xff07, 0x4703]).unwrap(), (vec![2047, 839], true));
+        assert_eq!(
+            kinect_order(p, vec![2047, 839]).unwrap(),
+            (vec![2047, 839], false)
+        );
+        assert_eq!(
+            kinect_order(p, vec![0xff07, 0x4703]).unwrap(),
+            (vec![2047, 839], true)
+        );
         let e = kinect_order(p, vec![0xffff]).unwrap_err().to_string();
         assert!(e.starts_with("x.pgm: samples exceed"), "{e}");
     }

@@ -27,13 +27,26 @@ fn read_camera(path: &Path) -> Result<CameraIntrinsics, ImportError> {
     let j: Open3dIntrinsic = read_json(path)?;
     let m = &j.intrinsic_matrix;
     if m.len() != 9 {
-        return Err(ImportError::invalid(path, format!("intrinsic_matrix: expected 9 numbers, found {}", m.len())));
+        return Err(ImportError::invalid(
+            path,
+            format!("intrinsic_matrix: expected 9 numbers, found {}", m.len()),
+        ));
     }
     // Column-major: [fx, 0, 0, s, fy, 0, cx, cy, 1].
     if m[1] != 0.0 || m[2] != 0.0 || m[5] != 0.0 || m[8] != 1.0 || m[0] <= 0.0 || m[4] <= 0.0 {
-        return Err(ImportError::invalid(path, format!("intrinsic_matrix: not a column-major pinhole matrix: {m:?}")));
+        return Err(ImportError::invalid(
+            path,
+            format!("intrinsic_matrix: not a column-major pinhole matrix: {m:?}"),
+        ));
     }
-    Ok(CameraIntrinsics { width: j.width, height: j.height, fx: m[0], fy: m[4], cx: m[6], cy: m[7] })
+    Ok(CameraIntrinsics {
+        width: j.width,
+        height: j.height,
+        fx: m[0],
+        fy: m[4],
+        cx: m[6],
+        cy: m[7],
+    })
 }
 
 /// `(depth, colour)` relative paths from `rgbd.match`.
@@ -48,7 +61,10 @@ fn read_match(path: &Path) -> Result<Vec<(String, String)>, ImportError> {
             _ => {
                 return Err(ImportError::invalid(
                     path,
-                    format!("line {}: expected \"depth/<f>.png color/<f>.jpg\", found {line:?}", n + 1),
+                    format!(
+                        "line {}: expected \"depth/<f>.png color/<f>.jpg\", found {line:?}",
+                        n + 1
+                    ),
                 ))
             }
         }
@@ -75,9 +91,24 @@ pub(crate) fn load(src: &Path) -> Result<Loaded, ImportError> {
         let rgb = read_rgb(&rgb_path)?;
         check_size(&rgb_path, &rgb, &camera)?;
         let (dw, dh, raw) = read_u16_grey(&depth_path)?;
-        let depth_m = depth_at_rgb_size("redwood", &depth_path, scaled_depth(&raw, 1e-3), (dw, dh), &rgb, &mut notes);
-        let id = rgb_path.file_stem().map_or_else(|| format!("{i:06}"), |s| s.to_string_lossy().into_owned());
-        frames.push(ImportedFrame { id, t_s: i as f64 / FRAME_RATE_HZ, rgb, depth_m, camera });
+        let depth_m = depth_at_rgb_size(
+            "redwood",
+            &depth_path,
+            scaled_depth(&raw, 1e-3),
+            (dw, dh),
+            &rgb,
+            &mut notes,
+        );
+        let id = rgb_path
+            .file_stem()
+            .map_or_else(|| format!("{i:06}"), |s| s.to_string_lossy().into_owned());
+        frames.push(ImportedFrame {
+            id,
+            t_s: i as f64 / FRAME_RATE_HZ,
+            rgb,
+            depth_m,
+            camera,
+        });
     }
     Ok((frames, notes))
 }

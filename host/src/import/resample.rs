@@ -41,7 +41,10 @@ pub(crate) fn depth_at_rgb_size(
     }
     notes.push(format!(
         "{kind}: {}: depth {dw}×{dh} resampled (nearest neighbour) to the RGB's {w}×{h}",
-        depth_path.display()
+        depth_path
+            .file_name()
+            .unwrap_or(depth_path.as_os_str())
+            .to_string_lossy()
     ));
     depth_nearest(&depth_m, dw, dh, w, h)
 }
@@ -113,7 +116,14 @@ mod tests {
         assert_eq!(d.dimensions(), (2, 1));
         assert_eq!(d.get_pixel(0, 0).0, [10, 0, 255]); // mean of 0, 10, 20
         assert_eq!(d.get_pixel(1, 0).0, [40, 0, 255]); // mean of 30, 40, 50
-        let cam = CameraIntrinsics { width: 1920, height: 1440, fx: 1500.0, fy: 1500.0, cx: 959.5, cy: 719.5 };
+        let cam = CameraIntrinsics {
+            width: 1920,
+            height: 1440,
+            fx: 1500.0,
+            fy: 1500.0,
+            cx: 959.5,
+            cy: 719.5,
+        };
         let s = scale_intrinsics(&cam, 3);
         assert_eq!((s.width, s.height), (640, 480));
         assert_eq!((s.fx, s.cx, s.cy), (500.0, 319.5, 239.5));

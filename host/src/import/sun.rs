@@ -24,12 +24,18 @@ pub(crate) fn load(src: &Path) -> Result<Loaded, ImportError> {
     let (dw, dh, raw) = read_u16_grey(&depth_path)?;
     let mut notes = vec![format!(
         "sun: SUN RGB-D intrinsics depend on the sensor and are not given with this frame; \
-         NYU v2 Kinect v1 colour intrinsics (fx {}, fy {}, cx {}, cy {}) are assumed for its 640×480 image",
+         NYU v2 Kinect v1 colour intrinsics (fx {:.4}, fy {:.4}, cx {:.4}, cy {:.4}) are assumed for its 640×480 image",
         NYU_RGB.fx, NYU_RGB.fy, NYU_RGB.cx, NYU_RGB.cy
     )];
     let depth_m: Vec<f32> = raw.iter().map(|&d| f32::from(sun_mm(d)) * 1e-3).collect();
     let depth_m = depth_at_rgb_size("sun", &depth_path, depth_m, (dw, dh), &rgb, &mut notes);
-    let frame = ImportedFrame { id: "000000".to_owned(), t_s: 0.0, rgb, depth_m, camera: NYU_RGB };
+    let frame = ImportedFrame {
+        id: "000000".to_owned(),
+        t_s: 0.0,
+        rgb,
+        depth_m,
+        camera: NYU_RGB,
+    };
     Ok((vec![frame], notes))
 }
 
