@@ -41,7 +41,7 @@ fn project_draws_turbo_discs_at_the_projected_zone_centres() {
     assert_eq!(*img.get_pixel(16, 40), turbo(1.0)); // zone 2, 3 m
     assert_eq!(*img.get_pixel(48, 40), GREY); // zone 3, no target: no disc
     assert_eq!(*img.get_pixel(32, 24), GREY);
-    // Black rim just outside the default 2 px disc: pixel (19, 8) has centre 3.5 px away.
+    // Black rim (radius 3) around the 2 px disc: pixel (18, 8) has its centre 2.5 px away.
     assert_eq!(*img.get_pixel(18, 8), image::Rgb([0, 0, 0]));
     // Colour bar: far (red end) on top, near (blue end) at the bottom.
     assert_eq!(*img.get_pixel(64 + 3, 3), turbo(1.0));
