@@ -113,13 +113,13 @@ fn project_zone(cal: &Calibration, i: usize, d_mm: f32) -> Result<(f32, f32, f32
         None => {
             let cols = cal.dtof.cols as usize;
             let (row, col) = (i / cols, i % cols);
-            let half_h = (cal.dtof.fov_deg[0].to_radians() * 0.5).tan();
-            let half_v = (cal.dtof.fov_deg[1].to_radians() * 0.5).tan();
+            let half_h = F32Ext::tan(cal.dtof.fov_deg[0].to_radians() * 0.5);
+            let half_v = F32Ext::tan(cal.dtof.fov_deg[1].to_radians() * 0.5);
             let tx = half_h * ((2 * col + 1) as f32 / cols as f32 - 1.0);
             let ty = half_v * ((2 * row + 1) as f32 / cal.dtof.rows as f32 - 1.0);
             let zs = match cal.dtof.distance {
                 DistanceKind::Z => d,
-                DistanceKind::Radial => d / (1.0 + tx * tx + ty * ty).sqrt(),
+                DistanceKind::Radial => d / F32Ext::sqrt(1.0 + tx * tx + ty * ty),
             };
             let q = cal.dtof_to_camera.apply([tx * zs, ty * zs, zs]);
             if q[2].is_nan() || q[2] <= 0.0 {

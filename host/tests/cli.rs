@@ -64,7 +64,11 @@ fn info_reports_depth_statistics_and_valid_zones() {
         "{stdout}"
     );
     assert!(stdout.contains("zones valid 3/4"), "{stdout}");
-    assert!(o.stderr.is_empty(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        o.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
 }
 
 /// Runs `info` and `project` on a broken recording: each must print exactly one `error:` line
@@ -82,8 +86,14 @@ fn assert_clean_failure(tmp: &Path, rec: &Path, file: &str, field: &str) {
         let lines: Vec<&str> = stderr.lines().collect();
         assert_eq!(lines.len(), 1, "{args:?}: {stderr}");
         assert!(lines[0].starts_with("error: "), "{stderr}");
-        assert!(lines[0].contains(file), "{args:?}: want {file:?} in {stderr}");
-        assert!(lines[0].contains(field), "{args:?}: want {field:?} in {stderr}");
+        assert!(
+            lines[0].contains(file),
+            "{args:?}: want {file:?} in {stderr}"
+        );
+        assert!(
+            lines[0].contains(field),
+            "{args:?}: want {field:?} in {stderr}"
+        );
         assert!(!out.exists());
         assert_eq!(entries(tmp), before, "nothing written");
     }

@@ -5,8 +5,8 @@ mod common;
 use depthor_core::calibration::{DistanceKind, Extrinsics};
 use depthor_core::hal::{DtofSensor, ErrorKind, RgbCamera, RgbFrame, ZoneFrame};
 use depthor_host::recording::{
-    depth_m_to_mm, CameraMeta, DistanceMeta, DtofFrame, DtofMeta, ExtrinsicsMeta, Frame,
-    FrameMeta, Recording, RecordingMeta, RecordingWriter, WriteOptions,
+    depth_m_to_mm, CameraMeta, DistanceMeta, DtofFrame, DtofMeta, ExtrinsicsMeta, Frame, FrameMeta,
+    Recording, RecordingMeta, RecordingWriter, WriteOptions,
 };
 use depthor_host::sensors::{ReplayCamera, ReplayDtof};
 use image::{Rgb, RgbImage};
@@ -199,7 +199,10 @@ fn header_validation_names_fields() {
     check(&|m| m.format = "depthor-recording/2".into(), "format");
     check(&|m| m.camera.height = 0, "camera.height");
     check(&|m| m.camera.fx = f32::INFINITY, "camera.fx");
-    check(&|m| m.dtof.as_mut().unwrap().fov_deg[1] = 180.0, "dtof.fov_deg[1]");
+    check(
+        &|m| m.dtof.as_mut().unwrap().fov_deg[1] = 180.0,
+        "dtof.fov_deg[1]",
+    );
     check(
         &|m| m.dtof.as_mut().unwrap().zone_rects_px = Some(vec![[0.0; 4]; 5]),
         "dtof.zone_rects_px",
@@ -226,28 +229,56 @@ fn reader_names_fields_of_hand_made_json() {
     let path = rec.join("recording.json");
     let good = common::recording_json(&["000000"]);
     let cases = [
-        ("\"distance\": \"z\"", "\"distance\": \"slant\"", "dtof.distance"),
+        (
+            "\"distance\": \"z\"",
+            "\"distance\": \"slant\"",
+            "dtof.distance",
+        ),
         ("\"rows\": 2", "\"rows\": 70000", "dtof.rows"),
         ("\"rows\": 2", "\"rows\": 2, \"extra\": 1", "dtof.extra"),
-        ("\"t_s\": 0.5", "\"t_s\": 0.5, \"camera\": {\"width\": 1}", "frames[0].camera.height"),
+        (
+            "\"t_s\": 0.5",
+            "\"t_s\": 0.5, \"camera\": {\"width\": 1}",
+            "frames[0].camera.height",
+        ),
         ("\"id\": \"000000\"", "\"id\": \"../x\"", "frames[0].id"),
         ("\"fx\": 32.0", "\"fx\": 1e39", "camera.fx"),
-        ("[0.0, 0.0, 0.0]", "[0.0, 0.0]", "dtof_to_camera.translation_m"),
+        (
+            "[0.0, 0.0, 0.0]",
+            "[0.0, 0.0]",
+            "dtof_to_camera.translation_m",
+        ),
     ];
     for (from, to, field) in cases {
         assert!(good.contains(from), "{from}");
         std::fs::write(&path, good.replacen(from, to, 1)).unwrap();
         let err = Recording::open(&rec).unwrap_err();
-        assert_eq!((err.path.as_path(), err.field.as_str()), (path.as_path(), field), "{err}");
+        assert_eq!(
+            (err.path.as_path(), err.field.as_str()),
+            (path.as_path(), field),
+            "{err}"
+        );
     }
 
     std::fs::write(&path, &good).unwrap();
     let dtof = rec.join("frames/000000/dtof.json");
     let cases = [
-        (r#"{"distance_mm": [1,2,3,4], "status": [5,5,5,14]}"#, "status[3]"),
-        (r#"{"distance_mm": [1,2,3,4], "status": [5,5,5,256]}"#, "status[3]"),
-        (r#"{"distance_mm": [1,2,3,"4"], "status": [5,5,5,5]}"#, "distance_mm[3]"),
-        (r#"{"distance_mm": [1,2,3,4], "status": [5,5,5,5], "sigma_mm": [1]}"#, "sigma_mm"),
+        (
+            r#"{"distance_mm": [1,2,3,4], "status": [5,5,5,14]}"#,
+            "status[3]",
+        ),
+        (
+            r#"{"distance_mm": [1,2,3,4], "status": [5,5,5,256]}"#,
+            "status[3]",
+        ),
+        (
+            r#"{"distance_mm": [1,2,3,"4"], "status": [5,5,5,5]}"#,
+            "distance_mm[3]",
+        ),
+        (
+            r#"{"distance_mm": [1,2,3,4], "status": [5,5,5,5], "sigma_mm": [1]}"#,
+            "sigma_mm",
+        ),
         (r#"{"status": [5,5,5,5]}"#, "distance_mm"),
         (r#"[1, 2]"#, "(root)"),
     ];
@@ -255,7 +286,11 @@ fn reader_names_fields_of_hand_made_json() {
     for (text, field) in cases {
         std::fs::write(&dtof, text).unwrap();
         let err = rec_ok.read_frame(0).unwrap_err();
-        assert_eq!((err.path.as_path(), err.field.as_str()), (dtof.as_path(), field), "{err}");
+        assert_eq!(
+            (err.path.as_path(), err.field.as_str()),
+            (dtof.as_path(), field),
+            "{err}"
+        );
     }
     // Labels outside 0..=3 name the pixel.
     std::fs::write(&dtof, common::DTOF_JSON).unwrap();
@@ -284,32 +319,59 @@ fn replay_sensors_play_frames_in_order_then_end_of_stream() {
     let mut dtof = ReplayDtof::new(rec.clone()).unwrap();
     assert_eq!(dtof.geometry().zones(), 6);
     let mut small = ZoneFrame::<4>::new();
-    assert_eq!(dtof.read_frame(&mut small).unwrap_err().kind, ErrorKind::BufferShape);
+    assert_eq!(
+        dtof.read_frame(&mut small).unwrap_err().kind,
+        ErrorKind::BufferShape
+    );
     assert_eq!(dtof.position(), 0, "shape errors do not advance");
     let mut z = ZoneFrame::<64>::new();
     dtof.read_frame(&mut z).unwrap();
     assert_eq!((z.rows, z.cols, z.len()), (2, 3, 6));
-    assert_eq!(z.distance_mm[..6], [100.5, 200.0, 300.25, -4.0, 0.0, 4096.0]);
+    assert_eq!(
+        z.distance_mm[..6],
+        [100.5, 200.0, 300.25, -4.0, 0.0, 4096.0]
+    );
     assert_eq!(z.status[..6], [5, 9, 255, 0, 13, 5]);
     assert!(z.has_sigma && !z.has_signal && z.has_ambient);
     assert_eq!(z.ambient_kcps[5], 5.5);
     dtof.read_frame(&mut z).unwrap();
     assert_eq!(z.distance_mm[0], 777.0);
-    assert_eq!(dtof.read_frame(&mut z).unwrap_err().kind, ErrorKind::EndOfStream);
+    assert_eq!(
+        dtof.read_frame(&mut z).unwrap_err().kind,
+        ErrorKind::EndOfStream
+    );
 
     let mut cam = ReplayCamera::new(rec.clone());
     assert_eq!(cam.resolution(), (6, 4));
     let mut buf = vec![0u8; 6 * 4 * 3];
     let mut wrong = vec![0u8; 5];
-    let mut bad = RgbFrame { width: 6, height: 4, data: &mut wrong };
-    assert_eq!(cam.capture(&mut bad).unwrap_err().kind, ErrorKind::BufferShape);
+    let mut bad = RgbFrame {
+        width: 6,
+        height: 4,
+        data: &mut wrong,
+    };
+    assert_eq!(
+        cam.capture(&mut bad).unwrap_err().kind,
+        ErrorKind::BufferShape
+    );
     for expect in [frame("f0", 6, 4, 1), frame("f1", 6, 4, 2)] {
-        let mut f = RgbFrame { width: 6, height: 4, data: &mut buf };
+        let mut f = RgbFrame {
+            width: 6,
+            height: 4,
+            data: &mut buf,
+        };
         cam.capture(&mut f).unwrap();
         assert_eq!(buf, expect.rgb.as_raw().as_slice());
     }
-    let mut f = RgbFrame { width: 6, height: 4, data: &mut buf };
-    assert_eq!(cam.capture(&mut f).unwrap_err().kind, ErrorKind::EndOfStream);
+    let mut f = RgbFrame {
+        width: 6,
+        height: 4,
+        data: &mut buf,
+    };
+    assert_eq!(
+        cam.capture(&mut f).unwrap_err().kind,
+        ErrorKind::EndOfStream
+    );
 
     // A corrupt file is BadData carrying the recording error, and the stream moves on.
     std::fs::write(rec.frame_file(0, "dtof.json"), "{").unwrap();

@@ -29,8 +29,7 @@ pub fn recording_json(frames: &[&str]) -> String {
 }
 
 /// Zones 1 m, 2 m, 3 m valid (status 5, 9, 5); zone 3 has no target.
-pub const DTOF_JSON: &str =
-    r#"{"distance_mm": [1000, 2000, 3000, 1500], "status": [5, 9, 5, 255], "sigma_mm": [1, 2, 3, 4]}"#;
+pub const DTOF_JSON: &str = r#"{"distance_mm": [1000, 2000, 3000, 1500], "status": [5, 9, 5, 255], "sigma_mm": [1, 2, 3, 4]}"#;
 
 /// Writes a one-frame recording (`000000`) with RGB, dToF and a 16-bit depth map into `dir`.
 pub fn write_hand_made(dir: &Path) -> PathBuf {
