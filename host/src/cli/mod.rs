@@ -3,6 +3,7 @@
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
+mod import;
 mod info;
 mod project;
 
@@ -20,6 +21,8 @@ pub struct Cli {
 /// One variant per subcommand; add new ones here and in [`run`].
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Import a real RGB-D set (Middlebury, NYU, Redwood, TUM, SUN, raw NYU, ARKit) as a recording.
+    Import(import::Args),
     /// Summarise a recording: frames, resolution, reference depth and zone validity.
     Info(info::Args),
     /// Draw a frame's dToF zones projected onto its RGB image.
@@ -29,6 +32,7 @@ enum Command {
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Import(args) => import::handle(args),
         Command::Info(args) => info::handle(args),
         Command::Project(args) => project::handle(args),
     }
