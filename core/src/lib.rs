@@ -12,7 +12,11 @@
 #![no_std]
 #![warn(missing_docs)]
 
+#[cfg(test)]
+extern crate std;
+
 pub mod calibration;
 pub mod hal;
+pub mod kernels;
 pub mod metrics;
 pub mod projection;
