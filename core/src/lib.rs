@@ -15,7 +15,9 @@
 #[cfg(test)]
 extern crate std;
 
+pub mod blob;
 pub mod calibration;
+pub mod engine;
 pub mod hal;
 pub mod kernels;
 pub mod metrics;

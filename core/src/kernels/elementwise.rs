@@ -33,6 +33,7 @@ pub fn lut(input: &[i8], table: &Lut, output: &mut [i8]) -> Result<(), KernelErr
 
 /// Requantisation of one int8 code from one tensor's parameters to another's.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[repr(C)]
 pub struct Rescale {
     /// `s_in / s_out`.
     pub m: Requant,
@@ -72,6 +73,7 @@ impl Rescale {
 
 /// Constants of int8 `add` (TFLite: inputs shifted left by 20 bits, scaled to `2·max(s_a, s_b)`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[repr(C)]
 pub struct AddQuant {
     /// Zero points of a, b and out.
     pub zp: [i32; 3],
@@ -138,6 +140,7 @@ pub fn add(q: &AddQuant, a: &[i8], b: &[i8], out: &mut [i8]) -> Result<(), Kerne
 
 /// Constants of int8 `mul`: `out = zp_out + (s_a·s_b/s_out)·(a − zp_a)(b − zp_b)`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[repr(C)]
 pub struct MulQuant {
     /// Zero points of a, b and out.
     pub zp: [i32; 3],

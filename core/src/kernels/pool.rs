@@ -12,6 +12,7 @@ pub const MAX_REDUCE: usize = 1 << 23;
 
 /// Constants of an int8 mean over `n` elements.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[repr(C)]
 pub struct MeanQuant {
     /// Input zero point.
     pub zp_in: i32,
