@@ -128,7 +128,10 @@ pub struct Graph<'a> {
 impl Graph<'_> {
     /// Tensor info by id (ids are validated by [`parse`]).
     pub fn tensor(&self, id: u16) -> Result<&TensorInfo, Error> {
-        self.tensors.get(id as usize).ok_or(Error::BadBlob { offset: 0, what: "tensor id out of range" })
+        self.tensors.get(id as usize).ok_or(Error::BadBlob {
+            offset: 0,
+            what: "tensor id out of range",
+        })
     }
 
     /// Bytes of a validated parameter.
@@ -146,7 +149,12 @@ struct Reader<'a> {
 impl<'a> Reader<'a> {
     fn take(&mut self, n: usize, what: &'static str) -> Result<&'a [u8], Error> {
         let end = self.pos.checked_add(n).filter(|&e| e <= self.end);
-        let s = end.and_then(|e| self.b.get(self.pos..e)).ok_or(Error::BadBlob { offset: self.pos, what })?;
+        let s = end
+            .and_then(|e| self.b.get(self.pos..e))
+            .ok_or(Error::BadBlob {
+                offset: self.pos,
+                what,
+            })?;
         self.pos += n;
         Ok(s)
     }
@@ -190,20 +198,25 @@ fn bad(offset: usize, what: &'static str) -> Error {
 
 /// Reads a little-endian f32 array element from validated bytes.
 pub fn f32_at(bytes: &[u8], i: usize) -> f32 {
-    bytes.get(i * 4..i * 4 + 4).map_or(0.0, |s| f32::from_le_bytes([s[0], s[1], s[2], s[3]]))
+    bytes
+        .get(i * 4..i * 4 + 4)
+        .map_or(0.0, |s| f32::from_le_bytes([s[0], s[1], s[2], s[3]]))
 }
 
 /// Reads a little-endian i32 array element from validated bytes.
 pub fn i32_at(bytes: &[u8], i: usize) -> i32 {
-    bytes.get(i * 4..i * 4 + 4).map_or(0, |s| i32::from_le_bytes([s[0], s[1], s[2], s[3]]))
+    bytes
+        .get(i * 4..i * 4 + 4)
+        .map_or(0, |s| i32::from_le_bytes([s[0], s[1], s[2], s[3]]))
 }
 
 /// Expected inputs per opcode: (min, max).
 fn arity(code: u8) -> Option<(usize, usize)> {
     use opcode::*;
     Some(match code {
-        CONV2D | LINEAR | RELU | LEAKY_RELU | SIGMOID | RECIPROCAL | UPSAMPLE_BILINEAR | PIXEL_SHUFFLE
-        | GLOBAL_AVG_POOL | GLOBAL_MAX_POOL | CHANNEL_MEAN | CHANNEL_MAX | MINMAX_NORM => (1, 1),
+        CONV2D | LINEAR | RELU | LEAKY_RELU | SIGMOID | RECIPROCAL | UPSAMPLE_BILINEAR
+        | PIXEL_SHUFFLE | GLOBAL_AVG_POOL | GLOBAL_MAX_POOL | CHANNEL_MEAN | CHANNEL_MAX
+        | MINMAX_NORM => (1, 1),
         ADD | MUL | BINS_HEAD => (2, 2),
         CONCAT => (1, MAX_INPUTS),
         REFINE => (6, 6),
@@ -213,7 +226,11 @@ fn arity(code: u8) -> Option<(usize, usize)> {
 
 /// Parses and validates a blob (see the module doc).
 pub fn parse(blob: &[u8]) -> Result<Graph<'_>, Error> {
-    let mut r = Reader { b: blob, pos: 0, end: blob.len() };
+    let mut r = Reader {
+        b: blob,
+        pos: 0,
+        end: blob.len(),
+    };
     if r.arr::<4>("header: magic")? != MAGIC {
         return Err(bad(0, "header: magic is not \"DPTH\""));
     }
@@ -234,7 +251,10 @@ pub fn parse(blob: &[u8]) -> Result<Graph<'_>, Error> {
     let sparse = r.u16("header: sparse id")?;
     let output = r.u16("header: output id")?;
     r.zero16("header: reserved")?;
-    let end = HEADER_LEN.checked_add(payload_len).filter(|&e| e <= blob.len()).ok_or(bad(8, "header: payload_len beyond the blob"))?;
+    let end = HEADER_LEN
+        .checked_add(payload_len)
+        .filter(|&e| e <= blob.len())
+        .ok_or(bad(8, "header: payload_len beyond the blob"))?;
     let computed = crc32(&blob[HEADER_LEN..end]);
     if computed != stored {
         return Err(Error::BadChecksum { stored, computed });
@@ -266,24 +286,43 @@ pub fn parse(blob: &[u8]) -> Result<Graph<'_>, Error> {
         let (dtype, q) = match dt {
             dtype::I8 => {
                 if !(scale.is_finite() && scale > 0.0) || !(-128..=127).contains(&zero_point) {
-                    return Err(bad(at + 4, "tensor: int8 scale must be finite and > 0, zero point in -128..=127"));
+                    return Err(bad(
+                        at + 4,
+                        "tensor: int8 scale must be finite and > 0, zero point in -128..=127",
+                    ));
                 }
                 (DType::I8, QParams { scale, zero_point })
             }
-            dtype::F32 => (DType::F32, QParams { scale: 1.0, zero_point: 0 }),
+            dtype::F32 => (
+                DType::F32,
+                QParams {
+                    scale: 1.0,
+                    zero_point: 0,
+                },
+            ),
             _ => return Err(bad(at, "tensor: unknown dtype")),
         };
         if channels == 0 {
             return Err(bad(at + 2, "tensor: zero channels"));
         }
-        tensors.push(TensorInfo { dtype, channels, q }).map_err(|_| bad(at, "tensor: table full"))?;
+        tensors
+            .push(TensorInfo { dtype, channels, q })
+            .map_err(|_| bad(at, "tensor: table full"))?;
     }
-    let tensor = |id: u16, at: usize| tensors.get(id as usize).copied().ok_or(bad(at, "tensor id out of range"));
+    let tensor = |id: u16, at: usize| {
+        tensors
+            .get(id as usize)
+            .copied()
+            .ok_or(bad(at, "tensor id out of range"))
+    };
     let ti_rgb = tensor(rgb, 24)?;
     let ti_sparse = tensor(sparse, 26)?;
     let ti_out = tensor(output, 28)?;
     if ti_rgb.channels != 3 || ti_sparse.channels != 1 || ti_out.channels != 1 || rgb == sparse {
-        return Err(bad(24, "header: inputs must be distinct [3,H,W] rgb and [1,H,W] sparse, output [1,H,W]"));
+        return Err(bad(
+            24,
+            "header: inputs must be distinct [3,H,W] rgb and [1,H,W] sparse, output [1,H,W]",
+        ));
     }
 
     // First pass over ops: record layout; parameters are resolved after the data start is known.
@@ -313,7 +352,9 @@ pub fn parse(blob: &[u8]) -> Result<Graph<'_>, Error> {
             if !produced[id as usize] {
                 return Err(bad(ip, "op: input used before it is produced"));
             }
-            inputs.push(id).map_err(|_| bad(ip, "op: too many inputs"))?;
+            inputs
+                .push(id)
+                .map_err(|_| bad(ip, "op: too many inputs"))?;
         }
         r.align(4, "op: input padding")?;
         tensor(out_id, at + 2)?;
@@ -325,16 +366,31 @@ pub fn parse(blob: &[u8]) -> Result<Graph<'_>, Error> {
             return Err(bad(at + 4, "op: attr_len not a multiple of 4"));
         }
         let attr_start = r.pos;
-        let mut a = Reader { b: blob, pos: attr_start, end: attr_start.checked_add(attr_len).ok_or(bad(at, "op: attr_len"))? };
+        let mut a = Reader {
+            b: blob,
+            pos: attr_start,
+            end: attr_start
+                .checked_add(attr_len)
+                .ok_or(bad(at, "op: attr_len"))?,
+        };
         if a.end > r.end {
             return Err(bad(at + 4, "op: attributes beyond the payload"));
         }
         let (attrs, refs) = read_attrs(code, &mut a)?;
         if a.pos != a.end {
-            return Err(bad(a.pos, "op: attr_len does not match the opcode's attributes"));
+            return Err(bad(
+                a.pos,
+                "op: attr_len does not match the opcode's attributes",
+            ));
         }
         r.pos = a.end;
-        let op = OpInfo { code, inputs, output: out_id, attrs, offset: at };
+        let op = OpInfo {
+            code,
+            inputs,
+            output: out_id,
+            attrs,
+            offset: at,
+        };
         check_types(&op, &tensors, &produced)?;
         ops.push(op).map_err(|_| bad(at, "too many ops"))?;
         raw.push(refs).map_err(|_| bad(at, "too many ops"))?;
@@ -358,29 +414,77 @@ pub fn parse(blob: &[u8]) -> Result<Graph<'_>, Error> {
             }
         };
         match &mut op.attrs {
-            Attrs::Conv { geometry, weights, bias, scales, .. } => {
-                let n = geometry.weight_len(in_c, out_c).filter(|&n| n / out_c <= MAX_TAPS);
+            Attrs::Conv {
+                geometry,
+                weights,
+                bias,
+                scales,
+                ..
+            } => {
+                let n = geometry
+                    .weight_len(in_c, out_c)
+                    .filter(|&n| n / out_c <= MAX_TAPS);
                 let n = n.ok_or(bad(at, "conv: weight shape too large"))?;
                 *weights = param(refs[0], n, "conv: weights outside the data section")?;
-                *bias = if refs[1] == NONE { None } else { Some(param(refs[1], out_c * 4, "conv: bias outside the data section")?) };
+                *bias = if refs[1] == NONE {
+                    None
+                } else {
+                    Some(param(
+                        refs[1],
+                        out_c * 4,
+                        "conv: bias outside the data section",
+                    )?)
+                };
                 *scales = param(refs[2], out_c * 4, "conv: scales outside the data section")?;
                 check_scales(blob, *scales, out_c, at)?;
             }
-            Attrs::Bins { attrs, weights, bias, scales } => {
+            Attrs::Bins {
+                attrs,
+                weights,
+                bias,
+                scales,
+            } => {
                 let nb = attrs.n_bins;
-                *weights = param(refs[0], nb * in_c, "bins_head: weights outside the data section")?;
-                *bias = if refs[1] == NONE { None } else { Some(param(refs[1], nb * 4, "bins_head: bias outside the data section")?) };
-                *scales = param(refs[2], nb * 4, "bins_head: scales outside the data section")?;
+                *weights = param(
+                    refs[0],
+                    nb * in_c,
+                    "bins_head: weights outside the data section",
+                )?;
+                *bias = if refs[1] == NONE {
+                    None
+                } else {
+                    Some(param(
+                        refs[1],
+                        nb * 4,
+                        "bins_head: bias outside the data section",
+                    )?)
+                };
+                *scales = param(
+                    refs[2],
+                    nb * 4,
+                    "bins_head: scales outside the data section",
+                )?;
                 check_scales(blob, *scales, nb, at)?;
             }
             _ => {}
         }
     }
-    Ok(Graph { blob, height, width, tensors, ops, rgb, sparse, output })
+    Ok(Graph {
+        blob,
+        height,
+        width,
+        tensors,
+        ops,
+        rgb,
+        sparse,
+        output,
+    })
 }
 
 fn check_scales(blob: &[u8], p: Param, n: usize, at: usize) -> Result<(), Error> {
-    let bytes = blob.get(p.offset..p.offset + p.len).ok_or(bad(at, "scales"))?;
+    let bytes = blob
+        .get(p.offset..p.offset + p.len)
+        .ok_or(bad(at, "scales"))?;
     for i in 0..n {
         let s = f32_at(bytes, i);
         if !(s.is_finite() && s > 0.0) {
@@ -404,7 +508,11 @@ fn read_attrs(code: u8, a: &mut Reader) -> Result<(Attrs, [u32; 3]), Error> {
             let act_code = a.u8("conv: activation")?;
             a.u8("conv: reserved")?;
             let alpha = a.f32("conv: alpha")?;
-            let refs = [a.u32("conv: weight ref")?, a.u32("conv: bias ref")?, a.u32("conv: scale ref")?];
+            let refs = [
+                a.u32("conv: weight ref")?,
+                a.u32("conv: bias ref")?,
+                a.u32("conv: scale ref")?,
+            ];
             let geometry = ConvGeometry {
                 kernel: [v[0], v[1]],
                 stride: [v[2], v[3]],
@@ -421,16 +529,35 @@ fn read_attrs(code: u8, a: &mut Reader) -> Result<(Attrs, [u32; 3]), Error> {
             let act = match act_code {
                 activation::NONE => Activation::None,
                 activation::RELU => Activation::Relu,
-                activation::LEAKY_RELU if alpha.is_finite() && alpha >= 0.0 => Activation::LeakyRelu(alpha),
+                activation::LEAKY_RELU if alpha.is_finite() && alpha >= 0.0 => {
+                    Activation::LeakyRelu(alpha)
+                }
                 _ => return Err(bad(at + 18, "conv: bad activation or alpha")),
             };
-            (Attrs::Conv { geometry, act, weights: NO_PARAM, bias: None, scales: NO_PARAM }, refs)
+            (
+                Attrs::Conv {
+                    geometry,
+                    act,
+                    weights: NO_PARAM,
+                    bias: None,
+                    scales: NO_PARAM,
+                },
+                refs,
+            )
         }
         RELU | LEAKY_RELU | SIGMOID | RECIPROCAL => {
             a.take(256, "table: 256 bytes")?;
-            (Attrs::Lut(Param { offset: at, len: 256 }), [NONE; 3])
+            (
+                Attrs::Lut(Param {
+                    offset: at,
+                    len: 256,
+                }),
+                [NONE; 3],
+            )
         }
-        ADD | MUL | CONCAT | GLOBAL_AVG_POOL | GLOBAL_MAX_POOL | CHANNEL_MEAN | CHANNEL_MAX => (Attrs::Plain, [NONE; 3]),
+        ADD | MUL | CONCAT | GLOBAL_AVG_POOL | GLOBAL_MAX_POOL | CHANNEL_MEAN | CHANNEL_MAX => {
+            (Attrs::Plain, [NONE; 3])
+        }
         UPSAMPLE_BILINEAR => {
             let mode = a.u8("upsample: mode")?;
             a.u8("upsample: reserved")?;
@@ -467,19 +594,48 @@ fn read_attrs(code: u8, a: &mut Reader) -> Result<(Attrs, [u32; 3]), Error> {
             a.zero16("bins_head: reserved")?;
             let min_depth = a.f32("bins_head: min_depth")?;
             let max_depth = a.f32("bins_head: max_depth")?;
-            let refs = [a.u32("bins_head: weight ref")?, a.u32("bins_head: bias ref")?, a.u32("bins_head: scale ref")?];
-            if n_bins == 0 || n_bins > MAX_BINS || !(min_depth.is_finite() && max_depth.is_finite() && min_depth < max_depth) {
+            let refs = [
+                a.u32("bins_head: weight ref")?,
+                a.u32("bins_head: bias ref")?,
+                a.u32("bins_head: scale ref")?,
+            ];
+            if n_bins == 0
+                || n_bins > MAX_BINS
+                || !(min_depth.is_finite() && max_depth.is_finite() && min_depth < max_depth)
+            {
                 return Err(bad(at, "bins_head: bad n_bins or depth range"));
             }
-            let attrs = BinsAttrs { n_bins, min_depth, max_depth };
-            (Attrs::Bins { attrs, weights: NO_PARAM, bias: None, scales: NO_PARAM }, refs)
+            let attrs = BinsAttrs {
+                n_bins,
+                min_depth,
+                max_depth,
+            };
+            (
+                Attrs::Bins {
+                    attrs,
+                    weights: NO_PARAM,
+                    bias: None,
+                    scales: NO_PARAM,
+                },
+                refs,
+            )
         }
         REFINE => {
             let iterations = a.u16("refine: iterations")? as usize;
             a.zero16("refine: reserved")?;
-            let sigma = [a.f32("refine: sigma3")?, a.f32("refine: sigma5")?, a.f32("refine: sigma7")?];
-            if iterations % 2 != 0 || iterations > MAX_ITERATIONS || sigma.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
-                return Err(bad(at, "refine: iterations must be even and <= 64, sigmas finite and > 0"));
+            let sigma = [
+                a.f32("refine: sigma3")?,
+                a.f32("refine: sigma5")?,
+                a.f32("refine: sigma7")?,
+            ];
+            if iterations % 2 != 0
+                || iterations > MAX_ITERATIONS
+                || sigma.iter().any(|s| !(s.is_finite() && *s > 0.0))
+            {
+                return Err(bad(
+                    at,
+                    "refine: iterations must be even and <= 64, sigmas finite and > 0",
+                ));
             }
             (Attrs::Refine(RefineAttrs { iterations, sigma }), [NONE; 3])
         }
@@ -488,17 +644,30 @@ fn read_attrs(code: u8, a: &mut Reader) -> Result<(Attrs, [u32; 3]), Error> {
 }
 
 /// Static dtype / channel rules per op (spatial sizes are the planner's job).
-fn check_types(op: &OpInfo, tensors: &[TensorInfo], produced: &[bool; MAX_TENSORS]) -> Result<(), Error> {
+fn check_types(
+    op: &OpInfo,
+    tensors: &[TensorInfo],
+    produced: &[bool; MAX_TENSORS],
+) -> Result<(), Error> {
     use opcode::*;
     let at = op.offset;
-    let t = |id: u16| tensors.get(id as usize).copied().ok_or(bad(at, "tensor id out of range"));
+    let t = |id: u16| {
+        tensors
+            .get(id as usize)
+            .copied()
+            .ok_or(bad(at, "tensor id out of range"))
+    };
     let out = t(op.output)?;
     let x = t(op.inputs[0])?;
-    let all_i8 = op.inputs.iter().all(|&i| t(i).is_ok_and(|ti| ti.dtype == DType::I8)) && out.dtype == DType::I8;
+    let all_i8 = op
+        .inputs
+        .iter()
+        .all(|&i| t(i).is_ok_and(|ti| ti.dtype == DType::I8))
+        && out.dtype == DType::I8;
     let fail = |what| Err(bad(at, what));
     match op.code {
-        CONV2D | LINEAR | RELU | LEAKY_RELU | SIGMOID | RECIPROCAL | ADD | MUL | CONCAT | GLOBAL_AVG_POOL
-        | GLOBAL_MAX_POOL | CHANNEL_MEAN | CHANNEL_MAX | MINMAX_NORM
+        CONV2D | LINEAR | RELU | LEAKY_RELU | SIGMOID | RECIPROCAL | ADD | MUL | CONCAT
+        | GLOBAL_AVG_POOL | GLOBAL_MAX_POOL | CHANNEL_MEAN | CHANNEL_MAX | MINMAX_NORM
             if !all_i8 =>
         {
             return fail("op: inputs and output must be int8");
@@ -519,23 +688,48 @@ fn check_types(op: &OpInfo, tensors: &[TensorInfo], produced: &[bool; MAX_TENSOR
             let y = t(op.inputs[1])?;
             x.channels == out.channels && (y.channels == x.channels || y.channels == 1)
         }
-        (CONCAT, _) => op.inputs.iter().try_fold(0usize, |s, &i| t(i).map(|ti| s + ti.channels))? == out.channels,
+        (CONCAT, _) => {
+            op.inputs
+                .iter()
+                .try_fold(0usize, |s, &i| t(i).map(|ti| s + ti.channels))?
+                == out.channels
+        }
         (UPSAMPLE_BILINEAR, Attrs::Upsample { mode, a, .. }) => {
             let like_ok = *mode != upsample_mode::LIKE || (*a < tensors.len() && produced[*a]);
-            like_ok && x.channels == out.channels && x.dtype == out.dtype && (x.dtype == DType::F32 || x.q == out.q)
+            like_ok
+                && x.channels == out.channels
+                && x.dtype == out.dtype
+                && (x.dtype == DType::F32 || x.q == out.q)
         }
         (PIXEL_SHUFFLE, Attrs::PixelShuffle(f)) => {
-            Some(x.channels) == out.channels.checked_mul(f * f) && x.dtype == out.dtype && (x.dtype == DType::F32 || x.q == out.q)
+            Some(x.channels) == out.channels.checked_mul(f * f)
+                && x.dtype == out.dtype
+                && (x.dtype == DType::F32 || x.q == out.q)
         }
         (GLOBAL_AVG_POOL | GLOBAL_MAX_POOL, _) => x.channels == out.channels,
         (CHANNEL_MEAN | CHANNEL_MAX, _) => out.channels == 1,
         (BINS_HEAD, Attrs::Bins { attrs, .. }) => {
             let l = t(op.inputs[1])?;
-            x.dtype == DType::I8 && x.channels <= MAX_BIN_FEATURES && l.channels == attrs.n_bins && out.dtype == DType::F32 && out.channels == 1
+            x.dtype == DType::I8
+                && x.channels <= MAX_BIN_FEATURES
+                && l.channels == attrs.n_bins
+                && out.dtype == DType::F32
+                && out.channels == 1
         }
         (REFINE, _) => {
-            let want = [(DType::F32, 1), (DType::I8, 8), (DType::I8, 24), (DType::I8, 48), (DType::I8, 3), (DType::I8, 3)];
-            let ins_ok = op.inputs.iter().zip(want).all(|(&i, (d, c))| t(i).is_ok_and(|ti| ti.dtype == d && ti.channels == c));
+            let want = [
+                (DType::F32, 1),
+                (DType::I8, 8),
+                (DType::I8, 24),
+                (DType::I8, 48),
+                (DType::I8, 3),
+                (DType::I8, 3),
+            ];
+            let ins_ok = op
+                .inputs
+                .iter()
+                .zip(want)
+                .all(|(&i, (d, c))| t(i).is_ok_and(|ti| ti.dtype == d && ti.channels == c));
             ins_ok && out.dtype == DType::F32 && out.channels == 1
         }
         _ => false,

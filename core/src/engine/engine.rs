@@ -45,11 +45,17 @@ fn kerr(op: usize) -> impl Fn(KernelError) -> Error + Copy {
 }
 
 fn typed<T: Pod>(b: &[u8], op: usize) -> Result<&[T], Error> {
-    view(b).ok_or(Error::Kernel { op, error: KernelError::Shape })
+    view(b).ok_or(Error::Kernel {
+        op,
+        error: KernelError::Shape,
+    })
 }
 
 fn typed_mut<T: Pod>(b: &mut [u8], op: usize) -> Result<&mut [T], Error> {
-    view_mut(b).ok_or(Error::Kernel { op, error: KernelError::Shape })
+    view_mut(b).ok_or(Error::Kernel {
+        op,
+        error: KernelError::Shape,
+    })
 }
 
 /// Splits `act` into two disjoint mutable ranges (`m1`, `m2`) and read-only `ins` (each of which
@@ -62,7 +68,12 @@ fn split<'b>(
     out_ins: &mut [&'b [u8]; MAX_INPUTS],
     op: usize,
 ) -> Result<(&'b mut [u8], &'b mut [u8]), Error> {
-    let bad = Error::Kernel { op, error: KernelError::Shape };
+    let bad = Error::Kernel {
+        op,
+        error: KernelError::Shape,
+    };
+    // An empty range may sit anywhere; move it next to the other so ordering is well defined.
+    let m2 = if m2.is_empty() { m1.end..m1.end } else { m2 };
     let swapped = m2.start < m1.start;
     let (a, b) = if swapped { (m2, m1) } else { (m1, m2) };
     if a.start > a.end || b.start > b.end || a.end > b.start || b.end > act.len() {
@@ -93,11 +104,21 @@ impl<'a> Engine<'a> {
     }
 
     /// As [`Engine::new`] for an input of `height × width` instead of the native size.
-    pub fn with_size(blob: &'a [u8], arena: &'a mut [u8], height: usize, width: usize) -> Result<Engine<'a>, Error> {
+    pub fn with_size(
+        blob: &'a [u8],
+        arena: &'a mut [u8],
+        height: usize,
+        width: usize,
+    ) -> Result<Engine<'a>, Error> {
         Self::prepare(parse(blob)?, arena, height, width)
     }
 
-    fn prepare(graph: Graph<'a>, arena: &'a mut [u8], h: usize, w: usize) -> Result<Engine<'a>, Error> {
+    fn prepare(
+        graph: Graph<'a>,
+        arena: &'a mut [u8],
+        h: usize,
+        w: usize,
+    ) -> Result<Engine<'a>, Error> {
         let plan = plan(&graph, h, w)?;
         let have = arena.len();
         let need = plan.arena_bytes();
@@ -108,8 +129,14 @@ impl<'a> Engine<'a> {
         }
         let arena = &mut arena[pad..pad + body];
         for (i, op) in graph.ops.iter().enumerate() {
-            let r = plan.const_range(i).ok_or(Error::Kernel { op: i, error: KernelError::Shape })?;
-            let region = arena.get_mut(r).ok_or(Error::Kernel { op: i, error: KernelError::Shape })?;
+            let r = plan.const_range(i).ok_or(Error::Kernel {
+                op: i,
+                error: KernelError::Shape,
+            })?;
+            let region = arena.get_mut(r).ok_or(Error::Kernel {
+                op: i,
+                error: KernelError::Shape,
+            })?;
             write_consts(&graph, &plan, i, op, region)?;
         }
         let mut rgb_lut = [0i8; 256];
@@ -117,7 +144,12 @@ impl<'a> Engine<'a> {
         for (v, q) in rgb_lut.iter_mut().enumerate() {
             *q = rq.quantize(v as f32 / 255.0);
         }
-        Ok(Engine { graph, plan, arena, rgb_lut })
+        Ok(Engine {
+            graph,
+            plan,
+            arena,
+            rgb_lut,
+        })
     }
 
     /// Input size `(height, width)` this engine runs at.
@@ -137,7 +169,12 @@ impl<'a> Engine<'a> {
 
     /// Runs one frame: `rgb` is RGB888 interleaved `H×W×3`, `sparse_m` the projected dToF depth
     /// `H×W` in metres (0 = no point), `out_depth_m` receives `H×W` metres.
-    pub fn run(&mut self, rgb: &[u8], sparse_m: &[f32], out_depth_m: &mut [f32]) -> Result<RunStats, Error> {
+    pub fn run(
+        &mut self,
+        rgb: &[u8],
+        sparse_m: &[f32],
+        out_depth_m: &mut [f32],
+    ) -> Result<RunStats, Error> {
         let (h, w) = self.plan.size();
         let n = h * w;
         check_len("sparse_m", n, sparse_m.len())?;
@@ -155,7 +192,12 @@ impl<'a> Engine<'a> {
 
     /// As [`Engine::run`] with integer millimetres: `sparse_mm` (0 = no point) and
     /// `out_depth_mm` (rounded, clamped to `0..=65535`).
-    pub fn run_mm(&mut self, rgb: &[u8], sparse_mm: &[u16], out_depth_mm: &mut [u16]) -> Result<RunStats, Error> {
+    pub fn run_mm(
+        &mut self,
+        rgb: &[u8],
+        sparse_mm: &[u16],
+        out_depth_mm: &mut [u16],
+    ) -> Result<RunStats, Error> {
         let (h, w) = self.plan.size();
         let n = h * w;
         check_len("sparse_mm", n, sparse_mm.len())?;
@@ -188,9 +230,18 @@ impl<'a> Engine<'a> {
         let n = h * w;
         check_len("rgb", 3 * n, rgb.len())?;
         let info = *self.graph.tensor(self.graph.rgb)?;
-        let r = self.plan.tensor_range(self.graph.rgb).ok_or(Error::Kernel { op: 0, error: KernelError::Shape })?;
+        let r = self
+            .plan
+            .tensor_range(self.graph.rgb)
+            .ok_or(Error::Kernel {
+                op: 0,
+                error: KernelError::Shape,
+            })?;
         let lut = self.rgb_lut;
-        let buf = self.act().get_mut(r).ok_or(Error::Kernel { op: 0, error: KernelError::Shape })?;
+        let buf = self.act().get_mut(r).ok_or(Error::Kernel {
+            op: 0,
+            error: KernelError::Shape,
+        })?;
         match info.dtype {
             DType::I8 => {
                 let t: &mut [i8] = typed_mut(buf, 0)?;
@@ -215,8 +266,17 @@ impl<'a> Engine<'a> {
     fn write_sparse(&mut self, get: impl Fn(usize) -> f32) -> Result<(), Error> {
         let (h, w) = self.plan.size();
         let info = *self.graph.tensor(self.graph.sparse)?;
-        let r = self.plan.tensor_range(self.graph.sparse).ok_or(Error::Kernel { op: 0, error: KernelError::Shape })?;
-        let buf = self.act().get_mut(r).ok_or(Error::Kernel { op: 0, error: KernelError::Shape })?;
+        let r = self
+            .plan
+            .tensor_range(self.graph.sparse)
+            .ok_or(Error::Kernel {
+                op: 0,
+                error: KernelError::Shape,
+            })?;
+        let buf = self.act().get_mut(r).ok_or(Error::Kernel {
+            op: 0,
+            error: KernelError::Shape,
+        })?;
         match info.dtype {
             DType::I8 => {
                 let t: &mut [i8] = typed_mut(buf, 0)?;
@@ -237,8 +297,17 @@ impl<'a> Engine<'a> {
     fn read_output(&mut self, mut put: impl FnMut(usize, f32)) -> Result<(), Error> {
         let (h, w) = self.plan.size();
         let info = *self.graph.tensor(self.graph.output)?;
-        let r = self.plan.tensor_range(self.graph.output).ok_or(Error::Kernel { op: 0, error: KernelError::Shape })?;
-        let buf = self.act().get(r).ok_or(Error::Kernel { op: 0, error: KernelError::Shape })?;
+        let r = self
+            .plan
+            .tensor_range(self.graph.output)
+            .ok_or(Error::Kernel {
+                op: 0,
+                error: KernelError::Shape,
+            })?;
+        let buf = self.act().get(r).ok_or(Error::Kernel {
+            op: 0,
+            error: KernelError::Shape,
+        })?;
         match info.dtype {
             DType::I8 => {
                 for (i, &q) in typed::<i8>(buf, 0)?.iter().enumerate().take(h * w) {
@@ -260,25 +329,48 @@ impl<'a> Engine<'a> {
         for (i, op) in self.graph.ops.iter().enumerate() {
             exec(&self.graph, &self.plan, i, op, consts, act)?;
         }
-        Ok(RunStats { ops: self.graph.ops.len(), macs: self.plan.macs() })
+        Ok(RunStats {
+            ops: self.graph.ops.len(),
+            macs: self.plan.macs(),
+        })
     }
 }
 
 fn check_len(what: &'static str, expected: usize, found: usize) -> Result<(), Error> {
     if expected != found {
-        return Err(Error::ShapeMismatch { what, expected, found });
+        return Err(Error::ShapeMismatch {
+            what,
+            expected,
+            found,
+        });
     }
     Ok(())
 }
 
 /// Computes and stores op `i`'s constants (prepare time).
-fn write_consts(g: &Graph, plan: &Plan, i: usize, op: &OpInfo, region: &mut [u8]) -> Result<(), Error> {
+fn write_consts(
+    g: &Graph,
+    plan: &Plan,
+    i: usize,
+    op: &OpInfo,
+    region: &mut [u8],
+) -> Result<(), Error> {
     let q = |id: u16| g.tensor(id).map(|t| t.q);
     let out_q = q(op.output)?;
     let in_q = q(op.inputs[0])?;
-    let shape = |id: u16| plan.shape(id).ok_or(Error::Kernel { op: i, error: KernelError::Shape });
+    let shape = |id: u16| {
+        plan.shape(id).ok_or(Error::Kernel {
+            op: i,
+            error: KernelError::Shape,
+        })
+    };
     match (op.code, &op.attrs) {
-        (opcode::CONV2D | opcode::LINEAR, Attrs::Conv { act, bias, scales, .. }) => {
+        (
+            opcode::CONV2D | opcode::LINEAR,
+            Attrs::Conv {
+                act, bias, scales, ..
+            },
+        ) => {
             let dst: &mut [ChannelQuant] = typed_mut(region, i)?;
             let sb = g.bytes(*scales);
             for (o, cq) in dst.iter_mut().enumerate() {
@@ -291,7 +383,10 @@ fn write_consts(g: &Graph, plan: &Plan, i: usize, op: &OpInfo, region: &mut [u8]
             let sb = g.bytes(*scales);
             for (o, bc) in dst.iter_mut().enumerate() {
                 let b = bias.map_or(0, |p| i32_at(g.bytes(p), o));
-                *bc = BinChannel { bias: b, scale: in_q.scale * f32_at(sb, o) };
+                *bc = BinChannel {
+                    bias: b,
+                    scale: in_q.scale * f32_at(sb, o),
+                };
             }
         }
         (opcode::ADD, _) => {
@@ -314,7 +409,11 @@ fn write_consts(g: &Graph, plan: &Plan, i: usize, op: &OpInfo, region: &mut [u8]
         }
         (opcode::GLOBAL_AVG_POOL | opcode::CHANNEL_MEAN, _) => {
             let s = shape(op.inputs[0])?;
-            let n = if op.code == opcode::CHANNEL_MEAN { s.c } else { s.h * s.w };
+            let n = if op.code == opcode::CHANNEL_MEAN {
+                s.c
+            } else {
+                s.h * s.w
+            };
             let dst: &mut [MeanQuant] = typed_mut(region, i)?;
             if let Some(d) = dst.first_mut() {
                 *d = MeanQuant::new(in_q, out_q, n);
@@ -332,13 +431,26 @@ fn write_consts(g: &Graph, plan: &Plan, i: usize, op: &OpInfo, region: &mut [u8]
 }
 
 fn first<T: Pod + Default>(b: &[u8], op: usize) -> Result<T, Error> {
-    typed::<T>(b, op)?.first().copied().ok_or(Error::Kernel { op, error: KernelError::Shape })
+    typed::<T>(b, op)?.first().copied().ok_or(Error::Kernel {
+        op,
+        error: KernelError::Shape,
+    })
 }
 
 /// Runs op `i` on the arena (run time; nothing is validated twice except cheap slice bounds).
-fn exec(g: &Graph, plan: &Plan, i: usize, op: &OpInfo, consts: &[u8], act: &mut [u8]) -> Result<(), Error> {
+fn exec(
+    g: &Graph,
+    plan: &Plan,
+    i: usize,
+    op: &OpInfo,
+    consts: &[u8],
+    act: &mut [u8],
+) -> Result<(), Error> {
     let e = kerr(i);
-    let bad = Error::Kernel { op: i, error: KernelError::Shape };
+    let bad = Error::Kernel {
+        op: i,
+        error: KernelError::Shape,
+    };
     let out_r = plan.tensor_range(op.output).ok_or(bad)?;
     let scr_r = plan.scratch_range(i).ok_or(bad)?;
     let mut in_r: [Range<usize>; MAX_INPUTS] = Default::default();
@@ -355,16 +467,38 @@ fn exec(g: &Graph, plan: &Plan, i: usize, op: &OpInfo, consts: &[u8], act: &mut 
     let out_shape = shape(op.output)?;
     let out_dtype = g.tensor(op.output)?.dtype;
     match (op.code, &op.attrs) {
-        (opcode::CONV2D | opcode::LINEAR, Attrs::Conv { geometry, act, weights, .. }) => {
+        (
+            opcode::CONV2D | opcode::LINEAR,
+            Attrs::Conv {
+                geometry,
+                act,
+                weights,
+                ..
+            },
+        ) => {
             let conv = Conv2d {
                 geometry: *geometry,
-                quant: ConvQuant::new(tq(op.inputs[0])?.zero_point, tq(op.output)?.zero_point, *act),
+                quant: ConvQuant::new(
+                    tq(op.inputs[0])?.zero_point,
+                    tq(op.output)?.zero_point,
+                    *act,
+                ),
                 weights: typed(g.bytes(*weights), i)?,
                 channels: typed(cb, i)?,
             };
-            conv2d(&conv, typed(ins[0], i)?, x_shape, typed_mut(out_b, i)?, typed_mut(scr_b, i)?).map_err(e)?;
+            conv2d(
+                &conv,
+                typed(ins[0], i)?,
+                x_shape,
+                typed_mut(out_b, i)?,
+                typed_mut(scr_b, i)?,
+            )
+            .map_err(e)?;
         }
-        (opcode::RELU | opcode::LEAKY_RELU | opcode::SIGMOID | opcode::RECIPROCAL, Attrs::Lut(p)) => {
+        (
+            opcode::RELU | opcode::LEAKY_RELU | opcode::SIGMOID | opcode::RECIPROCAL,
+            Attrs::Lut(p),
+        ) => {
             let t: &[i8; 256] = typed::<i8>(g.bytes(*p), i)?.try_into().map_err(|_| bad)?;
             elementwise::lut(typed(ins[0], i)?, t, typed_mut(out_b, i)?).map_err(e)?;
         }
@@ -379,7 +513,15 @@ fn exec(g: &Graph, plan: &Plan, i: usize, op: &OpInfo, consts: &[u8], act: &mut 
             let q: MulQuant = first(cb, i)?;
             let b: &[i8] = typed(ins[1], i)?;
             let b = b.get(..shape(op.inputs[1])?.len().ok_or(bad)?).ok_or(bad)?;
-            elementwise::mul(&q, typed(ins[0], i)?, x_shape, b, plan.broadcast(i), typed_mut(out_b, i)?).map_err(e)?;
+            elementwise::mul(
+                &q,
+                typed(ins[0], i)?,
+                x_shape,
+                b,
+                plan.broadcast(i),
+                typed_mut(out_b, i)?,
+            )
+            .map_err(e)?;
         }
         (opcode::CONCAT, _) => {
             let rs: &[Rescale] = typed(cb, i)?;
@@ -392,29 +534,77 @@ fn exec(g: &Graph, plan: &Plan, i: usize, op: &OpInfo, consts: &[u8], act: &mut 
             }
         }
         (opcode::UPSAMPLE_BILINEAR, _) => match out_dtype {
-            DType::I8 => resize::upsample_bilinear(typed(ins[0], i)?, x_shape, typed_mut(out_b, i)?, out_shape).map_err(e)?,
-            DType::F32 => resize::upsample_bilinear_f32(typed(ins[0], i)?, x_shape, typed_mut(out_b, i)?, out_shape).map_err(e)?,
+            DType::I8 => resize::upsample_bilinear(
+                typed(ins[0], i)?,
+                x_shape,
+                typed_mut(out_b, i)?,
+                out_shape,
+            )
+            .map_err(e)?,
+            DType::F32 => resize::upsample_bilinear_f32(
+                typed(ins[0], i)?,
+                x_shape,
+                typed_mut(out_b, i)?,
+                out_shape,
+            )
+            .map_err(e)?,
         },
         (opcode::PIXEL_SHUFFLE, Attrs::PixelShuffle(r)) => {
             match out_dtype {
-                DType::I8 => elementwise::pixel_shuffle::<i8>(typed(ins[0], i)?, x_shape, *r, typed_mut(out_b, i)?),
-                DType::F32 => elementwise::pixel_shuffle::<f32>(typed(ins[0], i)?, x_shape, *r, typed_mut(out_b, i)?),
+                DType::I8 => elementwise::pixel_shuffle::<i8>(
+                    typed(ins[0], i)?,
+                    x_shape,
+                    *r,
+                    typed_mut(out_b, i)?,
+                ),
+                DType::F32 => elementwise::pixel_shuffle::<f32>(
+                    typed(ins[0], i)?,
+                    x_shape,
+                    *r,
+                    typed_mut(out_b, i)?,
+                ),
             }
             .map_err(e)?;
         }
-        (opcode::GLOBAL_AVG_POOL, _) => {
-            pool::global_avg_pool(&first(cb, i)?, typed(ins[0], i)?, x_shape, typed_mut(out_b, i)?).map_err(e)?
-        }
-        (opcode::GLOBAL_MAX_POOL, _) => {
-            pool::global_max_pool(&first(cb, i)?, typed(ins[0], i)?, x_shape, typed_mut(out_b, i)?).map_err(e)?
-        }
-        (opcode::CHANNEL_MEAN, _) => pool::channel_mean(&first(cb, i)?, typed(ins[0], i)?, x_shape, typed_mut(out_b, i)?).map_err(e)?,
-        (opcode::CHANNEL_MAX, _) => pool::channel_max(&first(cb, i)?, typed(ins[0], i)?, x_shape, typed_mut(out_b, i)?).map_err(e)?,
+        (opcode::GLOBAL_AVG_POOL, _) => pool::global_avg_pool(
+            &first(cb, i)?,
+            typed(ins[0], i)?,
+            x_shape,
+            typed_mut(out_b, i)?,
+        )
+        .map_err(e)?,
+        (opcode::GLOBAL_MAX_POOL, _) => pool::global_max_pool(
+            &first(cb, i)?,
+            typed(ins[0], i)?,
+            x_shape,
+            typed_mut(out_b, i)?,
+        )
+        .map_err(e)?,
+        (opcode::CHANNEL_MEAN, _) => pool::channel_mean(
+            &first(cb, i)?,
+            typed(ins[0], i)?,
+            x_shape,
+            typed_mut(out_b, i)?,
+        )
+        .map_err(e)?,
+        (opcode::CHANNEL_MAX, _) => pool::channel_max(
+            &first(cb, i)?,
+            typed(ins[0], i)?,
+            x_shape,
+            typed_mut(out_b, i)?,
+        )
+        .map_err(e)?,
         (opcode::MINMAX_NORM, Attrs::MinMax(eps)) => {
             let n = x_shape.len().ok_or(bad)?;
             let x: &[i8] = typed(ins[0], i)?;
-            elementwise::minmax_norm(x.get(..n).ok_or(bad)?, tq(op.inputs[0])?, *eps, tq(op.output)?, typed_mut(out_b, i)?)
-                .map_err(e)?;
+            elementwise::minmax_norm(
+                x.get(..n).ok_or(bad)?,
+                tq(op.inputs[0])?,
+                *eps,
+                tq(op.output)?,
+                typed_mut(out_b, i)?,
+            )
+            .map_err(e)?;
         }
         (opcode::BINS_HEAD, Attrs::Bins { attrs, weights, .. }) => {
             let li = g.tensor(op.inputs[1])?;
@@ -435,18 +625,40 @@ fn exec(g: &Graph, plan: &Plan, i: usize, op: &OpInfo, consts: &[u8], act: &mut 
             let mut centres = [0f32; MAX_BINS];
             bin_centres(&logits[..nb], attrs, &mut centres).map_err(e)?;
             let fz = tq(op.inputs[0])?.zero_point;
-            bins_head_i8(typed(ins[0], i)?, x_shape, fz, typed(g.bytes(*weights), i)?, typed(cb, i)?, &centres[..nb], typed_mut(out_b, i)?)
-                .map_err(e)?;
+            bins_head_i8(
+                typed(ins[0], i)?,
+                x_shape,
+                fz,
+                typed(g.bytes(*weights), i)?,
+                typed(cb, i)?,
+                &centres[..nb],
+                typed_mut(out_b, i)?,
+            )
+            .map_err(e)?;
         }
         (opcode::REFINE, Attrs::Refine(attrs)) => {
             let p = x_shape.plane().ok_or(bad)?;
             let m = |k: usize, c: usize| -> Result<I8Map<'_>, Error> {
                 I8Map::new(typed(ins[k], i)?, tq(op.inputs[k])?, c, p).map_err(e)
             };
-            let aff = [m(1, KERNELS[0] * KERNELS[0] - 1)?, m(2, KERNELS[1] * KERNELS[1] - 1)?, m(3, KERNELS[2] * KERNELS[2] - 1)?];
+            let aff = [
+                m(1, KERNELS[0] * KERNELS[0] - 1)?,
+                m(2, KERNELS[1] * KERNELS[1] - 1)?,
+                m(3, KERNELS[2] * KERNELS[2] - 1)?,
+            ];
             let (km, tm) = (m(4, 3)?, m(5, 3)?);
-            refine(typed(ins[0], i)?, x_shape.h, x_shape.w, [&aff[0], &aff[1], &aff[2]], &km, &tm, attrs, typed_mut(out_b, i)?, typed_mut(scr_b, i)?)
-                .map_err(e)?;
+            refine(
+                typed(ins[0], i)?,
+                x_shape.h,
+                x_shape.w,
+                [&aff[0], &aff[1], &aff[2]],
+                &km,
+                &tm,
+                attrs,
+                typed_mut(out_b, i)?,
+                typed_mut(scr_b, i)?,
+            )
+            .map_err(e)?;
         }
         _ => return Err(bad),
     }

@@ -63,13 +63,24 @@ impl From<PlanError> for Error {
 impl core::fmt::Display for Error {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            Error::ArenaTooSmall { need, have } => write!(f, "arena too small: need {need} bytes, have {have}"),
+            Error::ArenaTooSmall { need, have } => {
+                write!(f, "arena too small: need {need} bytes, have {have}")
+            }
             Error::BadBlob { offset, what } => write!(f, "bad model blob at byte {offset}: {what}"),
             Error::BadChecksum { stored, computed } => {
-                write!(f, "model blob checksum mismatch: header {stored:#010x}, payload {computed:#010x}")
+                write!(
+                    f,
+                    "model blob checksum mismatch: header {stored:#010x}, payload {computed:#010x}"
+                )
             }
-            Error::UnsupportedVersion { found } => write!(f, "unsupported model blob version {found}"),
-            Error::ShapeMismatch { what, expected, found } => {
+            Error::UnsupportedVersion { found } => {
+                write!(f, "unsupported model blob version {found}")
+            }
+            Error::ShapeMismatch {
+                what,
+                expected,
+                found,
+            } => {
                 write!(f, "{what}: expected {expected} elements, found {found}")
             }
             Error::Plan(e) => write!(f, "cannot plan the graph: {e}"),

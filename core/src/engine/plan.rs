@@ -145,7 +145,9 @@ impl Plan {
 }
 
 fn round_up(n: usize) -> Result<usize, PlanError> {
-    n.checked_add(ALIGN - 1).map(|v| v / ALIGN * ALIGN).ok_or(PlanError::TooLarge)
+    n.checked_add(ALIGN - 1)
+        .map(|v| v / ALIGN * ALIGN)
+        .ok_or(PlanError::TooLarge)
 }
 
 /// Places buffers greedily (largest first, lowest non-conflicting offset); writes one offset
@@ -162,7 +164,10 @@ pub fn place(reqs: &[BufferReq], offsets: &mut [usize]) -> Result<usize, PlanErr
     // Decreasing size, then earlier first use, then index: deterministic.
     order.sort_unstable_by(|&a, &b| {
         let (ra, rb) = (&reqs[a as usize], &reqs[b as usize]);
-        rb.bytes.cmp(&ra.bytes).then(ra.first.cmp(&rb.first)).then(a.cmp(&b))
+        rb.bytes
+            .cmp(&ra.bytes)
+            .then(ra.first.cmp(&rb.first))
+            .then(a.cmp(&b))
     });
     let mut placed: Vec<u16, MAX_BUFFERS> = Vec::new();
     let mut total = 0usize;
@@ -173,7 +178,9 @@ pub fn place(reqs: &[BufferReq], offsets: &mut [usize]) -> Result<usize, PlanErr
             let q = reqs[j as usize];
             if q.bytes > 0 && q.first <= r.last && r.first <= q.last {
                 let o = offsets[j as usize];
-                conflicts.push((o, o + q.bytes)).map_err(|_| PlanError::TooLarge)?;
+                conflicts
+                    .push((o, o + q.bytes))
+                    .map_err(|_| PlanError::TooLarge)?;
             }
         }
         conflicts.sort_unstable();
@@ -203,13 +210,30 @@ struct OpPlan {
 fn plan_op(i: usize, op: &OpInfo, g: &Graph, shapes: &[Shape]) -> Result<OpPlan, PlanError> {
     use opcode::*;
     let err = |what| PlanError::Shape { op: i, what };
-    let shape = |id: u16| shapes.get(id as usize).copied().ok_or(err("input shape unknown"));
+    let shape = |id: u16| {
+        shapes
+            .get(id as usize)
+            .copied()
+            .ok_or(err("input shape unknown"))
+    };
     let x = shape(op.inputs[0])?;
-    let out_c = g.tensors.get(op.output as usize).ok_or(err("output id"))?.channels;
-    let mut p = OpPlan { out: Shape::new(out_c, x.h, x.w), scratch: 0, consts: 0, broadcast: Broadcast::None, macs: 0 };
+    let out_c = g
+        .tensors
+        .get(op.output as usize)
+        .ok_or(err("output id"))?
+        .channels;
+    let mut p = OpPlan {
+        out: Shape::new(out_c, x.h, x.w),
+        scratch: 0,
+        consts: 0,
+        broadcast: Broadcast::None,
+        macs: 0,
+    };
     match (op.code, &op.attrs) {
         (CONV2D | LINEAR, Attrs::Conv { geometry, .. }) => {
-            p.out = geometry.output_shape(x, out_c).ok_or(err("conv: no output for this input size"))?;
+            p.out = geometry
+                .output_shape(x, out_c)
+                .ok_or(err("conv: no output for this input size"))?;
             p.scratch = p.out.w.checked_mul(4).ok_or(PlanError::TooLarge)?;
             p.consts = out_c * size_of::<ChannelQuant>();
             let taps = geometry.weight_len(x.c, out_c).ok_or(PlanError::TooLarge)? / out_c;
@@ -230,7 +254,9 @@ fn plan_op(i: usize, op: &OpInfo, g: &Graph, shapes: &[Shape]) -> Result<OpPlan,
             } else if y == Shape::new(x.c, 1, 1) {
                 Broadcast::OverSpace
             } else {
-                return Err(err("mul: second operand neither equal, [1,H,W] nor [C,1,1]"));
+                return Err(err(
+                    "mul: second operand neither equal, [1,H,W] nor [C,1,1]",
+                ));
             };
             p.consts = size_of::<MulQuant>();
         }
@@ -246,16 +272,27 @@ fn plan_op(i: usize, op: &OpInfo, g: &Graph, shapes: &[Shape]) -> Result<OpPlan,
         (UPSAMPLE_BILINEAR, Attrs::Upsample { mode, a, b }) => {
             let (h, w) = match *mode {
                 upsample_mode::FIXED => (*a, *b),
-                upsample_mode::SCALE => (x.h.checked_mul(*a).ok_or(PlanError::TooLarge)?, x.w.checked_mul(*b).ok_or(PlanError::TooLarge)?),
+                upsample_mode::SCALE => (
+                    x.h.checked_mul(*a).ok_or(PlanError::TooLarge)?,
+                    x.w.checked_mul(*b).ok_or(PlanError::TooLarge)?,
+                ),
                 _ => {
-                    let s = shapes.get(*a).copied().filter(|s| s.c > 0).ok_or(err("upsample: size tensor unknown"))?;
+                    let s = shapes
+                        .get(*a)
+                        .copied()
+                        .filter(|s| s.c > 0)
+                        .ok_or(err("upsample: size tensor unknown"))?;
                     (s.h, s.w)
                 }
             };
             p.out = Shape::new(out_c, h, w);
         }
         (PIXEL_SHUFFLE, Attrs::PixelShuffle(r)) => {
-            p.out = Shape::new(out_c, x.h.checked_mul(*r).ok_or(PlanError::TooLarge)?, x.w.checked_mul(*r).ok_or(PlanError::TooLarge)?);
+            p.out = Shape::new(
+                out_c,
+                x.h.checked_mul(*r).ok_or(PlanError::TooLarge)?,
+                x.w.checked_mul(*r).ok_or(PlanError::TooLarge)?,
+            );
         }
         (GLOBAL_AVG_POOL, _) => {
             p.out = Shape::new(out_c, 1, 1);
@@ -273,7 +310,8 @@ fn plan_op(i: usize, op: &OpInfo, g: &Graph, shapes: &[Shape]) -> Result<OpPlan,
                 return Err(err("bins_head: bin logits must be [N,1,1]"));
             }
             p.consts = attrs.n_bins * size_of::<BinChannel>();
-            p.macs = (x.plane().ok_or(PlanError::TooLarge)? as u64).saturating_mul((x.c * attrs.n_bins) as u64);
+            p.macs = (x.plane().ok_or(PlanError::TooLarge)? as u64)
+                .saturating_mul((x.c * attrs.n_bins) as u64);
         }
         (REFINE, _) => {
             for &id in &op.inputs {
@@ -282,7 +320,10 @@ fn plan_op(i: usize, op: &OpInfo, g: &Graph, shapes: &[Shape]) -> Result<OpPlan,
                     return Err(err("refine: inputs differ in H or W"));
                 }
             }
-            p.scratch = x.plane().and_then(|n| n.checked_mul(8)).ok_or(PlanError::TooLarge)?;
+            p.scratch = x
+                .plane()
+                .and_then(|n| n.checked_mul(8))
+                .ok_or(PlanError::TooLarge)?;
         }
         _ => return Err(err("op attributes do not match the opcode")),
     }
@@ -302,7 +343,8 @@ pub fn plan(graph: &Graph, h: usize, w: usize) -> Result<Plan, PlanError> {
     shapes[graph.rgb as usize] = Shape::new(3, h, w);
     shapes[graph.sparse as usize] = Shape::new(1, h, w);
     let mut reqs: Vec<BufferReq, MAX_BUFFERS> = Vec::new();
-    reqs.resize(n_t + n_ops, BufferReq::default()).map_err(|_| PlanError::TooLarge)?;
+    reqs.resize(n_t + n_ops, BufferReq::default())
+        .map_err(|_| PlanError::TooLarge)?;
     let last_step = n_ops + 1;
     let mut consts: Vec<Range<usize>, MAX_OPS> = Vec::new();
     let mut broadcast: Vec<Broadcast, MAX_OPS> = Vec::new();
@@ -313,10 +355,18 @@ pub fn plan(graph: &Graph, h: usize, w: usize) -> Result<Plan, PlanError> {
         shapes[op.output as usize] = p.out;
         let step = i + 1;
         let cb = round_up(p.consts)?;
-        consts.push(persistent..persistent + p.consts).map_err(|_| PlanError::TooLarge)?;
+        consts
+            .push(persistent..persistent + p.consts)
+            .map_err(|_| PlanError::TooLarge)?;
         persistent = persistent.checked_add(cb).ok_or(PlanError::TooLarge)?;
-        broadcast.push(p.broadcast).map_err(|_| PlanError::TooLarge)?;
-        reqs[n_t + i] = BufferReq { bytes: round_up(p.scratch)?, first: step, last: step };
+        broadcast
+            .push(p.broadcast)
+            .map_err(|_| PlanError::TooLarge)?;
+        reqs[n_t + i] = BufferReq {
+            bytes: round_up(p.scratch)?,
+            first: step,
+            last: step,
+        };
         reqs[op.output as usize].first = step;
         reqs[op.output as usize].last = step;
         for &id in &op.inputs {
@@ -325,18 +375,38 @@ pub fn plan(graph: &Graph, h: usize, w: usize) -> Result<Plan, PlanError> {
         macs = macs.saturating_add(p.macs);
     }
     if shapes[graph.output as usize] != Shape::new(1, h, w) {
-        return Err(PlanError::Shape { op: n_ops.saturating_sub(1), what: "output is not [1,H,W]" });
+        return Err(PlanError::Shape {
+            op: n_ops.saturating_sub(1),
+            what: "output is not [1,H,W]",
+        });
     }
     reqs[graph.output as usize].last = last_step;
     for (t, info) in graph.tensors.iter().enumerate() {
         let elem = if info.dtype == DType::F32 { 4 } else { 1 };
-        let n = shapes[t].len().and_then(|n| n.checked_mul(elem)).ok_or(PlanError::TooLarge)?;
+        let n = shapes[t]
+            .len()
+            .and_then(|n| n.checked_mul(elem))
+            .ok_or(PlanError::TooLarge)?;
         reqs[t].bytes = round_up(n)?;
     }
     let mut offsets: Vec<usize, MAX_BUFFERS> = Vec::new();
-    offsets.resize(reqs.len(), 0).map_err(|_| PlanError::TooLarge)?;
+    offsets
+        .resize(reqs.len(), 0)
+        .map_err(|_| PlanError::TooLarge)?;
     let activation_bytes = place(&reqs, &mut offsets)?;
-    Ok(Plan { height: h, width: w, n_tensors: n_t, shapes, reqs, offsets, consts, broadcast, persistent_bytes: persistent, activation_bytes, macs })
+    Ok(Plan {
+        height: h,
+        width: w,
+        n_tensors: n_t,
+        shapes,
+        reqs,
+        offsets,
+        consts,
+        broadcast,
+        persistent_bytes: persistent,
+        activation_bytes,
+        macs,
+    })
 }
 
 #[cfg(test)]
@@ -347,9 +417,21 @@ mod tests {
     fn place_reuses_freed_memory() {
         // a (0..1) and c (2..3) never live together: c reuses a's bytes; b overlaps both.
         let reqs = [
-            BufferReq { bytes: 32, first: 0, last: 1 },
-            BufferReq { bytes: 16, first: 1, last: 2 },
-            BufferReq { bytes: 32, first: 2, last: 3 },
+            BufferReq {
+                bytes: 32,
+                first: 0,
+                last: 1,
+            },
+            BufferReq {
+                bytes: 16,
+                first: 1,
+                last: 2,
+            },
+            BufferReq {
+                bytes: 32,
+                first: 2,
+                last: 3,
+            },
         ];
         let mut off = [0; 3];
         let total = place(&reqs, &mut off).unwrap();
@@ -362,7 +444,11 @@ mod tests {
     fn place_never_overlaps_live_buffers() {
         let mut reqs = [BufferReq::default(); 40];
         for (i, r) in reqs.iter_mut().enumerate() {
-            *r = BufferReq { bytes: 16 * (1 + (i * 7) % 5), first: i % 9, last: i % 9 + (i * 3) % 4 };
+            *r = BufferReq {
+                bytes: 16 * (1 + (i * 7) % 5),
+                first: i % 9,
+                last: i % 9 + (i * 3) % 4,
+            };
         }
         let mut off = [0; 40];
         let total = place(&reqs, &mut off).unwrap();
@@ -371,7 +457,10 @@ mod tests {
             for j in 0..i {
                 let (a, b) = (reqs[i], reqs[j]);
                 if a.first <= b.last && b.first <= a.last {
-                    assert!(off[i] + a.bytes <= off[j] || off[j] + b.bytes <= off[i], "{i} {j}");
+                    assert!(
+                        off[i] + a.bytes <= off[j] || off[j] + b.bytes <= off[i],
+                        "{i} {j}"
+                    );
                 }
             }
         }
