@@ -285,7 +285,7 @@ pub fn parse(blob: &[u8]) -> Result<Graph<'_>, Error> {
         }
         let (dtype, q) = match dt {
             dtype::I8 => {
-                if !(scale.is_finite() && scale > 0.0) || !(-128..=127).contains(&zero_point) {
+                if !(scale.is_finite() && scale > 0.0 && (-128..=127).contains(&zero_point)) {
                     return Err(bad(
                         at + 4,
                         "tensor: int8 scale must be finite and > 0, zero point in -128..=127",
@@ -362,7 +362,7 @@ pub fn parse(blob: &[u8]) -> Result<Graph<'_>, Error> {
             return Err(bad(at + 2, "op: output tensor produced twice"));
         }
         produced[out_id as usize] = true;
-        if attr_len % 4 != 0 {
+        if !attr_len.is_multiple_of(4) {
             return Err(bad(at + 4, "op: attr_len not a multiple of 4"));
         }
         let attr_start = r.pos;
@@ -628,7 +628,7 @@ fn read_attrs(code: u8, a: &mut Reader) -> Result<(Attrs, [u32; 3]), Error> {
                 a.f32("refine: sigma5")?,
                 a.f32("refine: sigma7")?,
             ];
-            if iterations % 2 != 0
+            if !iterations.is_multiple_of(2)
                 || iterations > MAX_ITERATIONS
                 || sigma.iter().any(|s| !(s.is_finite() && *s > 0.0))
             {

@@ -74,7 +74,7 @@ impl ConvGeometry {
     /// Output shape for an input shape and `out_c` output channels; `None` if inconsistent.
     pub fn output_shape(&self, input: Shape, out_c: usize) -> Option<Shape> {
         let g = self.groups;
-        if g == 0 || input.c % g != 0 || out_c % g != 0 || out_c == 0 || input.c == 0 {
+        if g == 0 || !input.c.is_multiple_of(g) || !out_c.is_multiple_of(g) || out_c == 0 || input.c == 0 {
             return None;
         }
         let dim = |n: usize, k: usize, s: usize, d: usize, p: usize| -> Option<usize> {

@@ -264,7 +264,7 @@ pub fn pixel_shuffle<T: Copy>(
     out: &mut [T],
 ) -> Result<Shape, KernelError> {
     let rr = r.checked_mul(r).ok_or(KernelError::Attr)?;
-    if r == 0 || in_shape.c % rr != 0 {
+    if r == 0 || !in_shape.c.is_multiple_of(rr) {
         return Err(KernelError::Attr);
     }
     let os = Shape::new(

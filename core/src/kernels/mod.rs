@@ -37,6 +37,11 @@ impl Shape {
         self.c.checked_mul(self.h)?.checked_mul(self.w)
     }
 
+    /// True when the shape has no elements.
+    pub fn is_empty(&self) -> bool {
+        self.c == 0 || self.h == 0 || self.w == 0
+    }
+
     /// Elements of one channel plane, `None` on overflow.
     pub fn plane(&self) -> Option<usize> {
         self.h.checked_mul(self.w)

@@ -41,7 +41,7 @@ pub fn round_half_away(v: f32) -> f32 {
     if v.is_nan() {
         return 0.0;
     }
-    if !(v.abs() < 8_388_608.0) {
+    if v.abs() >= 8_388_608.0 {
         return v; // already integral (or infinite)
     }
     let t = (v.abs() + 0.5) as i32 as f32;
@@ -66,7 +66,7 @@ impl Requant {
     /// Encodes a real multiplier (TFLite `QuantizeMultiplier`). Zero, negative, NaN and values
     /// below 2^-32 give the zero multiplier; values ≥ 2^30 saturate.
     pub fn from_real(real: f64) -> Requant {
-        if !(real > 0.0) {
+        if real.is_nan() || real <= 0.0 {
             return Requant::default();
         }
         let bits = real.to_bits();

@@ -44,7 +44,7 @@ impl BlobWriter {
         (self.tensors.len() - 1) as u16
     }
     pub fn param(&mut self, bytes: &[u8]) -> u32 {
-        while self.data.len() % 16 != 0 {
+        while !self.data.len().is_multiple_of(16) {
             self.data.push(0);
         }
         let off = self.data.len() as u32;
@@ -59,7 +59,7 @@ impl BlobWriter {
         for i in inputs {
             r.extend_from_slice(&i.to_le_bytes());
         }
-        while r.len() % 4 != 0 {
+        while !r.len().is_multiple_of(4) {
             r.push(0);
         }
         r.extend_from_slice(attrs);
@@ -73,7 +73,7 @@ impl BlobWriter {
         for o in &self.ops {
             payload.extend_from_slice(o); // records are multiples of 4 and start 4-aligned
         }
-        while (HEADER_LEN + payload.len()) % 16 != 0 {
+        while !(HEADER_LEN + payload.len()).is_multiple_of(16) {
             payload.push(0);
         }
         payload.extend_from_slice(&self.data);
