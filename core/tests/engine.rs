@@ -173,3 +173,32 @@ fn engine_struct_size_is_known() {
     println!("size_of::<Engine>() = {size} bytes");
     assert!(size < 64 * 1024);
 }
+
+/// Arena of the test network at the `mcu` size, with its largest buffers (a figure for the
+/// report; the real `mcu` graph's budget test belongs with its blob).
+#[test]
+fn arena_at_mcu_size() {
+    let (blob, ..) = blob_and_float();
+    let g = parse(&blob).unwrap();
+    let p = plan(&g, 120, 160).unwrap();
+    let mut bufs: Vec<_> = p
+        .buffers()
+        .enumerate()
+        .filter(|(_, (b, _))| b.bytes > 0)
+        .collect();
+    bufs.sort_by_key(|(_, (b, _))| std::cmp::Reverse(b.bytes));
+    println!(
+        "tiny net at 120x160: arena {} B = persistent {} + activations {} (sum of buffers {})",
+        p.arena_bytes(),
+        p.persistent_bytes(),
+        p.activation_bytes(),
+        bufs.iter().map(|(_, (b, _))| b.bytes).sum::<usize>()
+    );
+    for (i, (b, off)) in bufs.iter().take(6) {
+        println!(
+            "  buffer {i}: {} B at {off}, steps {}..={}",
+            b.bytes, b.first, b.last
+        );
+    }
+    assert!(p.arena_bytes() < 4 << 20);
+}

@@ -24,7 +24,7 @@
 use crate::blob::format::{opcode, upsample_mode, MAX_OPS, MAX_TENSORS};
 use crate::blob::parse::{Attrs, DType, Graph, OpInfo};
 use crate::kernels::bins::BinChannel;
-use crate::kernels::conv::ChannelQuant;
+use crate::kernels::conv::{ChannelQuant, Conv2d};
 use crate::kernels::elementwise::{AddQuant, MulQuant, Rescale};
 use crate::kernels::float::Broadcast;
 use crate::kernels::pool::MeanQuant;
@@ -234,7 +234,9 @@ fn plan_op(i: usize, op: &OpInfo, g: &Graph, shapes: &[Shape]) -> Result<OpPlan,
             p.out = geometry
                 .output_shape(x, out_c)
                 .ok_or(err("conv: no output for this input size"))?;
-            p.scratch = p.out.w.checked_mul(4).ok_or(PlanError::TooLarge)?;
+            p.scratch = Conv2d::scratch_len(x, p.out)
+                .checked_mul(4)
+                .ok_or(PlanError::TooLarge)?;
             p.consts = out_c * size_of::<ChannelQuant>();
             let taps = geometry.weight_len(x.c, out_c).ok_or(PlanError::TooLarge)? / out_c;
             p.macs = (p.out.len().ok_or(PlanError::TooLarge)? as u64).saturating_mul(taps as u64);

@@ -154,7 +154,10 @@ pub fn refine<A: Map, B: Map>(
 ) -> Result<(), KernelError> {
     let p = h.checked_mul(w).ok_or(KernelError::Shape)?;
     let t_max = attrs.iterations;
-    if t_max > MAX_ITERATIONS || !t_max.is_multiple_of(2) || attrs.sigma.iter().any(|s| s.is_nan() || *s <= 0.0) {
+    if t_max > MAX_ITERATIONS
+        || !t_max.is_multiple_of(2)
+        || attrs.sigma.iter().any(|s| s.is_nan() || *s <= 0.0)
+    {
         return Err(KernelError::Attr);
     }
     if d0.len() < p
