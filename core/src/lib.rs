@@ -10,7 +10,7 @@
 //! 3. prior → fusion → bins → refinement: the [`engine`] runs the int8 model [`blob`] (format in
 //!    [`blob::format`]) op by op with the [`kernels`] — conv/elementwise/resize/pool in int8
 //!    (TFLite int8 arithmetic), then [`kernels::bins`] and [`kernels::refine`] in f32 — inside
-//!    one caller-provided arena planned by [`engine::plan`].
+//!    one caller-provided arena planned by [`engine::plan()`].
 //! 4. [`metrics`]: δ1–3, AbsRel, RMSE, log10, MAE and EWMAE against a reference.
 //!
 //! ```

@@ -1,5 +1,5 @@
 //! The int8 model blob: its byte [`format`], the [`checksum`] over its payload, and the
-//! validating [`parse`]r that turns it into a [`parse::Graph`] without copying weights.
+//! validating [`parse()`]r that turns it into a [`parse::Graph`] without copying weights.
 
 pub mod checksum;
 pub mod format;

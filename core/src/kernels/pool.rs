@@ -91,7 +91,7 @@ pub fn channel_mean(
     shape: Shape,
     out: &mut [i8],
 ) -> Result<(), KernelError> {
-    let p = check(input, shape, out, shape.h * shape.w)?;
+    let p = check(input, shape, out, shape.h.saturating_mul(shape.w))?;
     for (i, o) in out[..p].iter_mut().enumerate() {
         let mut sum = 0i32;
         for c in 0..shape.c {
@@ -109,7 +109,7 @@ pub fn channel_max(
     shape: Shape,
     out: &mut [i8],
 ) -> Result<(), KernelError> {
-    let p = check(input, shape, out, shape.h * shape.w)?;
+    let p = check(input, shape, out, shape.h.saturating_mul(shape.w))?;
     out[..p].copy_from_slice(&input[..p]);
     for c in 1..shape.c {
         for (o, &x) in out[..p].iter_mut().zip(&input[c * p..(c + 1) * p]) {
