@@ -36,9 +36,35 @@ pub struct TensorInfo {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Param {
     /// Start, bytes from the blob start.
-    pub offset: usize,
+    pub offset: u32,
     /// Length in bytes.
-    pub len: usize,
+    pub len: u32,
+}
+
+impl Param {
+    /// The byte range in the blob.
+    pub fn range(&self) -> core::ops::Range<usize> {
+        self.offset as usize..self.offset as usize + self.len as usize
+    }
+}
+
+/// Conv geometry as stored (u16 fields, to keep the op table small);
+/// `[kh, kw, sh, sw, dh, dw, ph, pw, groups]`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Geometry(pub [u16; 9]);
+
+impl Geometry {
+    /// The kernel-facing geometry.
+    pub fn get(&self) -> ConvGeometry {
+        let v = self.0.map(|x| x as usize);
+        ConvGeometry {
+            kernel: [v[0], v[1]],
+            stride: [v[2], v[3]],
+            dilation: [v[4], v[5]],
+            padding: [v[6], v[7]],
+            groups: v[8],
+        }
+    }
 }
 
 /// Parsed attributes of an op.
@@ -47,7 +73,7 @@ pub enum Attrs {
     /// `conv2d` / `linear`.
     Conv {
         /// Geometry.
-        geometry: ConvGeometry,
+        geometry: Geometry,
         /// Fused activation.
         act: Activation,
         /// int8 weights.
@@ -136,7 +162,7 @@ impl Graph<'_> {
 
     /// Bytes of a validated parameter.
     pub fn bytes(&self, p: Param) -> &[u8] {
-        self.blob.get(p.offset..p.offset + p.len).unwrap_or(&[])
+        self.blob.get(p.range()).unwrap_or(&[])
     }
 }
 
@@ -409,7 +435,10 @@ pub fn parse(blob: &[u8]) -> Result<Graph<'_>, Error> {
         let param = |rel: u32, len: usize, what: &'static str| -> Result<Param, Error> {
             let offset = data.checked_add(rel as usize).ok_or(bad(at, what))?;
             match offset.checked_add(len) {
-                Some(e) if rel != NONE && e <= end => Ok(Param { offset, len }),
+                Some(e) if rel != NONE && e <= end => Ok(Param {
+                    offset: u32::try_from(offset).map_err(|_| bad(at, what))?,
+                    len: u32::try_from(len).map_err(|_| bad(at, what))?,
+                }),
                 _ => Err(bad(at, what)),
             }
         };
@@ -422,6 +451,7 @@ pub fn parse(blob: &[u8]) -> Result<Graph<'_>, Error> {
                 ..
             } => {
                 let n = geometry
+                    .get()
                     .weight_len(in_c, out_c)
                     .filter(|&n| n / out_c <= MAX_TAPS);
                 let n = n.ok_or(bad(at, "conv: weight shape too large"))?;
@@ -482,13 +512,14 @@ pub fn parse(blob: &[u8]) -> Result<Graph<'_>, Error> {
 }
 
 fn check_scales(blob: &[u8], p: Param, n: usize, at: usize) -> Result<(), Error> {
-    let bytes = blob
-        .get(p.offset..p.offset + p.len)
-        .ok_or(bad(at, "scales"))?;
+    let bytes = blob.get(p.range()).ok_or(bad(at, "scales"))?;
     for i in 0..n {
         let s = f32_at(bytes, i);
         if !(s.is_finite() && s > 0.0) {
-            return Err(bad(p.offset + 4 * i, "weight scale must be finite and > 0"));
+            return Err(bad(
+                p.offset as usize + 4 * i,
+                "weight scale must be finite and > 0",
+            ));
         }
     }
     Ok(())
@@ -501,10 +532,11 @@ fn read_attrs(code: u8, a: &mut Reader) -> Result<(Attrs, [u32; 3]), Error> {
     let at = a.pos;
     Ok(match code {
         CONV2D | LINEAR => {
-            let mut v = [0usize; 9];
-            for x in v.iter_mut() {
-                *x = a.u16("conv: geometry")? as usize;
+            let mut raw = [0u16; 9];
+            for x in raw.iter_mut() {
+                *x = a.u16("conv: geometry")?;
             }
+            let v = raw.map(|x| x as usize);
             let act_code = a.u8("conv: activation")?;
             a.u8("conv: reserved")?;
             let alpha = a.f32("conv: alpha")?;
@@ -536,7 +568,7 @@ fn read_attrs(code: u8, a: &mut Reader) -> Result<(Attrs, [u32; 3]), Error> {
             };
             (
                 Attrs::Conv {
-                    geometry,
+                    geometry: Geometry(raw),
                     act,
                     weights: NO_PARAM,
                     bias: None,
@@ -549,7 +581,7 @@ fn read_attrs(code: u8, a: &mut Reader) -> Result<(Attrs, [u32; 3]), Error> {
             a.take(256, "table: 256 bytes")?;
             (
                 Attrs::Lut(Param {
-                    offset: at,
+                    offset: u32::try_from(at).map_err(|_| bad(at, "table offset"))?,
                     len: 256,
                 }),
                 [NONE; 3],
@@ -676,7 +708,7 @@ fn check_types(
     }
     let ok = match (op.code, &op.attrs) {
         (CONV2D | LINEAR, Attrs::Conv { geometry, .. }) => {
-            let g = geometry.groups;
+            let g = geometry.get().groups;
             x.channels % g == 0 && out.channels % g == 0
         }
         (RELU | LEAKY_RELU | SIGMOID | RECIPROCAL | MINMAX_NORM, _) => x.channels == out.channels,

@@ -477,7 +477,7 @@ fn exec(
             },
         ) => {
             let conv = Conv2d {
-                geometry: *geometry,
+                geometry: geometry.get(),
                 quant: ConvQuant::new(
                     tq(op.inputs[0])?.zero_point,
                     tq(op.output)?.zero_point,

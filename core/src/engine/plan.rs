@@ -231,6 +231,7 @@ fn plan_op(i: usize, op: &OpInfo, g: &Graph, shapes: &[Shape]) -> Result<OpPlan,
     };
     match (op.code, &op.attrs) {
         (CONV2D | LINEAR, Attrs::Conv { geometry, .. }) => {
+            let geometry = geometry.get();
             p.out = geometry
                 .output_shape(x, out_c)
                 .ok_or(err("conv: no output for this input size"))?;
