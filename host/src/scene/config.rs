@@ -64,7 +64,7 @@ impl Default for SceneConfig {
             thin_structures: [0, 3],
             slanted_planes: [0, 1],
             wall_items: [0, 3],
-            glass_prob: 0.55,
+            glass_prob: 0.6,
             mirror_prob: 0.4,
             dark_prob: 0.6,
             opening_prob: 0.5,

@@ -219,11 +219,16 @@ impl Builder<'_> {
 
     /// A free floor spot for a footprint of radius `r`: in view with probability `p_view`.
     fn spot(&mut self, r: f32, p_view: f32) -> Option<(f32, f32)> {
+        self.spot_within(r, p_view, f32::INFINITY)
+    }
+
+    /// Like [`Self::spot`], at most `max_d` metres from the camera when in view.
+    fn spot_within(&mut self, r: f32, p_view: f32, max_d: f32) -> Option<(f32, f32)> {
         let cam = self.w.cam_pos;
         for _ in 0..16 {
             let (x, z) = if self.rng.chance(p_view) {
                 let a = self.yaw + self.rng.range(-0.45, 0.45) * self.hfov;
-                let d = self.rng.range(1.0, (self.depth - cam.z).max(1.2));
+                let d = self.rng.range(1.0, (self.depth - cam.z).min(max_d).max(1.2));
                 (cam.x + d * a.sin(), cam.z + d * a.cos())
             } else {
                 (self.rng.range(-self.hw, self.hw), self.rng.range(0.0, self.depth))
@@ -315,10 +320,15 @@ impl Builder<'_> {
         let h = self.rng.range(0.4, 2.1).min(self.height - 0.1);
         // Against the far wall or a side wall.
         let side = self.rng.below(3);
+        let (x_lo, x_hi) = self.far_span(w);
+        let (x_lo, x_hi) = if x_hi > x_lo { (x_lo, x_hi) } else { (-self.hw + w, self.hw - w) };
+        let s = if side == 1 { -1.0 } else { 1.0 };
+        let (z_lo, z_hi) = self.side_span(s, w);
+        let (z_lo, z_hi) = if z_hi > z_lo { (z_lo, z_hi) } else { (1.5, self.depth - w) };
         let (x, z, yaw) = match side {
-            0 => (self.rng.range(-self.hw + w, self.hw - w), self.depth - d - 0.01, 0.0),
-            1 => (-self.hw + d + 0.01, self.rng.range(1.5, self.depth - w).max(1.0), FRAC_PI_2),
-            _ => (self.hw - d - 0.01, self.rng.range(1.5, self.depth - w).max(1.0), -FRAC_PI_2),
+            0 => (self.rng.range(x_lo, x_hi), self.depth - d - 0.01, 0.0),
+            1 => (-self.hw + d + 0.01, self.rng.range(z_lo, z_hi).max(1.0), FRAC_PI_2),
+            _ => (self.hw - d - 0.01, self.rng.range(z_lo, z_hi).max(1.0), -FRAC_PI_2),
         };
         let r = (w * w + d * d).sqrt();
         if self.taken.iter().any(|&(tx, tz, tr)| ((x - tx).powi(2) + (z - tz).powi(2)).sqrt() < r + tr)
@@ -577,7 +587,7 @@ impl Builder<'_> {
     /// A standing mirror or glass partition in view: a quad on two thin posts.
     fn standing_pane(&mut self, mirror: bool) -> bool {
         let hw = self.rng.range(0.3, 0.9);
-        let Some((x, z)) = self.spot(hw, 0.9) else { return false };
+        let Some((x, z)) = self.spot_within(hw, 1.0, 5.0) else { return false };
         let h = self.rng.range(1.0, 2.0).min(self.height - 0.1);
         let yaw = self.yaw + self.rng.range(-0.6, 0.6);
         let tilt = if mirror { self.rng.range(-0.15, 0.05) } else { 0.0 };
@@ -730,7 +740,7 @@ pub fn build(cfg: &SceneConfig, seed: u64, hfov: f32) -> World {
     if has_opening {
         for _ in 0..1 + b.rng.below(2) {
             let window = b.rng.chance(0.6);
-            let glass = window && has_glass && b.rng.chance(0.7);
+            let glass = window && has_glass && b.rng.chance(0.85);
             b.opening(window, glass, &mut used);
         }
     }
@@ -753,10 +763,11 @@ pub fn build(cfg: &SceneConfig, seed: u64, hfov: f32) -> World {
     }
 
     // Special materials first so they are not crowded out.
-    if has_glass && !b.w.mats.iter().any(|m| m.class == Class::Transparent) {
-        let ok = match b.rng.below(3) {
-            0 => b.standing_pane(false),
-            1 => b.table(true, false),
+    if has_glass {
+        // Besides any window pane, one piece of glass furniture placed in view.
+        let ok = match b.rng.below(5) {
+            0 | 1 => b.standing_pane(false),
+            2 => b.table(true, false),
             _ => b.cabinet(true, false),
         };
         if !ok {
@@ -827,12 +838,32 @@ mod tests {
     use super::*;
 
     #[test]
-    fn debug_counts() {
-        for seed in 0..8 {
+    fn camera_lamps_and_items_sit_inside_the_room() {
+        for seed in 0..40 {
             let w = build(&SceneConfig::default(), seed, 1.1);
-            let c = |k: Class| w.mats.iter().filter(|m| m.class == k).count();
-            let pc = |k: Class| w.prims.iter().filter(|p| w.mats[p.mat as usize].class == k).count();
-            println!("seed {seed}: groups {} prims {} glass {}/{} mirror {}/{} dark {}/{} openings {}", w.groups.len(), w.prims.len(), c(Class::Transparent), pc(Class::Transparent), c(Class::Specular), pc(Class::Specular), c(Class::Dark), pc(Class::Dark), w.room.openings.len());
+            let (lo, hi) = (w.room.min, w.room.max);
+            let inside = |p: V3| p.x > lo.x && p.x < hi.x && p.y > lo.y && p.y < hi.y && p.z > lo.z && p.z < hi.z;
+            assert!(inside(w.cam_pos), "seed {seed}: camera {:?}", w.cam_pos);
+            assert!(!w.lights.is_empty() && w.lights.len() <= 3);
+            assert!(w.lights.iter().all(|l| inside(l.pos)));
+            let depth = hi.z - lo.z;
+            assert!((2.5..=12.0).contains(&depth), "seed {seed}: depth {depth}");
+            // Each group's sphere encloses its primitives' spheres, and groups tile the list.
+            let mut next = 0;
+            for g in &w.groups {
+                assert_eq!(g.start, next);
+                next = g.end;
+                for p in &w.prims[g.start as usize..g.end as usize] {
+                    assert!((p.bc - g.bc).len() + p.br <= g.br * 1.0001 + 1e-5);
+                }
+            }
+            assert_eq!(next as usize, w.prims.len());
+            // The camera is outside every item.
+            for p in &w.prims {
+                if let Shape::Cuboid { .. } | Shape::Sphere { .. } | Shape::Cylinder { .. } = p.shape {
+                    assert!((w.cam_pos - p.bc).len() > 0.3 || p.br > 1.5, "seed {seed}: camera in {:?}", p.shape);
+                }
+            }
         }
     }
 }
