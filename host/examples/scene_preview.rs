@@ -9,7 +9,13 @@ use std::time::Instant;
 
 fn colormap(t: f32) -> [u8; 3] {
     // Piecewise-linear "turbo"-like ramp: dark blue → cyan → green → yellow → red.
-    let stops = [[48.0, 18.0, 59.0], [40.0, 160.0, 250.0], [60.0, 230.0, 110.0], [250.0, 220.0, 40.0], [200.0, 30.0, 20.0]];
+    let stops = [
+        [48.0, 18.0, 59.0],
+        [40.0, 160.0, 250.0],
+        [60.0, 230.0, 110.0],
+        [250.0, 220.0, 40.0],
+        [200.0, 30.0, 20.0],
+    ];
     let t = t.clamp(0.0, 1.0) * 4.0;
     let i = (t as usize).min(3);
     let f = t - i as f32;
@@ -21,7 +27,13 @@ fn main() -> anyhow::Result<()> {
     let a: Vec<String> = std::env::args().skip(1).collect();
     let out = a.first().cloned().unwrap_or_else(|| "scene_preview".into());
     let arg = |i: usize, d: f64| a.get(i).and_then(|s| s.parse::<f64>().ok()).unwrap_or(d);
-    let (count, w, h, first, hfov) = (arg(1, 6.0) as u64, arg(2, 320.0) as u32, arg(3, 240.0) as u32, arg(4, 0.0) as u64, arg(5, 63.0) as f32);
+    let (count, w, h, first, hfov) = (
+        arg(1, 6.0) as u64,
+        arg(2, 320.0) as u32,
+        arg(3, 240.0) as u32,
+        arg(4, 0.0) as u64,
+        arg(5, 63.0) as f32,
+    );
     std::fs::create_dir_all(&out)?;
     let cfg = SceneConfig::default();
     let mut total = 0.0;
@@ -46,14 +58,19 @@ fn main() -> anyhow::Result<()> {
                 };
                 let r = (f.reflectance[i] * 255.0) as u8;
                 img.put_pixel(x as u32, y as u32, image::Rgb(rgb));
-                img.put_pixel((x + wu) as u32, y as u32, image::Rgb(colormap(f.depth_m[i] / 12.0)));
+                img.put_pixel(
+                    (x + wu) as u32,
+                    y as u32,
+                    image::Rgb(colormap(f.depth_m[i] / 12.0)),
+                );
                 img.put_pixel((x + 2 * wu) as u32, y as u32, image::Rgb(lab));
                 img.put_pixel((x + 3 * wu) as u32, y as u32, image::Rgb([r, r, r]));
             }
         }
         img.save(format!("{out}/scene_{seed:04}.png"))?;
         let max_d = f.depth_m.iter().copied().fold(0.0f32, f32::max);
-        let frac = |l: u8| f.labels.iter().filter(|&&v| v == l).count() as f32 / f.labels.len() as f32;
+        let frac =
+            |l: u8| f.labels.iter().filter(|&&v| v == l).count() as f32 / f.labels.len() as f32;
         println!(
             "seed {seed}: {:.1} ms, max depth {max_d:.2} m, glass {:.3} mirror {:.3} dark {:.3}",
             dt * 1e3,
@@ -62,6 +79,10 @@ fn main() -> anyhow::Result<()> {
             frac(3)
         );
     }
-    println!("mean {:.1} ms/frame at {h}x{w} over {count} frames ({} threads)", total / count as f64 * 1e3, rayon::current_num_threads());
+    println!(
+        "mean {:.1} ms/frame at {h}x{w} over {count} frames ({} threads)",
+        total / count as f64 * 1e3,
+        rayon::current_num_threads()
+    );
     Ok(())
 }

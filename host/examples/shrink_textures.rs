@@ -7,7 +7,10 @@ use image::imageops::FilterType;
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    anyhow::ensure!(args.len() >= 3, "usage: shrink_textures <src_dir> <dst_dir> <name>...");
+    anyhow::ensure!(
+        args.len() >= 3,
+        "usage: shrink_textures <src_dir> <dst_dir> <name>..."
+    );
     let (src, dst) = (&args[0], &args[1]);
     for name in &args[2..] {
         let img = image::open(format!("{src}/{name}"))?.to_rgb8();

@@ -12,7 +12,11 @@ fn frame(seed: u64) -> SceneFrame {
 /// Camera-frame ray of pixel `i` with z = 1.
 fn ray(f: &SceneFrame, i: usize) -> [f32; 3] {
     let (x, y) = ((i % f.width as usize) as f32, (i / f.width as usize) as f32);
-    [(x - f.camera.cx) / f.camera.fx, (y - f.camera.cy) / f.camera.fy, 1.0]
+    [
+        (x - f.camera.cx) / f.camera.fx,
+        (y - f.camera.cy) / f.camera.fy,
+        1.0,
+    ]
 }
 
 #[test]
@@ -20,7 +24,10 @@ fn same_seed_same_buffers_regardless_of_threads() {
     let a = frame(11);
     let b = frame(11);
     assert!(a == b);
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
     let c = pool.install(|| frame(11));
     assert!(a == c, "one thread gave a different frame");
 }
@@ -36,7 +43,13 @@ fn different_seeds_differ() {
 fn check_invariants(f: &SceneFrame) {
     let n = (f.width * f.height) as usize;
     assert_eq!(f.rgb.len(), 3 * n);
-    for len in [f.depth_m.len(), f.second_depth_m.len(), f.reflectance.len(), f.labels.len(), f.normals.len()] {
+    for len in [
+        f.depth_m.len(),
+        f.second_depth_m.len(),
+        f.reflectance.len(),
+        f.labels.len(),
+        f.normals.len(),
+    ] {
         assert_eq!(len, n);
     }
     for i in 0..n {
@@ -46,7 +59,10 @@ fn check_invariants(f: &SceneFrame) {
         let r = f.reflectance[i];
         assert!((0.0..=1.0).contains(&r), "reflectance {r}");
         if l == 1 || l == 2 {
-            assert!(d2.is_finite() && d2 > d, "label {l}: second {d2} <= depth {d}");
+            assert!(
+                d2.is_finite() && d2 > d,
+                "label {l}: second {d2} <= depth {d}"
+            );
         } else {
             assert_eq!(d2, 0.0);
         }
@@ -60,7 +76,10 @@ fn check_invariants(f: &SceneFrame) {
         let len = (nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2]).sqrt();
         assert!((len - 1.0).abs() < 1e-3, "normal length {len}");
         let v = ray(f, i);
-        assert!(nn[0] * v[0] + nn[1] * v[1] + nn[2] * v[2] <= 1e-4, "normal faces away");
+        assert!(
+            nn[0] * v[0] + nn[1] * v[1] + nn[2] * v[2] <= 1e-4,
+            "normal faces away"
+        );
     }
 }
 
@@ -98,8 +117,13 @@ fn empty_room_points_lie_on_their_face_planes() {
             let v = ray(&f, i);
             let p = [v[0] * f.depth_m[i], v[1] * f.depth_m[i], f.depth_m[i]];
             let dist = n[0] * p[0] + n[1] * p[1] + n[2] * p[2];
-            match planes.iter().find(|(m, _)| (m[0] - n[0]).abs() + (m[1] - n[1]).abs() + (m[2] - n[2]).abs() < 1e-3) {
-                Some((_, d0)) => assert!((dist - d0).abs() < 2e-3 * d0.abs().max(1.0), "seed {seed} px {i}: {dist} vs {d0}"),
+            match planes.iter().find(|(m, _)| {
+                (m[0] - n[0]).abs() + (m[1] - n[1]).abs() + (m[2] - n[2]).abs() < 1e-3
+            }) {
+                Some((_, d0)) => assert!(
+                    (dist - d0).abs() < 2e-3 * d0.abs().max(1.0),
+                    "seed {seed} px {i}: {dist} vs {d0}"
+                ),
                 None => planes.push((n, dist)),
             }
         }

@@ -41,7 +41,13 @@ impl Material {
 
     /// A diffuse material with the given texture.
     pub fn diffuse(tex: Texture, nir_offset: f32, nir_gain: f32) -> Material {
-        Material { class: Class::Diffuse, tex, nir_offset, nir_gain, exterior: false }
+        Material {
+            class: Class::Diffuse,
+            tex,
+            nir_offset,
+            nir_gain,
+            exterior: false,
+        }
     }
 }
 
@@ -84,6 +90,9 @@ mod tests {
         let m = Material::diffuse(Texture::plain(V3::ZERO), 0.1, 0.5);
         // luminance of white = 1 → 0.1 + 0.5 = 0.6; clamped at 1 for a big gain.
         assert!((m.nir(V3::splat(1.0)) - 0.6).abs() < 1e-6);
-        assert_eq!(Material::diffuse(Texture::plain(V3::ZERO), 0.5, 2.0).nir(V3::splat(1.0)), 1.0);
+        assert_eq!(
+            Material::diffuse(Texture::plain(V3::ZERO), 0.5, 2.0).nir(V3::splat(1.0)),
+            1.0
+        );
     }
 }

@@ -186,7 +186,10 @@ mod tests {
         assert!((p.x - 1.0).abs() < 1e-6 && p.z.abs() < 1e-6);
         assert!((r.apply_t(p) - v3(0.0, 0.0, 1.0)).len() < 1e-6);
         // Reflecting (1,-1,0) on the floor normal gives (1,1,0).
-        assert_eq!(v3(1.0, -1.0, 0.0).reflect(v3(0.0, 1.0, 0.0)), v3(1.0, 1.0, 0.0));
+        assert_eq!(
+            v3(1.0, -1.0, 0.0).reflect(v3(0.0, 1.0, 0.0)),
+            v3(1.0, 1.0, 0.0)
+        );
         let m = M3::rot_x(0.3).mul(&M3::rot_x(-0.3));
         assert!((m.apply(v3(0.2, 0.5, 0.7)) - v3(0.2, 0.5, 0.7)).len() < 1e-6);
     }

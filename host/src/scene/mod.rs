@@ -15,9 +15,11 @@
 //! assert_eq!(frame.depth_m.len(), 160 * 120);
 //! ```
 mod config;
+mod furniture;
 mod layout;
 mod material;
 mod math;
+mod palette;
 mod render;
 mod shapes;
 mod texture;
@@ -69,18 +71,31 @@ pub fn render_scene(cfg: &SceneConfig, seed: u64, camera: CameraIntrinsics) -> S
 /// principal point within ±2 % of the image size from the centre.
 pub fn camera_near(seed: u64, width: u32, height: u32, hfov_deg: f32) -> CameraIntrinsics {
     let mut r = Rng::derive(seed, 0xCA3E_0001);
-    let hfov = (hfov_deg + r.range(-1.5, 1.5)).clamp(1.0, 170.0).to_radians();
+    let hfov = (hfov_deg + r.range(-1.5, 1.5))
+        .clamp(1.0, 170.0)
+        .to_radians();
     let fx = width as f32 * 0.5 / (hfov * 0.5).tan();
     let fy = fx * (1.0 + r.range(-0.01, 0.01));
     let cx = (width as f32 - 1.0) * 0.5 + r.range(-0.02, 0.02) * width as f32;
     let cy = (height as f32 - 1.0) * 0.5 + r.range(-0.02, 0.02) * height as f32;
-    CameraIntrinsics { width, height, fx, fy, cx, cy }
+    CameraIntrinsics {
+        width,
+        height,
+        fx,
+        fy,
+        cx,
+        cy,
+    }
 }
 
 /// Intrinsics for scene `seed` with a nominal field of view drawn from `cfg.hfov_deg`.
 pub fn camera_for(cfg: &SceneConfig, seed: u64, width: u32, height: u32) -> CameraIntrinsics {
     let mut r = Rng::derive(seed, 0xCA3E_0002);
-    let hfov = if cfg.hfov_deg[1] > cfg.hfov_deg[0] { r.range(cfg.hfov_deg[0], cfg.hfov_deg[1]) } else { cfg.hfov_deg[0] };
+    let hfov = if cfg.hfov_deg[1] > cfg.hfov_deg[0] {
+        r.range(cfg.hfov_deg[0], cfg.hfov_deg[1])
+    } else {
+        cfg.hfov_deg[0]
+    };
     camera_near(seed, width, height, hfov)
 }
 

@@ -41,7 +41,8 @@ struct Px {
 
 #[inline]
 fn hash3(a: u32, b: u32, c: u32) -> u32 {
-    let mut h = a.wrapping_mul(0x9E37_79B1) ^ b.wrapping_mul(0x85EB_CA77) ^ c.wrapping_mul(0xC2B2_AE3D);
+    let mut h =
+        a.wrapping_mul(0x9E37_79B1) ^ b.wrapping_mul(0x85EB_CA77) ^ c.wrapping_mul(0xC2B2_AE3D);
     h ^= h >> 16;
     h = h.wrapping_mul(0x7FEB_352D);
     h ^= h >> 15;
@@ -138,7 +139,11 @@ impl Tracer<'_> {
                 }
             } else {
                 let ax = to * (1.0 / d2.sqrt());
-                let t1 = if ax.x.abs() < 0.9 { v3(1.0, 0.0, 0.0) } else { v3(0.0, 1.0, 0.0) };
+                let t1 = if ax.x.abs() < 0.9 {
+                    v3(1.0, 0.0, 0.0)
+                } else {
+                    v3(0.0, 1.0, 0.0)
+                };
                 let t1 = (t1 - ax * t1.dot(ax)).norm();
                 let t2 = ax.cross(t1);
                 let rot = unit(hash3(jitter, k as u32, 0x51AD));
@@ -203,7 +208,17 @@ impl Tracer<'_> {
     }
 
     #[allow(clippy::too_many_arguments)]
-    fn glass_mix(&self, p: V3, d: V3, h: &Hit, tint: V3, trans: V3, reach: f32, budget: u32, jitter: u32) -> V3 {
+    fn glass_mix(
+        &self,
+        p: V3,
+        d: V3,
+        h: &Hit,
+        tint: V3,
+        trans: V3,
+        reach: f32,
+        budget: u32,
+        jitter: u32,
+    ) -> V3 {
         let c = (d.dot(h.n) / d.len()).abs();
         let f = 0.04 + 0.96 * (1.0 - c).powi(5);
         let refl = if budget >= 2 {
@@ -222,18 +237,32 @@ impl Tracer<'_> {
 
     fn pixel(&self, x: usize, y: usize, cam: &CameraIntrinsics, cands: Cands<'_>, seed: u32) -> Px {
         let w = self.w;
-        let dc = v3((x as f32 - cam.cx) / cam.fx, (y as f32 - cam.cy) / cam.fy, 1.0);
+        let dc = v3(
+            (x as f32 - cam.cx) / cam.fx,
+            (y as f32 - cam.cy) / cam.fy,
+            1.0,
+        );
         let d = w.cam_rot.apply(dc);
         let o = w.cam_pos;
         let jitter = hash3(x as u32, y as u32, seed);
         let Some(h) = self.nearest(o, d, 1e-4, cands, false) else {
             // Cannot happen inside a closed room; keep buffers valid regardless.
-            return Px { depth: 100.0, refl: 0.0, normal: [0.0, 0.0, -1.0], ..Px::default() };
+            return Px {
+                depth: 100.0,
+                refl: 0.0,
+                normal: [0.0, 0.0, -1.0],
+                ..Px::default()
+            };
         };
         let m = &w.mats[h.mat as usize];
         let p = o + d * h.t;
         let nc = w.cam_rot.apply_t(h.n).norm();
-        let mut px = Px { depth: h.t, label: m.class as u8, normal: [nc.x, nc.y, nc.z], ..Px::default() };
+        let mut px = Px {
+            depth: h.t,
+            label: m.class as u8,
+            normal: [nc.x, nc.y, nc.z],
+            ..Px::default()
+        };
         match m.class {
             Class::Diffuse | Class::Dark => {
                 let cos = (d.dot(h.n) / d.len()).abs().max(0.2);
@@ -258,7 +287,10 @@ impl Tracer<'_> {
                     Some(rh) => {
                         // |dr| = |d|, so the reflected leg adds rh.t in units of planar depth.
                         px.second = h.t + rh.t;
-                        px.rgb = m.tex.c0.mul(self.radiance(p, dr, &rh, h.t * d.len(), 1, jitter));
+                        px.rgb = m
+                            .tex
+                            .c0
+                            .mul(self.radiance(p, dr, &rh, h.t * d.len(), 1, jitter));
                     }
                     None => {
                         px.second = h.t * 2.0;
@@ -282,8 +314,18 @@ fn tile_lists(w: &World, cam: &CameraIntrinsics, tx: usize, ty: usize) -> Vec<Ve
             (0.0, wd, 0.0, ht)
         } else {
             // x/z over the sphere's bounding box is extremal at its corners.
-            let xs = [(c.x - r) / (c.z - r), (c.x - r) / (c.z + r), (c.x + r) / (c.z - r), (c.x + r) / (c.z + r)];
-            let ys = [(c.y - r) / (c.z - r), (c.y - r) / (c.z + r), (c.y + r) / (c.z - r), (c.y + r) / (c.z + r)];
+            let xs = [
+                (c.x - r) / (c.z - r),
+                (c.x - r) / (c.z + r),
+                (c.x + r) / (c.z - r),
+                (c.x + r) / (c.z + r),
+            ];
+            let ys = [
+                (c.y - r) / (c.z - r),
+                (c.y - r) / (c.z + r),
+                (c.y + r) / (c.z - r),
+                (c.y + r) / (c.z + r),
+            ];
             let mn = |a: [f32; 4]| a.iter().copied().fold(f32::INFINITY, f32::min);
             let mx = |a: [f32; 4]| a.iter().copied().fold(f32::NEG_INFINITY, f32::max);
             (
@@ -312,13 +354,33 @@ fn tile_lists(w: &World, cam: &CameraIntrinsics, tx: usize, ty: usize) -> Vec<Ve
 /// Renders `w` through `cam` into a frame.
 pub fn render(w: &World, cam: &CameraIntrinsics, seed: u64) -> SceneFrame {
     let (wd, ht) = (cam.width as usize, cam.height as usize);
-    let tracer = Tracer { w, glass: w.mats.iter().map(|m| m.class == Class::Transparent).collect(), fx: cam.fx.max(1.0) };
+    let tracer = Tracer {
+        w,
+        glass: w
+            .mats
+            .iter()
+            .map(|m| m.class == Class::Transparent)
+            .collect(),
+        fx: cam.fx.max(1.0),
+    };
     let (tx, ty) = (wd.div_ceil(TILE).max(1), ht.div_ceil(TILE).max(1));
     let lists = tile_lists(w, cam, tx, ty);
     let s = seed as u32 ^ (seed >> 32) as u32;
     let rows: Vec<Vec<Px>> = (0..ht)
         .into_par_iter()
-        .map(|y| (0..wd).map(|x| tracer.pixel(x, y, cam, Cands::List(&lists[(y / TILE) * tx + x / TILE]), s)).collect())
+        .map(|y| {
+            (0..wd)
+                .map(|x| {
+                    tracer.pixel(
+                        x,
+                        y,
+                        cam,
+                        Cands::List(&lists[(y / TILE) * tx + x / TILE]),
+                        s,
+                    )
+                })
+                .collect()
+        })
         .collect();
     let n = wd * ht;
     // Auto-exposure: map the log-average luminance to the scene's key (summed in a fixed order).
@@ -328,7 +390,11 @@ pub fn render(w: &World, cam: &CameraIntrinsics, seed: u64) -> SceneFrame {
             log_sum += f64::from((luminance(p.rgb) + 1e-4).ln());
         }
     }
-    let l_avg = if n > 0 { (log_sum / n as f64).exp() as f32 } else { 1.0 };
+    let l_avg = if n > 0 {
+        (log_sum / n as f64).exp() as f32
+    } else {
+        1.0
+    };
     let scale = w.exposure_key / l_avg.max(1e-6);
     let mut frame = SceneFrame {
         width: cam.width,
@@ -353,7 +419,8 @@ pub fn render(w: &World, cam: &CameraIntrinsics, seed: u64) -> SceneFrame {
             for (k, v) in [c.x, c.y, c.z].into_iter().enumerate() {
                 let t = tone(v);
                 // Triangular dither of about one level: sensor-like grain, no banding.
-                let noise = unit(h.rotate_left(8 * k as u32)) + unit(h.rotate_left(8 * k as u32 + 5)) - 1.0;
+                let noise =
+                    unit(h.rotate_left(8 * k as u32)) + unit(h.rotate_left(8 * k as u32 + 5)) - 1.0;
                 let code = lut[((t * 4095.0) as usize).min(4095)] + noise * 1.5;
                 frame.rgb.push(code.round().clamp(0.0, 255.0) as u8);
             }
@@ -381,7 +448,11 @@ fn encode_lut() -> &'static [f32; 4096] {
         let mut t = [0.0f32; 4096];
         for (i, v) in t.iter_mut().enumerate() {
             let c = i as f32 / 4095.0;
-            let s = if c <= 0.003_130_8 { 12.92 * c } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 };
+            let s = if c <= 0.003_130_8 {
+                12.92 * c
+            } else {
+                1.055 * c.powf(1.0 / 2.4) - 0.055
+            };
             *v = s * 255.0;
         }
         t

@@ -60,7 +60,11 @@ impl RoomBox {
             if di == 0.0 {
                 continue;
             }
-            let bound = if di > 0.0 { self.max.axis(axis) } else { self.min.axis(axis) };
+            let bound = if di > 0.0 {
+                self.max.axis(axis)
+            } else {
+                self.min.axis(axis)
+            };
             let t = (bound - o.axis(axis)) / di;
             if t < best_t {
                 best_t = t;
@@ -75,7 +79,11 @@ impl RoomBox {
         let face = 2 * best_axis as u8 + side;
         let (a, b) = Self::face_coords(best_axis, p);
         for op in &self.openings {
-            if op.face == face && a > op.rect[0] && a < op.rect[2] && b > op.rect[1] && b < op.rect[3]
+            if op.face == face
+                && a > op.rect[0]
+                && a < op.rect[2]
+                && b > op.rect[1]
+                && b < op.rect[3]
             {
                 return None;
             }
@@ -87,7 +95,12 @@ impl RoomBox {
             1 => n.y = s,
             _ => n.z = s,
         }
-        Some(Hit { t: best_t, n, uv: (a, b), mat: self.face_mat[face as usize] })
+        Some(Hit {
+            t: best_t,
+            n,
+            uv: (a, b),
+            mat: self.face_mat[face as usize],
+        })
     }
 }
 
@@ -152,14 +165,23 @@ impl Prim {
     pub fn new(shape: Shape, mat: u16) -> Prim {
         let (bc, br) = match &shape {
             Shape::Cuboid { center, half, .. } => (*center, half.len()),
-            Shape::Cylinder { base, radius, height } => {
+            Shape::Cylinder {
+                base,
+                radius,
+                height,
+            } => {
                 let h = height * 0.5;
                 (*base + v3(0.0, h, 0.0), (radius * radius + h * h).sqrt())
             }
             Shape::Sphere { center, radius } => (*center, *radius),
             Shape::Quad { center, hu, hv, .. } => (*center, (hu * hu + hv * hv).sqrt()),
         };
-        Prim { shape, mat, bc, br: br * 1.0001 + 1e-4 }
+        Prim {
+            shape,
+            mat,
+            bc,
+            br: br * 1.0001 + 1e-4,
+        }
     }
 
     /// Whether the ray can meet the bounding sphere within `(tmin, tmax)`.
@@ -186,14 +208,27 @@ impl Prim {
         }
         let (t, n, uv) = match &self.shape {
             Shape::Cuboid { center, half, rot } => cuboid(*center, *half, rot, o, d, tmin, tmax)?,
-            Shape::Cylinder { base, radius, height } => {
-                cylinder(*base, *radius, *height, o, d, tmin, tmax)?
-            }
+            Shape::Cylinder {
+                base,
+                radius,
+                height,
+            } => cylinder(*base, *radius, *height, o, d, tmin, tmax)?,
             Shape::Sphere { center, radius } => sphere(*center, *radius, o, d, tmin, tmax)?,
-            Shape::Quad { center, u, v, hu, hv } => quad(*center, *u, *v, *hu, *hv, o, d, tmin, tmax)?,
+            Shape::Quad {
+                center,
+                u,
+                v,
+                hu,
+                hv,
+            } => quad(*center, *u, *v, *hu, *hv, o, d, tmin, tmax)?,
         };
         let n = if n.dot(d) > 0.0 { -n } else { n };
-        Some(Hit { t, n, uv, mat: self.mat })
+        Some(Hit {
+            t,
+            n,
+            uv,
+            mat: self.mat,
+        })
     }
 }
 
@@ -312,7 +347,9 @@ fn sphere(c: V3, r: f32, o: V3, d: V3, tmin: f32, tmax: f32) -> Option<Raw> {
         return None;
     }
     let s = disc.sqrt();
-    let t = [(-b - s) / a, (-b + s) / a].into_iter().find(|&t| t > tmin && t < tmax)?;
+    let t = [(-b - s) / a, (-b + s) / a]
+        .into_iter()
+        .find(|&t| t > tmin && t < tmax)?;
     let n = (oc + d * t).norm();
     Some((t, n, (n.z.atan2(n.x) * r, n.y.clamp(-1.0, 1.0).asin() * r)))
 }
@@ -347,24 +384,62 @@ mod tests {
     fn primitives_hit_where_computed_by_hand() {
         let o = V3::ZERO;
         // Unit cube centred at z = 3: front face at z = 2.5.
-        let b = Prim::new(Shape::Cuboid { center: v3(0.0, 0.0, 3.0), half: V3::splat(0.5), rot: M3::IDENTITY }, 0);
+        let b = Prim::new(
+            Shape::Cuboid {
+                center: v3(0.0, 0.0, 3.0),
+                half: V3::splat(0.5),
+                rot: M3::IDENTITY,
+            },
+            0,
+        );
         let h = b.intersect(o, Z, 1e-4, 100.0).unwrap();
         assert!((h.t - 2.5).abs() < 1e-5 && (h.n - v3(0.0, 0.0, -1.0)).len() < 1e-6);
         // Rotated by 45°: the nearest edge is at 3 - 0.5·√2.
-        let b = Prim::new(Shape::Cuboid { center: v3(0.0, 0.0, 3.0), half: V3::splat(0.5), rot: M3::rot_y(0.785_398_2) }, 0);
+        let b = Prim::new(
+            Shape::Cuboid {
+                center: v3(0.0, 0.0, 3.0),
+                half: V3::splat(0.5),
+                rot: M3::rot_y(core::f32::consts::FRAC_PI_4),
+            },
+            0,
+        );
         let h = b.intersect(o, Z, 1e-4, 100.0).unwrap();
         assert!((h.t - (3.0 - 0.5 * 2f32.sqrt())).abs() < 1e-4, "{}", h.t);
         // Sphere radius 1 at z = 5, ray with d = (0,0,2): t = 2 (point z = 4).
-        let s = Prim::new(Shape::Sphere { center: v3(0.0, 0.0, 5.0), radius: 1.0 }, 0);
+        let s = Prim::new(
+            Shape::Sphere {
+                center: v3(0.0, 0.0, 5.0),
+                radius: 1.0,
+            },
+            0,
+        );
         assert!((s.intersect(o, v3(0.0, 0.0, 2.0), 1e-4, 100.0).unwrap().t - 2.0).abs() < 1e-5);
         // Cylinder radius 0.5 standing at z = 4 from y = -1 to 1: side at z = 3.5.
-        let c = Prim::new(Shape::Cylinder { base: v3(0.0, -1.0, 4.0), radius: 0.5, height: 2.0 }, 0);
+        let c = Prim::new(
+            Shape::Cylinder {
+                base: v3(0.0, -1.0, 4.0),
+                radius: 0.5,
+                height: 2.0,
+            },
+            0,
+        );
         assert!((c.intersect(o, Z, 1e-4, 100.0).unwrap().t - 3.5).abs() < 1e-5);
         // Looking down on its top cap from above: y = 1 reached at t = 2.
-        let h = c.intersect(v3(0.0, 3.0, 4.0), v3(0.0, -1.0, 0.0), 1e-4, 100.0).unwrap();
+        let h = c
+            .intersect(v3(0.0, 3.0, 4.0), v3(0.0, -1.0, 0.0), 1e-4, 100.0)
+            .unwrap();
         assert!((h.t - 2.0).abs() < 1e-5 && h.n.y > 0.99);
         // Quad at z = 2 of half size 1; a ray through x = 1.5 misses it.
-        let q = Prim::new(Shape::Quad { center: v3(0.0, 0.0, 2.0), u: v3(1.0, 0.0, 0.0), v: v3(0.0, 1.0, 0.0), hu: 1.0, hv: 1.0 }, 0);
+        let q = Prim::new(
+            Shape::Quad {
+                center: v3(0.0, 0.0, 2.0),
+                u: v3(1.0, 0.0, 0.0),
+                v: v3(0.0, 1.0, 0.0),
+                hu: 1.0,
+                hv: 1.0,
+            },
+            0,
+        );
         assert!((q.intersect(o, Z, 1e-4, 100.0).unwrap().t - 2.0).abs() < 1e-6);
         assert!(q.intersect(v3(1.5, 0.0, 0.0), Z, 1e-4, 100.0).is_none());
         // tmax excludes hits beyond it.
@@ -373,14 +448,22 @@ mod tests {
 
     #[test]
     fn room_exit_face_and_opening() {
-        let mut room = RoomBox { min: v3(-2.0, 0.0, 0.0), max: v3(2.0, 3.0, 6.0), openings: vec![], face_mat: [0, 1, 2, 3, 4, 5] };
+        let mut room = RoomBox {
+            min: v3(-2.0, 0.0, 0.0),
+            max: v3(2.0, 3.0, 6.0),
+            openings: vec![],
+            face_mat: [0, 1, 2, 3, 4, 5],
+        };
         let o = v3(0.0, 1.5, 1.0);
         let h = room.intersect(o, Z, 1e-4).unwrap();
         assert!((h.t - 5.0).abs() < 1e-6 && h.mat == 5 && h.n.z < -0.99);
         // Towards the floor, 45° down: exits y = 0 at t = 1.5.
         let h = room.intersect(o, v3(0.0, -1.0, 1.0), 1e-4).unwrap();
         assert!((h.t - 1.5).abs() < 1e-6 && h.mat == 2);
-        room.openings.push(Opening { face: 5, rect: [-0.5, 1.0, 0.5, 2.0] });
+        room.openings.push(Opening {
+            face: 5,
+            rect: [-0.5, 1.0, 0.5, 2.0],
+        });
         assert!(room.intersect(o, Z, 1e-4).is_none());
     }
 }

@@ -17,7 +17,11 @@ pub enum Role {
 
 macro_rules! photo {
     ($name:literal, $role:ident) => {
-        ($name, include_bytes!(concat!("../../assets/textures/", $name, ".jpg")).as_slice(), Role::$role)
+        (
+            $name,
+            include_bytes!(concat!("../../assets/textures/", $name, ".jpg")).as_slice(),
+            Role::$role,
+        )
     };
 }
 
@@ -71,7 +75,11 @@ pub fn srgb_to_linear_lut() -> &'static [f32; 256] {
         let mut t = [0.0f32; 256];
         for (i, v) in t.iter_mut().enumerate() {
             let c = i as f32 / 255.0;
-            *v = if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) };
+            *v = if c <= 0.04045 {
+                c / 12.92
+            } else {
+                ((c + 0.055) / 1.055).powf(2.4)
+            };
         }
         t
     })
@@ -81,7 +89,12 @@ pub fn srgb_to_linear_lut() -> &'static [f32; 256] {
 /// are fixed at build time and checked by a test) becomes a flat grey texture.
 pub fn photos() -> &'static [Photo] {
     static P: OnceLock<Vec<Photo>> = OnceLock::new();
-    P.get_or_init(|| PHOTOS.iter().map(|(_, bytes, _)| decode_photo(bytes)).collect())
+    P.get_or_init(|| {
+        PHOTOS
+            .iter()
+            .map(|(_, bytes, _)| decode_photo(bytes))
+            .collect()
+    })
 }
 
 fn decode_photo(bytes: &[u8]) -> Photo {
@@ -92,10 +105,21 @@ fn decode_photo(bytes: &[u8]) -> Photo {
             let sq = image::imageops::crop_imm(&rgb, 0, 0, side, side).to_image();
             // Largest power of two not above the side (and 256), so mips halve exactly.
             let size = 1usize << (usize::BITS - 1 - (side.min(256) as usize).leading_zeros());
-            let sq = image::imageops::resize(&sq, size as u32, size as u32, image::imageops::FilterType::Triangle);
-            Mip { size, texels: sq.into_raw() }
+            let sq = image::imageops::resize(
+                &sq,
+                size as u32,
+                size as u32,
+                image::imageops::FilterType::Triangle,
+            );
+            Mip {
+                size,
+                texels: sq.into_raw(),
+            }
         }
-        Err(_) => Mip { size: 1, texels: vec![128, 128, 128] },
+        Err(_) => Mip {
+            size: 1,
+            texels: vec![128, 128, 128],
+        },
     };
     let mut mips = vec![base];
     while let Some(last) = mips.last() {
@@ -107,8 +131,12 @@ fn decode_photo(bytes: &[u8]) -> Photo {
         for y in 0..s {
             for x in 0..s {
                 for c in 0..3 {
-                    let at = |yy: usize, xx: usize| last.texels[(yy * last.size + xx) * 3 + c] as u32;
-                    let sum = at(2 * y, 2 * x) + at(2 * y, 2 * x + 1) + at(2 * y + 1, 2 * x) + at(2 * y + 1, 2 * x + 1);
+                    let at =
+                        |yy: usize, xx: usize| last.texels[(yy * last.size + xx) * 3 + c] as u32;
+                    let sum = at(2 * y, 2 * x)
+                        + at(2 * y, 2 * x + 1)
+                        + at(2 * y + 1, 2 * x)
+                        + at(2 * y + 1, 2 * x + 1);
                     t[(y * s + x) * 3 + c] = ((sum + 2) / 4) as u8;
                 }
             }
@@ -123,7 +151,11 @@ impl Photo {
     /// whose texels are about `texels_per_px` level-0 texels wide.
     pub fn sample(&self, u: f32, v: f32, texels_per_px: f32) -> V3 {
         let lut = srgb_to_linear_lut();
-        let level = if texels_per_px > 1.0 { texels_per_px.log2() as usize } else { 0 };
+        let level = if texels_per_px > 1.0 {
+            texels_per_px.log2() as usize
+        } else {
+            0
+        };
         let m = &self.mips[level.min(self.mips.len() - 1)];
         let s = m.size;
         let x = u.rem_euclid(1.0) * s as f32 - 0.5;
@@ -135,7 +167,11 @@ impl Photo {
         let (x1, y1) = ((x0 + 1) % s, (y0 + 1) % s);
         let px = |yy: usize, xx: usize| {
             let i = (yy * s + xx) * 3;
-            v3(lut[m.texels[i] as usize], lut[m.texels[i + 1] as usize], lut[m.texels[i + 2] as usize])
+            v3(
+                lut[m.texels[i] as usize],
+                lut[m.texels[i + 1] as usize],
+                lut[m.texels[i + 2] as usize],
+            )
         };
         let top = px(y0, x0).lerp(px(y0, x1), fx);
         let bot = px(y1, x0).lerp(px(y1, x1), fx);
@@ -188,7 +224,9 @@ pub struct Texture {
 
 #[inline]
 fn hash2(i: i32, j: i32, seed: u32) -> f32 {
-    let mut h = (i as u32).wrapping_mul(0x8DA6_B343) ^ (j as u32).wrapping_mul(0xD816_3841) ^ seed.wrapping_mul(0xCB1A_B31F);
+    let mut h = (i as u32).wrapping_mul(0x8DA6_B343)
+        ^ (j as u32).wrapping_mul(0xD816_3841)
+        ^ seed.wrapping_mul(0xCB1A_B31F);
     h ^= h >> 13;
     h = h.wrapping_mul(0x5BD1_E995);
     h ^= h >> 15;
@@ -241,7 +279,15 @@ fn smoothstep(e0: f32, e1: f32, x: f32) -> f32 {
 impl Texture {
     /// A flat colour.
     pub fn plain(c: V3) -> Texture {
-        Texture { pattern: Pattern::Plain, c0: c, c1: c, scale: 1.0, rot: (1.0, 0.0), offset: (0.0, 0.0), seed: 0 }
+        Texture {
+            pattern: Pattern::Plain,
+            c0: c,
+            c1: c,
+            scale: 1.0,
+            rot: (1.0, 0.0),
+            offset: (0.0, 0.0),
+            seed: 0,
+        }
     }
 
     /// Linear albedo at surface coordinates `uv` (metres) seen with a pixel footprint of
@@ -326,10 +372,18 @@ mod tests {
         assert_eq!(lut[0], 0.0);
         assert!((lut[255] - 1.0).abs() < 1e-6);
         assert!((lut[128] - 0.2158).abs() < 1e-3); // ((128/255+0.055)/1.055)^2.4
-        // A checker seen from far away becomes the mean of its colours.
-        let t = Texture { pattern: Pattern::Checker, c0: V3::ZERO, c1: V3::splat(1.0), ..Texture::plain(V3::ZERO) };
+                                                   // A checker seen from far away becomes the mean of its colours.
+        let t = Texture {
+            pattern: Pattern::Checker,
+            c0: V3::ZERO,
+            c1: V3::splat(1.0),
+            ..Texture::plain(V3::ZERO)
+        };
         let far = t.sample((0.3, 0.7), 10.0);
-        assert!((far.x / (0.95 + 0.1 * value_noise(0.9, 2.1, 0)) - 0.5).abs() < 1e-4, "{far:?}");
+        assert!(
+            (far.x / (0.95 + 0.1 * value_noise(0.9, 2.1, 0)) - 0.5).abs() < 1e-4,
+            "{far:?}"
+        );
         let near = t.sample((1.5, 0.5), 0.001);
         assert!(near.x > 0.9, "{near:?}");
     }
