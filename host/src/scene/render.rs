@@ -14,6 +14,11 @@ use rayon::prelude::*;
 const TILE: usize = 16;
 const EPS: f32 = 1e-3;
 
+thread_local! {
+    /// Per-thread list of the items a shadow ray must test (reused, never shared).
+    static SCRATCH: std::cell::RefCell<Vec<u16>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
 /// Which items a ray is tested against.
 #[derive(Clone, Copy)]
 enum Cands<'a> {
@@ -94,22 +99,31 @@ impl Tracer<'_> {
         best
     }
 
-    /// Whether anything opaque lies on the segment `p → p + d·1`.
-    fn occluded(&self, p: V3, d: V3) -> bool {
+    /// Whether the segment `p → p + d` meets group `g`'s bounding sphere grown by `grow`.
+    #[inline]
+    fn segment_meets(&self, g: usize, p: V3, d: V3, grow: f32) -> bool {
+        let g = &self.w.groups[g];
+        let oc = p - g.bc;
+        let r = g.br + grow;
+        let a = d.dot(d);
+        let b = oc.dot(d);
+        let c = oc.dot(oc) - r * r;
+        let disc = b * b - a * c;
+        if disc < 0.0 {
+            return false;
+        }
+        let s = disc.sqrt();
+        (-b + s) / a > EPS && (-b - s) / a < 1.0
+    }
+
+    /// Whether anything opaque in groups `cands` lies on the segment `p → p + d`.
+    fn occluded(&self, p: V3, d: V3, cands: &[u16]) -> bool {
         let w = self.w;
-        for g in &w.groups {
-            let oc = p - g.bc;
-            let a = d.dot(d);
-            let b = oc.dot(d);
-            let c = oc.dot(oc) - g.br * g.br;
-            let disc = b * b - a * c;
-            if disc < 0.0 {
+        for &gi in cands {
+            if !self.segment_meets(gi as usize, p, d, 0.0) {
                 continue;
             }
-            let s = disc.sqrt();
-            if (-b + s) / a <= EPS || (-b - s) / a >= 1.0 {
-                continue;
-            }
+            let g = &w.groups[gi as usize];
             for pr in &w.prims[g.start as usize..g.end as usize] {
                 if !self.glass[pr.mat as usize] && pr.intersect(p, d, EPS, 1.0 - EPS).is_some() {
                     return true;
@@ -122,8 +136,21 @@ impl Tracer<'_> {
     /// Irradiance at `p` with normal `n` (indoor lamps, shadows, ambient).
     fn irradiance(&self, p: V3, n: V3, samples: u32, jitter: u32) -> V3 {
         let w = self.w;
-        let mut e = w.ambient * (0.8 + 0.2 * n.y);
+        let e = w.ambient * (0.8 + 0.2 * n.y);
         let p0 = p + n * EPS;
+        SCRATCH.with(|c| self.irradiance_into(&mut c.borrow_mut(), p0, n, samples, jitter, e))
+    }
+
+    fn irradiance_into(
+        &self,
+        cands: &mut Vec<u16>,
+        p0: V3,
+        n: V3,
+        samples: u32,
+        jitter: u32,
+        mut e: V3,
+    ) -> V3 {
+        let w = self.w;
         for (k, l) in w.lights.iter().enumerate() {
             let to = l.pos - p0;
             let d2 = to.dot(to);
@@ -131,8 +158,19 @@ impl Tracer<'_> {
             if cos <= 0.0 {
                 continue;
             }
-            let vis = if samples <= 1 || l.radius <= 0.0 {
-                if self.occluded(p0, to) {
+            // Items that can shadow any point of the lamp: the segment to its centre passes
+            // within their sphere grown by the lamp's radius. None → fully lit, no shadow rays.
+            let soft = samples > 1 && l.radius > 0.0;
+            let grow = if soft { l.radius } else { 0.0 };
+            cands.clear();
+            cands.extend(
+                (0..w.groups.len() as u16)
+                    .filter(|&g| self.segment_meets(g as usize, p0, to, grow)),
+            );
+            let vis = if cands.is_empty() {
+                1.0
+            } else if !soft {
+                if self.occluded(p0, to, cands) {
                     0.0
                 } else {
                     1.0
@@ -152,7 +190,7 @@ impl Tracer<'_> {
                     let ang = core::f32::consts::TAU * (s as f32 + rot) / samples as f32;
                     let r = l.radius * ((s as f32 + 0.5) / samples as f32).sqrt();
                     let q = l.pos + t1 * (r * ang.cos()) + t2 * (r * ang.sin());
-                    if !self.occluded(p0, q - p0) {
+                    if !self.occluded(p0, q - p0, cands) {
                         free += 1;
                     }
                 }
