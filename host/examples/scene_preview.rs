@@ -23,6 +23,16 @@ fn colormap(t: f32) -> [u8; 3] {
     [c(0), c(1), c(2)]
 }
 
+/// CPU seconds used by this process so far (all threads; Linux `/proc/self/stat`, 100 Hz ticks),
+/// so timings stay meaningful on a loaded machine.
+fn cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    let rest = stat.rsplit_once(')')?.1;
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks: f64 = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
+}
+
 fn main() -> anyhow::Result<()> {
     let a: Vec<String> = std::env::args().skip(1).collect();
     let out = a.first().cloned().unwrap_or_else(|| "scene_preview".into());
@@ -37,11 +47,15 @@ fn main() -> anyhow::Result<()> {
     std::fs::create_dir_all(&out)?;
     let cfg = SceneConfig::default();
     let mut total = 0.0;
+    let mut cpu_total = 0.0;
     for seed in first..first + count {
         let cam = camera_near(seed, w, h, hfov);
-        let t0 = Instant::now();
+        let (t0, c0) = (Instant::now(), cpu_seconds());
         let f = render_scene(&cfg, seed, cam);
         let dt = t0.elapsed().as_secs_f64();
+        if let (Some(a), Some(b)) = (c0, cpu_seconds()) {
+            cpu_total += b - a;
+        }
         total += dt;
         let (wu, hu) = (w as usize, h as usize);
         let mut img = image::RgbImage::new(w * 4, h);
@@ -80,8 +94,9 @@ fn main() -> anyhow::Result<()> {
         );
     }
     println!(
-        "mean {:.1} ms/frame at {h}x{w} over {count} frames ({} threads)",
+        "mean {:.1} ms/frame wall, {:.1} ms/frame CPU at {h}x{w} over {count} frames ({} threads)",
         total / count as f64 * 1e3,
+        cpu_total / count as f64 * 1e3,
         rayon::current_num_threads()
     );
     Ok(())

@@ -63,11 +63,12 @@ fn unit(h: u32) -> f32 {
 impl Tracer<'_> {
     fn nearest(&self, o: V3, d: V3, tmin: f32, cands: Cands<'_>, skip_glass: bool) -> Option<Hit> {
         let w = self.w;
-        let mut best = w.room.intersect(o, d, tmin);
-        if best.is_none() {
-            best = w.outer.as_ref().and_then(|r| r.intersect(o, d, tmin));
+        let mut room = w.room.intersect(o, d, tmin);
+        if room.is_none() {
+            room = w.outer.as_ref().and_then(|r| r.intersect(o, d, tmin));
         }
-        let mut tmax = best.map_or(f32::INFINITY, |h| h.t);
+        let mut tmax = room.map_or(f32::INFINITY, |h| h.t);
+        let mut best: Option<(usize, f32, u8)> = None;
         let mut test = |gi: usize| {
             let g = &w.groups[gi];
             let oc = o - g.bc;
@@ -82,13 +83,14 @@ impl Tracer<'_> {
             if (-b + s) / a <= tmin || (-b - s) / a >= tmax {
                 return;
             }
-            for p in &w.prims[g.start as usize..g.end as usize] {
+            for i in g.start as usize..g.end as usize {
+                let p = &w.prims[i];
                 if skip_glass && self.glass[p.mat as usize] {
                     continue;
                 }
-                if let Some(h) = p.intersect(o, d, tmin, tmax) {
-                    tmax = h.t;
-                    best = Some(h);
+                if let Some((t, part)) = p.hit(o, d, tmin, tmax) {
+                    tmax = t;
+                    best = Some((i, t, part));
                 }
             }
         };
@@ -96,7 +98,10 @@ impl Tracer<'_> {
             Cands::All => (0..w.groups.len()).for_each(&mut test),
             Cands::List(l) => l.iter().for_each(|&g| test(g as usize)),
         }
-        best
+        match best {
+            Some((i, t, part)) => Some(w.prims[i].surface(o, d, t, part)),
+            None => room,
+        }
     }
 
     /// Whether the segment `p → p + d` meets group `g`'s bounding sphere grown by `grow`.
@@ -125,7 +130,7 @@ impl Tracer<'_> {
             }
             let g = &w.groups[gi as usize];
             for pr in &w.prims[g.start as usize..g.end as usize] {
-                if !self.glass[pr.mat as usize] && pr.intersect(p, d, EPS, 1.0 - EPS).is_some() {
+                if !self.glass[pr.mat as usize] && pr.hit(p, d, EPS, 1.0 - EPS).is_some() {
                     return true;
                 }
             }

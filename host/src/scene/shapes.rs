@@ -201,45 +201,107 @@ impl Prim {
         t1 > tmin && t0 < tmax
     }
 
-    /// Nearest intersection in `(tmin, tmax)`.
-    pub fn intersect(&self, o: V3, d: V3, tmin: f32, tmax: f32) -> Option<Hit> {
+    /// Nearest intersection in `(tmin, tmax)`: its ray parameter and which part of the shape
+    /// (box axis, cylinder side/cap) was hit, for [`Prim::surface`]. Cheap: no normal, no uv.
+    #[inline]
+    pub fn hit(&self, o: V3, d: V3, tmin: f32, tmax: f32) -> Option<(f32, u8)> {
         if !self.may_hit(o, d, tmin, tmax) {
             return None;
         }
-        let (t, n, uv) = match &self.shape {
-            Shape::Cuboid { center, half, rot } => cuboid(*center, *half, rot, o, d, tmin, tmax)?,
+        match &self.shape {
+            Shape::Cuboid { center, half, rot } => cuboid(*center, *half, rot, o, d, tmin, tmax),
             Shape::Cylinder {
                 base,
                 radius,
                 height,
-            } => cylinder(*base, *radius, *height, o, d, tmin, tmax)?,
-            Shape::Sphere { center, radius } => sphere(*center, *radius, o, d, tmin, tmax)?,
+            } => cylinder(*base, *radius, *height, o, d, tmin, tmax),
+            Shape::Sphere { center, radius } => sphere(*center, *radius, o, d, tmin, tmax),
             Shape::Quad {
                 center,
                 u,
                 v,
                 hu,
                 hv,
-            } => quad(*center, *u, *v, *hu, *hv, o, d, tmin, tmax)?,
+            } => quad(*center, *u, *v, *hu, *hv, o, d, tmin, tmax),
+        }
+    }
+
+    /// Normal (facing the ray) and texture coordinates where [`Prim::hit`] found `(t, part)`.
+    pub fn surface(&self, o: V3, d: V3, t: f32, part: u8) -> Hit {
+        let p = o + d * t;
+        let (n, uv) = match &self.shape {
+            Shape::Cuboid { center, half, rot } => {
+                let lp = rot.apply_t(p - *center);
+                let axis = part as usize;
+                let mut ln = V3::ZERO;
+                let s = lp.axis(axis).signum();
+                match axis {
+                    0 => ln.x = s,
+                    1 => ln.y = s,
+                    _ => ln.z = s,
+                }
+                // The face's two local coordinates, offset so faces differ.
+                let uv = match axis {
+                    0 => (lp.z + half.z, lp.y + half.y),
+                    1 => (lp.x + half.x, lp.z + half.z),
+                    _ => (lp.x + half.x, lp.y + half.y),
+                };
+                (rot.apply(ln), uv)
+            }
+            Shape::Cylinder { base, radius, .. } => {
+                let (px, py, pz) = (p.x - base.x, p.y - base.y, p.z - base.z);
+                match part {
+                    0 => (v3(px, 0.0, pz).norm(), (pz.atan2(px) * radius, py)),
+                    1 => (v3(0.0, -1.0, 0.0), (px, pz)),
+                    _ => (v3(0.0, 1.0, 0.0), (px, pz)),
+                }
+            }
+            Shape::Sphere { center, radius } => {
+                let n = (p - *center).norm();
+                (
+                    n,
+                    (
+                        n.z.atan2(n.x) * radius,
+                        n.y.clamp(-1.0, 1.0).asin() * radius,
+                    ),
+                )
+            }
+            Shape::Quad {
+                center,
+                u,
+                v,
+                hu,
+                hv,
+            } => {
+                let q = p - *center;
+                (u.cross(*v), (q.dot(*u) + hu, q.dot(*v) + hv))
+            }
         };
         let n = if n.dot(d) > 0.0 { -n } else { n };
-        Some(Hit {
+        Hit {
             t,
             n,
             uv,
             mat: self.mat,
-        })
+        }
+    }
+
+    /// Nearest intersection in `(tmin, tmax)` with its surface.
+    #[cfg(test)]
+    pub fn intersect(&self, o: V3, d: V3, tmin: f32, tmax: f32) -> Option<Hit> {
+        let (t, part) = self.hit(o, d, tmin, tmax)?;
+        Some(self.surface(o, d, t, part))
     }
 }
 
-type Raw = (f32, V3, (f32, f32));
+type Raw = (f32, u8);
 
 fn cuboid(c: V3, h: V3, rot: &M3, o: V3, d: V3, tmin: f32, tmax: f32) -> Option<Raw> {
     let lo = rot.apply_t(o - c);
     let ld = rot.apply_t(d);
     let mut t0 = f32::NEG_INFINITY;
     let mut t1 = f32::INFINITY;
-    let (mut ax0, mut ax1) = (0usize, 0usize);
+    let (mut ax0, mut ax1) = (0u8, 0u8);
     for i in 0..3 {
         let oi = lo.axis(i);
         let di = ld.axis(i);
@@ -257,41 +319,24 @@ fn cuboid(c: V3, h: V3, rot: &M3, o: V3, d: V3, tmin: f32, tmax: f32) -> Option<
         }
         if a > t0 {
             t0 = a;
-            ax0 = i;
+            ax0 = i as u8;
         }
         if b < t1 {
             t1 = b;
-            ax1 = i;
+            ax1 = i as u8;
         }
     }
     if t0 > t1 {
         return None;
     }
-    let (t, axis) = if t0 > tmin {
+    let hit = if t0 > tmin {
         (t0, ax0)
     } else if t1 > tmin {
         (t1, ax1)
     } else {
         return None;
     };
-    if t >= tmax {
-        return None;
-    }
-    let lp = lo + ld * t;
-    let mut ln = V3::ZERO;
-    let s = lp.axis(axis).signum();
-    match axis {
-        0 => ln.x = s,
-        1 => ln.y = s,
-        _ => ln.z = s,
-    }
-    // Texture coordinates: the two local coordinates of the face, offset so faces differ.
-    let uv = match axis {
-        0 => (lp.z + h.z, lp.y + h.y),
-        1 => (lp.x + h.x, lp.z + h.z),
-        _ => (lp.x + h.x, lp.y + h.y),
-    };
-    Some((t, rot.apply(ln), uv))
+    (hit.0 < tmax).then_some(hit)
 }
 
 fn cylinder(base: V3, r: f32, hgt: f32, o: V3, d: V3, tmin: f32, tmax: f32) -> Option<Raw> {
@@ -310,11 +355,8 @@ fn cylinder(base: V3, r: f32, hgt: f32, o: V3, d: V3, tmin: f32, tmax: f32) -> O
                 if t > tmin && t < best_t {
                     let y = o.y + d.y * t - base.y;
                     if (0.0..=hgt).contains(&y) {
-                        let px = ox + d.x * t;
-                        let pz = oz + d.z * t;
-                        let ang = pz.atan2(px);
                         best_t = t;
-                        best = Some((t, v3(px, 0.0, pz).norm(), (ang * r, y)));
+                        best = Some((t, 0));
                         break;
                     }
                 }
@@ -322,14 +364,14 @@ fn cylinder(base: V3, r: f32, hgt: f32, o: V3, d: V3, tmin: f32, tmax: f32) -> O
         }
     }
     if d.y.abs() > 1e-12 {
-        for (yc, ny) in [(base.y, -1.0), (base.y + hgt, 1.0)] {
+        for (yc, part) in [(base.y, 1u8), (base.y + hgt, 2)] {
             let t = (yc - o.y) / d.y;
             if t > tmin && t < best_t {
                 let px = ox + d.x * t;
                 let pz = oz + d.z * t;
                 if px * px + pz * pz <= r * r {
                     best_t = t;
-                    best = Some((t, v3(0.0, ny, 0.0), (px, pz)));
+                    best = Some((t, part));
                 }
             }
         }
@@ -350,8 +392,7 @@ fn sphere(c: V3, r: f32, o: V3, d: V3, tmin: f32, tmax: f32) -> Option<Raw> {
     let t = [(-b - s) / a, (-b + s) / a]
         .into_iter()
         .find(|&t| t > tmin && t < tmax)?;
-    let n = (oc + d * t).norm();
-    Some((t, n, (n.z.atan2(n.x) * r, n.y.clamp(-1.0, 1.0).asin() * r)))
+    Some((t, 0))
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -366,12 +407,10 @@ fn quad(c: V3, u: V3, v: V3, hu: f32, hv: f32, o: V3, d: V3, tmin: f32, tmax: f3
         return None;
     }
     let p = o + d * t - c;
-    let a = p.dot(u);
-    let b = p.dot(v);
-    if a.abs() > hu || b.abs() > hv {
+    if p.dot(u).abs() > hu || p.dot(v).abs() > hv {
         return None;
     }
-    Some((t, n, (a + hu, b + hv)))
+    Some((t, 0))
 }
 
 #[cfg(test)]
