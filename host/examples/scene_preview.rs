@@ -45,7 +45,11 @@ fn main() -> anyhow::Result<()> {
         arg(5, 63.0) as f32,
     );
     std::fs::create_dir_all(&out)?;
-    let cfg = SceneConfig::default();
+    // Optional JSON config (any subset of SceneConfig's fields) in $SCENE_CONFIG.
+    let cfg: SceneConfig = match std::env::var("SCENE_CONFIG") {
+        Ok(path) => serde_json::from_str(&std::fs::read_to_string(path)?)?,
+        Err(_) => SceneConfig::default(),
+    };
     let mut total = 0.0;
     let mut cpu_total = 0.0;
     for seed in first..first + count {

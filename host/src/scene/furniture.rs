@@ -584,7 +584,7 @@ impl Builder<'_> {
                 );
             }
         }
-        self.end(g);
+        self.end_flat(g);
     }
 
     /// A standing mirror or glass partition in view: a quad on two thin posts.
@@ -706,7 +706,7 @@ impl Builder<'_> {
                 let yaw = if face == 5 { 0.0 } else { FRAC_PI_2 };
                 self.cuboid(c, v3(0.02, 0.5 * (y1 - y0), 0.04), yaw, fm);
             }
-            self.end(g);
+            self.end_flat(g);
         }
     }
 }

@@ -32,6 +32,8 @@ pub struct Group {
     pub bc: V3,
     /// Bounding-sphere radius.
     pub br: f32,
+    /// Whether it can shadow anything (false for flat things hung on walls).
+    pub casts_shadow: bool,
 }
 
 /// Everything the tracer needs.
@@ -107,7 +109,17 @@ impl Builder<'_> {
         self.w.prims.len() as u32
     }
 
+    /// Closes the item begun at `start` (see [`Self::begin`]).
     pub(super) fn end(&mut self, start: u32) {
+        self.end_item(start, true);
+    }
+
+    /// Closes an item flat against a wall, which casts no shadow worth a ray.
+    pub(super) fn end_flat(&mut self, start: u32) {
+        self.end_item(start, false);
+    }
+
+    fn end_item(&mut self, start: u32, casts_shadow: bool) {
         let end = self.w.prims.len() as u32;
         if end == start {
             return;
@@ -132,7 +144,13 @@ impl Builder<'_> {
             .iter()
             .map(|p| (p.bc - bc).len() + p.br)
             .fold(0.0f32, f32::max);
-        self.w.groups.push(Group { start, end, bc, br });
+        self.w.groups.push(Group {
+            start,
+            end,
+            bc,
+            br,
+            casts_shadow,
+        });
     }
 
     pub(super) fn push(&mut self, s: Shape, mat: u16) {

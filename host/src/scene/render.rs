@@ -30,6 +30,8 @@ struct Tracer<'a> {
     w: &'a World,
     /// Per material: is it glass?
     glass: Vec<bool>,
+    /// Items that can cast shadows.
+    casters: Vec<u16>,
     fx: f32,
 }
 
@@ -169,7 +171,9 @@ impl Tracer<'_> {
             let grow = if soft { l.radius } else { 0.0 };
             cands.clear();
             cands.extend(
-                (0..w.groups.len() as u16)
+                self.casters
+                    .iter()
+                    .copied()
                     .filter(|&g| self.segment_meets(g as usize, p0, to, grow)),
             );
             let vis = if cands.is_empty() {
@@ -190,15 +194,24 @@ impl Tracer<'_> {
                 let t1 = (t1 - ax * t1.dot(ax)).norm();
                 let t2 = ax.cross(t1);
                 let rot = unit(hash3(jitter, k as u32, 0x51AD));
-                let mut free = 0u32;
-                for s in 0..samples {
+                let sample_free = |s: u32| {
                     let ang = core::f32::consts::TAU * (s as f32 + rot) / samples as f32;
                     let r = l.radius * ((s as f32 + 0.5) / samples as f32).sqrt();
                     let q = l.pos + t1 * (r * ang.cos()) + t2 * (r * ang.sin());
-                    if !self.occluded(p0, q - p0, cands) {
-                        free += 1;
+                    !self.occluded(p0, q - p0, cands)
+                };
+                // Two opposite samples first; when they agree the point is taken as fully lit
+                // or fully shadowed, otherwise (a penumbra) all samples are traced.
+                let (a, b) = (sample_free(0), sample_free(samples / 2));
+                let free = if a == b {
+                    if a {
+                        samples
+                    } else {
+                        0
                     }
-                }
+                } else {
+                    (0..samples).filter(|&s| sample_free(s)).count() as u32
+                };
                 free as f32 / samples as f32
             };
             if vis > 0.0 {
@@ -220,12 +233,7 @@ impl Tracer<'_> {
         match m.class {
             Class::Diffuse | Class::Dark => {
                 let a = m.tex.sample(h.uv, reach / self.fx / cos);
-                if m.exterior {
-                    a.mul(w.daylight) * (0.75 + 0.25 * h.n.y.abs())
-                } else {
-                    let samples = if budget >= 2 { w.shadow_samples } else { 1 };
-                    a.mul(self.irradiance(p, h.n, samples, jitter))
-                }
+                self.lambert(p, h, a, m.exterior, budget, jitter)
             }
             Class::Specular => {
                 let tint = m.tex.c0;
@@ -247,6 +255,17 @@ impl Tracer<'_> {
                 };
                 self.glass_mix(p, d, h, tint, trans, reach, budget, jitter)
             }
+        }
+    }
+
+    /// Lambertian colour of albedo `a` at `p`: daylight outdoors, lamps and ambient indoors.
+    fn lambert(&self, p: V3, h: &Hit, a: V3, exterior: bool, budget: u32, jitter: u32) -> V3 {
+        let w = self.w;
+        if exterior {
+            a.mul(w.daylight) * (0.75 + 0.25 * h.n.y.abs())
+        } else {
+            let samples = if budget >= 2 { w.shadow_samples } else { 1 };
+            a.mul(self.irradiance(p, h.n, samples, jitter))
         }
     }
 
@@ -311,7 +330,7 @@ impl Tracer<'_> {
                 let cos = (d.dot(h.n) / d.len()).abs().max(0.2);
                 let a = m.tex.sample(h.uv, h.t * d.len() / self.fx / cos);
                 px.refl = m.nir(a);
-                px.rgb = self.radiance(o, d, &h, 0.0, 2, jitter);
+                px.rgb = self.lambert(p, &h, a, m.exterior, 2, jitter);
             }
             Class::Transparent => {
                 px.refl = m.nir_offset;
@@ -403,6 +422,9 @@ pub fn render(w: &World, cam: &CameraIntrinsics, seed: u64) -> SceneFrame {
             .mats
             .iter()
             .map(|m| m.class == Class::Transparent)
+            .collect(),
+        casters: (0..w.groups.len() as u16)
+            .filter(|&g| w.groups[g as usize].casts_shadow)
             .collect(),
         fx: cam.fx.max(1.0),
     };

@@ -301,7 +301,8 @@ impl Texture {
         let fp = footprint_m / self.scale; // footprint in pattern periods
         match self.pattern {
             Pattern::Plain => {
-                let n = fbm(u * 0.5, v * 0.5, self.seed, 2, fp);
+                // One octave of very low-frequency shading variation (period ≥ 2 tiles).
+                let n = value_noise(u * 0.5, v * 0.5, self.seed);
                 self.c0 * (0.93 + 0.14 * n)
             }
             Pattern::Noise => {
