@@ -5,5 +5,6 @@
 pub mod import;
 pub mod recording;
 pub mod rng;
+pub mod scene;
 pub mod sensors;
 pub mod viz;
