@@ -60,7 +60,11 @@ impl ZoneEffect for Anomalies {
         }
         check_ordered(self.name(), "noise_range_m", self.noise_range_m)?;
         if self.noise_range_m[0] <= 0.0 {
-            return Err(invalid(self.name(), "noise_range_m", "must start above 0 m"));
+            return Err(invalid(
+                self.name(),
+                "noise_range_m",
+                "must start above 0 m",
+            ));
         }
         Ok(())
     }

@@ -102,7 +102,8 @@ impl SimConfig {
 
     /// Parses and validates a JSON configuration.
     pub fn from_json(text: &str) -> Result<SimConfig, SimError> {
-        let cfg: SimConfig = serde_json::from_str(text).map_err(|e| SimError::Json(e.to_string()))?;
+        let cfg: SimConfig =
+            serde_json::from_str(text).map_err(|e| SimError::Json(e.to_string()))?;
         cfg.validate()?;
         Ok(cfg)
     }

@@ -51,7 +51,11 @@ pub(crate) fn check_prob(aspect: &str, field: &str, v: f32) -> Result<(), SimErr
     if (0.0..=1.0).contains(&v) {
         Ok(())
     } else {
-        Err(invalid(aspect, field, format!("must be a probability in [0, 1], got {v}")))
+        Err(invalid(
+            aspect,
+            field,
+            format!("must be a probability in [0, 1], got {v}"),
+        ))
     }
 }
 
@@ -60,7 +64,11 @@ pub(crate) fn check_positive(aspect: &str, field: &str, v: f32) -> Result<(), Si
     if v.is_finite() && v > 0.0 {
         Ok(())
     } else {
-        Err(invalid(aspect, field, format!("must be finite and > 0, got {v}")))
+        Err(invalid(
+            aspect,
+            field,
+            format!("must be finite and > 0, got {v}"),
+        ))
     }
 }
 
@@ -72,7 +80,10 @@ pub(crate) fn check_ordered(aspect: &str, field: &str, r: [f32; 2]) -> Result<()
         Err(invalid(
             aspect,
             field,
-            format!("must be an ordered finite range [lo, hi], got [{}, {}]", r[0], r[1]),
+            format!(
+                "must be an ordered finite range [lo, hi], got [{}, {}]",
+                r[0], r[1]
+            ),
         ))
     }
 }

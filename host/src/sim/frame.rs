@@ -78,7 +78,10 @@ impl<'a> Scene<'a> {
         if self.input.labels.is_none() || w.is_empty() {
             return 0.0;
         }
-        let n = w.iter().filter(|&&i| self.label(i as usize) == label).count();
+        let n = w
+            .iter()
+            .filter(|&&i| self.label(i as usize) == label)
+            .count();
         n as f32 / w.len() as f32
     }
 }

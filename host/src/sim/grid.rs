@@ -40,7 +40,10 @@ impl GridConfig {
             return Err(invalid(
                 "grid",
                 "fov_bounds",
-                format!("must be finite with top < bottom and left < right, got {:?}", self.fov_bounds),
+                format!(
+                    "must be finite with top < bottom and left < right, got {:?}",
+                    self.fov_bounds
+                ),
             ));
         }
         check_positive("grid", "ifov[0]", self.ifov[0])?;
@@ -196,10 +199,18 @@ impl OverallDistribution {
     /// Checks the parameters; errors name the field as `overall_distribution.<field>`.
     pub fn validate(&self) -> Result<(), SimError> {
         if !(self.max_translation.is_finite() && self.max_translation >= 0.0) {
-            return Err(invalid(DISTRIBUTION, "max_translation", "must be finite and ≥ 0"));
+            return Err(invalid(
+                DISTRIBUTION,
+                "max_translation",
+                "must be finite and ≥ 0",
+            ));
         }
         if !(self.max_rotation_deg.is_finite() && (0.0..=45.0).contains(&self.max_rotation_deg)) {
-            return Err(invalid(DISTRIBUTION, "max_rotation_deg", "must be in [0, 45]"));
+            return Err(invalid(
+                DISTRIBUTION,
+                "max_rotation_deg",
+                "must be in [0, 45]",
+            ));
         }
         check_positive(DISTRIBUTION, "bin_m", self.bin_m)
     }
@@ -220,7 +231,12 @@ impl OverallDistribution {
 
     /// Measures every zone's ground-truth value: the histogram peak over its window (on) or the
     /// nominal centre pixel (off). Zones with no depth report no target.
-    pub(crate) fn measure(&self, layout: &Layout, scene: &Scene<'_>, centres: &[[f32; 2]]) -> ZoneGrid {
+    pub(crate) fn measure(
+        &self,
+        layout: &Layout,
+        scene: &Scene<'_>,
+        centres: &[[f32; 2]],
+    ) -> ZoneGrid {
         let mut scratch = PeakScratch::default();
         let mut depths = Vec::new();
         let zones = (0..layout.centres.len())
@@ -371,7 +387,13 @@ mod tests {
             angle_rad: core::f32::consts::FRAC_PI_2,
         };
         let (_, _, moved) = l.windows(&pose);
-        assert!((moved[0][0] - 26.0).abs() < 1e-3 && (moved[0][1] - 50.0).abs() < 1e-3, "{moved:?}");
-        assert!((moved[1][0] - 76.0).abs() < 1e-3 && (moved[1][1] - 50.0).abs() < 1e-3, "{moved:?}");
+        assert!(
+            (moved[0][0] - 26.0).abs() < 1e-3 && (moved[0][1] - 50.0).abs() < 1e-3,
+            "{moved:?}"
+        );
+        assert!(
+            (moved[1][0] - 76.0).abs() < 1e-3 && (moved[1][1] - 50.0).abs() < 1e-3,
+            "{moved:?}"
+        );
     }
 }

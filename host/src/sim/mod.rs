@@ -81,7 +81,11 @@ impl SimInput<'_> {
             if expected == got {
                 Ok(())
             } else {
-                Err(SimError::InputSize { field, expected, got })
+                Err(SimError::InputSize {
+                    field,
+                    expected,
+                    got,
+                })
             }
         };
         check("depth_m", n, self.depth_m.len())?;
@@ -146,12 +150,22 @@ pub fn simulate(cfg: &SimConfig, input: &SimInput<'_>, seed: u64) -> Result<SimO
     let status = zones
         .zones
         .iter()
-        .map(|z| if z.has_target() { STATUS_VALID } else { STATUS_NO_TARGET })
+        .map(|z| {
+            if z.has_target() {
+                STATUS_VALID
+            } else {
+                STATUS_NO_TARGET
+            }
+        })
         .collect();
     Ok(SimOutput {
         rows: cfg.grid.rows,
         cols: cfg.grid.cols,
-        distance_mm: zones.zones.iter().map(|z| z.distance_m.max(0.0) * 1000.0).collect(),
+        distance_mm: zones
+            .zones
+            .iter()
+            .map(|z| z.distance_m.max(0.0) * 1000.0)
+            .collect(),
         status,
         zone_rects_px: cfg.grid.zone_rects_px(input.width, input.height),
         truth: zones.zones.iter().map(|z| z.truth).collect(),

@@ -17,7 +17,13 @@ use super::SimConfig;
 pub const PRESETS: [&str; 3] = ["l5", "phone", "mcu"];
 
 /// A grid from pixel figures measured on an `h × w` image.
-fn grid_from_px(rows: u16, cols: u16, bounds_px: [f32; 4], ifov_px: [f32; 2], [h, w]: [f32; 2]) -> GridConfig {
+fn grid_from_px(
+    rows: u16,
+    cols: u16,
+    bounds_px: [f32; 4],
+    ifov_px: [f32; 2],
+    [h, w]: [f32; 2],
+) -> GridConfig {
     let [t, b, l, r] = bounds_px;
     GridConfig {
         rows,
@@ -42,7 +48,13 @@ fn l5() -> SimConfig {
         ..SurfaceAspect::default()
     };
     SimConfig {
-        grid: grid_from_px(8, 8, [-25.0, 405.0, 85.0, 535.0], [52.0, 56.0], [480.0, 640.0]),
+        grid: grid_from_px(
+            8,
+            8,
+            [-25.0, 405.0, 85.0, 535.0],
+            [52.0, 56.0],
+            [480.0, 640.0],
+        ),
         depth_halving: DepthHalving::default(),
         overall_distribution: OverallDistribution {
             enabled: true,
@@ -79,7 +91,13 @@ fn l5() -> SimConfig {
 /// p = 0.8, anomalies from semantic labels; §3.1 — background shift 0–2 zones.
 fn phone() -> SimConfig {
     SimConfig {
-        grid: grid_from_px(40, 30, [30.0, 900.0, 40.0, 660.0], [21.0, 21.0], [912.0, 684.0]),
+        grid: grid_from_px(
+            40,
+            30,
+            [30.0, 900.0, 40.0, 660.0],
+            [21.0, 21.0],
+            [912.0, 684.0],
+        ),
         depth_halving: DepthHalving::default(),
         overall_distribution: OverallDistribution {
             enabled: true,
@@ -150,7 +168,10 @@ mod tests {
         let p = preset("phone").unwrap().grid.zone_rects_px(684, 912);
         assert_eq!(p.len(), 1200);
         // Last zone: cell rows 878.25…900, cols 639.33…660; centre (889.125, 649.667).
-        assert!((p[1199][0] - (889.125 - 10.5)).abs() < 1e-3 && (p[1199][3] - (649.6667 + 10.5)).abs() < 1e-3);
+        assert!(
+            (p[1199][0] - (889.125 - 10.5)).abs() < 1e-3
+                && (p[1199][3] - (649.6667 + 10.5)).abs() < 1e-3
+        );
         assert!((l5.signal_loss.p_loss - 0.263_157_9).abs() < 1e-6);
         assert!(matches!(preset("nope"), Err(SimError::UnknownPreset(_))));
     }

@@ -57,7 +57,11 @@ impl SurfaceAspect {
         check_prob(aspect, "p_loss", self.p_loss)?;
         check_ordered(aspect, "farther_factor", self.farther_factor)?;
         if self.farther_factor[0] < 1.0 {
-            return Err(invalid(aspect, "farther_factor", "must be ≥ 1 (a farther return)"));
+            return Err(invalid(
+                aspect,
+                "farther_factor",
+                "must be ≥ 1 (a farther return)",
+            ));
         }
         Ok(())
     }
