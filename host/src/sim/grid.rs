@@ -122,6 +122,14 @@ impl Layout {
         let mut start = Vec::with_capacity(n + 1);
         let mut moved = Vec::with_capacity(n);
         let [fy, fx] = self.fov_centre;
+        let (h, w) = (self.height as f32, self.width as f32);
+        // Rotated offsets of the window's columns, shared by every row and zone.
+        let col_offsets: Vec<[f32; 2]> = (0..nw)
+            .map(|v| {
+                let ox = (v as f32 + 0.5) * step_x - self.ifov_px[1] / 2.0;
+                [ox * sin, ox * cos]
+            })
+            .collect();
         for z in 0..n {
             start.push(px.len() as u32);
             let [y, x] = self.centres[z];
@@ -134,15 +142,12 @@ impl Layout {
             }
             for u in 0..nh {
                 let oy = (u as f32 + 0.5) * step_y - self.ifov_px[0] / 2.0;
-                for v in 0..nw {
-                    let ox = (v as f32 + 0.5) * step_x - self.ifov_px[1] / 2.0;
-                    let py = cy + ox * sin + oy * cos;
-                    let pxx = cx + ox * cos - oy * sin;
-                    if py >= 0.0 && pxx >= 0.0 {
-                        let (iy, ix) = (py as usize, pxx as usize);
-                        if iy < self.height && ix < self.width {
-                            px.push((iy * self.width + ix) as u32);
-                        }
+                let (ry, rx) = (cy + oy * cos, cx - oy * sin);
+                for &[dy, dx] in &col_offsets {
+                    let (py, pxx) = (ry + dy, rx + dx);
+                    // Truncation is floor here: both are ≥ 0.
+                    if py >= 0.0 && pxx >= 0.0 && py < h && pxx < w {
+                        px.push((py as usize * self.width + pxx as usize) as u32);
                     }
                 }
             }
@@ -303,14 +308,15 @@ pub(crate) fn histogram_peak(depths: &[f32], bin_m: f32, s: &mut PeakScratch) ->
     if (hi - lo) / bw > (MAX_BINS - 2) as f32 {
         bw = (hi - lo) / (MAX_BINS - 2) as f32;
     }
-    let base = (lo / bw).floor();
-    let n = ((hi / bw).floor() - base) as usize + 1;
+    // Depths are > 0, so truncation is floor.
+    let base = (lo / bw) as usize;
+    let n = (hi / bw) as usize - base + 1;
     s.counts.clear();
     s.counts.resize(n, 0);
     s.sums.clear();
     s.sums.resize(n, 0.0);
     for &d in depths {
-        let k = (((d / bw).floor() - base) as usize).min(n - 1);
+        let k = ((d / bw) as usize).saturating_sub(base).min(n - 1);
         s.counts[k] += 1;
         s.sums[k] += f64::from(d);
     }
