@@ -3,8 +3,8 @@
 //! rejected, missing aspects are off.
 //!
 //! Adding an aspect: a new module with its parameter struct implementing
-//! [`super::frame::ZoneEffect`], a `#[serde(default)]` field here, and one entry in
-//! [`SimConfig::zone_effects`] (which fixes where in the pipeline it runs).
+//! `frame::ZoneEffect`, a `#[serde(default)]` field here, and one entry in
+//! `SimConfig::zone_effects` (which fixes where in the pipeline it runs).
 
 use serde::{Deserialize, Serialize};
 
