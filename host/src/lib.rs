@@ -7,4 +7,5 @@ pub mod recording;
 pub mod rng;
 pub mod scene;
 pub mod sensors;
+pub mod sim;
 pub mod viz;
