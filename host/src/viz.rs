@@ -242,3 +242,48 @@ mod tests {
         assert_eq!(text_width("1.5m", 2), (16 - 1) * 2);
     }
 }
+
+/// A depth map (metres, row-major `width × height`) as a Turbo image over `[lo, hi]`; unknown
+/// depth (0 or non-finite) is black.
+pub fn depth_image(depth_m: &[f32], width: u32, height: u32, lo: f32, hi: f32) -> RgbImage {
+    RgbImage::from_fn(width, height, |x, y| {
+        let d = depth_m
+            .get(y as usize * width as usize + x as usize)
+            .copied()
+            .unwrap_or(0.0);
+        if d.is_finite() && d > 0.0 {
+            depth_colour(d, lo, hi)
+        } else {
+            Rgb([0, 0, 0])
+        }
+    })
+}
+
+/// Colours of the material classes of `labels.png` (DESIGN.md): diffuse grey, transparent cyan,
+/// specular magenta, dark yellow.
+pub const LABEL_COLOURS: [[u8; 3]; 4] = [[70, 70, 70], [0, 230, 230], [230, 0, 230], [240, 220, 0]];
+
+/// A label map as an image in [`LABEL_COLOURS`] (unknown classes white).
+pub fn labels_image(labels: &[u8], width: u32, height: u32) -> RgbImage {
+    RgbImage::from_fn(width, height, |x, y| {
+        let l = labels
+            .get(y as usize * width as usize + x as usize)
+            .copied()
+            .unwrap_or(0) as usize;
+        Rgb(LABEL_COLOURS.get(l).copied().unwrap_or([255, 255, 255]))
+    })
+}
+
+/// Images side by side (top-aligned, white background, `gap` pixels between them).
+pub fn mosaic(images: &[RgbImage], gap: u32) -> RgbImage {
+    let w =
+        images.iter().map(|i| i.width()).sum::<u32>() + gap * images.len().saturating_sub(1) as u32;
+    let h = images.iter().map(|i| i.height()).max().unwrap_or(0);
+    let mut out = RgbImage::from_pixel(w.max(1), h.max(1), Rgb([255, 255, 255]));
+    let mut x = 0i64;
+    for img in images {
+        image::imageops::replace(&mut out, img, x, 0);
+        x += i64::from(img.width() + gap);
+    }
+    out
+}

@@ -6,6 +6,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 mod import;
 mod info;
 mod project;
+mod sim;
 
 /// Exit status for every failure (clap also uses 2 for usage errors).
 pub const EXIT_FAILURE: u8 = 2;
@@ -25,6 +26,8 @@ enum Command {
     Import(import::Args),
     /// Summarise a recording: frames, resolution, reference depth and zone validity.
     Info(info::Args),
+    /// Simulate dToF: synthetic scenes (--scenes) or an existing recording (--from).
+    Sim(sim::Args),
     /// Draw a frame's dToF zones projected onto its RGB image.
     Project(project::Args),
 }
@@ -35,6 +38,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Import(args) => import::handle(args),
         Command::Info(args) => info::handle(args),
         Command::Project(args) => project::handle(args),
+        Command::Sim(args) => sim::handle(args),
     }
 }
 
