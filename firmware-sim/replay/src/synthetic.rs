@@ -84,9 +84,12 @@ pub fn frame(index: u32, rows: u16, cols: u16, h: u32, w: u32) -> FrameData {
     let mut rgb = Vec::with_capacity(3 * (h * w) as usize);
     for y in 0..h {
         for x in 0..w {
-            rgb.push((x * 255 / w.max(1)) as u8);
-            rgb.push((y * 255 / h.max(1)) as u8);
-            rgb.push(((x + y + 17 * index) & 0xFF) as u8);
+            // 8×8-pixel blocks: a colour ramp and a checkerboard moving one block per frame
+            // (blocky, so the committed default image compresses well in git).
+            let (bx, by) = (x / 8, y / 8);
+            rgb.push((bx * 12 % 256) as u8);
+            rgb.push((by * 16 % 256) as u8);
+            rgb.push(if (bx + by + index) % 2 == 0 { 40 } else { 220 });
         }
     }
     FrameData {
