@@ -50,8 +50,13 @@ pub fn start(mut syst: SYST) {
     syst.set_clock_source(SystClkSource::Core);
     syst.set_reload((PERIOD - 1) as u32);
     syst.clear_current();
-    syst.enable_interrupt();
     syst.enable_counter();
+    // Writing CVR clears it to 0; the first tick reloads it. Start counting from that reload,
+    // so the initial 0 → reload step is neither a tick nor a wrap.
+    while SYST::get_current() == 0 {}
+    SCB::clear_pendst();
+    WRAPS.store(0, Ordering::Release);
+    syst.enable_interrupt();
 }
 
 /// Ticks since [`start`] (monotonic, 64-bit).

@@ -22,14 +22,18 @@
 //! | 104 | frames | `frame count` records, back to back (below) |
 //! | end − 4 | `u32` | CRC-32 ([`crate::crc32`]) of every byte before it |
 //!
-//! A frame record, `Z = rows · cols`:
+//! A frame record, `Z = rows · cols`; padding keeps every record and its RGB 4-byte aligned
+//! (relative to the image start), so the firmware copies RGB with word moves:
 //!
 //! | type | field |
 //! |---|---|
 //! | `u16` | zone count; must equal `Z` |
+//! | `u16` | reserved, 0 |
 //! | `i16 × Z` | zone distance, millimetres, row-major, row 0 at the top |
 //! | `u8 × Z` | ST `target_status` per zone (5, 9 valid; 255 no target) |
-//! | `u8 × 3·H·W` | RGB888, interleaved, row-major, no padding |
+//! | `u8 × 0–3` | zero padding to a multiple of 4 bytes since the record start |
+//! | `u8 × 3·H·W` | RGB888, interleaved, row-major, no padding between rows |
+//! | `u8 × 0–3` | zero padding to a multiple of 4 bytes |
 //!
 //! [`Image::parse`] validates everything (header, exact length, CRC, every frame's zone count)
 //! before the image is used, returns an [`ImageError`] for any defect and never panics.
@@ -201,10 +205,20 @@ fn f32_at(b: &[u8], at: usize) -> f32 {
     f32::from_bits(u32_at(b, at))
 }
 
+/// Rounds `n` up to a multiple of 4, `None` on overflow.
+fn pad4(n: usize) -> Option<usize> {
+    Some(n.checked_add(3)? & !3)
+}
+
+/// Byte offset of the RGB inside a frame record with `zones` zones, `None` on overflow.
+pub fn rgb_offset(zones: usize) -> Option<usize> {
+    pad4(zones.checked_mul(3)?.checked_add(4)?)
+}
+
 /// Bytes of one frame record for `zones` zones and an `h × w` image, `None` on overflow.
 pub fn record_len(zones: usize, height: usize, width: usize) -> Option<usize> {
     let rgb = height.checked_mul(width)?.checked_mul(3)?;
-    zones.checked_mul(3)?.checked_add(2)?.checked_add(rgb)
+    pad4(rgb_offset(zones)?.checked_add(rgb)?)
 }
 
 impl<'a> Image<'a> {
@@ -279,6 +293,9 @@ impl<'a> Image<'a> {
         }
         for frame in 0..frame_count {
             let at = HEADER_LEN + frame as usize * record;
+            if u16_at(bytes, at + 2) != 0 {
+                return Err(ImageError::BadHeader("frame reserved field is not zero"));
+            }
             let got = usize::from(u16_at(bytes, at));
             if got != zones {
                 return Err(ImageError::ZoneCount {
@@ -354,10 +371,13 @@ impl<'a> Image<'a> {
             return None;
         }
         let zones = usize::from(self.rows) * usize::from(self.cols);
-        let start = HEADER_LEN + index as usize * self.record_len + 2;
-        let record = self.bytes.get(start..start + self.record_len - 2)?;
-        let (distance_le, rest) = record.split_at_checked(2 * zones)?;
-        let (status, rgb) = rest.split_at_checked(zones)?;
+        let rgb_len = 3 * usize::from(self.height) * usize::from(self.width);
+        let start = HEADER_LEN + index as usize * self.record_len;
+        let record = self.bytes.get(start..start + self.record_len)?;
+        let distance_le = record.get(4..4 + 2 * zones)?;
+        let status = record.get(4 + 2 * zones..4 + 3 * zones)?;
+        let rgb_at = rgb_offset(zones)?;
+        let rgb = record.get(rgb_at..rgb_at + rgb_len)?;
         Some(Frame {
             distance_le,
             status,

@@ -93,6 +93,42 @@ impl core::fmt::Display for LoopError {
 
 impl core::error::Error for LoopError {}
 
+/// The stages of a frame, in order, as reported to a [`Probe`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    /// RGB capture through the camera HAL.
+    Camera,
+    /// Zone read through the dToF driver and the simulated bridge.
+    Dtof,
+    /// Zones → sparse depth.
+    Projection,
+    /// The frame is done (no stage runs after this mark).
+    Done,
+}
+
+impl Stage {
+    /// Short lowercase name (`camera`, `dtof`, `projection`, `done`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::Camera => "camera",
+            Stage::Dtof => "dtof",
+            Stage::Projection => "projection",
+            Stage::Done => "done",
+        }
+    }
+}
+
+/// Observes stage boundaries inside [`ReplayLoop::process_probed`] (the firmware reads its
+/// instruction counter here); `()` observes nothing.
+pub trait Probe {
+    /// Called as `stage` begins ([`Stage::Done`]: after the last one ended).
+    fn mark(&mut self, stage: Stage);
+}
+
+impl Probe for () {
+    fn mark(&mut self, _stage: Stage) {}
+}
+
 /// What [`ReplayLoop::process`] did with one frame (the output is in the workspace).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Processed {
@@ -187,6 +223,15 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
         &mut self,
         ws: &mut Workspace<'_, N>,
     ) -> Result<Option<Processed>, LoopError> {
+        self.process_probed(ws, &mut ())
+    }
+
+    /// [`ReplayLoop::process`], telling `probe` where each stage begins.
+    pub fn process_probed<const N: usize>(
+        &mut self,
+        ws: &mut Workspace<'_, N>,
+        probe: &mut impl Probe,
+    ) -> Result<Option<Processed>, LoopError> {
         let index = self.next;
         let Some(frame) = self.image.frame(index) else {
             return Ok(None);
@@ -196,6 +241,7 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
         let pixels = w as usize * h as usize;
 
         // 1. RGB through the camera HAL.
+        probe.mark(Stage::Camera);
         let rgb = ws
             .rgb
             .get_mut(..3 * pixels)
@@ -210,6 +256,7 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
             .map_err(LoopError::Camera)?;
 
         // 2. dToF through the real driver over the simulated I2C bridge.
+        probe.mark(Stage::Dtof);
         let zones = frame.zones();
         let staged = ws
             .bridge_mm
@@ -226,6 +273,7 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
             .map_err(|e| LoopError::Sensor(hal::Error::kind(&e)))?;
 
         // 3. Projection: zones → sparse depth S.
+        probe.mark(Stage::Projection);
         let sparse = ws
             .sparse_m
             .get_mut(..pixels)
@@ -239,6 +287,7 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
         // and `FrameOutput` hashes `depth` instead of `sparse`. Until then NO MODEL RUNS: the
         // output is the projection's sparse map.
 
+        probe.mark(Stage::Done);
         self.next += 1;
         Ok(Some(Processed {
             index,

@@ -5,7 +5,7 @@ use std::io::{self, Write};
 use depthor_core::calibration::{Calibration, DistanceKind};
 
 use crate::crc32::crc32;
-use crate::format::{record_len, CRC_LEN, HEADER_LEN, MAGIC, MAX_SIDE, MAX_ZONE_SIDE, VERSION};
+use crate::format::{record_len, rgb_offset, CRC_LEN, HEADER_LEN, MAGIC, MAX_SIDE, MAX_ZONE_SIDE, VERSION};
 
 /// One frame to write: RGB888 at the calibration's camera size and the zones, row-major.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -91,12 +91,16 @@ pub fn image_bytes(cal: &Calibration, frames: &[FrameData]) -> io::Result<Vec<u8
                 3 * pixels
             )));
         }
+        let start = out.len();
         out.extend_from_slice(&(zones as u16).to_le_bytes());
+        out.extend_from_slice(&[0; 2]);
         for d in &f.distance_mm {
             out.extend_from_slice(&d.to_le_bytes());
         }
         out.extend_from_slice(&f.status);
+        out.resize(start + rgb_offset(zones).unwrap_or(0), 0);
         out.extend_from_slice(&f.rgb);
+        out.resize(start + record, 0);
     }
     out.extend_from_slice(&[0; CRC_LEN]);
     reseal(&mut out);

@@ -30,7 +30,8 @@ fn main() -> ! {
             "subs {n}, {n}, #1",
             "bne 2b",
             n = inout(reg) N => _,
-            options(nomem, nostack),
+            // No `nomem`: the asm must stay between the two counter reads.
+            options(nostack),
         );
     }
     let t1 = cycles::ticks();

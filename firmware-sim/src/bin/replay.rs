@@ -9,10 +9,39 @@ use cortex_m_rt::entry;
 use depthor_core::hal::ZoneFrame;
 use depthor_firmware_sim::{console, cycles, memory, println};
 use depthor_replay::format::Image;
-use depthor_replay::pipeline::{FrameOutput, ReplayLoop, Workspace};
+use depthor_replay::pipeline::{FrameOutput, Probe, ReplayLoop, Stage, Workspace};
+
+/// 4-byte alignment for the embedded image, so its (4-aligned) RGB records copy by words.
+#[repr(C, align(4))]
+struct Aligned<B: ?Sized>(B);
+
+static ALIGNED_IMAGE: &Aligned<[u8]> =
+    &Aligned(*include_bytes!(concat!(env!("OUT_DIR"), "/replay.img")));
 
 /// The replay image, copied into `OUT_DIR` by `build.rs` (flash, via `.rodata`).
-static IMAGE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/replay.img"));
+static IMAGE: &[u8] = &ALIGNED_IMAGE.0;
+
+/// Stages timed per frame (all but [`Stage::Done`]).
+const STAGES: [Stage; 3] = [Stage::Camera, Stage::Dtof, Stage::Projection];
+
+/// Accumulates SysTick ticks per stage from the loop's stage marks.
+#[derive(Default)]
+struct TickProbe {
+    current: Option<usize>,
+    since: u64,
+    ticks: [u64; STAGES.len()],
+}
+
+impl Probe for TickProbe {
+    fn mark(&mut self, stage: Stage) {
+        let now = cycles::ticks();
+        if let Some(slot) = self.current.and_then(|i| self.ticks.get_mut(i)) {
+            *slot += now - self.since;
+        }
+        self.current = STAGES.iter().position(|s| *s == stage);
+        self.since = now;
+    }
+}
 
 /// Image size this build holds: the `mcu` variant's 120×160 (DESIGN.md).
 const PIXELS: usize = 120 * 160;
@@ -67,23 +96,24 @@ fn main() -> ! {
     };
     let mut replay = ReplayLoop::new(image, SpinDelay);
 
-    // Cost of the two `ticks()` reads themselves, subtracted from every frame.
-    let overhead = {
-        let t0 = cycles::ticks();
-        cycles::ticks() - t0
-    };
-    let (mut frames, mut total, mut min, mut max) = (0u64, 0u64, u64::MAX, 0u64);
+    let (mut frames, mut min, mut max) = (0u64, u64::MAX, 0u64);
+    let mut stage_totals = [0u64; STAGES.len()];
     loop {
-        let t0 = cycles::ticks();
-        let result = replay.process(&mut ws);
-        let t1 = cycles::ticks();
+        let mut probe = TickProbe::default();
+        let result = replay.process_probed(&mut ws, &mut probe);
         match result {
             Ok(Some(processed)) => {
-                let instructions = cycles::instructions((t1 - t0).saturating_sub(overhead));
+                let per_stage = probe.ticks.map(cycles::instructions);
+                let instructions: u64 = per_stage.iter().sum();
                 println!("{}", FrameOutput::new(&processed, ws.sparse_m));
-                println!("icount frame {} instructions={instructions}", processed.index);
+                println!(
+                    "icount frame {} instructions={instructions} camera={} dtof={} projection={}",
+                    processed.index, per_stage[0], per_stage[1], per_stage[2]
+                );
                 frames += 1;
-                total += instructions;
+                for (total, n) in stage_totals.iter_mut().zip(per_stage) {
+                    *total += n;
+                }
                 min = min.min(instructions);
                 max = max.max(instructions);
             }
@@ -99,12 +129,17 @@ fn main() -> ! {
     let statics = memory::statics_bytes();
     let flash = memory::flash_bytes();
     println!("frames {frames}");
+    let mean = |n: u64| n / frames.max(1);
     println!(
-        "instructions/frame: mean {} min {min} max {max} (camera + dToF driver + projection; \
-         SysTick x{} under -icount shift={})",
-        total / frames.max(1),
+        "instructions/frame: mean {} min {min} max {max}; mean camera {} dtof {} projection {} \
+         (SysTick x{} under -icount shift={}, +-{} per stage)",
+        mean(stage_totals.iter().sum()),
+        mean(stage_totals[0]),
+        mean(stage_totals[1]),
+        mean(stage_totals[2]),
         cycles::INSTRUCTIONS_PER_TICK,
-        cycles::ICOUNT_SHIFT
+        cycles::ICOUNT_SHIFT,
+        cycles::INSTRUCTIONS_PER_TICK
     );
     println!(
         "ram: statics {statics} B + stack high-water {stack} B = {} B (of {} B stack region)",
