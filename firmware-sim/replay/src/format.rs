@@ -385,3 +385,113 @@ impl<'a> Image<'a> {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synthetic::{frame, mcu_calibration};
+    use crate::writer::{image_bytes, reseal};
+
+    fn small() -> Vec<u8> {
+        // 2×3 image, 2×2 zones, 2 frames.
+        let mut cal = mcu_calibration();
+        cal.camera.width = 3;
+        cal.camera.height = 2;
+        cal.dtof.rows = 2;
+        cal.dtof.cols = 2;
+        let frames: Vec<_> = (0..2).map(|i| frame(i, 2, 2, 2, 3)).collect();
+        image_bytes(&cal, &frames).unwrap()
+    }
+
+    #[test]
+    fn layout_worked_by_hand() {
+        // Record: 2 (count) + 2 (reserved) + 2·4 (distances) + 4 (status) = 16, already a
+        // multiple of 4; RGB 3·2·3 = 18 → 34 → padded to 36. Image: 104 + 2·36 + 4 = 180.
+        assert_eq!(rgb_offset(4), Some(16));
+        assert_eq!(record_len(4, 2, 3), Some(36));
+        assert_eq!(rgb_offset(64), Some(196)); // 4 + 192
+        assert_eq!(record_len(64, 120, 160), Some(196 + 57_600));
+        let bytes = small();
+        assert_eq!(bytes.len(), 180);
+        assert_eq!(&bytes[..8], b"DPTHRPLY");
+        assert_eq!(&bytes[104..106], &4u16.to_le_bytes());
+    }
+
+    #[test]
+    fn round_trip() {
+        let bytes = small();
+        let image = Image::parse(&bytes).unwrap();
+        assert_eq!(image.frame_count(), 2);
+        assert_eq!(image.size(), (2, 3));
+        assert_eq!(image.zone_grid(), (2, 2));
+        assert_eq!(image.calibration().camera.fx, 140.0);
+        let want = frame(1, 2, 2, 2, 3);
+        let f = image.frame(1).unwrap();
+        assert_eq!(f.distance_mm().collect::<Vec<_>>(), want.distance_mm);
+        assert_eq!(f.status, &want.status[..]);
+        assert_eq!(f.rgb, &want.rgb[..]);
+        assert!(image.frame(2).is_none());
+    }
+
+    #[test]
+    fn every_truncation_is_an_error_not_a_panic() {
+        let bytes = small();
+        for n in 0..bytes.len() {
+            let err = Image::parse(&bytes[..n]).unwrap_err();
+            assert!(matches!(err, ImageError::Truncated { got, .. } if got == n), "{n}: {err}");
+        }
+    }
+
+    #[test]
+    fn defects_map_to_their_errors() {
+        let good = small();
+        let edit = |at: usize, v: u8, seal: bool| {
+            let mut b = good.clone();
+            b[at] = v;
+            if seal {
+                reseal(&mut b);
+            }
+            Image::parse(&b).unwrap_err()
+        };
+        assert_eq!(edit(0, b'X', true), ImageError::BadMagic);
+        assert_eq!(edit(8, 2, true), ImageError::UnsupportedVersion(2));
+        assert_eq!(edit(24, 7, true), ImageError::BadHeader("unknown distance kind"));
+        // A flipped RGB byte without resealing: CRC.
+        assert!(matches!(edit(130, 0xFF, false), ImageError::Crc { .. }));
+        // Frame 1's zone count 5 instead of 4.
+        assert_eq!(
+            edit(104 + 36, 5, true),
+            ImageError::ZoneCount { frame: 1, expected: 4, got: 5 }
+        );
+        let mut long = good.clone();
+        long.push(0);
+        assert_eq!(
+            Image::parse(&long).unwrap_err(),
+            ImageError::TrailingBytes { expected: 180, got: 181 }
+        );
+        // Codes are distinct.
+        let codes = [
+            ImageError::BadMagic.exit_code(),
+            ImageError::UnsupportedVersion(0).exit_code(),
+            ImageError::BadHeader("").exit_code(),
+            ImageError::Truncated { expected: 0, got: 0 }.exit_code(),
+            ImageError::TrailingBytes { expected: 0, got: 0 }.exit_code(),
+            ImageError::Crc { stored: 0, computed: 0 }.exit_code(),
+            ImageError::ZoneCount { frame: 0, expected: 0, got: 0 }.exit_code(),
+        ];
+        assert_eq!(codes, [2, 3, 4, 5, 6, 7, 8]);
+    }
+
+    #[test]
+    fn huge_header_sizes_do_not_overflow() {
+        let mut b = small();
+        b[12..16].copy_from_slice(&u32::MAX.to_le_bytes());
+        b[16..18].copy_from_slice(&4096u16.to_le_bytes());
+        b[18..20].copy_from_slice(&4096u16.to_le_bytes());
+        reseal(&mut b);
+        assert!(matches!(
+            Image::parse(&b).unwrap_err(),
+            ImageError::Truncated { .. } | ImageError::BadHeader(_)
+        ));
+    }
+}

@@ -25,9 +25,9 @@ pub mod camera;
 pub mod crc32;
 pub mod format;
 pub mod pipeline;
-#[cfg(feature = "std")]
+#[cfg(any(test, feature = "std"))]
 pub mod synthetic;
-#[cfg(feature = "std")]
+#[cfg(any(test, feature = "std"))]
 pub mod writer;
 
 /// Exit status of a firmware panic.

@@ -310,3 +310,83 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
         Ok(frames)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synthetic::{mcu_calibration, mcu_frames};
+    use crate::writer::image_bytes;
+
+    struct NoDelay;
+    impl DelayNs for NoDelay {
+        fn delay_ns(&mut self, _ns: u32) {}
+    }
+
+    #[test]
+    fn fnv1a64_known_values() {
+        // Empty input is the offset basis. One 0.0 is four zero bytes: each step is h *= prime.
+        assert_eq!(fnv1a64_f32(&[]), FNV_OFFSET);
+        let mut h = FNV_OFFSET;
+        for _ in 0..4 {
+            h = h.wrapping_mul(FNV_PRIME);
+        }
+        assert_eq!(fnv1a64_f32(&[0.0]), h);
+        // 1.0 = 0x3F800000 → bytes 00 00 80 3F; -0.0 differs from 0.0.
+        assert_ne!(fnv1a64_f32(&[-0.0]), fnv1a64_f32(&[0.0]));
+        // The published FNV-1a 64 of the one byte "a" is af63dc4c8601ec8c: checks the constants.
+        let mut h = FNV_OFFSET ^ 0x61;
+        h = h.wrapping_mul(FNV_PRIME);
+        assert_eq!(h, 0xaf63_dc4c_8601_ec8c);
+    }
+
+    #[test]
+    fn loop_projects_the_zones_the_image_holds() {
+        let cal = mcu_calibration();
+        let frames = mcu_frames(3);
+        let bytes = image_bytes(&cal, &frames).unwrap();
+        let image = Image::parse(&bytes).unwrap();
+        let (mut rgb, mut sparse) = (vec![0u8; 57_600], vec![0f32; 19_200]);
+        let (mut bridge, mut zones) = ([0f32; 64], ZoneFrame::<64>::new());
+        let mut ws = Workspace {
+            rgb: &mut rgb,
+            sparse_m: &mut sparse,
+            bridge_mm: &mut bridge,
+            zones: &mut zones,
+        };
+        let mut replay = ReplayLoop::new(image, NoDelay);
+        for (i, f) in frames.iter().enumerate() {
+            let p = replay.process(&mut ws).unwrap().unwrap();
+            assert_eq!(p.index as usize, i);
+            // The RGB went through the camera unchanged, the zones through the bridge.
+            assert_eq!(&ws.rgb[..], &f.rgb[..]);
+            let want: Vec<f32> = f.distance_mm.iter().map(|&d| f32::from(d)).collect();
+            assert_eq!(ws.zones.view().distance_mm, &want[..]);
+            assert_eq!(ws.zones.view().status, &f.status[..]);
+            // Same as projecting the zones directly.
+            let mut direct = vec![0f32; 19_200];
+            let stats = project_to_sparse(&cal, &ws.zones.view(), &mut direct).unwrap();
+            assert_eq!(p.stats, stats);
+            assert_eq!(fnv1a64_f32(ws.sparse_m), fnv1a64_f32(&direct));
+            // Synthetic frames: one 255, one status 4, one zero distance → 3 skipped.
+            assert_eq!(stats.skipped(), 3);
+        }
+        assert_eq!(replay.process(&mut ws).unwrap(), None);
+    }
+
+    #[test]
+    fn small_workspace_is_an_error() {
+        let bytes = image_bytes(&mcu_calibration(), &mcu_frames(1)).unwrap();
+        let image = Image::parse(&bytes).unwrap();
+        let (mut rgb, mut sparse) = (vec![0u8; 57_600], vec![0f32; 19_200]);
+        let (mut bridge, mut zones) = ([0f32; 16], ZoneFrame::<16>::new());
+        let mut ws = Workspace {
+            rgb: &mut rgb,
+            sparse_m: &mut sparse,
+            bridge_mm: &mut bridge,
+            zones: &mut zones,
+        };
+        let err = ReplayLoop::new(image, NoDelay).process(&mut ws).unwrap_err();
+        assert_eq!(err, LoopError::ZoneCapacity { zones: 64, capacity: 16 });
+        assert_eq!(err.exit_code(), 13);
+    }
+}
