@@ -36,7 +36,15 @@ fn build_firmware(bin: &str, image: &Path, dir: &Path) -> PathBuf {
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
     let out = Command::new(cargo)
         .current_dir(&fw)
-        .args(["build", "--release", "--bin", bin, "--target", TARGET, "--target-dir"])
+        .args([
+            "build",
+            "--release",
+            "--bin",
+            bin,
+            "--target",
+            TARGET,
+            "--target-dir",
+        ])
         .arg(&target_dir)
         .env("DEPTHOR_REPLAY_IMAGE", image)
         // The outer `cargo test` sets these for the root package; the firmware must not see them.
@@ -60,8 +68,19 @@ fn build_firmware(bin: &str, image: &Path, dir: &Path) -> PathBuf {
 /// Runs `elf` in QEMU; returns (exit status, stdout). Fails when QEMU is missing or hangs.
 fn run_qemu(elf: &Path) -> (i32, String) {
     let spawned = Command::new("qemu-system-arm")
-        .args(["-machine", "mps2-an386", "-cpu", "cortex-m4", "-icount", "shift=0"])
-        .args(["-semihosting-config", "enable=on,target=native", "-nographic"])
+        .args([
+            "-machine",
+            "mps2-an386",
+            "-cpu",
+            "cortex-m4",
+            "-icount",
+            "shift=0",
+        ])
+        .args([
+            "-semihosting-config",
+            "enable=on,target=native",
+            "-nographic",
+        ])
         .args(["-monitor", "none", "-serial", "none", "-kernel"])
         .arg(elf)
         .stdin(Stdio::null())
@@ -130,8 +149,11 @@ fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
 fn qemu_hashes_equal_host_bit_for_bit() {
     let dir = tempfile::tempdir().expect("tempdir");
     let frames = 6;
-    let bytes = writer::image_bytes(&synthetic::mcu_calibration(), &synthetic::mcu_frames(frames))
-        .expect("make image");
+    let bytes = writer::image_bytes(
+        &synthetic::mcu_calibration(),
+        &synthetic::mcu_frames(frames),
+    )
+    .expect("make image");
     let image = write(dir.path(), "good.dri", &bytes);
     let host = host_lines(&bytes);
     assert_eq!(host.len(), frames as usize);
@@ -145,10 +167,18 @@ fn qemu_hashes_equal_host_bit_for_bit() {
         .map(str::to_owned)
         .collect();
     for (i, (h, f)) in host.iter().zip(&firmware).enumerate() {
-        assert_eq!(h, f, "frame {i}: host and QEMU differ; firmware output:\n{stdout}");
+        assert_eq!(
+            h, f,
+            "frame {i}: host and QEMU differ; firmware output:\n{stdout}"
+        );
     }
     assert_eq!(firmware.len(), host.len(), "frame count; output:\n{stdout}");
-    for needle in ["instructions/frame: mean", "ram: statics", "flash: ", "TEST OK"] {
+    for needle in [
+        "instructions/frame: mean",
+        "ram: statics",
+        "flash: ",
+        "TEST OK",
+    ] {
         assert!(stdout.contains(needle), "missing {needle:?} in:\n{stdout}");
     }
     assert!(!stdout.contains("PANIC"), "{stdout}");
@@ -160,14 +190,27 @@ fn assert_firmware_rejects(name: &str, bytes: &[u8], code: u8) {
     let image = write(dir.path(), name, bytes);
     let elf = build_firmware("replay", &image, dir.path());
     let (status, stdout) = run_qemu(&elf);
-    assert_eq!(status, i32::from(code), "exit status for {name}; output:\n{stdout}");
-    assert!(stdout.contains(&format!("ERROR {code}: ")), "{name}:\n{stdout}");
-    assert!(!stdout.contains("PANIC") && !stdout.contains("TEST OK"), "{name}:\n{stdout}");
+    assert_eq!(
+        status,
+        i32::from(code),
+        "exit status for {name}; output:\n{stdout}"
+    );
+    assert!(
+        stdout.contains(&format!("ERROR {code}: ")),
+        "{name}:\n{stdout}"
+    );
+    assert!(
+        !stdout.contains("PANIC") && !stdout.contains("TEST OK"),
+        "{name}:\n{stdout}"
+    );
 }
 
 fn good_bytes(frames: u32) -> Vec<u8> {
-    writer::image_bytes(&synthetic::mcu_calibration(), &synthetic::mcu_frames(frames))
-        .expect("make image")
+    writer::image_bytes(
+        &synthetic::mcu_calibration(),
+        &synthetic::mcu_frames(frames),
+    )
+    .expect("make image")
 }
 
 #[test]
@@ -195,7 +238,9 @@ fn qemu_rejects_more_zones_than_the_build_holds() {
     let mut cal = synthetic::mcu_calibration();
     cal.dtof.rows = 10;
     cal.dtof.cols = 10;
-    let frames: Vec<_> = (0..2).map(|i| synthetic::frame(i, 10, 10, 120, 160)).collect();
+    let frames: Vec<_> = (0..2)
+        .map(|i| synthetic::frame(i, 10, 10, 120, 160))
+        .collect();
     let bytes = writer::image_bytes(&cal, &frames).expect("make image");
     assert_firmware_rejects("zones_10x10.dri", &bytes, 13);
 }

@@ -39,7 +39,7 @@
 //! before the image is used, returns an [`ImageError`] for any defect and never panics.
 
 use depthor_core::calibration::{
-    CameraIntrinsics, Calibration, DistanceKind, DtofGeometry, Extrinsics,
+    Calibration, CameraIntrinsics, DistanceKind, DtofGeometry, Extrinsics,
 };
 
 use crate::crc32::crc32;
@@ -123,12 +123,14 @@ impl core::fmt::Display for ImageError {
             }
             ImageError::BadHeader(what) => write!(f, "bad replay image header: {what}"),
             ImageError::Truncated { expected, got } => {
-                write!(f, "replay image truncated: {got} bytes, header implies {expected}")
+                write!(
+                    f,
+                    "replay image truncated: {got} bytes, header implies {expected}"
+                )
             }
-            ImageError::TrailingBytes { expected, got } => write!(
-                f,
-                "replay image has {got} bytes, header implies {expected}"
-            ),
+            ImageError::TrailingBytes { expected, got } => {
+                write!(f, "replay image has {got} bytes, header implies {expected}")
+            }
             ImageError::Crc { stored, computed } => write!(
                 f,
                 "replay image CRC mismatch: stored {stored:#010x}, computed {computed:#010x}"
@@ -178,12 +180,10 @@ impl<'a> Frame<'a> {
 
     /// Zone distances in millimetres, row-major.
     pub fn distance_mm(&self) -> impl Iterator<Item = i16> + 'a {
-        self.distance_le
-            .chunks_exact(2)
-            .map(|b| match *b {
-                [lo, hi] => i16::from_le_bytes([lo, hi]),
-                _ => 0, // chunks_exact(2) yields only pairs
-            })
+        self.distance_le.chunks_exact(2).map(|b| match *b {
+            [lo, hi] => i16::from_le_bytes([lo, hi]),
+            _ => 0, // chunks_exact(2) yields only pairs
+        })
     }
 }
 
@@ -252,7 +252,9 @@ impl<'a> Image<'a> {
             return Err(ImageError::BadHeader("zero frames"));
         }
         if !(1..=MAX_SIDE).contains(&height) || !(1..=MAX_SIDE).contains(&width) {
-            return Err(ImageError::BadHeader("image height or width outside 1-4096"));
+            return Err(ImageError::BadHeader(
+                "image height or width outside 1-4096",
+            ));
         }
         if !(1..=MAX_ZONE_SIDE).contains(&rows) || !(1..=MAX_ZONE_SIDE).contains(&cols) {
             return Err(ImageError::BadHeader("zone rows or cols outside 1-255"));
@@ -323,7 +325,11 @@ impl<'a> Image<'a> {
                 max_range_m: f(6),
             },
             dtof_to_camera: Extrinsics {
-                rotation: [[f(7), f(8), f(9)], [f(10), f(11), f(12)], [f(13), f(14), f(15)]],
+                rotation: [
+                    [f(7), f(8), f(9)],
+                    [f(10), f(11), f(12)],
+                    [f(13), f(14), f(15)],
+                ],
                 translation_m: [f(16), f(17), f(18)],
             },
             zone_rects_px: None,
@@ -438,7 +444,10 @@ mod tests {
         let bytes = small();
         for n in 0..bytes.len() {
             let err = Image::parse(&bytes[..n]).unwrap_err();
-            assert!(matches!(err, ImageError::Truncated { got, .. } if got == n), "{n}: {err}");
+            assert!(
+                matches!(err, ImageError::Truncated { got, .. } if got == n),
+                "{n}: {err}"
+            );
         }
     }
 
@@ -455,29 +464,56 @@ mod tests {
         };
         assert_eq!(edit(0, b'X', true), ImageError::BadMagic);
         assert_eq!(edit(8, 2, true), ImageError::UnsupportedVersion(2));
-        assert_eq!(edit(24, 7, true), ImageError::BadHeader("unknown distance kind"));
+        assert_eq!(
+            edit(24, 7, true),
+            ImageError::BadHeader("unknown distance kind")
+        );
         // A flipped RGB byte without resealing: CRC.
         assert!(matches!(edit(130, 0xFF, false), ImageError::Crc { .. }));
         // Frame 1's zone count 5 instead of 4.
         assert_eq!(
             edit(104 + 36, 5, true),
-            ImageError::ZoneCount { frame: 1, expected: 4, got: 5 }
+            ImageError::ZoneCount {
+                frame: 1,
+                expected: 4,
+                got: 5
+            }
         );
         let mut long = good.clone();
         long.push(0);
         assert_eq!(
             Image::parse(&long).unwrap_err(),
-            ImageError::TrailingBytes { expected: 180, got: 181 }
+            ImageError::TrailingBytes {
+                expected: 180,
+                got: 181
+            }
         );
         // Codes are distinct.
         let codes = [
             ImageError::BadMagic.exit_code(),
             ImageError::UnsupportedVersion(0).exit_code(),
             ImageError::BadHeader("").exit_code(),
-            ImageError::Truncated { expected: 0, got: 0 }.exit_code(),
-            ImageError::TrailingBytes { expected: 0, got: 0 }.exit_code(),
-            ImageError::Crc { stored: 0, computed: 0 }.exit_code(),
-            ImageError::ZoneCount { frame: 0, expected: 0, got: 0 }.exit_code(),
+            ImageError::Truncated {
+                expected: 0,
+                got: 0,
+            }
+            .exit_code(),
+            ImageError::TrailingBytes {
+                expected: 0,
+                got: 0,
+            }
+            .exit_code(),
+            ImageError::Crc {
+                stored: 0,
+                computed: 0,
+            }
+            .exit_code(),
+            ImageError::ZoneCount {
+                frame: 0,
+                expected: 0,
+                got: 0,
+            }
+            .exit_code(),
         ];
         assert_eq!(codes, [2, 3, 4, 5, 6, 7, 8]);
     }

@@ -385,8 +385,16 @@ mod tests {
             bridge_mm: &mut bridge,
             zones: &mut zones,
         };
-        let err = ReplayLoop::new(image, NoDelay).process(&mut ws).unwrap_err();
-        assert_eq!(err, LoopError::ZoneCapacity { zones: 64, capacity: 16 });
+        let err = ReplayLoop::new(image, NoDelay)
+            .process(&mut ws)
+            .unwrap_err();
+        assert_eq!(
+            err,
+            LoopError::ZoneCapacity {
+                zones: 64,
+                capacity: 16
+            }
+        );
         assert_eq!(err.exit_code(), 13);
     }
 }

@@ -5,7 +5,9 @@ use std::io::{self, Write};
 use depthor_core::calibration::{Calibration, DistanceKind};
 
 use crate::crc32::crc32;
-use crate::format::{record_len, rgb_offset, CRC_LEN, HEADER_LEN, MAGIC, MAX_SIDE, MAX_ZONE_SIDE, VERSION};
+use crate::format::{
+    record_len, rgb_offset, CRC_LEN, HEADER_LEN, MAGIC, MAX_SIDE, MAX_ZONE_SIDE, VERSION,
+};
 
 /// One frame to write: RGB888 at the calibration's camera size and the zones, row-major.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -34,7 +36,9 @@ pub fn image_bytes(cal: &Calibration, frames: &[FrameData]) -> io::Result<Vec<u8
         return Err(invalid("zone rows or cols outside 1-255"));
     }
     if cal.zone_rects_px.is_some() {
-        return Err(invalid("zone rectangles cannot be stored (format version 1)"));
+        return Err(invalid(
+            "zone rectangles cannot be stored (format version 1)",
+        ));
     }
     let frame_count =
         u32::try_from(frames.len()).map_err(|_| invalid("more than 2^32 - 1 frames"))?;
@@ -111,7 +115,11 @@ pub fn image_bytes(cal: &Calibration, frames: &[FrameData]) -> io::Result<Vec<u8
 ///
 /// Fails with [`io::ErrorKind::InvalidInput`] when the calibration does not fit the format
 /// (sizes out of range, zone rectangles) or a frame's RGB or zone arrays have the wrong length.
-pub fn write_image<W: Write>(cal: &Calibration, frames: &[FrameData], mut out: W) -> io::Result<()> {
+pub fn write_image<W: Write>(
+    cal: &Calibration,
+    frames: &[FrameData],
+    mut out: W,
+) -> io::Result<()> {
     out.write_all(&image_bytes(cal, frames)?)
 }
 

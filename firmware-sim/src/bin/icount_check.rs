@@ -48,7 +48,10 @@ fn main() -> ! {
         println!("TEST OK");
         console::exit(0)
     } else {
-        println!("TEST FAILED: SysTick does not count one tick per {} instructions", cycles::INSTRUCTIONS_PER_TICK);
+        println!(
+            "TEST FAILED: SysTick does not count one tick per {} instructions",
+            cycles::INSTRUCTIONS_PER_TICK
+        );
         console::exit(1)
     }
 }

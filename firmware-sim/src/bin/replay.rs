@@ -68,7 +68,10 @@ fn main() -> ! {
 
     memory::paint_stack();
     let Some(peripherals) = cortex_m::Peripherals::take() else {
-        println!("ERROR {}: core peripherals taken twice", depthor_replay::EXIT_PANIC);
+        println!(
+            "ERROR {}: core peripherals taken twice",
+            depthor_replay::EXIT_PANIC
+        );
         console::exit(depthor_replay::EXIT_PANIC);
     };
     cycles::start(peripherals.SYST);
