@@ -72,7 +72,11 @@ pub fn frame(index: u32, rows: u16, cols: u16, h: u32, w: u32) -> FrameData {
             900 + 40 * r + 25 * c + 60 * k
         };
         distance_mm.push(d as i16);
-        status.push(if (z + index as usize).is_multiple_of(5) { 9 } else { 5 });
+        status.push(if (z + index as usize).is_multiple_of(5) {
+            9
+        } else {
+            5
+        });
     }
     if zones > 0 {
         let pick = |salt: usize| (index as usize * 7 + salt) % zones;
@@ -89,7 +93,11 @@ pub fn frame(index: u32, rows: u16, cols: u16, h: u32, w: u32) -> FrameData {
             let (bx, by) = (x / 8, y / 8);
             rgb.push((bx * 12 % 256) as u8);
             rgb.push((by * 16 % 256) as u8);
-            rgb.push(if (bx + by + index).is_multiple_of(2) { 40 } else { 220 });
+            rgb.push(if (bx + by + index).is_multiple_of(2) {
+                40
+            } else {
+                220
+            });
         }
     }
     FrameData {
