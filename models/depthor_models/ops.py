@@ -321,9 +321,24 @@ def neighbour_offsets(size: int) -> list[tuple[int, int]]:
     return [(dy, dx) for dy in range(-r, r + 1) for dx in range(-r, r + 1) if (dy, dx) != (0, 0)]
 
 
-def _shifted(p: Tensor, r: int, offsets: list[tuple[int, int]], h: int, w: int) -> Tensor:
-    """Stack of p[y + dy, x + dx] for each offset, p being zero-padded by r on every side."""
-    return torch.cat([p[:, :, r + dy : r + dy + h, r + dx : r + dx + w] for dy, dx in offsets], dim=1)
+def _inside_mask(offsets: list[tuple[int, int]], h: int, w: int, dtype) -> Tensor:
+    """[1, n, H, W] with 1 where neighbour (dy, dx) of (y, x) lies inside the image: a product of
+    a row mask and a column mask, both small trace-time constants."""
+    rows = [[1.0 if 0 <= y + dy < h else 0.0 for y in range(h)] for dy, _ in offsets]
+    cols = [[1.0 if 0 <= x + dx < w else 0.0 for x in range(w)] for _, dx in offsets]
+    n = len(offsets)
+    return (torch.tensor(rows, dtype=dtype).view(1, n, h, 1)
+            * torch.tensor(cols, dtype=dtype).view(1, n, 1, w))
+
+
+def _window_stack(d: Tensor, size: int, h: int, w: int) -> Tensor:
+    """All size×size shifts of d with zeros outside: [1, s*s, H, W], channel b*s + a holding
+    d[y + a - r, x + b - r] (column-major over the window, centre included). Written as one
+    F.pad, s row slices, s column slices and two concats so the traced graph stays small."""
+    r = size // 2
+    p = F.pad(d, (r, r, r, r))
+    rows = torch.cat([p.narrow(2, a, h) for a in range(size)], dim=1)  # [1, s, H, W + 2r]
+    return torch.cat([rows.narrow(3, b, w) for b in range(size)], dim=1)
 
 
 def refine_math(
@@ -342,36 +357,36 @@ def refine_math(
     if iterations % 2 != 0:
         raise ValueError("refine: iterations must be even")
     h, w = int(d0.shape[2]), int(d0.shape[3])
-    ones = torch.ones_like(d0)
-    weights = []
+    kernels = []
     for k, (size, aff) in enumerate(zip(sizes, affs)):
         offs = neighbour_offsets(size)
-        r = size // 2
         if aff.shape[1] != len(offs):
             raise ValueError(f"refine: aff{size} needs {len(offs)} channels, got {aff.shape[1]}")
         d2 = torch.tensor([float(dy * dy + dx * dx) for dy, dx in offs], dtype=d0.dtype)
         g = torch.exp(-d2 / (2.0 * sigmas[k] * sigmas[k])).view(1, -1, 1, 1)
-        inside = _shifted(F.pad(ones, (r, r, r, r)), r, offs, h, w)
-        rj = F.relu(aff) * g * inside
+        rj = F.relu(aff) * g * _inside_mask(offs, h, w, d0.dtype)
         wj = rj / (1.0 + rj.sum(dim=1, keepdim=True))
         wc = 1.0 - wj.sum(dim=1, keepdim=True)
-        weights.append((r, offs, wj, wc))
+        # weights in _window_stack's channel order (column-major, centre included)
+        r = size // 2
+        full = []
+        for b in range(size):
+            for a in range(size):
+                dy, dx = a - r, b - r
+                full.append(wc if (dy, dx) == (0, 0) else wj.narrow(1, offs.index((dy, dx)), 1))
+        kernels.append((size, torch.cat(full, dim=1)))
     ksm = channel_softmax(kmix)
     tsm = channel_softmax(tmix)
     keep = (0, iterations // 2, iterations)
-    mixed = [None] * len(keep)
+    mixed = []
     state = [d0 for _ in sizes]
     for t in range(iterations + 1):
         if t > 0:
-            nxt = []
-            for (r, offs, wj, wc), d in zip(weights, state):
-                nb = _shifted(F.pad(d, (r, r, r, r)), r, offs, h, w)
-                nxt.append(wc * d + (wj * nb).sum(dim=1, keepdim=True))
-            state = nxt
+            state = [(wk * _window_stack(d, size, h, w)).sum(dim=1, keepdim=True)
+                     for (size, wk), d in zip(kernels, state)]
         if t in keep:
-            mk = sum(ksm[:, k : k + 1] * state[k] for k in range(len(sizes)))
-            mixed[keep.index(t)] = mk
-    return sum(tsm[:, i : i + 1] * mixed[i] for i in range(len(keep)))
+            mixed.append(sum(ksm.narrow(1, k, 1) * state[k] for k in range(len(sizes))))
+    return sum(tsm.narrow(1, i, 1) * mixed[i] for i in range(len(keep)))
 
 
 # ---------------------------------------------------------------------------------------------
