@@ -107,8 +107,9 @@ def _neighbour(a, dy, dx):
     mask = np.zeros_like(a)
     ys, ye = max(0, -dy), min(h, h - dy)
     xs, xe = max(0, -dx), min(w, w - dx)
-    out[ys:ye, xs:xe] = a[ys + dy : ye + dy, xs + dx : xe + dx]
-    mask[ys:ye, xs:xe] = 1.0
+    if ys < ye and xs < xe:  # else the shift leaves the image entirely
+        out[ys:ye, xs:xe] = a[ys + dy : ye + dy, xs + dx : xe + dx]
+        mask[ys:ye, xs:xe] = 1.0
     return out, mask
 
 
@@ -145,6 +146,62 @@ def refine(d0, affs, kmix, tmix, iterations, sigmas):
     return out[None]
 
 
+def eval_node(node: dict, weights: dict, xs: list[np.ndarray]) -> np.ndarray:
+    """Evaluates one graph.json node on its input values ([C,H,W] arrays)."""
+    op, a, p, W = node["op"], node["attrs"], node["params"], weights
+    x = xs[0]
+    if op == "conv2d":
+        y = conv2d(x, W[p["weight"]], W.get(p.get("bias")), a["stride"], a["dilation"],
+                   tuple(a["padding"]), a["groups"])
+        return _act(y, a["activation"], a.get("alpha", 0.1))
+    if op == "batch_norm":
+        s = W[p["gamma"]] / np.sqrt(W[p["var"]] + a["eps"])
+        return (x - W[p["mean"]][:, None, None]) * s[:, None, None] + W[p["beta"]][:, None, None]
+    if op == "relu":
+        return np.maximum(x, 0.0)
+    if op == "leaky_relu":
+        return np.where(x >= 0.0, x, a["alpha"] * x)
+    if op == "sigmoid":
+        return 1.0 / (1.0 + np.exp(-x))
+    if op == "add":
+        return xs[0] + xs[1]
+    if op == "mul":
+        return xs[0] * xs[1]
+    if op == "concat":
+        return np.concatenate(xs, axis=0)
+    if op == "upsample_bilinear":
+        return upsample_bilinear(x, a["out_h"], a["out_w"])
+    if op == "pixel_shuffle":
+        return pixel_shuffle(x, a["factor"])
+    if op == "global_avg_pool":
+        return x.mean(axis=(1, 2), keepdims=True)
+    if op == "global_max_pool":
+        return x.max(axis=(1, 2), keepdims=True)
+    if op == "channel_mean":
+        return x.mean(axis=0, keepdims=True)
+    if op == "channel_max":
+        return x.max(axis=0, keepdims=True)
+    if op == "linear":
+        y = W[p["weight"]] @ x.reshape(-1) + W[p["bias"]]
+        return _act(y, a["activation"], a.get("alpha", 0.1)).reshape(-1, 1, 1)
+    if op == "minmax_norm":
+        lo, hi = x.min(), x.max()
+        return (x - lo) / (hi - lo + a["eps"])
+    if op == "reciprocal":
+        return 1.0 / (x + a["eps"])
+    if op == "bins_head":
+        return bins_head(x, xs[1], W[p["weight"]], W[p["bias"]], a["min_depth_m"],
+                         a["max_depth_m"])
+    if op == "refine":
+        return refine(xs[0], xs[1:4], xs[4], xs[5], a["iterations"], a["sigma"])
+    raise ValueError(f"node {node['name']}: unknown op {op!r}")
+
+
+def cast_weights(weights: dict, dtype=np.float64) -> dict:
+    """The weights as arrays of `dtype`."""
+    return {k: np.asarray(v, dtype=dtype) for k, v in weights.items()}
+
+
 def run(graph: dict, weights: dict, inputs: dict, dtype=np.float64, keep_all: bool = False):
     """Executes graph.json nodes in order. `inputs` maps input names to [1,C,H,W] or [C,H,W]
     arrays; returns {value name: [C,H,W] array} holding the outputs (all values if keep_all)."""
@@ -152,56 +209,9 @@ def run(graph: dict, weights: dict, inputs: dict, dtype=np.float64, keep_all: bo
     for spec in graph["inputs"]:
         a = np.asarray(inputs[spec["name"]], dtype=dtype)
         env[spec["name"]] = a[0] if a.ndim == 4 else a
-    W = {k: np.asarray(v, dtype=dtype) for k, v in weights.items()}
+    w = cast_weights(weights, dtype)
     for node in graph["nodes"]:
-        op, a, p = node["op"], node["attrs"], node["params"]
-        xs = [env[i] for i in node["inputs"]]
-        x = xs[0]
-        if op == "conv2d":
-            y = conv2d(x, W[p["weight"]], W.get(p.get("bias")), a["stride"], a["dilation"],
-                       tuple(a["padding"]), a["groups"])
-            y = _act(y, a["activation"], a.get("alpha", 0.1))
-        elif op == "batch_norm":
-            s = W[p["gamma"]] / np.sqrt(W[p["var"]] + a["eps"])
-            y = (x - W[p["mean"]][:, None, None]) * s[:, None, None] + W[p["beta"]][:, None, None]
-        elif op == "relu":
-            y = np.maximum(x, 0.0)
-        elif op == "leaky_relu":
-            y = np.where(x >= 0.0, x, a["alpha"] * x)
-        elif op == "sigmoid":
-            y = 1.0 / (1.0 + np.exp(-x))
-        elif op == "add":
-            y = xs[0] + xs[1]
-        elif op == "mul":
-            y = xs[0] * xs[1]
-        elif op == "concat":
-            y = np.concatenate(xs, axis=0)
-        elif op == "upsample_bilinear":
-            y = upsample_bilinear(x, a["out_h"], a["out_w"])
-        elif op == "pixel_shuffle":
-            y = pixel_shuffle(x, a["factor"])
-        elif op == "global_avg_pool":
-            y = x.mean(axis=(1, 2), keepdims=True)
-        elif op == "global_max_pool":
-            y = x.max(axis=(1, 2), keepdims=True)
-        elif op == "channel_mean":
-            y = x.mean(axis=0, keepdims=True)
-        elif op == "channel_max":
-            y = x.max(axis=0, keepdims=True)
-        elif op == "linear":
-            y = W[p["weight"]] @ x.reshape(-1) + W[p["bias"]]
-            y = _act(y, a["activation"], a.get("alpha", 0.1)).reshape(-1, 1, 1)
-        elif op == "minmax_norm":
-            lo, hi = x.min(), x.max()
-            y = (x - lo) / (hi - lo + a["eps"])
-        elif op == "reciprocal":
-            y = 1.0 / (x + a["eps"])
-        elif op == "bins_head":
-            y = bins_head(x, xs[1], W[p["weight"]], W[p["bias"]], a["min_depth_m"], a["max_depth_m"])
-        elif op == "refine":
-            y = refine(xs[0], xs[1:4], xs[4], xs[5], a["iterations"], a["sigma"])
-        else:
-            raise ValueError(f"node {node['name']}: unknown op {op!r}")
+        y = eval_node(node, w, [env[i] for i in node["inputs"]])
         env[node["output"]] = y.astype(dtype, copy=False)
     if keep_all:
         return env

@@ -489,6 +489,8 @@ class Refine(nn.Module):
 
     def forward(self, d0, aff3, aff5, aff7, kmix, tmix) -> Tensor:
         y = refine_math(d0, [aff3, aff5, aff7], kmix, tmix, self.sigma, self.SIZES, self.iterations)
+        if _ACTIVE is None:
+            return y
         attrs = {"iterations": self.iterations,
                  "sigma": [float(s) for s in self.sigma.detach().cpu()]}
         return _rec("refine", [d0, aff3, aff5, aff7, kmix, tmix], y, attrs, None, self)
