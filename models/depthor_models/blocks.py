@@ -17,7 +17,9 @@ class Act(nn.Module):
         self.kind, self.alpha = kind, alpha
 
     def forward(self, x: Tensor) -> Tensor:
-        return ops.relu(x) if self.kind == "relu" else ops.leaky_relu(x, self.alpha)
+        if self.kind == "relu":
+            return ops.relu(x, owner=self)
+        return ops.leaky_relu(x, self.alpha, owner=self)
 
 
 class ConvBNAct(nn.Module):

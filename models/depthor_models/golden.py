@@ -23,20 +23,21 @@ def intermediate_names(graph: dict) -> list[str]:
     """Value names worth checking layer by layer: the prior's D_inv, a deep conv before and after
     its batch_norm and activation, the deepest CBAM output, the bin logits, d_half, d0 and kmix."""
     nodes = graph["nodes"]
-    by_name = {n["name"]: n for n in nodes}
     names = []
     first_mm = next(n for n in nodes if n["op"] == "minmax_norm")
     names.append(first_mm["inputs"][0])  # D_inv
     deep = [n for n in nodes if n["name"].startswith("depth_enc.stages.") and n["op"] == "conv2d"]
     if deep:
-        conv = deep[-1]["name"]
-        base = conv.rsplit(".", 1)[0]
-        names += [conv, f"{base}.bn", f"{base}.act"]
+        conv = deep[-1]["output"]
+        bn = next(n["output"] for n in nodes if n["inputs"] == [conv])
+        act = next(n["output"] for n in nodes if n["inputs"] == [bn])
+        names += [conv, bn, act]
     cbam = [n["name"] for n in nodes if n["name"].startswith("depth_enc.cbam.") and n["op"] == "mul"]
     names += cbam[-1:]
     refine = next(n for n in nodes if n["op"] == "refine")
     names += ["bins_fc2", "bins_head", refine["inputs"][0], refine["inputs"][4]]
-    return [n for n in names if n in by_name or n in graph_values(graph)]
+    values = graph_values(graph)
+    return [n for n in names if n in values]
 
 
 def graph_values(graph: dict) -> set[str]:

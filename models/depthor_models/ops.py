@@ -207,14 +207,14 @@ def apply_activation(x: Tensor, activation: str, alpha: float = 0.1) -> Tensor:
     raise ValueError(f"unknown activation {activation!r}")
 
 
-def relu(x: Tensor) -> Tensor:
-    """Elementwise max(x, 0)."""
-    return _rec("relu", [x], F.relu(x))
+def relu(x: Tensor, owner: nn.Module | None = None) -> Tensor:
+    """Elementwise max(x, 0) (`owner`: the module whose path names the node)."""
+    return _rec("relu", [x], F.relu(x), owner=owner)
 
 
-def leaky_relu(x: Tensor, alpha: float = 0.1) -> Tensor:
+def leaky_relu(x: Tensor, alpha: float = 0.1, owner: nn.Module | None = None) -> Tensor:
     """Elementwise leaky ReLU with slope `alpha` for x < 0."""
-    return _rec("leaky_relu", [x], F.leaky_relu(x, alpha), {"alpha": alpha})
+    return _rec("leaky_relu", [x], F.leaky_relu(x, alpha), {"alpha": alpha}, owner=owner)
 
 
 def sigmoid(x: Tensor) -> Tensor:
