@@ -19,12 +19,6 @@ def _tract_run(path, inputs):
     return [o.to_numpy() for o in model.run([np.ascontiguousarray(i) for i in inputs])]
 
 
-@pytest.fixture(scope="module")
-def mcu_exports(tmp_path_factory, nets, traced):
-    out = tmp_path_factory.mktemp("nnef")
-    return out, export_variant("mcu", out, net=nets["mcu"])
-
-
 def test_exports_are_offline_and_tract_matches_torch(no_network, tmp_path, nets, traced):
     net, t = nets["mcu"], traced["mcu"]
     rgb, sparse = t.values["rgb"], t.values["sparse"]

@@ -132,3 +132,23 @@ def test_golden_round_trip(tmp_path, traced):
     assert {"rgb", "sparse", "depth", "bins_head", "bins_fc2"} <= set(back)
     for name, arr in back.items():
         assert np.array_equal(arr, t.values[name].numpy())
+
+
+@pytest.mark.parametrize("variant", VARIANTS)
+def test_committed_artefacts_match_the_code(traced, variant):
+    """models/<variant>/graph.json, weights.bin (and mcu's golden) are what the code exports now;
+    re-run the export command when this fails after a deliberate change."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1] / variant
+    graph, weights = graph_export.load(root / "graph.json")
+    t = traced[variant]
+    assert graph["nodes"] == t.graph["nodes"]
+    assert set(weights) == set(t.params)
+    for name, arr in weights.items():
+        assert np.allclose(arr, t.params[name].numpy(), rtol=0, atol=1e-6), name
+    if variant == "mcu":
+        g = golden.read(root / "golden" / "index.json")
+        for name in ("rgb", "sparse"):
+            assert np.array_equal(g[name], t.values[name].numpy())
+        assert np.abs(g["depth"] - t.values["depth"].numpy()).max() <= 1e-5
