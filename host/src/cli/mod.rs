@@ -3,6 +3,7 @@
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
+mod bench;
 mod import;
 mod info;
 mod project;
@@ -22,6 +23,8 @@ pub struct Cli {
 /// One variant per subcommand; add new ones here and in [`run`].
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Print throughput figures (scene + simulator, …).
+    Bench(bench::Args),
     /// Import a real RGB-D set (Middlebury, NYU, Redwood, TUM, SUN, raw NYU, ARKit) as a recording.
     Import(import::Args),
     /// Summarise a recording: frames, resolution, reference depth and zone validity.
@@ -35,6 +38,7 @@ enum Command {
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Bench(args) => bench::handle(args),
         Command::Import(args) => import::handle(args),
         Command::Info(args) => info::handle(args),
         Command::Project(args) => project::handle(args),
