@@ -202,47 +202,6 @@ pub fn render_projection(rgb: &RgbImage, points: &[ProjectedPoint], overlay: &Ov
     out
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn turbo_ends_are_dark_blue_and_dark_red_and_middle_is_green() {
-        // Polynomial at t = 0: (0.1357, 0.0914, 0.1067) · 255.
-        assert_eq!(turbo(0.0), Rgb([35, 23, 27]));
-        // At t = 1 the coefficients sum to (0.5659, 0.0505, -0.0255 → 0).
-        assert_eq!(turbo(1.0), Rgb([144, 13, 0]));
-        let mid = turbo(0.5);
-        assert!(mid[1] > 240 && mid[0] < 160 && mid[2] < 100, "{mid:?}");
-        assert_eq!(turbo(f32::NAN), turbo(-3.0));
-    }
-
-    #[test]
-    fn disc_covers_pixel_centres_within_radius() {
-        let mut img = RgbImage::new(8, 8);
-        fill_disc(&mut img, 4.0, 4.0, 1.0, Rgb([9, 9, 9]));
-        // Centres (3.5, 3.5), (4.5, 3.5), (3.5, 4.5), (4.5, 4.5) are 0.707 px away: inside.
-        // (2.5, 3.5) is 1.58 px away: outside.
-        let lit: Vec<(u32, u32)> = img
-            .enumerate_pixels()
-            .filter(|p| p.2[0] == 9)
-            .map(|p| (p.0, p.1))
-            .collect();
-        assert_eq!(lit, vec![(3, 3), (4, 3), (3, 4), (4, 4)]);
-        fill_disc(&mut img, -10.0, 50.0, 3.0, Rgb([1, 1, 1])); // clipped away, no panic
-    }
-
-    #[test]
-    fn text_draws_glyph_bits() {
-        let mut img = RgbImage::new(8, 6);
-        draw_text(&mut img, 0, 0, "1", 1, Rgb([255, 0, 0]));
-        // '1' row 0 = 0b010: only the middle column.
-        assert_eq!(img.get_pixel(0, 0)[0], 0);
-        assert_eq!(img.get_pixel(1, 0)[0], 255);
-        assert_eq!(text_width("1.5m", 2), (16 - 1) * 2);
-    }
-}
-
 /// A depth map (metres, row-major `width × height`) as a Turbo image over `[lo, hi]`; unknown
 /// depth (0 or non-finite) is black.
 pub fn depth_image(depth_m: &[f32], width: u32, height: u32, lo: f32, hi: f32) -> RgbImage {
@@ -286,4 +245,45 @@ pub fn mosaic(images: &[RgbImage], gap: u32) -> RgbImage {
         x += i64::from(img.width() + gap);
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn turbo_ends_are_dark_blue_and_dark_red_and_middle_is_green() {
+        // Polynomial at t = 0: (0.1357, 0.0914, 0.1067) · 255.
+        assert_eq!(turbo(0.0), Rgb([35, 23, 27]));
+        // At t = 1 the coefficients sum to (0.5659, 0.0505, -0.0255 → 0).
+        assert_eq!(turbo(1.0), Rgb([144, 13, 0]));
+        let mid = turbo(0.5);
+        assert!(mid[1] > 240 && mid[0] < 160 && mid[2] < 100, "{mid:?}");
+        assert_eq!(turbo(f32::NAN), turbo(-3.0));
+    }
+
+    #[test]
+    fn disc_covers_pixel_centres_within_radius() {
+        let mut img = RgbImage::new(8, 8);
+        fill_disc(&mut img, 4.0, 4.0, 1.0, Rgb([9, 9, 9]));
+        // Centres (3.5, 3.5), (4.5, 3.5), (3.5, 4.5), (4.5, 4.5) are 0.707 px away: inside.
+        // (2.5, 3.5) is 1.58 px away: outside.
+        let lit: Vec<(u32, u32)> = img
+            .enumerate_pixels()
+            .filter(|p| p.2[0] == 9)
+            .map(|p| (p.0, p.1))
+            .collect();
+        assert_eq!(lit, vec![(3, 3), (4, 3), (3, 4), (4, 4)]);
+        fill_disc(&mut img, -10.0, 50.0, 3.0, Rgb([1, 1, 1])); // clipped away, no panic
+    }
+
+    #[test]
+    fn text_draws_glyph_bits() {
+        let mut img = RgbImage::new(8, 6);
+        draw_text(&mut img, 0, 0, "1", 1, Rgb([255, 0, 0]));
+        // '1' row 0 = 0b010: only the middle column.
+        assert_eq!(img.get_pixel(0, 0)[0], 0);
+        assert_eq!(img.get_pixel(1, 0)[0], 255);
+        assert_eq!(text_width("1.5m", 2), (16 - 1) * 2);
+    }
 }

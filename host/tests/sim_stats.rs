@@ -864,32 +864,3 @@ fn non_lambertian_hand_case() {
     assert!(out.truth[0].events.contains(ZoneEvents::TRANSPARENT_LOSS));
     assert!(out.truth[1].events.contains(ZoneEvents::SPECULAR_LOSS));
 }
-
-/// Speed: `cargo test --release -p depthor-host --test sim_stats -- --ignored --nocapture`.
-#[test]
-#[ignore]
-fn speed_l5_240x320() {
-    let cfg = preset("l5").unwrap();
-    let frames: Vec<Frame> = (0..20)
-        .map(|s| {
-            scene(
-                s,
-                320,
-                240,
-                Opts {
-                    dark: 1,
-                    materials: 2,
-                    ..PLAIN
-                },
-            )
-        })
-        .collect();
-    let n = 500;
-    let t = std::time::Instant::now();
-    for k in 0..n {
-        std::hint::black_box(run(&cfg, &frames[k % frames.len()], k as u64));
-    }
-    let ms = t.elapsed().as_secs_f64() * 1000.0 / n as f64;
-    println!("l5 240×320: {ms:.3} ms/frame");
-    assert!(ms <= 5.0, "{ms} ms per frame");
-}
