@@ -5,6 +5,7 @@
 pub mod baselines;
 pub mod dataset;
 pub mod import;
+pub mod inference;
 pub mod recording;
 pub mod rng;
 pub mod scene;

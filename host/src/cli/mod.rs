@@ -4,6 +4,7 @@ use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
 mod bench;
+mod demo;
 mod import;
 mod info;
 mod project;
@@ -25,6 +26,8 @@ pub struct Cli {
 enum Command {
     /// Print throughput figures (scene + simulator, …).
     Bench(bench::Args),
+    /// The main job: scene (or --recording) → dToF → int8 model in the core, vs baselines.
+    Demo(demo::Args),
     /// Import a real RGB-D set (Middlebury, NYU, Redwood, TUM, SUN, raw NYU, ARKit) as a recording.
     Import(import::Args),
     /// Summarise a recording: frames, resolution, reference depth and zone validity.
@@ -39,6 +42,7 @@ enum Command {
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Bench(args) => bench::handle(args),
+        Command::Demo(args) => demo::handle(args),
         Command::Import(args) => import::handle(args),
         Command::Info(args) => info::handle(args),
         Command::Project(args) => project::handle(args),
