@@ -2,6 +2,7 @@
 //!
 //! The std side of depthor: recordings (`depthor-recording/1`), file-backed sensors, importers of
 //! the real RGB-D sets, and the `depthor` command line.
+pub mod gap;
 pub mod import;
 pub mod recording;
 pub mod rng;

@@ -3,6 +3,8 @@
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
+mod gap;
+mod gap_bench;
 mod import;
 mod info;
 mod project;
@@ -21,6 +23,10 @@ pub struct Cli {
 /// One variant per subcommand; add new ones here and in [`run`].
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Compare a real recording with the simulator: locate the mismatch, name and fit the missing physics.
+    Gap(gap::Args),
+    /// Concealed-effect benchmark of the gap tool (hidden effects in simulated "real" recordings).
+    GapBench(gap_bench::Args),
     /// Import a real RGB-D set (Middlebury, NYU, Redwood, TUM, SUN, raw NYU, ARKit) as a recording.
     Import(import::Args),
     /// Summarise a recording: frames, resolution, reference depth and zone validity.
@@ -32,6 +38,8 @@ enum Command {
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Gap(args) => gap::handle(args),
+        Command::GapBench(args) => gap_bench::handle(args),
         Command::Import(args) => import::handle(args),
         Command::Info(args) => info::handle(args),
         Command::Project(args) => project::handle(args),
