@@ -30,6 +30,9 @@ pub struct Args {
     /// Seed of the scenes and the "real" measurements.
     #[arg(long, default_value_t = 1000)]
     seed: u64,
+    /// Print each case's selection log.
+    #[arg(long)]
+    verbose: bool,
     /// Write the Markdown table here too.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -47,7 +50,10 @@ pub fn handle(args: Args) -> anyhow::Result<()> {
     let mut results = Vec::new();
     for (i, c) in cases.iter().enumerate() {
         bar.set_message(c.label.clone());
-        let (r, _) = run_case(&scenes, &base, c, &GapOptions::default(), args.seed + 7919 * i as u64)?;
+        let (r, a) = run_case(&scenes, &base, c, &GapOptions::default(), args.seed + 7919 * i as u64)?;
+        if args.verbose {
+            eprintln!("{}:\n  {}", c.label, a.selection.log.join("\n  "));
+        }
         bar.inc(1);
         results.push(r);
     }

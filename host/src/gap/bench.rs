@@ -17,13 +17,13 @@ use crate::sim::{simulate, SimConfig};
 pub fn unit_size(name: &str) -> Option<Vec<f64>> {
     Some(match name {
         "range_dropout" => vec![0.01],
-        "dark_dropout" => vec![0.1],
+        "dark_dropout" => vec![0.05],
         "border_dropout" => vec![0.1],
         "calibration_shift" => vec![1.0, 0.25],
         "radial_distance" => vec![0.25],
         "range_bias" => vec![0.01, 0.0],
         "range_noise" => vec![0.005],
-        "multipath" => vec![0.05],
+        "multipath" => vec![0.1],
         "edge_mixing" => vec![0.05],
         "zone_crosstalk" => vec![0.05],
         "bin_wiggle" => vec![0.005],
@@ -230,17 +230,18 @@ pub fn standard_cases(sizes: &[f64], nulls: usize) -> Vec<Case> {
 /// Markdown table of `results`: per size, detection rate, top-1 attribution, median parameter
 /// error and mean gain; then nulls' false-positive rate and the special cases.
 pub fn table(results: &[CaseResult]) -> String {
-    let mut s = String::from("| case | hidden | named | detected | top-1 | param err | held-out gain (nats/zone) |\n|---|---|---|---|---|---|---|\n");
+    let mut s = String::from("| case | hidden | named | detected | top-1 | param err | held-out gain (nats/zone) | unexplained slices |\n|---|---|---|---|---|---|---|---|\n");
     for r in results {
         s.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {} | {:.4} |\n",
+            "| {} | {} | {} | {} | {} | {} | {:.4} | {} |\n",
             r.case.label,
             r.case.hidden.iter().map(|h| h.0).collect::<Vec<_>>().join("+"),
             if r.named.is_empty() { "—".into() } else { r.named.join(", ") },
             if r.case.hidden.is_empty() { "—" } else if r.detected() { "yes" } else { "no" },
             if r.case.hidden.is_empty() { "—" } else if r.top1() { "yes" } else { "no" },
             r.param_error().map_or("—".into(), |e| format!("{:.0} %", 100.0 * e)),
-            r.gain
+            r.gain,
+            r.unexplained_slices
         ));
     }
     s.push_str("\n| size | cases | detection rate | top-1 attribution | param error ≤ 25 % |\n|---|---|---|---|---|\n");

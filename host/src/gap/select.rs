@@ -222,12 +222,17 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
                 solo.insert(r.0, (r.2, s && r.2 >= opts.min_gain));
             }
         }
+        // Gatekeeping: Holm decides whether anything is missing (family-wise error ≤ α); the
+        // effect accepted is then the one with the largest held-out gain among those significant
+        // on their own, so a weaker look-alike with a smaller p-value does not win attribution.
+        if !res.iter().zip(&sig).any(|(r, &s)| s && r.2 >= opts.min_gain) {
+            break;
+        }
         let best = res
             .iter()
-            .zip(&sig)
-            .filter(|(r, &s)| s && r.2 >= opts.min_gain)
-            .max_by(|a, b| a.0 .2.total_cmp(&b.0 .2));
-        let Some((b, _)) = best else { break };
+            .filter(|r| r.3 <= opts.alpha && r.2 >= opts.min_gain)
+            .max_by(|a, b| a.2.total_cmp(&b.2));
+        let Some(b) = best else { break };
         accepted.push(b.0);
         model = ctx.refit(&b.1, &accepted, opts.iters);
         cur = ctx.test_nlls(&model);

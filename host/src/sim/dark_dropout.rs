@@ -23,9 +23,9 @@ pub struct DarkDropout {
 }
 
 impl Default for DarkDropout {
-    /// Disabled; knee at half brightness.
+    /// Disabled; knee at full brightness (loss ∝ darkness).
     fn default() -> Self {
-        DarkDropout { enabled: false, p_black: 0.0, knee: 0.5 }
+        DarkDropout { enabled: false, p_black: 0.0, knee: 1.0 }
     }
 }
 

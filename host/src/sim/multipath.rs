@@ -1,6 +1,8 @@
 //! `multipath` (gap-tool library, DESIGN.md): transparent and specular surfaces add a longer light
 //! path to the zone's histogram, pulling the reported distance farther. Forward model: a zone whose
-//! window is a fraction `f` transparent/specular (labels 1, 2) reports `d · (1 + extra · f)`.
+//! window is a fraction `f` transparent/specular (labels 1, 2) reports `d · (1 + extra · min(1, 4f))`:
+//! the farther return grows with the material's share and saturates once a quarter of the iFoV
+//! sees it (its photons then dominate the histogram peak's neighbourhood).
 use serde::{Deserialize, Serialize};
 
 use super::covariates::check_nonneg;
@@ -22,7 +24,7 @@ pub struct Multipath {
 impl Multipath {
     /// The reported distance of a return at `d` metres in a zone with covariates `c`.
     pub fn distance(&self, d: f32, c: &ZoneCovariates) -> f32 {
-        d * (1.0 + self.extra * c.nonlambertian_fraction)
+        d * (1.0 + self.extra * (4.0 * c.nonlambertian_fraction).min(1.0))
     }
 }
 
@@ -53,7 +55,10 @@ mod tests {
     #[test]
     fn distance_hand_computed() {
         let m = Multipath { enabled: true, extra: 0.4 };
-        let c = ZoneCovariates { nonlambertian_fraction: 0.5, ..ZoneCovariates::default() };
-        assert!((m.distance(2.0, &c) - 2.4).abs() < 1e-6);
+        let c = ZoneCovariates { nonlambertian_fraction: 0.1, ..ZoneCovariates::default() };
+        // 4 · 0.1 = 0.4 → 2 · (1 + 0.4 · 0.4) = 2.32.
+        assert!((m.distance(2.0, &c) - 2.32).abs() < 1e-6);
+        let c = ZoneCovariates { nonlambertian_fraction: 0.5, ..c };
+        assert!((m.distance(2.0, &c) - 2.8).abs() < 1e-6);
     }
 }
