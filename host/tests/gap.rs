@@ -11,8 +11,7 @@ use std::sync::OnceLock;
 use depthor_host::gap::bench::{make_real, render_scenes, run_case, sized, Case};
 use depthor_host::gap::{GapData, GapOptions};
 use depthor_host::recording::{
-    CameraMeta, DistanceMeta, DtofFrame, DtofMeta, Frame, FrameMeta, RecordingMeta,
-    RecordingWriter,
+    CameraMeta, DistanceMeta, DtofFrame, DtofMeta, Frame, FrameMeta, RecordingMeta, RecordingWriter,
 };
 use depthor_host::scene::SceneFrame;
 use depthor_host::sim::preset;
@@ -39,7 +38,12 @@ fn check_effect(name: &'static str, seed: u64) {
         a.selection.log.join("\n")
     );
     let err = r.param_error().unwrap();
-    assert!(err <= 0.25, "{name}: fitted {:?} vs {:?} ({err})", r.fitted, case.hidden[0].1);
+    assert!(
+        err <= 0.25,
+        "{name}: fitted {:?} vs {:?} ({err})",
+        r.fitted,
+        case.hidden[0].1
+    );
     assert!(a.fit_after.heldout_nll_per_zone < a.fit_before.heldout_nll_per_zone);
     for f in &a.selection.findings {
         assert!(f.heldout_gain > 0.0, "{f:?}");
@@ -77,15 +81,32 @@ fn names_multipath() {
 #[test]
 fn null_names_nothing() {
     let base = preset("mcu").unwrap();
-    let case = Case { label: "null".into(), hidden: vec![], size: 0.0, outside: false };
+    let case = Case {
+        label: "null".into(),
+        hidden: vec![],
+        size: 0.0,
+        outside: false,
+    };
     let (r, a) = run_case(scenes(), &base, &case, &GapOptions::default(), 5).unwrap();
-    assert!(r.named.is_empty(), "{:?}\n{}", r.named, a.selection.log.join("\n"));
+    assert!(
+        r.named.is_empty(),
+        "{:?}\n{}",
+        r.named,
+        a.selection.log.join("\n")
+    );
 }
 
 /// Writes `data` (the first `n` frames) as a recording at `dir`; `depth` false drops depth.png.
 fn write_recording(dir: &Path, data: &GapData, n: usize, depth: bool) {
     let f0 = &data.frames[0];
-    let camera = CameraMeta { width: f0.width, height: f0.height, fx: 140.0, fy: 140.0, cx: 79.5, cy: 59.5 };
+    let camera = CameraMeta {
+        width: f0.width,
+        height: f0.height,
+        fx: 140.0,
+        fy: 140.0,
+        cx: 79.5,
+        cy: 59.5,
+    };
     let dtof = DtofMeta {
         rows: data.grid.0,
         cols: data.grid.1,
@@ -103,17 +124,32 @@ fn write_recording(dir: &Path, data: &GapData, n: usize, depth: bool) {
             labels: f.labels.clone(),
             dtof: Some(DtofFrame {
                 distance_mm: f.real_m.iter().map(|d| d * 1000.0).collect(),
-                status: f.real_valid.iter().map(|&v| if v { 5 } else { 255 }).collect(),
+                status: f
+                    .real_valid
+                    .iter()
+                    .map(|&v| if v { 5 } else { 255 })
+                    .collect(),
                 ..DtofFrame::default()
             }),
         };
-        w.add_frame(FrameMeta { id: f.id.clone(), t_s: f.t_s, camera: None }, &frame).unwrap();
+        w.add_frame(
+            FrameMeta {
+                id: f.id.clone(),
+                t_s: f.t_s,
+                camera: None,
+            },
+            &frame,
+        )
+        .unwrap();
     }
     w.finish().unwrap();
 }
 
 fn depthor(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_depthor")).args(args).output().unwrap()
+    Command::new(env!("CARGO_BIN_EXE_depthor"))
+        .args(args)
+        .output()
+        .unwrap()
 }
 
 #[test]
@@ -122,11 +158,17 @@ fn cli_writes_report_and_rejects_bad_input() {
     let base = preset("mcu").unwrap();
     let mut hidden = base.clone();
     depthor_host::gap::effects::set(&mut hidden, "range_bias", Some(&[0.05, 0.0]));
-    let data = make_real(&scenes()[..12], &hidden, 3, None).unwrap();
+    let data = make_real(&scenes()[..24], &hidden, 3, None).unwrap();
     let rec = tmp.path().join("real");
-    write_recording(&rec, &data, 12, true);
+    write_recording(&rec, &data, 24, true);
     let out = tmp.path().join("out");
-    let o = depthor(&["gap", "--real", rec.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let o = depthor(&[
+        "gap",
+        "--real",
+        rec.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
@@ -139,15 +181,26 @@ fn cli_writes_report_and_rejects_bad_input() {
     }
     assert!(out.join("report.md").exists() && out.join("pit_before.png").exists());
     // The fitted configuration parses as a SimConfig.
-    depthor_host::sim::SimConfig::from_json(&std::fs::read_to_string(out.join("sim_config.json")).unwrap())
-        .unwrap();
+    depthor_host::sim::SimConfig::from_json(
+        &std::fs::read_to_string(out.join("sim_config.json")).unwrap(),
+    )
+    .unwrap();
 
     // No reference depth.
     let nodepth = tmp.path().join("nodepth");
     write_recording(&nodepth, &data, 4, false);
-    let o = depthor(&["gap", "--real", nodepth.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let o = depthor(&[
+        "gap",
+        "--real",
+        nodepth.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success() && err.contains("no reference depth"), "{err}");
+    assert!(
+        !o.status.success() && err.contains("no reference depth"),
+        "{err}"
+    );
 
     // Mismatched grid: a 4×4 sim config against the 8×8 recording.
     let mut small = base.clone();
@@ -156,16 +209,30 @@ fn cli_writes_report_and_rejects_bad_input() {
     let cfg = tmp.path().join("small.json");
     std::fs::write(&cfg, small.to_json()).unwrap();
     let o = depthor(&[
-        "gap", "--real", rec.to_str().unwrap(), "--sim-config", cfg.to_str().unwrap(), "--out",
+        "gap",
+        "--real",
+        rec.to_str().unwrap(),
+        "--sim-config",
+        cfg.to_str().unwrap(),
+        "--out",
         out.to_str().unwrap(),
     ]);
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success() && err.contains("zone grid mismatch"), "{err}");
+    assert!(
+        !o.status.success() && err.contains("zone grid mismatch"),
+        "{err}"
+    );
 
     // Empty recording.
     let empty = tmp.path().join("empty");
     write_recording(&empty, &data, 0, true);
-    let o = depthor(&["gap", "--real", empty.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let o = depthor(&[
+        "gap",
+        "--real",
+        empty.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("no frames"), "{err}");
 }

@@ -74,7 +74,10 @@ pub fn handle(args: Args) -> anyhow::Result<()> {
         args.out.join("report.md").display()
     );
     for f in &a.selection.findings {
-        println!("  {:<18} gain {:.4} nats/zone  {:?}", f.effect, f.heldout_gain, f.params);
+        println!(
+            "  {:<18} gain {:.4} nats/zone  {:?}",
+            f.effect, f.heldout_gain, f.params
+        );
     }
     Ok(())
 }

@@ -44,13 +44,23 @@ pub fn handle(args: Args) -> anyhow::Result<()> {
     let scenes = render_scenes(args.frames, args.width, args.height, args.seed);
     let cases: Vec<_> = standard_cases(&args.sizes, args.nulls)
         .into_iter()
-        .filter(|c| args.only.as_ref().is_none_or(|o| c.label.contains(o.as_str())))
+        .filter(|c| {
+            args.only
+                .as_ref()
+                .is_none_or(|o| c.label.contains(o.as_str()))
+        })
         .collect();
     let bar = super::progress(cases.len() as u64, "cases");
     let mut results = Vec::new();
     for (i, c) in cases.iter().enumerate() {
         bar.set_message(c.label.clone());
-        let (r, a) = run_case(&scenes, &base, c, &GapOptions::default(), args.seed + 7919 * i as u64)?;
+        let (r, a) = run_case(
+            &scenes,
+            &base,
+            c,
+            &GapOptions::default(),
+            args.seed + 7919 * i as u64,
+        )?;
         if args.verbose {
             eprintln!("{}:\n  {}", c.label, a.selection.log.join("\n  "));
         }

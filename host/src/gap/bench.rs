@@ -12,13 +12,16 @@ use crate::rng::Rng;
 use crate::scene::{camera_for, render_scene, SceneConfig, SceneFrame};
 use crate::sim::{simulate, SimConfig};
 
+/// A change applied to a "real" frame's zones after the simulator (an effect outside the library).
+pub type PostEffect = dyn Fn(&mut GapFrame, &mut Rng) + Sync;
+
 /// Unit ("1×") size of each effect's parameters: our estimate of its minimum detectable size with
 /// ~20 held-out 8×8 frames (the first parameter is the one whose recovery is scored).
 pub fn unit_size(name: &str) -> Option<Vec<f64>> {
     Some(match name {
         "range_dropout" => vec![0.01],
-        "dark_dropout" => vec![0.05],
-        "border_dropout" => vec![0.1],
+        "dark_dropout" => vec![0.1],
+        "border_dropout" => vec![0.15],
         "calibration_shift" => vec![1.0, 0.25],
         "radial_distance" => vec![0.25],
         "range_bias" => vec![0.01, 0.0],
@@ -38,7 +41,13 @@ pub fn sized(name: &str, size: f64) -> Option<Vec<f64>> {
     Some(
         u.iter()
             .zip(c.params)
-            .map(|(v, s)| if s.integer { *v } else { (v * size).clamp(s.lo, s.hi) })
+            .map(|(v, s)| {
+                if s.integer {
+                    *v
+                } else {
+                    (v * size).clamp(s.lo, s.hi)
+                }
+            })
             .collect(),
     )
 }
@@ -61,7 +70,7 @@ pub fn make_real(
     scenes: &[SceneFrame],
     hidden: &SimConfig,
     seed: u64,
-    post: Option<&(dyn Fn(&mut GapFrame, &mut Rng) + Sync)>,
+    post: Option<&PostEffect>,
 ) -> Result<GapData, GapError> {
     let frames = scenes
         .par_iter()
@@ -78,7 +87,11 @@ pub fn make_real(
                 real_valid: Vec::new(),
                 real_m: Vec::new(),
             };
-            let out = simulate(hidden, &f.sim_input(), Rng::derive(seed, i as u64).next_u64())?;
+            let out = simulate(
+                hidden,
+                &f.sim_input(),
+                Rng::derive(seed, i as u64).next_u64(),
+            )?;
             f.real_valid = (0..out.status.len()).map(|z| out.is_valid(z)).collect();
             f.real_m = out.distance_mm.iter().map(|d| d / 1000.0).collect();
             if let Some(p) = post {
@@ -137,7 +150,10 @@ pub struct CaseResult {
 impl CaseResult {
     /// Whether every hidden effect was named.
     pub fn detected(&self) -> bool {
-        self.case.hidden.iter().all(|(n, _)| self.named.iter().any(|m| m == n))
+        self.case
+            .hidden
+            .iter()
+            .all(|(n, _)| self.named.iter().any(|m| m == n))
     }
     /// Whether the top finding is a hidden effect.
     pub fn top1(&self) -> bool {
@@ -175,11 +191,19 @@ pub fn run_case(
     for (n, v) in &case.hidden {
         effects::set(&mut hidden, n, Some(v));
     }
-    let post: Option<&(dyn Fn(&mut GapFrame, &mut Rng) + Sync)> =
-        if case.outside { Some(&phantom_cover_glass) } else { None };
+    let post: Option<&PostEffect> = if case.outside {
+        Some(&phantom_cover_glass)
+    } else {
+        None
+    };
     let real = make_real(scenes, &hidden, seed, post)?;
     let a = analyze(&real, base, opts, &|_| {})?;
-    let named: Vec<String> = a.selection.findings.iter().map(|f| f.effect.clone()).collect();
+    let named: Vec<String> = a
+        .selection
+        .findings
+        .iter()
+        .map(|f| f.effect.clone())
+        .collect();
     let fitted = case
         .hidden
         .first()
@@ -213,7 +237,12 @@ pub fn standard_cases(sizes: &[f64], nulls: usize) -> Vec<Case> {
         }
     }
     for k in 0..nulls {
-        v.push(Case { label: format!("null#{k}"), hidden: vec![], size: 0.0, outside: false });
+        v.push(Case {
+            label: format!("null#{k}"),
+            hidden: vec![],
+            size: 0.0,
+            outside: false,
+        });
     }
     if let (Some(a), Some(b)) = (sized("range_dropout", 4.0), sized("range_bias", 4.0)) {
         v.push(Case {
@@ -223,7 +252,12 @@ pub fn standard_cases(sizes: &[f64], nulls: usize) -> Vec<Case> {
             outside: false,
         });
     }
-    v.push(Case { label: "outside:cover_glass".into(), hidden: vec![], size: 0.0, outside: true });
+    v.push(Case {
+        label: "outside:cover_glass".into(),
+        hidden: vec![],
+        size: 0.0,
+        outside: true,
+    });
     v
 }
 
@@ -235,25 +269,57 @@ pub fn table(results: &[CaseResult]) -> String {
         s.push_str(&format!(
             "| {} | {} | {} | {} | {} | {} | {:.4} | {} |\n",
             r.case.label,
-            r.case.hidden.iter().map(|h| h.0).collect::<Vec<_>>().join("+"),
-            if r.named.is_empty() { "—".into() } else { r.named.join(", ") },
-            if r.case.hidden.is_empty() { "—" } else if r.detected() { "yes" } else { "no" },
-            if r.case.hidden.is_empty() { "—" } else if r.top1() { "yes" } else { "no" },
-            r.param_error().map_or("—".into(), |e| format!("{:.0} %", 100.0 * e)),
+            r.case
+                .hidden
+                .iter()
+                .map(|h| h.0)
+                .collect::<Vec<_>>()
+                .join("+"),
+            if r.named.is_empty() {
+                "—".into()
+            } else {
+                r.named.join(", ")
+            },
+            if r.case.hidden.is_empty() {
+                "—"
+            } else if r.detected() {
+                "yes"
+            } else {
+                "no"
+            },
+            if r.case.hidden.is_empty() {
+                "—"
+            } else if r.top1() {
+                "yes"
+            } else {
+                "no"
+            },
+            r.param_error()
+                .map_or("—".into(), |e| format!("{:.0} %", 100.0 * e)),
             r.gain,
             r.unexplained_slices
         ));
     }
     s.push_str("\n| size | cases | detection rate | top-1 attribution | param error ≤ 25 % |\n|---|---|---|---|---|\n");
-    let mut sizes: Vec<f64> = results.iter().filter(|r| r.case.hidden.len() == 1).map(|r| r.case.size).collect();
+    let mut sizes: Vec<f64> = results
+        .iter()
+        .filter(|r| r.case.hidden.len() == 1)
+        .map(|r| r.case.size)
+        .collect();
     sizes.sort_by(f64::total_cmp);
     sizes.dedup();
     for sz in sizes {
-        let rs: Vec<&CaseResult> = results.iter().filter(|r| r.case.hidden.len() == 1 && r.case.size == sz && !r.case.outside).collect();
+        let rs: Vec<&CaseResult> = results
+            .iter()
+            .filter(|r| r.case.hidden.len() == 1 && r.case.size == sz && !r.case.outside)
+            .collect();
         let n = rs.len() as f64;
         let det = rs.iter().filter(|r| r.detected()).count() as f64;
         let top = rs.iter().filter(|r| r.top1()).count() as f64;
-        let perr = rs.iter().filter(|r| r.param_error().is_some_and(|e| e <= 0.25)).count() as f64;
+        let perr = rs
+            .iter()
+            .filter(|r| r.param_error().is_some_and(|e| e <= 0.25))
+            .count() as f64;
         s.push_str(&format!(
             "| {sz}× | {} | {:.0} % | {:.0} % | {:.0} % |\n",
             rs.len(),
@@ -262,7 +328,10 @@ pub fn table(results: &[CaseResult]) -> String {
             100.0 * perr / n
         ));
     }
-    let nulls: Vec<&CaseResult> = results.iter().filter(|r| r.case.hidden.is_empty() && !r.case.outside).collect();
+    let nulls: Vec<&CaseResult> = results
+        .iter()
+        .filter(|r| r.case.hidden.is_empty() && !r.case.outside)
+        .collect();
     if !nulls.is_empty() {
         let fp = nulls.iter().filter(|r| r.false_positives() > 0).count();
         s.push_str(&format!(

@@ -18,7 +18,9 @@ pub enum GapError {
     #[error("recording {0} has no frames: nothing to compare")]
     Empty(String),
     /// The recording has no dToF zones.
-    #[error("recording {0} has no dToF (no \"dtof\" in recording.json): the gap tool compares zones")]
+    #[error(
+        "recording {0} has no dToF (no \"dtof\" in recording.json): the gap tool compares zones"
+    )]
     NoDtof(String),
     /// A frame has no reference depth to simulate from.
     #[error("frame {frame} of {recording} has no reference depth (depth.png): the simulator needs it to predict the zones")]
@@ -37,7 +39,9 @@ pub enum GapError {
         sim: (u16, u16),
     },
     /// Frames differ in image size.
-    #[error("frame {frame} is {got:?} (w, h), the first frame {first:?}: one recording per image size")]
+    #[error(
+        "frame {frame} is {got:?} (w, h), the first frame {first:?}: one recording per image size"
+    )]
     SizeMismatch {
         /// Frame id.
         frame: String,

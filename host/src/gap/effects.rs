@@ -274,7 +274,8 @@ pub fn get(cfg: &SimConfig, name: &str) -> Vec<f64> {
 
 /// What data would tell effects `a` and `b` apart when both explain the same residual.
 pub fn separating_data(a: &str, b: &str) -> String {
-    let hint = |n: &str| match n {
+    let hint = |n: &str| {
+        match n {
         "range_dropout" => "bright surfaces far away (range without darkness)",
         "dark_dropout" => "dark surfaces close by (darkness without range)",
         "border_dropout" => "near, bright targets filling the corner zones",
@@ -287,6 +288,7 @@ pub fn separating_data(a: &str, b: &str) -> String {
         "zone_crosstalk" => "an isolated near object on a far background (crosstalk reaches neighbours, mixing stays in the zone)",
         "bin_wiggle" => "a wall swept finely in range (periodic pattern)",
         _ => "more varied scenes",
+    }
     };
     format!("{} (for {a}) vs {} (for {b})", hint(a), hint(b))
 }
@@ -303,7 +305,13 @@ mod tests {
             let v: Vec<f64> = c
                 .params
                 .iter()
-                .map(|s| if s.integer { s.hi } else { (s.lo + s.hi) / 2.0 + 0.01 })
+                .map(|s| {
+                    if s.integer {
+                        s.hi
+                    } else {
+                        (s.lo + s.hi) / 2.0 + 0.01
+                    }
+                })
                 .collect();
             set(&mut cfg, c.name, Some(&v));
             assert!(enabled(&cfg, c.name), "{}", c.name);

@@ -112,14 +112,22 @@ impl Density {
             nll: -p_valid.ln() - density.ln(),
             p_drop: 1.0 - p_valid,
             pit,
-            residual_m: if sp > 1e-9 { y - weighted_median(draws) } else { f64::NAN },
+            residual_m: if sp > 1e-9 {
+                y - weighted_median(draws)
+            } else {
+                f64::NAN
+            },
         }
     }
 }
 
 /// Median of the draws' distances weighted by `p` (draws with `p > 0` only; 0 when none).
 pub fn weighted_median(draws: &[Draw]) -> f64 {
-    let mut v: Vec<(f32, f32)> = draws.iter().filter(|d| d.p > 0.0).map(|d| (d.d, d.p)).collect();
+    let mut v: Vec<(f32, f32)> = draws
+        .iter()
+        .filter(|d| d.p > 0.0)
+        .map(|d| (d.d, d.p))
+        .collect();
     if v.is_empty() {
         return 0.0;
     }
@@ -140,14 +148,24 @@ mod tests {
     use super::*;
 
     fn draw(p: f32, d: f32) -> Draw {
-        Draw { p, d, s: 0.0, peak: d }
+        Draw {
+            p,
+            d,
+            s: 0.0,
+            peak: d,
+        }
     }
 
     #[test]
     fn dropout_probability_is_smoothed() {
         let den = Density::default();
         // 3 of 4 draws valid: P(valid) = 3.5 / 5 = 0.7; a real dropout costs −ln 0.3.
-        let draws = [draw(1.0, 2.0), draw(1.0, 2.0), draw(1.0, 2.0), draw(0.0, 0.0)];
+        let draws = [
+            draw(1.0, 2.0),
+            draw(1.0, 2.0),
+            draw(1.0, 2.0),
+            draw(0.0, 0.0),
+        ];
         let f = den.score(&draws, None);
         assert!((f.p_drop - 0.3).abs() < 1e-12);
         assert!((f.nll - -(0.3f64.ln())).abs() < 1e-12);
@@ -155,7 +173,11 @@ mod tests {
 
     #[test]
     fn valid_density_hand_computed() {
-        let den = Density { kernel_m: 0.1, outlier: 0.0, range_m: 8.0 };
+        let den = Density {
+            kernel_m: 0.1,
+            outlier: 0.0,
+            range_m: 8.0,
+        };
         // One draw at 2 m, real at 2 m: t₃(0)/0.1 = 2/(π√3)/0.1 = 3.6755; P(valid) = 1.5/2.
         let f = den.score(&[draw(1.0, 2.0)], Some(2.0));
         let expect = -(0.75f64.ln()) - (2.0 / (PI * 3f64.sqrt()) / 0.1).ln();
@@ -163,7 +185,10 @@ mod tests {
         assert!((f.pit - 0.5).abs() < 1e-12);
         assert_eq!(f.residual_m, 0.0);
         // No simulated return: the outlier density alone.
-        let den = Density { outlier: 0.02, ..den };
+        let den = Density {
+            outlier: 0.02,
+            ..den
+        };
         let f = den.score(&[draw(0.0, 0.0)], Some(1.0));
         assert!((f.nll - (-(0.25f64.ln()) + 8f64.ln())).abs() < 1e-9);
     }
@@ -173,6 +198,9 @@ mod tests {
         assert!((t3_cdf(0.0) - 0.5).abs() < 1e-12);
         // Student t, 3 d.o.f.: P(T ≤ 3.182446) = 0.975.
         assert!((t3_cdf(3.182_446) - 0.975).abs() < 1e-6);
-        assert_eq!(weighted_median(&[draw(1.0, 3.0), draw(1.0, 1.0), draw(1.0, 2.0)]), 2.0);
+        assert_eq!(
+            weighted_median(&[draw(1.0, 3.0), draw(1.0, 1.0), draw(1.0, 2.0)]),
+            2.0
+        );
     }
 }

@@ -96,7 +96,8 @@ pub fn slices(recs: &[ZoneRecord], bins: usize) -> Vec<Slice> {
             if chunk.is_empty() {
                 continue;
             }
-            let (mut ex, mut var, mut pit, mut npit, mut res, mut nres) = (0.0, 0.0, 0.0, 0, 0.0, 0);
+            let (mut ex, mut var, mut pit, mut npit, mut res, mut nres) =
+                (0.0, 0.0, 0.0, 0, 0.0, 0);
             for &i in chunk {
                 let r = &recs[i];
                 ex += f64::from(u8::from(r.dropped)) - r.fit.p_drop;
@@ -112,7 +113,11 @@ pub fn slices(recs: &[ZoneRecord], bins: usize) -> Vec<Slice> {
             }
             let n = chunk.len();
             let dz = if var > 0.0 { ex / var.sqrt() } else { 0.0 };
-            let pz = if npit > 0 { pit / (npit as f64 / 12.0).sqrt() } else { 0.0 };
+            let pz = if npit > 0 {
+                pit / (npit as f64 / 12.0).sqrt()
+            } else {
+                0.0
+            };
             out.push(Slice {
                 covariate: cov,
                 range: [recs[chunk[0]].cov[ci], recs[chunk[n - 1]].cov[ci]],
@@ -171,7 +176,12 @@ pub fn zone_maps(recs: &[ZoneRecord], zones: usize) -> (Vec<f64>, Vec<f64>) {
             np[r.zone] += 1.0;
         }
     }
-    let div = |v: Vec<f64>, n: Vec<f64>| v.iter().zip(&n).map(|(a, b)| if *b > 0.0 { a / b } else { 0.0 }).collect();
+    let div = |v: Vec<f64>, n: Vec<f64>| {
+        v.iter()
+            .zip(&n)
+            .map(|(a, b)| if *b > 0.0 { a / b } else { 0.0 })
+            .collect()
+    };
     (div(ex, ne), div(pit, np))
 }
 
@@ -195,7 +205,11 @@ pub fn metrics(recs: &[ZoneRecord]) -> FitMetrics {
         .map(|r| (f64::from(u8::from(r.dropped)) - r.fit.p_drop).powi(2))
         .sum::<f64>()
         / n;
-    let res: Vec<f64> = recs.iter().map(|r| r.fit.residual_m).filter(|x| x.is_finite()).collect();
+    let res: Vec<f64> = recs
+        .iter()
+        .map(|r| r.fit.residual_m)
+        .filter(|x| x.is_finite())
+        .collect();
     FitMetrics {
         heldout_nll_per_zone: nll,
         dropout_brier: brier,
@@ -211,7 +225,12 @@ mod tests {
         ZoneRecord {
             zone: 0,
             cov: [x; 8],
-            fit: ZoneFit { nll: 1.0, p_drop, pit, residual_m: if dropped { f64::NAN } else { 0.1 } },
+            fit: ZoneFit {
+                nll: 1.0,
+                p_drop,
+                pit,
+                residual_m: if dropped { f64::NAN } else { 0.1 },
+            },
             dropped,
         }
     }
@@ -220,7 +239,13 @@ mod tests {
     fn slice_flags_excess_dropout_and_metrics_hand_computed() {
         // 200 zones: the upper half of the covariate drops every time though π = 0.1.
         let recs: Vec<ZoneRecord> = (0..200)
-            .map(|i| if i >= 100 { rec(true, 0.1, f64::NAN, i as f64) } else { rec(false, 0.1, 0.5, i as f64) })
+            .map(|i| {
+                if i >= 100 {
+                    rec(true, 0.1, f64::NAN, i as f64)
+                } else {
+                    rec(false, 0.1, 0.5, i as f64)
+                }
+            })
             .collect();
         let s = slices(&recs, 2);
         let range = &s[0];

@@ -128,13 +128,14 @@ pub fn transform(
     prep: &Prepared,
     shift: [i64; 2],
 ) -> Vec<Draw> {
-    let on = |name: &str| {
-        super::effects::enabled(model, name) && !super::effects::enabled(base, name)
-    };
+    let on =
+        |name: &str| super::effects::enabled(model, name) && !super::effects::enabled(base, name);
     let (z_n, rows, cols) = (prep.zones(), prep.rows, prep.cols);
     let mut out = prep.draws.clone();
     if shift != [0, 0] {
-        let q = f64::from(model.calibration_shift.percentile[0] + model.calibration_shift.percentile[1]) / 2.0;
+        let q = f64::from(
+            model.calibration_shift.percentile[0] + model.calibration_shift.percentile[1],
+        ) / 2.0;
         for k in 0..prep.k {
             let d = &mut out[k * z_n..(k + 1) * z_n];
             let mut peaks: Vec<f32> = d.iter().map(|x| x.peak).filter(|&p| p > 0.0).collect();
@@ -151,7 +152,10 @@ pub fn transform(
                 let (r, c) = ((z / cols) as i64 + shift[0], (z % cols) as i64 + shift[1]);
                 if (0..rows as i64).contains(&r) && (0..cols as i64).contains(&c) {
                     let src = before[(r as usize) * cols + c as usize];
-                    *x = Draw { peak: x.peak, ..src };
+                    *x = Draw {
+                        peak: x.peak,
+                        ..src
+                    };
                 } else {
                     x.p = 0.0;
                 }
@@ -167,7 +171,11 @@ pub fn transform(
         on("bin_wiggle"),
         on("range_noise"),
     );
-    let (rdrop, ddrop, bdrop) = (on("range_dropout"), on("dark_dropout"), on("border_dropout"));
+    let (rdrop, ddrop, bdrop) = (
+        on("range_dropout"),
+        on("dark_dropout"),
+        on("border_dropout"),
+    );
     let mut dist = vec![0.0f32; z_n];
     let mut valid = vec![0.0f32; z_n];
     for k in 0..prep.k {

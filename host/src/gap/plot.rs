@@ -8,7 +8,12 @@ use image::{Rgb, RgbImage};
 use crate::viz::{draw_text, fill_rect};
 
 /// Colours of successive series.
-pub const PALETTE: [Rgb<u8>; 4] = [Rgb([214, 39, 40]), Rgb([31, 119, 180]), Rgb([255, 127, 14]), Rgb([44, 160, 44])];
+pub const PALETTE: [Rgb<u8>; 4] = [
+    Rgb([214, 39, 40]),
+    Rgb([31, 119, 180]),
+    Rgb([255, 127, 14]),
+    Rgb([44, 160, 44]),
+];
 
 const W: u32 = 480;
 const H: u32 = 300;
@@ -46,8 +51,16 @@ struct Axes {
 
 impl Axes {
     fn px(&self, x: f64, y: f64) -> (f64, f64) {
-        let sx = if self.x[1] > self.x[0] { (x - self.x[0]) / (self.x[1] - self.x[0]) } else { 0.5 };
-        let sy = if self.y[1] > self.y[0] { (y - self.y[0]) / (self.y[1] - self.y[0]) } else { 0.5 };
+        let sx = if self.x[1] > self.x[0] {
+            (x - self.x[0]) / (self.x[1] - self.x[0])
+        } else {
+            0.5
+        };
+        let sy = if self.y[1] > self.y[0] {
+            (y - self.y[0]) / (self.y[1] - self.y[0])
+        } else {
+            0.5
+        };
         (
             f64::from(M) + sx * f64::from(W - 2 * M),
             f64::from(H - M) - sy * f64::from(H - 2 * M),
@@ -56,7 +69,12 @@ impl Axes {
 
     fn draw(&self, img: &mut RgbImage) {
         let grey = Rgb([90, 90, 90]);
-        let (l, r, t, b) = (f64::from(M), f64::from(W - M), f64::from(M), f64::from(H - M));
+        let (l, r, t, b) = (
+            f64::from(M),
+            f64::from(W - M),
+            f64::from(M),
+            f64::from(H - M),
+        );
         line(img, (l, t), (l, b), grey);
         line(img, (l, b), (r, b), grey);
         if self.y[0] < 0.0 && self.y[1] > 0.0 {
@@ -65,7 +83,14 @@ impl Axes {
         }
         draw_text(img, M, H - M + 6, &label(self.x[0]), 2, grey);
         let xl = label(self.x[1]);
-        draw_text(img, W - M - crate::viz::text_width(&xl, 2), H - M + 6, &xl, 2, grey);
+        draw_text(
+            img,
+            W - M - crate::viz::text_width(&xl, 2),
+            H - M + 6,
+            &xl,
+            2,
+            grey,
+        );
         draw_text(img, 2, M - 14, &label(self.y[1]), 2, grey);
         draw_text(img, 2, H - M - 14, &label(self.y[0]), 2, grey);
     }
@@ -94,7 +119,10 @@ pub fn line_plot(path: &Path, series: &[Vec<(f64, f64)>]) -> image::ImageResult<
     let mut y = range(pts().map(|p| p.1).chain([0.0]));
     let pad = (y[1] - y[0]) * 0.05;
     y = [y[0] - pad, y[1] + pad];
-    let ax = Axes { x: range(pts().map(|p| p.0)), y };
+    let ax = Axes {
+        x: range(pts().map(|p| p.0)),
+        y,
+    };
     ax.draw(&mut img);
     for (k, s) in series.iter().enumerate() {
         let c = PALETTE[k % PALETTE.len()];
@@ -115,13 +143,27 @@ pub fn line_plot(path: &Path, series: &[Vec<(f64, f64)>]) -> image::ImageResult<
 pub fn bar_plot(path: &Path, values: &[f64], reference: f64) -> image::ImageResult<()> {
     let mut img = RgbImage::from_pixel(W, H, Rgb([255, 255, 255]));
     let y = range(values.iter().copied().chain([0.0, reference * 1.2]));
-    let ax = Axes { x: [0.0, values.len() as f64], y };
+    let ax = Axes {
+        x: [0.0, values.len() as f64],
+        y,
+    };
     ax.draw(&mut img);
     for (i, &v) in values.iter().enumerate() {
         let (x0, yv) = ax.px(i as f64 + 0.1, v);
         let (x1, y0) = ax.px(i as f64 + 0.9, 0.0);
-        let (top, h) = if yv < y0 { (yv, y0 - yv) } else { (y0, yv - y0) };
-        fill_rect(&mut img, x0 as u32, top as u32, (x1 - x0) as u32, h.max(1.0) as u32, PALETTE[1]);
+        let (top, h) = if yv < y0 {
+            (yv, y0 - yv)
+        } else {
+            (y0, yv - y0)
+        };
+        fill_rect(
+            &mut img,
+            x0 as u32,
+            top as u32,
+            (x1 - x0) as u32,
+            h.max(1.0) as u32,
+            PALETTE[1],
+        );
     }
     let (l, ry) = ax.px(0.0, reference);
     let (r, _) = ax.px(values.len() as f64, reference);
@@ -134,16 +176,34 @@ pub fn bar_plot(path: &Path, values: &[f64], reference: f64) -> image::ImageResu
 pub fn heat_map(path: &Path, values: &[f64], rows: usize, cols: usize) -> image::ImageResult<()> {
     const C: u32 = 40;
     let mut img = RgbImage::from_pixel(cols as u32 * C, rows as u32 * C + 16, Rgb([255, 255, 255]));
-    let m = values.iter().fold(1e-9f64, |a, v| if v.is_finite() { a.max(v.abs()) } else { a });
+    let m = values.iter().fold(
+        1e-9f64,
+        |a, v| if v.is_finite() { a.max(v.abs()) } else { a },
+    );
     for r in 0..rows {
         for c in 0..cols {
             let v = values.get(r * cols + c).copied().unwrap_or(0.0);
-            let t = if v.is_finite() { (v / m).clamp(-1.0, 1.0) } else { 0.0 };
+            let t = if v.is_finite() {
+                (v / m).clamp(-1.0, 1.0)
+            } else {
+                0.0
+            };
             let fade = |x: f64| (255.0 * (1.0 - x.abs())) as u8;
-            let col = if t >= 0.0 { Rgb([255, fade(t), fade(t)]) } else { Rgb([fade(t), fade(t), 255]) };
+            let col = if t >= 0.0 {
+                Rgb([255, fade(t), fade(t)])
+            } else {
+                Rgb([fade(t), fade(t), 255])
+            };
             fill_rect(&mut img, c as u32 * C, r as u32 * C, C - 1, C - 1, col);
         }
     }
-    draw_text(&mut img, 2, rows as u32 * C + 3, &label(m), 2, Rgb([60, 60, 60]));
+    draw_text(
+        &mut img,
+        2,
+        rows as u32 * C + 3,
+        &label(m),
+        2,
+        Rgb([60, 60, 60]),
+    );
     img.save(path)
 }

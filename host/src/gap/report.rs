@@ -83,7 +83,9 @@ impl Report {
 }
 
 /// Curves of one covariate: dropout excess and PIT shift per slice.
-fn curves(slices: &[Slice], cov: Covariate) -> (Vec<(f64, f64)>, Vec<(f64, f64)>) {
+type Curve = Vec<(f64, f64)>;
+
+fn curves(slices: &[Slice], cov: Covariate) -> (Curve, Curve) {
     let s: Vec<&Slice> = slices.iter().filter(|s| s.covariate == cov).collect();
     let x = |s: &Slice| (s.range[0] + s.range[1]) / 2.0;
     (
@@ -111,21 +113,40 @@ fn slice_line(s: &Slice) -> String {
 pub fn write(a: &Analysis, out: &Path) -> anyhow::Result<()> {
     std::fs::create_dir_all(out)?;
     let report = Report::of(a);
-    std::fs::write(out.join("report.json"), serde_json::to_string_pretty(&report)?)?;
+    std::fs::write(
+        out.join("report.json"),
+        serde_json::to_string_pretty(&report)?,
+    )?;
     std::fs::write(out.join("sim_config.json"), a.selection.model.to_json())?;
     // Plots: per covariate, dropout excess before (red) / after (blue), PIT shift before (orange)
     // / after (green).
     for cov in Covariate::ALL {
         let (db, pb) = curves(&a.slices_before, cov);
         let (da, pa) = curves(&a.slices_after, cov);
-        line_plot(&out.join(format!("covariate_{}.png", cov.name())), &[db, da, pb, pa])?;
+        line_plot(
+            &out.join(format!("covariate_{}.png", cov.name())),
+            &[db, da, pb, pa],
+        )?;
     }
-    bar_plot(&out.join("pit_before.png"), &pit_histogram(&a.before, 10), 0.1)?;
-    bar_plot(&out.join("pit_after.png"), &pit_histogram(&a.after, 10), 0.1)?;
+    bar_plot(
+        &out.join("pit_before.png"),
+        &pit_histogram(&a.before, 10),
+        0.1,
+    )?;
+    bar_plot(
+        &out.join("pit_after.png"),
+        &pit_histogram(&a.after, 10),
+        0.1,
+    )?;
     let (rows, cols) = a.grid;
     for (tag, recs) in [("before", &a.before), ("after", &a.after)] {
         let (ex, pit) = zone_maps(recs, rows * cols);
-        heat_map(&out.join(format!("zones_dropout_{tag}.png")), &ex, rows, cols)?;
+        heat_map(
+            &out.join(format!("zones_dropout_{tag}.png")),
+            &ex,
+            rows,
+            cols,
+        )?;
         heat_map(&out.join(format!("zones_pit_{tag}.png")), &pit, rows, cols)?;
     }
     std::fs::write(out.join("report.md"), markdown(a, &report))?;
@@ -162,7 +183,9 @@ pub fn markdown(a: &Analysis, r: &Report) -> String {
         }
         s.push_str("| parameter | fitted | ≈95 % interval |\n|---|---|---|\n");
         for (k, v) in &f.params {
-            let ci = f.ci.get(k).map_or("—".to_string(), |c| format!("[{:.4}, {:.4}]", c[0], c[1]));
+            let ci =
+                f.ci.get(k)
+                    .map_or("—".to_string(), |c| format!("[{:.4}, {:.4}]", c[0], c[1]));
             let _ = writeln!(s, "| {k} | {v:.4} | {ci} |");
         }
         let _ = writeln!(
@@ -184,7 +207,9 @@ pub fn markdown(a: &Analysis, r: &Report) -> String {
     let unexplained: Vec<&Slice> = a.slices_after.iter().filter(|x| x.significant).collect();
     let _ = writeln!(s, "\n## Unexplained residual\n");
     if unexplained.is_empty() {
-        s.push_str("No residual slice is significant after the fit (Benjamini–Hochberg, q = 0.05).\n");
+        s.push_str(
+            "No residual slice is significant after the fit (Benjamini–Hochberg, q = 0.05).\n",
+        );
     } else {
         s.push_str("Slices still significant after the fit (BH q = 0.05): physics outside the library or a misfit.\n\n");
     }

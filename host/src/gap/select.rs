@@ -103,7 +103,9 @@ pub struct Ctx<'a> {
 impl Ctx<'_> {
     /// Sum of training NLL.
     pub fn train_nll(&self, m: &SimConfig) -> f64 {
-        frame_nlls(&self.density, m, self.base, self.frames, &self.train).iter().sum()
+        frame_nlls(&self.density, m, self.base, self.frames, &self.train)
+            .iter()
+            .sum()
     }
 
     /// Per-frame held-out NLL.
@@ -113,7 +115,10 @@ impl Ctx<'_> {
 
     /// Zones in the held-out frames.
     pub fn test_zones(&self) -> f64 {
-        self.test.iter().map(|&f| self.frames[f].zones()).sum::<usize>() as f64
+        self.test
+            .iter()
+            .map(|&f| self.frames[f].zones())
+            .sum::<usize>() as f64
     }
 
     /// Fits effect `c` in `model` (switched on if off), other effects fixed.
@@ -122,10 +127,23 @@ impl Ctx<'_> {
         let mut v = if effects::enabled(&m, c.name) {
             effects::get(&m, c.name)
         } else {
-            c.params.iter().map(|s| if s.integer { s.lo } else { 0.0f64.clamp(s.lo, s.hi) }).collect()
+            c.params
+                .iter()
+                .map(|s| {
+                    if s.integer {
+                        s.lo
+                    } else {
+                        0.0f64.clamp(s.lo, s.hi)
+                    }
+                })
+                .collect()
         };
-        let ints: Vec<usize> = (0..c.params.len()).filter(|&i| c.params[i].integer).collect();
-        let conts: Vec<usize> = (0..c.params.len()).filter(|&i| !c.params[i].integer).collect();
+        let ints: Vec<usize> = (0..c.params.len())
+            .filter(|&i| c.params[i].integer)
+            .collect();
+        let conts: Vec<usize> = (0..c.params.len())
+            .filter(|&i| !c.params[i].integer)
+            .collect();
         let int_values: Vec<f64> = match ints.first() {
             Some(&i) => {
                 let s = c.params[i];
@@ -187,7 +205,10 @@ impl Ctx<'_> {
     /// Held-out gain per zone and its p-value, from per-frame NLLs before and after.
     pub fn gain(&self, before: &[f64], after: &[f64], perms: usize, seed: u64) -> (f64, f64) {
         let g: Vec<f64> = before.iter().zip(after).map(|(b, a)| b - a).collect();
-        (g.iter().sum::<f64>() / self.test_zones(), sign_flip_p(&g, perms, seed))
+        (
+            g.iter().sum::<f64>() / self.test_zones(),
+            sign_flip_p(&g, perms, seed),
+        )
     }
 }
 
@@ -197,12 +218,17 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
     let mut accepted: Vec<&'static str> = Vec::new();
     let mut log = Vec::new();
     let mut cur = ctx.test_nlls(&model);
-    let pool: Vec<&'static Candidate> =
-        LIBRARY.iter().filter(|c| !effects::enabled(ctx.base, c.name)).collect();
+    let pool: Vec<&'static Candidate> = LIBRARY
+        .iter()
+        .filter(|c| !effects::enabled(ctx.base, c.name))
+        .collect();
     // First-round (solo) gain of every candidate, for the confounding check.
     let mut solo: BTreeMap<&'static str, (f64, bool)> = BTreeMap::new();
     for round in 0..opts.max_effects {
-        let cands: Vec<&&Candidate> = pool.iter().filter(|c| !accepted.contains(&c.name)).collect();
+        let cands: Vec<&&Candidate> = pool
+            .iter()
+            .filter(|c| !accepted.contains(&c.name))
+            .collect();
         if cands.is_empty() {
             break;
         }
@@ -212,7 +238,13 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
             let m = ctx.fit_one(&model, c, opts.iters);
             let after = ctx.test_nlls(&m);
             let (g, p) = ctx.gain(&cur, &after, opts.permutations, 17 + round as u64);
-            log.push(format!("round {} {:<18} gain {:+.4} nats/zone  p {:.4}", round + 1, c.name, g, p));
+            log.push(format!(
+                "round {} {:<18} gain {:+.4} nats/zone  p {:.4}",
+                round + 1,
+                c.name,
+                g,
+                p
+            ));
             res.push((c.name, m, g, p));
         }
         let ps: Vec<f64> = res.iter().map(|r| r.3).collect();
@@ -225,7 +257,11 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
         // Gatekeeping: Holm decides whether anything is missing (family-wise error ≤ α); the
         // effect accepted is then the one with the largest held-out gain among those significant
         // on their own, so a weaker look-alike with a smaller p-value does not win attribution.
-        if !res.iter().zip(&sig).any(|(r, &s)| s && r.2 >= opts.min_gain) {
+        if !res
+            .iter()
+            .zip(&sig)
+            .any(|(r, &s)| s && r.2 >= opts.min_gain)
+        {
             break;
         }
         let best = res
@@ -246,8 +282,17 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
         let rest: Vec<&'static str> = accepted.iter().copied().filter(|&n| n != name).collect();
         let mut without = model.clone();
         effects::set(&mut without, name, None);
-        let without = if rest.is_empty() { without } else { ctx.refit(&without, &rest, opts.iters) };
-        let (g, p) = ctx.gain(&ctx.test_nlls(&without), &cur, opts.permutations, 99 + k as u64);
+        let without = if rest.is_empty() {
+            without
+        } else {
+            ctx.refit(&without, &rest, opts.iters)
+        };
+        let (g, p) = ctx.gain(
+            &ctx.test_nlls(&without),
+            &cur,
+            opts.permutations,
+            99 + k as u64,
+        );
         if p > opts.alpha || g < opts.min_gain {
             log.push(format!("pruned {name}: conditional gain {g:+.4}, p {p:.4}"));
             accepted.remove(k);
@@ -263,14 +308,18 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
     // Confounding: a look-alike that, in the accepted effect's place, reaches ≥ half its gain.
     let mut confounds = Vec::new();
     for &a in &accepted {
-        let Some((ga, _, without)) = cond.get(a) else { continue };
+        let Some((ga, _, without)) = cond.get(a) else {
+            continue;
+        };
         let base_nll = ctx.test_nlls(without);
         for (&b, &(gb, sig_b)) in &solo {
             if accepted.contains(&b) || !sig_b || gb < 0.25 * ga {
                 continue;
             }
             progress(&format!("confounding {a} / {b}"));
-            let Some(cb) = effects::candidate(b) else { continue };
+            let Some(cb) = effects::candidate(b) else {
+                continue;
+            };
             let swap = ctx.fit_one(without, cb, opts.iters);
             let (gs, _) = ctx.gain(&base_nll, &ctx.test_nlls(&swap), 0, 0);
             if gs >= 0.5 * ga {

@@ -66,7 +66,8 @@ pub fn normal_two_sided_p(z: f64) -> f64 {
     let t = 1.0 / (1.0 + 0.327_591_1 * x);
     let poly = t
         * (0.254_829_592
-            + t * (-0.284_496_736 + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
+            + t * (-0.284_496_736
+                + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
     (poly * (-x * x).exp()).clamp(0.0, 1.0)
 }
 
@@ -113,7 +114,10 @@ mod tests {
         // Holm at 0.05: 0.01 ≤ 0.0125 yes; 0.03 ≤ 0.0167 no → stop.
         assert_eq!(holm(&p, 0.05), vec![true, false, false, false]);
         // BH at 0.05: sorted 0.01, 0.03, 0.04, 0.2 vs 0.0125, 0.025, 0.0375, 0.05 → k = 1.
-        assert_eq!(benjamini_hochberg(&p, 0.05), vec![true, false, false, false]);
+        assert_eq!(
+            benjamini_hochberg(&p, 0.05),
+            vec![true, false, false, false]
+        );
         // BH at 0.2: thresholds 0.05, 0.1, 0.15, 0.2 → all four.
         assert_eq!(benjamini_hochberg(&p, 0.2), vec![true; 4]);
     }

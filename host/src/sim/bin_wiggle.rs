@@ -21,7 +21,11 @@ pub struct BinWiggle {
 impl Default for BinWiggle {
     /// Disabled; 0.3 m period.
     fn default() -> Self {
-        BinWiggle { enabled: false, amplitude_m: 0.0, period_m: 0.3 }
+        BinWiggle {
+            enabled: false,
+            amplitude_m: 0.0,
+            period_m: 0.3,
+        }
     }
 }
 
@@ -60,7 +64,11 @@ mod tests {
 
     #[test]
     fn distance_hand_computed() {
-        let w = BinWiggle { enabled: true, amplitude_m: 0.02, period_m: 0.4 };
+        let w = BinWiggle {
+            enabled: true,
+            amplitude_m: 0.02,
+            period_m: 0.4,
+        };
         // 2.1 m is a quarter period past 2.0 m: sin = 1.
         assert!((w.distance(2.1) - 2.12).abs() < 1e-5);
         assert!((w.distance(2.0) - 2.0).abs() < 1e-5);

@@ -3,9 +3,9 @@
 //! a corner) is lost with probability `p_corner · r^exponent`.
 use serde::{Deserialize, Serialize};
 
+use super::covariates::grid_position;
 use super::error::{check_positive, check_prob, SimError};
 use super::frame::{Scene, ZoneEffect, ZoneGrid};
-use super::covariates::grid_position;
 use super::truth::ZoneEvents;
 use crate::rng::Rng;
 
@@ -24,7 +24,11 @@ pub struct BorderDropout {
 impl Default for BorderDropout {
     /// Disabled; quartic roll-off.
     fn default() -> Self {
-        BorderDropout { enabled: false, p_corner: 0.0, exponent: 4.0 }
+        BorderDropout {
+            enabled: false,
+            p_corner: 0.0,
+            exponent: 4.0,
+        }
     }
 }
 
@@ -64,7 +68,11 @@ mod tests {
 
     #[test]
     fn loss_probability_hand_computed() {
-        let b = BorderDropout { enabled: true, p_corner: 0.8, exponent: 4.0 };
+        let b = BorderDropout {
+            enabled: true,
+            p_corner: 0.8,
+            exponent: 4.0,
+        };
         assert_eq!(b.loss_probability(0.0), 0.0);
         assert!((b.loss_probability(0.5) - 0.05).abs() < 1e-6);
         assert!((b.loss_probability(1.0) - 0.8).abs() < 1e-6);

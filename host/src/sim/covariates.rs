@@ -78,10 +78,44 @@ pub fn zone_covariates(
     if !depths.is_empty() {
         out.mean_m = depths.iter().sum::<f32>() / depths.len() as f32;
         depths.sort_by(f32::total_cmp);
-        let q = |p: f32| depths[((p * (depths.len() - 1) as f32).round() as usize).min(depths.len() - 1)];
+        let q = |p: f32| {
+            depths[((p * (depths.len() - 1) as f32).round() as usize).min(depths.len() - 1)]
+        };
         out.spread_m = q(0.9) - q(0.1);
     }
     out
+}
+
+/// Covariates of every zone of `zones` over the scene's sampling windows.
+pub(crate) fn scene_covariates(
+    scene: &super::frame::Scene<'_>,
+    zones: &super::frame::ZoneGrid,
+) -> Vec<ZoneCovariates> {
+    (0..zones.zones.len())
+        .map(|z| {
+            zone_covariates(
+                scene.input,
+                scene.window(z),
+                scene.depth_scale,
+                z,
+                zones.rows,
+                zones.cols,
+            )
+        })
+        .collect()
+}
+
+/// Checks that `v` is finite and ≥ 0; the error names `aspect.field`.
+pub(crate) fn check_nonneg(aspect: &str, field: &str, v: f32) -> Result<(), super::SimError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(super::error::invalid(
+            aspect,
+            field,
+            format!("must be finite and ≥ 0, got {v}"),
+        ))
+    }
 }
 
 #[cfg(test)]
@@ -115,37 +149,5 @@ mod tests {
         assert!((c.radius - 0.5).abs() < 1e-6);
         let (_, corner) = grid_position(0, 0, 1, 1);
         assert_eq!(corner, 0.0);
-    }
-}
-
-/// Covariates of every zone of `zones` over the scene's sampling windows.
-pub(crate) fn scene_covariates(
-    scene: &super::frame::Scene<'_>,
-    zones: &super::frame::ZoneGrid,
-) -> Vec<ZoneCovariates> {
-    (0..zones.zones.len())
-        .map(|z| {
-            zone_covariates(
-                scene.input,
-                scene.window(z),
-                scene.depth_scale,
-                z,
-                zones.rows,
-                zones.cols,
-            )
-        })
-        .collect()
-}
-
-/// Checks that `v` is finite and ≥ 0; the error names `aspect.field`.
-pub(crate) fn check_nonneg(aspect: &str, field: &str, v: f32) -> Result<(), super::SimError> {
-    if v.is_finite() && v >= 0.0 {
-        Ok(())
-    } else {
-        Err(super::error::invalid(
-            aspect,
-            field,
-            format!("must be finite and ≥ 0, got {v}"),
-        ))
     }
 }

@@ -4,9 +4,9 @@
 //! darker the zone, the likelier the loss, nothing above `knee`.
 use serde::{Deserialize, Serialize};
 
+use super::covariates::{scene_covariates, ZoneCovariates};
 use super::error::{check_positive, check_prob, SimError};
 use super::frame::{Scene, ZoneEffect, ZoneGrid};
-use super::covariates::{scene_covariates, ZoneCovariates};
 use super::truth::ZoneEvents;
 use crate::rng::Rng;
 
@@ -25,7 +25,11 @@ pub struct DarkDropout {
 impl Default for DarkDropout {
     /// Disabled; knee at full brightness (loss ∝ darkness).
     fn default() -> Self {
-        DarkDropout { enabled: false, p_black: 0.0, knee: 1.0 }
+        DarkDropout {
+            enabled: false,
+            p_black: 0.0,
+            knee: 1.0,
+        }
     }
 }
 
@@ -64,8 +68,15 @@ mod tests {
 
     #[test]
     fn loss_probability_hand_computed() {
-        let d = DarkDropout { enabled: true, p_black: 0.6, knee: 0.5 };
-        let c = |b| ZoneCovariates { brightness: b, ..ZoneCovariates::default() };
+        let d = DarkDropout {
+            enabled: true,
+            p_black: 0.6,
+            knee: 0.5,
+        };
+        let c = |b| ZoneCovariates {
+            brightness: b,
+            ..ZoneCovariates::default()
+        };
         assert!((d.loss_probability(&c(0.0)) - 0.6).abs() < 1e-6);
         assert!((d.loss_probability(&c(0.25)) - 0.3).abs() < 1e-6);
         assert_eq!(d.loss_probability(&c(0.8)), 0.0);

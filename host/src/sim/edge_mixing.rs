@@ -3,9 +3,9 @@
 //! `mean` the mean depth over the zone's window (no effect on zones of one surface).
 use serde::{Deserialize, Serialize};
 
+use super::covariates::{scene_covariates, ZoneCovariates};
 use super::error::{check_prob, SimError};
 use super::frame::{Scene, ZoneEffect, ZoneGrid};
-use super::covariates::{scene_covariates, ZoneCovariates};
 use crate::rng::Rng;
 
 /// Parameters of the edge mixing.
@@ -55,8 +55,14 @@ mod tests {
 
     #[test]
     fn distance_hand_computed() {
-        let e = EdgeMixing { enabled: true, weight: 0.25 };
-        let c = ZoneCovariates { mean_m: 3.0, ..ZoneCovariates::default() };
+        let e = EdgeMixing {
+            enabled: true,
+            weight: 0.25,
+        };
+        let c = ZoneCovariates {
+            mean_m: 3.0,
+            ..ZoneCovariates::default()
+        };
         assert!((e.distance(1.0, &c) - 1.5).abs() < 1e-6);
         assert_eq!(e.distance(1.0, &ZoneCovariates::default()), 1.0);
     }

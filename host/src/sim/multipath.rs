@@ -6,9 +6,9 @@
 use serde::{Deserialize, Serialize};
 
 use super::covariates::check_nonneg;
+use super::covariates::{scene_covariates, ZoneCovariates};
 use super::error::SimError;
 use super::frame::{Scene, ZoneEffect, ZoneGrid};
-use super::covariates::{scene_covariates, ZoneCovariates};
 use crate::rng::Rng;
 
 /// Parameters of the multipath lengthening.
@@ -54,11 +54,20 @@ mod tests {
 
     #[test]
     fn distance_hand_computed() {
-        let m = Multipath { enabled: true, extra: 0.4 };
-        let c = ZoneCovariates { nonlambertian_fraction: 0.1, ..ZoneCovariates::default() };
+        let m = Multipath {
+            enabled: true,
+            extra: 0.4,
+        };
+        let c = ZoneCovariates {
+            nonlambertian_fraction: 0.1,
+            ..ZoneCovariates::default()
+        };
         // 4 · 0.1 = 0.4 → 2 · (1 + 0.4 · 0.4) = 2.32.
         assert!((m.distance(2.0, &c) - 2.32).abs() < 1e-6);
-        let c = ZoneCovariates { nonlambertian_fraction: 0.5, ..c };
+        let c = ZoneCovariates {
+            nonlambertian_fraction: 0.5,
+            ..c
+        };
         assert!((m.distance(2.0, &c) - 2.8).abs() < 1e-6);
     }
 }

@@ -6,9 +6,9 @@
 //! was assumed).
 use serde::{Deserialize, Serialize};
 
+use super::covariates::grid_position;
 use super::error::{invalid, SimError};
 use super::frame::{Scene, ZoneEffect, ZoneGrid};
-use super::covariates::grid_position;
 use crate::rng::Rng;
 
 /// Parameters of the radial/z mismatch.
@@ -26,7 +26,11 @@ pub struct RadialDistance {
 impl Default for RadialDistance {
     /// Disabled; the VL53L5CX's 45° × 45°.
     fn default() -> Self {
-        RadialDistance { enabled: false, fraction: 0.0, fov_deg: [45.0, 45.0] }
+        RadialDistance {
+            enabled: false,
+            fraction: 0.0,
+            fov_deg: [45.0, 45.0],
+        }
     }
 }
 
@@ -50,8 +54,16 @@ impl ZoneEffect for RadialDistance {
         if !(self.fraction.is_finite() && (-1.0..=2.0).contains(&self.fraction)) {
             return Err(invalid(self.name(), "fraction", "must be in [-1, 2]"));
         }
-        if self.fov_deg.iter().any(|f| !(f.is_finite() && *f > 0.0 && *f < 170.0)) {
-            return Err(invalid(self.name(), "fov_deg", "must be in (0, 170) degrees"));
+        if self
+            .fov_deg
+            .iter()
+            .any(|f| !(f.is_finite() && *f > 0.0 && *f < 170.0))
+        {
+            return Err(invalid(
+                self.name(),
+                "fov_deg",
+                "must be in (0, 170) degrees",
+            ));
         }
         Ok(())
     }
@@ -72,7 +84,11 @@ mod tests {
 
     #[test]
     fn factor_hand_computed() {
-        let r = RadialDistance { enabled: true, fraction: 1.0, fov_deg: [90.0, 90.0] };
+        let r = RadialDistance {
+            enabled: true,
+            fraction: 1.0,
+            fov_deg: [90.0, 90.0],
+        };
         assert!((r.factor([0.0, 0.0]) - 1.0).abs() < 1e-6);
         // tan 45° = 1: a corner ray (1, 1, 1) is √3 long.
         assert!((r.factor([1.0, 1.0]) - 3f32.sqrt()).abs() < 1e-5);

@@ -57,9 +57,16 @@ mod tests {
 
     #[test]
     fn distance_hand_computed() {
-        let b = RangeBias { enabled: true, offset_m: 0.05, scale: 0.02 };
+        let b = RangeBias {
+            enabled: true,
+            offset_m: 0.05,
+            scale: 0.02,
+        };
         assert!((b.distance(2.0) - 2.09).abs() < 1e-6);
-        let neg = RangeBias { offset_m: -1.0, ..b };
+        let neg = RangeBias {
+            offset_m: -1.0,
+            ..b
+        };
         assert_eq!(neg.distance(0.5), 1e-3);
     }
 }

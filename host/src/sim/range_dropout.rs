@@ -53,7 +53,10 @@ mod tests {
 
     #[test]
     fn loss_probability_hand_computed() {
-        let r = RangeDropout { enabled: true, loss_per_m2: 0.1 };
+        let r = RangeDropout {
+            enabled: true,
+            loss_per_m2: 0.1,
+        };
         assert_eq!(r.loss_probability(0.0), 0.0);
         // 1 − e^(−0.1·4) = 1 − 0.670320 = 0.329680.
         assert!((r.loss_probability(2.0) - 0.329_68).abs() < 1e-5);

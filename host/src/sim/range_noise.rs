@@ -51,7 +51,10 @@ mod tests {
 
     #[test]
     fn sigma_hand_computed() {
-        let n = RangeNoise { enabled: true, sigma_per_m: 0.01 };
+        let n = RangeNoise {
+            enabled: true,
+            sigma_per_m: 0.01,
+        };
         assert!((n.sigma(3.0) - 0.03).abs() < 1e-7);
     }
 }

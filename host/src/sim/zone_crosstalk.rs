@@ -64,7 +64,11 @@ impl ZoneEffect for ZoneCrosstalk {
     }
     fn apply(&self, _scene: &Scene<'_>, zones: &mut ZoneGrid, _rng: &mut Rng) {
         let mut d: Vec<f32> = zones.zones.iter().map(|z| z.distance_m).collect();
-        let valid: Vec<f32> = zones.zones.iter().map(|z| f32::from(u8::from(z.has_target()))).collect();
+        let valid: Vec<f32> = zones
+            .zones
+            .iter()
+            .map(|z| f32::from(u8::from(z.has_target())))
+            .collect();
         self.blur(zones.rows, zones.cols, &mut d, &valid);
         for (zone, d) in zones.zones.iter_mut().zip(d) {
             zone.distance_m = d;
@@ -79,7 +83,10 @@ mod tests {
     #[test]
     fn blur_hand_computed() {
         // 1×3 grid: 1 m, 2 m, 4 m, the last without a return.
-        let x = ZoneCrosstalk { enabled: true, coupling: 0.5 };
+        let x = ZoneCrosstalk {
+            enabled: true,
+            coupling: 0.5,
+        };
         let mut d = [1.0, 2.0, 4.0];
         x.blur(1, 3, &mut d, &[1.0, 1.0, 0.0]);
         assert_eq!(d, [1.5, 1.5, 4.0]);
