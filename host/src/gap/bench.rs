@@ -20,8 +20,8 @@ pub type PostEffect = dyn Fn(&mut GapFrame, &mut Rng) + Sync;
 pub fn unit_size(name: &str) -> Option<Vec<f64>> {
     Some(match name {
         "range_dropout" => vec![0.01],
-        "dark_dropout" => vec![0.1],
-        "border_dropout" => vec![0.15],
+        "dark_dropout" => vec![0.15],
+        "border_dropout" => vec![0.2],
         "calibration_shift" => vec![1.0, 0.25],
         "radial_distance" => vec![0.25],
         "range_bias" => vec![0.01, 0.0],
