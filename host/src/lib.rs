@@ -4,6 +4,7 @@
 //! the real RGB-D sets, and the `depthor` command line.
 pub mod baselines;
 pub mod dataset;
+pub mod gap;
 pub mod import;
 pub mod inference;
 pub mod recording;

@@ -5,6 +5,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 mod bench;
 mod demo;
+mod gap;
+mod gap_bench;
 mod import;
 mod info;
 mod project;
@@ -28,6 +30,10 @@ enum Command {
     Bench(bench::Args),
     /// The main job: scene (or --recording) → dToF → int8 model in the core, vs baselines.
     Demo(demo::Args),
+    /// Compare a real recording with the simulator: locate the mismatch, name and fit the missing physics.
+    Gap(gap::Args),
+    /// Concealed-effect benchmark of the gap tool (hidden effects in simulated "real" recordings).
+    GapBench(gap_bench::Args),
     /// Import a real RGB-D set (Middlebury, NYU, Redwood, TUM, SUN, raw NYU, ARKit) as a recording.
     Import(import::Args),
     /// Summarise a recording: frames, resolution, reference depth and zone validity.
@@ -43,6 +49,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Bench(args) => bench::handle(args),
         Command::Demo(args) => demo::handle(args),
+        Command::Gap(args) => gap::handle(args),
+        Command::GapBench(args) => gap_bench::handle(args),
         Command::Import(args) => import::handle(args),
         Command::Info(args) => info::handle(args),
         Command::Project(args) => project::handle(args),

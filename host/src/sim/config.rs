@@ -9,15 +9,25 @@
 use serde::{Deserialize, Serialize};
 
 use super::anomalies::Anomalies;
+use super::bin_wiggle::BinWiggle;
+use super::border_dropout::BorderDropout;
 use super::calibration_shift::CalibrationShift;
 use super::dark::DarkAspect;
+use super::dark_dropout::DarkDropout;
+use super::edge_mixing::EdgeMixing;
 use super::error::SimError;
 use super::frame::ZoneEffect;
 use super::grid::{GridConfig, OverallDistribution};
 use super::halving::DepthHalving;
+use super::multipath::Multipath;
+use super::radial_distance::RadialDistance;
 use super::range::RangeAspect;
+use super::range_bias::RangeBias;
+use super::range_dropout::RangeDropout;
+use super::range_noise::RangeNoise;
 use super::signal_loss::SignalLoss;
 use super::surfaces::{Surface, SurfaceAspect};
+use super::zone_crosstalk::ZoneCrosstalk;
 
 /// Complete simulator configuration (see the module docs of each aspect for its physics and
 /// figures). The paper's Table 4 groups: OD = `overall_distribution`; SR = `transparent`,
@@ -55,6 +65,36 @@ pub struct SimConfig {
     /// Random noise and blank zones.
     #[serde(default)]
     pub anomalies: Anomalies,
+    /// Sim-to-real: range along the ray instead of planar z.
+    #[serde(default)]
+    pub radial_distance: RadialDistance,
+    /// Sim-to-real: offset and scale error of the distance.
+    #[serde(default)]
+    pub range_bias: RangeBias,
+    /// Sim-to-real: mixed returns on zones straddling depth edges.
+    #[serde(default)]
+    pub edge_mixing: EdgeMixing,
+    /// Sim-to-real: farther returns on transparent/specular zones.
+    #[serde(default)]
+    pub multipath: Multipath,
+    /// Sim-to-real: returns blurred into neighbouring zones.
+    #[serde(default)]
+    pub zone_crosstalk: ZoneCrosstalk,
+    /// Sim-to-real: periodic range error of histogram binning.
+    #[serde(default)]
+    pub bin_wiggle: BinWiggle,
+    /// Sim-to-real: noise growing with range.
+    #[serde(default)]
+    pub range_noise: RangeNoise,
+    /// Sim-to-real: dropout rising with range (signal ∝ ρ/r²).
+    #[serde(default)]
+    pub range_dropout: RangeDropout,
+    /// Sim-to-real: dropout on dark (low-reflectance) zones.
+    #[serde(default)]
+    pub dark_dropout: DarkDropout,
+    /// Sim-to-real: dropout rising toward the grid's corners.
+    #[serde(default)]
+    pub border_dropout: BorderDropout,
 }
 
 impl SimConfig {
@@ -72,12 +112,24 @@ impl SimConfig {
             signal_loss: SignalLoss::default(),
             calibration_shift: CalibrationShift::default(),
             anomalies: Anomalies::default(),
+            radial_distance: RadialDistance::default(),
+            range_bias: RangeBias::default(),
+            edge_mixing: EdgeMixing::default(),
+            multipath: Multipath::default(),
+            zone_crosstalk: ZoneCrosstalk::default(),
+            bin_wiggle: BinWiggle::default(),
+            range_noise: RangeNoise::default(),
+            range_dropout: RangeDropout::default(),
+            dark_dropout: DarkDropout::default(),
+            border_dropout: BorderDropout::default(),
         }
     }
 
     /// The per-zone aspects in pipeline order: the physics of what each zone sees first, then the
-    /// projection error that moves background measurements, then sensor-level random anomalies.
-    pub(crate) fn zone_effects(&self) -> [Box<dyn ZoneEffect + '_>; 7] {
+    /// projection error that moves background measurements, then sensor-level random anomalies,
+    /// then the sim-to-real effects of the gap tool's library (distance transforms, noise,
+    /// dropouts; all off unless a fitted configuration switches them on).
+    pub(crate) fn zone_effects(&self) -> [Box<dyn ZoneEffect + '_>; 17] {
         [
             Box::new(Surface::transparent(&self.transparent)),
             Box::new(Surface::specular(&self.specular)),
@@ -86,6 +138,16 @@ impl SimConfig {
             Box::new(&self.signal_loss),
             Box::new(&self.calibration_shift),
             Box::new(&self.anomalies),
+            Box::new(&self.radial_distance),
+            Box::new(&self.range_bias),
+            Box::new(&self.edge_mixing),
+            Box::new(&self.multipath),
+            Box::new(&self.zone_crosstalk),
+            Box::new(&self.bin_wiggle),
+            Box::new(&self.range_noise),
+            Box::new(&self.range_dropout),
+            Box::new(&self.dark_dropout),
+            Box::new(&self.border_dropout),
         ]
     }
 

@@ -10,6 +10,9 @@
 //!    [`signal_loss`].
 //! 4. [`calibration_shift`]: background zones take a neighbour's measurement.
 //! 5. [`anomalies`]: random noise and blank zones.
+//! 6. The gap tool's sim-to-real effects (off by default): [`radial_distance`], [`range_bias`],
+//!    [`edge_mixing`], [`multipath`], [`zone_crosstalk`], [`bin_wiggle`], [`range_noise`],
+//!    [`range_dropout`], [`dark_dropout`], [`border_dropout`].
 //!
 //! Each aspect draws from its own random stream (derived from the seed and its name), and draws
 //! the same numbers whatever the other aspects did: switching one aspect off changes only the
@@ -27,18 +30,29 @@
 //! ```
 
 pub mod anomalies;
+pub mod bin_wiggle;
+pub mod border_dropout;
 pub mod calibration_shift;
 pub mod config;
+pub mod covariates;
 pub mod dark;
+pub mod dark_dropout;
+pub mod edge_mixing;
 pub mod error;
 mod frame;
 pub mod grid;
 pub mod halving;
+pub mod multipath;
 pub mod presets;
+pub mod radial_distance;
 pub mod range;
+pub mod range_bias;
+pub mod range_dropout;
+pub mod range_noise;
 pub mod signal_loss;
 pub mod surfaces;
 pub mod truth;
+pub mod zone_crosstalk;
 
 pub use config::SimConfig;
 pub use error::SimError;

@@ -83,6 +83,16 @@ fn l5() -> SimConfig {
             noise_range_m: [0.02, L5_MAX_M],
             ..Anomalies::default()
         },
+        radial_distance: Default::default(),
+        range_bias: Default::default(),
+        edge_mixing: Default::default(),
+        multipath: Default::default(),
+        zone_crosstalk: Default::default(),
+        bin_wiggle: Default::default(),
+        range_noise: Default::default(),
+        range_dropout: Default::default(),
+        dark_dropout: Default::default(),
+        border_dropout: Default::default(),
     }
 }
 
@@ -128,6 +138,16 @@ fn phone() -> SimConfig {
             enabled: true,
             ..Anomalies::default()
         },
+        radial_distance: Default::default(),
+        range_bias: Default::default(),
+        edge_mixing: Default::default(),
+        multipath: Default::default(),
+        zone_crosstalk: Default::default(),
+        bin_wiggle: Default::default(),
+        range_noise: Default::default(),
+        range_dropout: Default::default(),
+        dark_dropout: Default::default(),
+        border_dropout: Default::default(),
     }
 }
 
