@@ -3,6 +3,7 @@
 //! The std side of depthor: recordings (`depthor-recording/1`), file-backed sensors, importers of
 //! the real RGB-D sets, and the `depthor` command line.
 pub mod import;
+pub mod quantize;
 pub mod recording;
 pub mod rng;
 pub mod scene;

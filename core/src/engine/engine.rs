@@ -392,9 +392,14 @@ fn observe(
     };
     let info = g.tensor(op.output)?;
     let n = plan.shape(op.output).and_then(|s| s.len()).ok_or(bad)?;
-    let buf = act.get(plan.tensor_range(op.output).ok_or(bad)?).ok_or(bad)?;
+    let buf = act
+        .get(plan.tensor_range(op.output).ok_or(bad)?)
+        .ok_or(bad)?;
     match info.dtype {
-        DType::I8 => f(i, Observed::I8(typed::<i8>(buf, i)?.get(..n).ok_or(bad)?, info.q)),
+        DType::I8 => f(
+            i,
+            Observed::I8(typed::<i8>(buf, i)?.get(..n).ok_or(bad)?, info.q),
+        ),
         DType::F32 => f(i, Observed::F32(typed::<f32>(buf, i)?.get(..n).ok_or(bad)?)),
     }
     Ok(())

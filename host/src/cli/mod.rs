@@ -6,6 +6,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 mod import;
 mod info;
 mod project;
+mod quantize;
 
 /// Exit status for every failure (clap also uses 2 for usage errors).
 pub const EXIT_FAILURE: u8 = 2;
@@ -27,6 +28,8 @@ enum Command {
     Info(info::Args),
     /// Draw a frame's dToF zones projected onto its RGB image.
     Project(project::Args),
+    /// Quantise an exported float graph (graph.json) to the core's int8 blob.
+    Quantize(quantize::Args),
 }
 
 /// Runs the parsed command line.
@@ -35,6 +38,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Import(args) => import::handle(args),
         Command::Info(args) => info::handle(args),
         Command::Project(args) => project::handle(args),
+        Command::Quantize(args) => quantize::handle(args),
     }
 }
 
