@@ -34,6 +34,9 @@ pub enum Observed<'b> {
     F32(&'b [f32]),
 }
 
+/// The callback [`Engine::run_observed`] calls after each op.
+pub type Observer<'o> = dyn FnMut(usize, Observed<'_>) + 'o;
+
 /// A prepared model: the parsed blob, its arena plan and the caller's arena holding the cached
 /// constants. `Engine` itself holds the op and buffer tables (fixed capacity, no heap); its
 /// size is `size_of::<Engine>()` (see the crate's engine tests), so on a microcontroller keep it
@@ -208,7 +211,7 @@ impl<'a> Engine<'a> {
         rgb: &[u8],
         sparse_m: &[f32],
         out_depth_m: &mut [f32],
-        observer: &mut dyn FnMut(usize, Observed<'_>),
+        observer: &mut Observer<'_>,
     ) -> Result<RunStats, Error> {
         let (h, w) = self.plan.size();
         let n = h * w;
@@ -358,10 +361,7 @@ impl<'a> Engine<'a> {
         Ok(())
     }
 
-    fn execute(
-        &mut self,
-        mut observer: Option<&mut dyn FnMut(usize, Observed<'_>)>,
-    ) -> Result<RunStats, Error> {
+    fn execute(&mut self, mut observer: Option<&mut Observer<'_>>) -> Result<RunStats, Error> {
         let persistent = self.plan.persistent_bytes();
         let (consts, act) = self.arena.split_at_mut(persistent);
         for (i, op) in self.graph.ops.iter().enumerate() {
@@ -384,7 +384,7 @@ fn observe(
     i: usize,
     op: &OpInfo,
     act: &[u8],
-    f: &mut dyn FnMut(usize, Observed<'_>),
+    f: &mut Observer<'_>,
 ) -> Result<(), Error> {
     let bad = Error::Kernel {
         op: i,

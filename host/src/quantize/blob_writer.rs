@@ -81,7 +81,7 @@ impl BlobWriter {
     /// Appends a parameter to the data section at the next 16-byte boundary; returns its offset
     /// relative to the data section start.
     pub fn param(&mut self, bytes: &[u8]) -> u32 {
-        while self.data.len() % DATA_ALIGN != 0 {
+        while !self.data.len().is_multiple_of(DATA_ALIGN) {
             self.data.push(0);
         }
         let off = self.data.len() as u32;
@@ -98,7 +98,7 @@ impl BlobWriter {
         for i in inputs {
             r.extend_from_slice(&i.to_le_bytes());
         }
-        while r.len() % 4 != 0 {
+        while !r.len().is_multiple_of(4) {
             r.push(0);
         }
         r.extend_from_slice(attrs);
@@ -119,7 +119,7 @@ impl BlobWriter {
         for o in &self.ops {
             payload.extend_from_slice(o); // records are multiples of 4 and start 4-aligned
         }
-        while (HEADER_LEN + payload.len()) % DATA_ALIGN != 0 {
+        while !(HEADER_LEN + payload.len()).is_multiple_of(DATA_ALIGN) {
             payload.push(0);
         }
         payload.extend_from_slice(&self.data);

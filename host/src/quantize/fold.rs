@@ -181,7 +181,9 @@ pub fn fold(graph: &Graph) -> Result<Net, FoldError> {
                 bias,
             } => {
                 need_i8(0, &b)?;
-                if weight.shape[1] * geometry.groups != xs.c || xs.c % geometry.groups != 0 {
+                if weight.shape[1] * geometry.groups != xs.c
+                    || !xs.c.is_multiple_of(geometry.groups)
+                {
                     return Err(Builder::err(
                         node,
                         format!(
@@ -390,7 +392,7 @@ pub fn fold(graph: &Graph) -> Result<Net, FoldError> {
                 );
             }
             NodeOp::PixelShuffle(r) => {
-                if *r == 0 || xs.c % (r * r) != 0 {
+                if *r == 0 || !xs.c.is_multiple_of(r * r) {
                     return Err(Builder::err(
                         node,
                         format!("{} channels do not divide by factor² ({r}²)", xs.c),

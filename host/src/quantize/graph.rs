@@ -446,7 +446,7 @@ fn load_tensors(
             .iter()
             .try_fold(1usize, |a, &d| a.checked_mul(d))
             .ok_or_else(|| c.err(&join(&at, "shape"), "element count overflows"))?;
-        if offset % WEIGHT_ALIGN != 0 {
+        if !offset.is_multiple_of(WEIGHT_ALIGN) {
             return Err(c.err(
                 &join(&at, "offset"),
                 format!("{offset} is not {WEIGHT_ALIGN}-byte aligned"),
@@ -565,7 +565,7 @@ fn parse_node(
                     "zero kernel, stride, dilation, groups or out_channels",
                 ));
             }
-            if out_channels % groups != 0 {
+            if !out_channels.is_multiple_of(groups) {
                 return Err(c.err(&join(&aat, "groups"), "does not divide out_channels"));
             }
             let weight = param("weight")?;
@@ -693,7 +693,7 @@ fn parse_node(
             if sig.len() != 3 || sig.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
                 return Err(c.err(&join(&aat, "sigma"), "expected three positive numbers"));
             }
-            if iterations % 2 != 0 {
+            if !iterations.is_multiple_of(2) {
                 return Err(c.err(&join(&aat, "iterations"), "must be even"));
             }
             NodeOp::Refine(RefineAttrs {
