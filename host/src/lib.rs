@@ -7,6 +7,7 @@ pub mod dataset;
 pub mod gap;
 pub mod import;
 pub mod inference;
+pub mod quantize;
 pub mod recording;
 pub mod rng;
 pub mod scene;

@@ -10,6 +10,7 @@ use crate::kernels::conv::{conv2d, ChannelQuant, Conv2d, ConvQuant};
 use crate::kernels::elementwise::{self, AddQuant, MulQuant, Rescale};
 use crate::kernels::pool::{self, MeanQuant};
 use crate::kernels::refine::{refine, I8Map, KERNELS};
+use crate::kernels::requant::QParams;
 use crate::kernels::resize;
 use crate::kernels::KernelError;
 use core::ops::Range;
@@ -22,6 +23,19 @@ pub struct RunStats {
     /// Multiply-accumulates of the convs, linears and the bins head.
     pub macs: u64,
 }
+
+/// One op's output as [`Engine::run_observed`] shows it to its observer (a debugging aid: the
+/// host quantizer compares every tensor with its float reference).
+#[derive(Clone, Copy, Debug)]
+pub enum Observed<'b> {
+    /// An int8 tensor with its quantisation parameters (`real = scale · (q − zero_point)`).
+    I8(&'b [i8], QParams),
+    /// An f32 tensor (depth maps in metres).
+    F32(&'b [f32]),
+}
+
+/// The callback [`Engine::run_observed`] calls after each op.
+pub type Observer<'o> = dyn FnMut(usize, Observed<'_>) + 'o;
 
 /// A prepared model: the parsed blob, its arena plan and the caller's arena holding the cached
 /// constants. `Engine` itself holds the op and buffer tables (fixed capacity, no heap); its
@@ -181,7 +195,31 @@ impl<'a> Engine<'a> {
         check_len("out_depth_m", n, out_depth_m.len())?;
         self.write_rgb(rgb)?;
         self.write_sparse(|i| sparse_m.get(i).copied().unwrap_or(0.0))?;
-        let stats = self.execute()?;
+        let stats = self.execute(None)?;
+        self.read_output(|i, v| {
+            if let Some(o) = out_depth_m.get_mut(i) {
+                *o = v;
+            }
+        })?;
+        Ok(stats)
+    }
+
+    /// As [`Engine::run`], calling `observer(op_index, output)` right after each op with that
+    /// op's whole output tensor (before later ops may reuse its arena bytes).
+    pub fn run_observed(
+        &mut self,
+        rgb: &[u8],
+        sparse_m: &[f32],
+        out_depth_m: &mut [f32],
+        observer: &mut Observer<'_>,
+    ) -> Result<RunStats, Error> {
+        let (h, w) = self.plan.size();
+        let n = h * w;
+        check_len("sparse_m", n, sparse_m.len())?;
+        check_len("out_depth_m", n, out_depth_m.len())?;
+        self.write_rgb(rgb)?;
+        self.write_sparse(|i| sparse_m.get(i).copied().unwrap_or(0.0))?;
+        let stats = self.execute(Some(observer))?;
         self.read_output(|i, v| {
             if let Some(o) = out_depth_m.get_mut(i) {
                 *o = v;
@@ -204,7 +242,7 @@ impl<'a> Engine<'a> {
         check_len("out_depth_mm", n, out_depth_mm.len())?;
         self.write_rgb(rgb)?;
         self.write_sparse(|i| sparse_mm.get(i).map_or(0.0, |&v| v as f32 * 0.001))?;
-        let stats = self.execute()?;
+        let stats = self.execute(None)?;
         self.read_output(|i, v| {
             if let Some(o) = out_depth_mm.get_mut(i) {
                 let mm = v * 1000.0 + 0.5;
@@ -323,17 +361,48 @@ impl<'a> Engine<'a> {
         Ok(())
     }
 
-    fn execute(&mut self) -> Result<RunStats, Error> {
+    fn execute(&mut self, mut observer: Option<&mut Observer<'_>>) -> Result<RunStats, Error> {
         let persistent = self.plan.persistent_bytes();
         let (consts, act) = self.arena.split_at_mut(persistent);
         for (i, op) in self.graph.ops.iter().enumerate() {
             exec(&self.graph, &self.plan, i, op, consts, act)?;
+            if let Some(f) = observer.as_deref_mut() {
+                observe(&self.graph, &self.plan, i, op, act, f)?;
+            }
         }
         Ok(RunStats {
             ops: self.graph.ops.len(),
             macs: self.plan.macs(),
         })
     }
+}
+
+/// Hands op `i`'s output tensor to `f`.
+fn observe(
+    g: &Graph,
+    plan: &Plan,
+    i: usize,
+    op: &OpInfo,
+    act: &[u8],
+    f: &mut Observer<'_>,
+) -> Result<(), Error> {
+    let bad = Error::Kernel {
+        op: i,
+        error: KernelError::Shape,
+    };
+    let info = g.tensor(op.output)?;
+    let n = plan.shape(op.output).and_then(|s| s.len()).ok_or(bad)?;
+    let buf = act
+        .get(plan.tensor_range(op.output).ok_or(bad)?)
+        .ok_or(bad)?;
+    match info.dtype {
+        DType::I8 => f(
+            i,
+            Observed::I8(typed::<i8>(buf, i)?.get(..n).ok_or(bad)?, info.q),
+        ),
+        DType::F32 => f(i, Observed::F32(typed::<f32>(buf, i)?.get(..n).ok_or(bad)?)),
+    }
+    Ok(())
 }
 
 fn check_len(what: &'static str, expected: usize, found: usize) -> Result<(), Error> {

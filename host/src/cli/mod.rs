@@ -11,6 +11,7 @@ mod import;
 mod info;
 mod project;
 mod sim;
+mod quantize;
 
 /// Exit status for every failure (clap also uses 2 for usage errors).
 pub const EXIT_FAILURE: u8 = 2;
@@ -42,6 +43,8 @@ enum Command {
     Sim(sim::Args),
     /// Draw a frame's dToF zones projected onto its RGB image.
     Project(project::Args),
+    /// Quantise an exported float graph (graph.json) to the core's int8 blob.
+    Quantize(quantize::Args),
 }
 
 /// Runs the parsed command line.
@@ -55,6 +58,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Info(args) => info::handle(args),
         Command::Project(args) => project::handle(args),
         Command::Sim(args) => sim::handle(args),
+        Command::Quantize(args) => quantize::handle(args),
     }
 }
 
