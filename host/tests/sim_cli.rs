@@ -111,43 +111,30 @@ fn bad_configs_are_one_clear_error_and_write_nothing() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("out");
     let cfg = tmp.path().join("cfg.json");
-    let mut good: serde_json::Value =
+    let base: serde_json::Value =
         serde_json::from_str(&depthor_host::sim::preset("mcu").unwrap().to_json()).unwrap();
-    good["dark"]["p_loss"] = serde_json::json!(1.5);
-    std::fs::write(&cfg, good.to_string()).unwrap();
-    let (code, err) = depthor(&[
-        "sim",
-        "--config",
-        cfg.to_str().unwrap(),
-        "--scenes",
-        "1",
-        "--width",
-        "64",
-        "--height",
-        "48",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 2);
-    assert!(err.contains("dark.p_loss"), "{err}");
-    assert_eq!(err.trim().lines().count(), 1, "{err}");
-    good["dark"]["p_loss"] = serde_json::json!(0.5);
-    good["dark"]["bogus"] = serde_json::json!(1);
-    std::fs::write(&cfg, good.to_string()).unwrap();
-    let (code, err) = depthor(&[
-        "sim",
-        "--config",
-        cfg.to_str().unwrap(),
-        "--scenes",
-        "1",
-        "--width",
-        "64",
-        "--height",
-        "48",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 2);
-    assert!(err.contains("bogus"), "{err}");
-    assert!(!out.exists());
+    let mut out_of_range = base.clone();
+    out_of_range["dark"]["p_loss"] = serde_json::json!(1.5);
+    let mut unknown_field = base;
+    unknown_field["dark"]["bogus"] = serde_json::json!(1);
+    for (bad, field) in [(out_of_range, "dark.p_loss"), (unknown_field, "bogus")] {
+        std::fs::write(&cfg, bad.to_string()).unwrap();
+        let (code, err) = depthor(&[
+            "sim",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--scenes",
+            "1",
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(code, 2);
+        assert!(err.contains(field), "{err}");
+        assert_eq!(err.trim().lines().count(), 1, "{err}");
+        assert!(!out.exists());
+    }
 }
