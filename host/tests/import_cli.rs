@@ -4,10 +4,17 @@
 use std::path::PathBuf;
 use std::process::Command;
 
+/// `$DEPTHOR_REAL_DATA`, else the shared folder beside the checkout, else this workplace's copy.
 fn real_root() -> PathBuf {
-    std::env::var_os("DEPTHOR_REAL_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/real"))
+    if let Some(p) = std::env::var_os("DEPTHOR_REAL_DATA") {
+        return PathBuf::from(p);
+    }
+    let beside = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/real");
+    if beside.is_dir() {
+        beside
+    } else {
+        PathBuf::from("/work/shared/data/real")
+    }
 }
 
 fn depthor(args: &[&str]) -> (i32, String, String) {
