@@ -237,7 +237,7 @@ impl FloatReference {
         let out_shape = out_fact.shape.as_concrete();
         if out_fact.datum_type != DatumType::F32 || out_shape != Some(&[1, 1, h, w][..]) {
             return Err(contract(format!(
-                "output is {:?} {}, expected f32 [1, 1, {h}, {w}]",
+                "output is {:?} {:?}, expected f32 [1, 1, {h}, {w}]",
                 out_fact.datum_type, out_fact.shape
             )));
         }
