@@ -174,7 +174,9 @@ impl FloatReference {
             what,
         };
         if height == 0 || width == 0 {
-            return Err(contract(format!("requested size {height}×{width} is empty")));
+            return Err(contract(format!(
+                "requested size {height}×{width} is empty"
+            )));
         }
         if !path.exists() {
             return Err(ReferenceError::Load {
@@ -197,18 +199,21 @@ impl FloatReference {
         let mut subs = HashMap::new();
         for (ix, (name, channels)) in [("rgb", 3), ("sparse", 1)].into_iter().enumerate() {
             let input = if ix == 0 { rgb_input } else { 1 - rgb_input };
-            let fact = model.input_fact(input).map_err(load_err("reading inputs"))?;
+            let fact = model
+                .input_fact(input)
+                .map_err(load_err("reading inputs"))?;
             if fact.datum_type != DatumType::F32 {
                 return Err(contract(format!(
                     "input {name} is {:?}, expected f32",
                     fact.datum_type
                 )));
             }
-            bind_dims(name, fact.shape.dims(), [1, channels, h, w], &mut subs)
-                .map_err(contract)?;
+            bind_dims(name, fact.shape.dims(), [1, channels, h, w], &mut subs).map_err(contract)?;
         }
 
-        let outputs = model.output_outlets().map_err(load_err("reading outputs"))?;
+        let outputs = model
+            .output_outlets()
+            .map_err(load_err("reading outputs"))?;
         let output = match outputs.len() {
             1 => 0,
             _ => outputs
@@ -274,7 +279,11 @@ impl FloatReference {
 
     /// Runs one frame from the model's own tensors: `rgb_chw` is `[3, H, W]` planar f32 in
     /// [0, 1] (as the golden files store it), `sparse_m` is `H × W` metres.
-    pub fn run_planar(&self, rgb_chw: &[f32], sparse_m: &[f32]) -> Result<Vec<f32>, ReferenceError> {
+    pub fn run_planar(
+        &self,
+        rgb_chw: &[f32],
+        sparse_m: &[f32],
+    ) -> Result<Vec<f32>, ReferenceError> {
         let mut state = self.spawn()?;
         self.run_state(&mut state, rgb_chw, sparse_m)
     }

@@ -132,7 +132,10 @@ fn tar_and_tgz_models_load_too() {
 #[test]
 fn inputs_are_matched_by_name_not_position() {
     let tmp = tempfile::tempdir().unwrap();
-    let dir = write_dir(&tmp.path().join("m"), &files(graph("sparse, rgb", "", "2", "3")));
+    let dir = write_dir(
+        &tmp.path().join("m"),
+        &files(graph("sparse, rgb", "", "2", "3")),
+    );
     let model = FloatReference::load(&dir, 2, 3).unwrap();
     let (rgb, sparse, expected) = frame_2x3();
     assert_close(&model.run(&rgb, &sparse).unwrap(), &expected);
@@ -142,7 +145,10 @@ fn inputs_are_matched_by_name_not_position() {
 fn symbolic_size_is_bound_at_load() {
     let tmp = tempfile::tempdir().unwrap();
     let ext = "extension tract_symbol H;\nextension tract_symbol W;";
-    let dir = write_dir(&tmp.path().join("m"), &files(graph("rgb, sparse", ext, "H", "W")));
+    let dir = write_dir(
+        &tmp.path().join("m"),
+        &files(graph("rgb, sparse", ext, "H", "W")),
+    );
     let (rgb, sparse, expected) = frame_2x3();
     let small = FloatReference::load(&dir, 2, 3).unwrap();
     assert_close(&small.run(&rgb, &sparse).unwrap(), &expected);
@@ -187,12 +193,26 @@ fn wrong_buffer_sizes_are_errors() {
     let (rgb, sparse, _) = frame_2x3();
     let err = model.run(&rgb[..17], &sparse).unwrap_err();
     assert!(
-        matches!(err, ReferenceError::InputSize { expected: 18, got: 17, .. }),
+        matches!(
+            err,
+            ReferenceError::InputSize {
+                expected: 18,
+                got: 17,
+                ..
+            }
+        ),
         "{err:?}"
     );
     let err = model.run(&rgb, &sparse[..5]).unwrap_err();
     assert!(
-        matches!(err, ReferenceError::InputSize { expected: 6, got: 5, .. }),
+        matches!(
+            err,
+            ReferenceError::InputSize {
+                expected: 6,
+                got: 5,
+                ..
+            }
+        ),
         "{err:?}"
     );
 }
@@ -248,7 +268,10 @@ fn timing_helper_measures_something() {
     let dir = write_dir(&tmp.path().join("m"), &fixed_model_files());
     let model = FloatReference::load(&dir, 2, 3).unwrap();
     let t = model.time_per_frame(5).unwrap();
-    assert!(t > std::time::Duration::ZERO && t < std::time::Duration::from_secs(1), "{t:?}");
+    assert!(
+        t > std::time::Duration::ZERO && t < std::time::Duration::from_secs(1),
+        "{t:?}"
+    );
 }
 
 // ---- the exported mcu model against its golden tensors ----
@@ -309,8 +332,12 @@ fn mcu_model_matches_golden_output() {
         .zip(&want)
         .map(|(g, w)| (g - w).abs())
         .fold(0.0f32, f32::max);
-    let mean_abs =
-        got.iter().zip(&want).map(|(g, w)| f64::from((g - w).abs())).sum::<f64>() / got.len() as f64;
+    let mean_abs = got
+        .iter()
+        .zip(&want)
+        .map(|(g, w)| f64::from((g - w).abs()))
+        .sum::<f64>()
+        / got.len() as f64;
     let (lo, hi) = want
         .iter()
         .fold((f32::MAX, f32::MIN), |(lo, hi), &v| (lo.min(v), hi.max(v)));
@@ -320,4 +347,20 @@ fn mcu_model_matches_golden_output() {
     );
     assert!(got.iter().all(|v| v.is_finite()));
     assert!(max_abs <= 1e-4, "max abs diff {max_abs} > 1e-4");
+}
+
+/// Single-thread time per frame of the `mcu` model (`cargo test --release -p depthor-host --test
+/// reference -- --ignored --nocapture mcu_time`): slow in debug builds, so not run by default.
+#[test]
+#[ignore]
+fn mcu_time_per_frame() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/mcu/depthor.nnef.tgz");
+    if !path.exists() {
+        eprintln!("SKIPPED: {} is absent", path.display());
+        return;
+    }
+    let model = FloatReference::load(&path, 120, 160).unwrap();
+    let runs = 30;
+    let t = model.time_per_frame(runs).unwrap();
+    println!("mcu 120x160 tract f32, one thread: median {t:?} per frame over {runs} runs");
 }
