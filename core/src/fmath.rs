@@ -121,7 +121,6 @@ pub(crate) fn tan_half_fov(x: f64) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    extern crate std;
     use super::*;
 
     fn rel(a: f64, b: f64) -> f64 {

@@ -2,5 +2,16 @@
 //!
 //! The std side of depthor: recordings (`depthor-recording/1`), file-backed sensors, importers of
 //! the real RGB-D sets, and the `depthor` command line.
+pub mod baselines;
+pub mod dataset;
+pub mod gap;
+pub mod import;
+pub mod inference;
+pub mod quantize;
+pub mod recording;
 pub mod reference;
 pub mod rng;
+pub mod scene;
+pub mod sensors;
+pub mod sim;
+pub mod viz;

@@ -1,0 +1,774 @@
+//! Validating parser of the blob [`format`](super::format). Everything that does not depend on
+//! the run size is checked here (magic, version, CRC, every table entry, arities, dtypes,
+//! channel counts, parameter ranges); shapes are checked by the planner. The parser never
+//! panics: every read is bounds-checked and reports [`Error::BadBlob`] with its offset.
+
+use super::checksum::crc32;
+use super::format::*;
+use crate::engine::Error;
+use crate::kernels::bins::{BinsAttrs, MAX_BINS, MAX_BIN_FEATURES};
+use crate::kernels::conv::{Activation, ConvGeometry, MAX_TAPS};
+use crate::kernels::refine::{RefineAttrs, MAX_ITERATIONS};
+use crate::kernels::requant::QParams;
+use heapless::Vec;
+
+/// Element type of a tensor.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DType {
+    /// int8 with [`QParams`].
+    I8,
+    /// f32.
+    F32,
+}
+
+/// One tensor-table entry.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TensorInfo {
+    /// Element type.
+    pub dtype: DType,
+    /// Channels.
+    pub channels: usize,
+    /// Quantisation (`scale 1, zero point 0` for f32).
+    pub q: QParams,
+}
+
+/// A validated parameter: absolute byte range in the blob.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Param {
+    /// Start, bytes from the blob start.
+    pub offset: u32,
+    /// Length in bytes.
+    pub len: u32,
+}
+
+impl Param {
+    /// The byte range in the blob.
+    pub fn range(&self) -> core::ops::Range<usize> {
+        self.offset as usize..self.offset as usize + self.len as usize
+    }
+}
+
+/// Conv geometry as stored (u16 fields, to keep the op table small);
+/// `[kh, kw, sh, sw, dh, dw, ph, pw, groups]`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Geometry(pub [u16; 9]);
+
+impl Geometry {
+    /// The kernel-facing geometry.
+    pub fn get(&self) -> ConvGeometry {
+        let v = self.0.map(|x| x as usize);
+        ConvGeometry {
+            kernel: [v[0], v[1]],
+            stride: [v[2], v[3]],
+            dilation: [v[4], v[5]],
+            padding: [v[6], v[7]],
+            groups: v[8],
+        }
+    }
+}
+
+/// Parsed attributes of an op.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Attrs {
+    /// `conv2d` / `linear`.
+    Conv {
+        /// Geometry.
+        geometry: Geometry,
+        /// Fused activation.
+        act: Activation,
+        /// int8 weights.
+        weights: Param,
+        /// int32 bias (absent = zeros).
+        bias: Option<Param>,
+        /// f32 per-output-channel weight scales.
+        scales: Param,
+    },
+    /// Table ops: 256 bytes.
+    Lut(Param),
+    /// No attributes.
+    Plain,
+    /// `upsample_bilinear`.
+    Upsample {
+        /// [`upsample_mode`] code.
+        mode: u8,
+        /// First value (rows, row factor or tensor id).
+        a: usize,
+        /// Second value.
+        b: usize,
+    },
+    /// `pixel_shuffle` factor.
+    PixelShuffle(usize),
+    /// `minmax_norm` eps.
+    MinMax(f32),
+    /// `bins_head`.
+    Bins {
+        /// Bin count and depth range.
+        attrs: BinsAttrs,
+        /// int8 weights `[N, C]`.
+        weights: Param,
+        /// int32 bias.
+        bias: Option<Param>,
+        /// f32 weight scales.
+        scales: Param,
+    },
+    /// `refine`.
+    Refine(RefineAttrs),
+}
+
+/// One op of the graph.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OpInfo {
+    /// [`opcode`] value.
+    pub code: u8,
+    /// Input tensor ids.
+    pub inputs: Vec<u16, MAX_INPUTS>,
+    /// Output tensor id.
+    pub output: u16,
+    /// Attributes.
+    pub attrs: Attrs,
+    /// Byte offset of the record (for error reports).
+    pub offset: usize,
+}
+
+/// A validated graph referencing the blob's bytes.
+#[derive(Clone, Debug)]
+pub struct Graph<'a> {
+    /// The whole blob.
+    pub blob: &'a [u8],
+    /// Native input rows.
+    pub height: usize,
+    /// Native input columns.
+    pub width: usize,
+    /// Tensor table.
+    pub tensors: Vec<TensorInfo, MAX_TENSORS>,
+    /// Ops in execution order.
+    pub ops: Vec<OpInfo, MAX_OPS>,
+    /// rgb input id.
+    pub rgb: u16,
+    /// sparse input id.
+    pub sparse: u16,
+    /// output id.
+    pub output: u16,
+}
+
+impl Graph<'_> {
+    /// Tensor info by id (ids are validated by [`parse`]).
+    pub fn tensor(&self, id: u16) -> Result<&TensorInfo, Error> {
+        self.tensors.get(id as usize).ok_or(Error::BadBlob {
+            offset: 0,
+            what: "tensor id out of range",
+        })
+    }
+
+    /// Bytes of a validated parameter.
+    pub fn bytes(&self, p: Param) -> &[u8] {
+        self.blob.get(p.range()).unwrap_or(&[])
+    }
+}
+
+struct Reader<'a> {
+    b: &'a [u8],
+    pos: usize,
+    end: usize,
+}
+
+impl<'a> Reader<'a> {
+    fn take(&mut self, n: usize, what: &'static str) -> Result<&'a [u8], Error> {
+        let end = self.pos.checked_add(n).filter(|&e| e <= self.end);
+        let s = end
+            .and_then(|e| self.b.get(self.pos..e))
+            .ok_or(Error::BadBlob {
+                offset: self.pos,
+                what,
+            })?;
+        self.pos += n;
+        Ok(s)
+    }
+    fn arr<const N: usize>(&mut self, what: &'static str) -> Result<[u8; N], Error> {
+        let s = self.take(N, what)?;
+        let mut a = [0u8; N];
+        a.copy_from_slice(s);
+        Ok(a)
+    }
+    fn u8(&mut self, what: &'static str) -> Result<u8, Error> {
+        Ok(self.arr::<1>(what)?[0])
+    }
+    fn u16(&mut self, what: &'static str) -> Result<u16, Error> {
+        Ok(u16::from_le_bytes(self.arr(what)?))
+    }
+    fn u32(&mut self, what: &'static str) -> Result<u32, Error> {
+        Ok(u32::from_le_bytes(self.arr(what)?))
+    }
+    fn i32(&mut self, what: &'static str) -> Result<i32, Error> {
+        Ok(i32::from_le_bytes(self.arr(what)?))
+    }
+    fn f32(&mut self, what: &'static str) -> Result<f32, Error> {
+        Ok(f32::from_le_bytes(self.arr(what)?))
+    }
+    fn zero16(&mut self, what: &'static str) -> Result<(), Error> {
+        let at = self.pos;
+        if self.u16(what)? != 0 {
+            return Err(Error::BadBlob { offset: at, what });
+        }
+        Ok(())
+    }
+    fn align(&mut self, a: usize, what: &'static str) -> Result<(), Error> {
+        let pad = (a - self.pos % a) % a;
+        self.take(pad, what).map(|_| ())
+    }
+}
+
+fn bad(offset: usize, what: &'static str) -> Error {
+    Error::BadBlob { offset, what }
+}
+
+/// Reads a little-endian f32 array element from validated bytes.
+pub fn f32_at(bytes: &[u8], i: usize) -> f32 {
+    bytes
+        .get(i * 4..i * 4 + 4)
+        .map_or(0.0, |s| f32::from_le_bytes([s[0], s[1], s[2], s[3]]))
+}
+
+/// Reads a little-endian i32 array element from validated bytes.
+pub fn i32_at(bytes: &[u8], i: usize) -> i32 {
+    bytes
+        .get(i * 4..i * 4 + 4)
+        .map_or(0, |s| i32::from_le_bytes([s[0], s[1], s[2], s[3]]))
+}
+
+/// Expected inputs per opcode: (min, max).
+fn arity(code: u8) -> Option<(usize, usize)> {
+    use opcode::*;
+    Some(match code {
+        CONV2D | LINEAR | RELU | LEAKY_RELU | SIGMOID | RECIPROCAL | UPSAMPLE_BILINEAR
+        | PIXEL_SHUFFLE | GLOBAL_AVG_POOL | GLOBAL_MAX_POOL | CHANNEL_MEAN | CHANNEL_MAX
+        | MINMAX_NORM => (1, 1),
+        ADD | MUL | BINS_HEAD => (2, 2),
+        CONCAT => (1, MAX_INPUTS),
+        REFINE => (6, 6),
+        _ => return None,
+    })
+}
+
+/// Parses and validates a blob (see the module doc).
+pub fn parse(blob: &[u8]) -> Result<Graph<'_>, Error> {
+    let mut r = Reader {
+        b: blob,
+        pos: 0,
+        end: blob.len(),
+    };
+    if r.arr::<4>("header: magic")? != MAGIC {
+        return Err(bad(0, "header: magic is not \"DPTH\""));
+    }
+    let version = r.u16("header: version")?;
+    if version != VERSION {
+        return Err(Error::UnsupportedVersion { found: version });
+    }
+    if r.u16("header: flags")? != 0 {
+        return Err(bad(6, "header: unknown flags"));
+    }
+    let payload_len = r.u32("header: payload_len")? as usize;
+    let stored = r.u32("header: crc32")?;
+    let height = r.u16("header: height")? as usize;
+    let width = r.u16("header: width")? as usize;
+    let n_tensors = r.u16("header: n_tensors")? as usize;
+    let n_ops = r.u16("header: n_ops")? as usize;
+    let rgb = r.u16("header: rgb id")?;
+    let sparse = r.u16("header: sparse id")?;
+    let output = r.u16("header: output id")?;
+    r.zero16("header: reserved")?;
+    let end = HEADER_LEN
+        .checked_add(payload_len)
+        .filter(|&e| e <= blob.len())
+        .ok_or(bad(8, "header: payload_len beyond the blob"))?;
+    let computed = crc32(&blob[HEADER_LEN..end]);
+    if computed != stored {
+        return Err(Error::BadChecksum { stored, computed });
+    }
+    r.end = end;
+    if height == 0 || width == 0 {
+        return Err(bad(16, "header: zero input size"));
+    }
+    if n_tensors > MAX_TENSORS {
+        return Err(bad(20, "header: more tensors than MAX_TENSORS"));
+    }
+    if n_ops == 0 || n_ops > MAX_OPS {
+        return Err(bad(22, "header: op count 0 or above MAX_OPS"));
+    }
+
+    let mut tensors: Vec<TensorInfo, MAX_TENSORS> = Vec::new();
+    for _ in 0..n_tensors {
+        let at = r.pos;
+        let dt = r.u8("tensor: dtype")?;
+        if r.u8("tensor: reserved")? != 0 {
+            return Err(bad(at + 1, "tensor: reserved byte not zero"));
+        }
+        let channels = r.u16("tensor: channels")? as usize;
+        let scale = r.f32("tensor: scale")?;
+        let zero_point = r.i32("tensor: zero_point")?;
+        if r.u32("tensor: reserved")? != 0 {
+            return Err(bad(at + 12, "tensor: reserved word not zero"));
+        }
+        let (dtype, q) = match dt {
+            dtype::I8 => {
+                if !(scale.is_finite() && scale > 0.0 && (-128..=127).contains(&zero_point)) {
+                    return Err(bad(
+                        at + 4,
+                        "tensor: int8 scale must be finite and > 0, zero point in -128..=127",
+                    ));
+                }
+                (DType::I8, QParams { scale, zero_point })
+            }
+            dtype::F32 => (
+                DType::F32,
+                QParams {
+                    scale: 1.0,
+                    zero_point: 0,
+                },
+            ),
+            _ => return Err(bad(at, "tensor: unknown dtype")),
+        };
+        if channels == 0 {
+            return Err(bad(at + 2, "tensor: zero channels"));
+        }
+        tensors
+            .push(TensorInfo { dtype, channels, q })
+            .map_err(|_| bad(at, "tensor: table full"))?;
+    }
+    let tensor = |id: u16, at: usize| {
+        tensors
+            .get(id as usize)
+            .copied()
+            .ok_or(bad(at, "tensor id out of range"))
+    };
+    let ti_rgb = tensor(rgb, 24)?;
+    let ti_sparse = tensor(sparse, 26)?;
+    let ti_out = tensor(output, 28)?;
+    if ti_rgb.channels != 3 || ti_sparse.channels != 1 || ti_out.channels != 1 || rgb == sparse {
+        return Err(bad(
+            24,
+            "header: inputs must be distinct [3,H,W] rgb and [1,H,W] sparse, output [1,H,W]",
+        ));
+    }
+
+    // First pass over ops: record layout; parameters are resolved after the data start is known.
+    let mut produced = [false; MAX_TENSORS];
+    produced[rgb as usize] = true;
+    produced[sparse as usize] = true;
+    let mut ops: Vec<OpInfo, MAX_OPS> = Vec::new();
+    // Raw parameter offsets per op (weights, bias, scales), relative to the data section.
+    let mut raw: Vec<[u32; 3], MAX_OPS> = Vec::new();
+    for _ in 0..n_ops {
+        r.align(4, "op: alignment padding")?;
+        let at = r.pos;
+        let code = r.u8("op: opcode")?;
+        let n_in = r.u8("op: n_inputs")? as usize;
+        let out_id = r.u16("op: output id")?;
+        let attr_len = r.u16("op: attr_len")? as usize;
+        r.zero16("op: reserved")?;
+        let (lo, hi) = arity(code).ok_or(bad(at, "op: unknown opcode"))?;
+        if n_in < lo || n_in > hi {
+            return Err(bad(at + 1, "op: wrong number of inputs"));
+        }
+        let mut inputs: Vec<u16, MAX_INPUTS> = Vec::new();
+        for _ in 0..n_in {
+            let ip = r.pos;
+            let id = r.u16("op: input id")?;
+            tensor(id, ip)?;
+            if !produced[id as usize] {
+                return Err(bad(ip, "op: input used before it is produced"));
+            }
+            inputs
+                .push(id)
+                .map_err(|_| bad(ip, "op: too many inputs"))?;
+        }
+        r.align(4, "op: input padding")?;
+        tensor(out_id, at + 2)?;
+        if produced[out_id as usize] {
+            return Err(bad(at + 2, "op: output tensor produced twice"));
+        }
+        produced[out_id as usize] = true;
+        if !attr_len.is_multiple_of(4) {
+            return Err(bad(at + 4, "op: attr_len not a multiple of 4"));
+        }
+        let attr_start = r.pos;
+        let mut a = Reader {
+            b: blob,
+            pos: attr_start,
+            end: attr_start
+                .checked_add(attr_len)
+                .ok_or(bad(at, "op: attr_len"))?,
+        };
+        if a.end > r.end {
+            return Err(bad(at + 4, "op: attributes beyond the payload"));
+        }
+        let (attrs, refs) = read_attrs(code, &mut a)?;
+        if a.pos != a.end {
+            return Err(bad(
+                a.pos,
+                "op: attr_len does not match the opcode's attributes",
+            ));
+        }
+        r.pos = a.end;
+        let op = OpInfo {
+            code,
+            inputs,
+            output: out_id,
+            attrs,
+            offset: at,
+        };
+        check_types(&op, &tensors, &produced)?;
+        ops.push(op).map_err(|_| bad(at, "too many ops"))?;
+        raw.push(refs).map_err(|_| bad(at, "too many ops"))?;
+    }
+    if !produced[output as usize] || output == rgb || output == sparse {
+        return Err(bad(28, "header: output is not produced by any op"));
+    }
+    r.align(DATA_ALIGN, "data: alignment padding")?;
+    let data = r.pos;
+
+    // Resolve parameter references now that the data start is known.
+    for (op, refs) in ops.iter_mut().zip(raw.iter()) {
+        let at = op.offset;
+        let in_c = tensor(op.inputs[0], at)?.channels;
+        let out_c = tensor(op.output, at)?.channels;
+        let param = |rel: u32, len: usize, what: &'static str| -> Result<Param, Error> {
+            let offset = data.checked_add(rel as usize).ok_or(bad(at, what))?;
+            match offset.checked_add(len) {
+                Some(e) if rel != NONE && e <= end => Ok(Param {
+                    offset: u32::try_from(offset).map_err(|_| bad(at, what))?,
+                    len: u32::try_from(len).map_err(|_| bad(at, what))?,
+                }),
+                _ => Err(bad(at, what)),
+            }
+        };
+        match &mut op.attrs {
+            Attrs::Conv {
+                geometry,
+                weights,
+                bias,
+                scales,
+                ..
+            } => {
+                let n = geometry
+                    .get()
+                    .weight_len(in_c, out_c)
+                    .filter(|&n| n / out_c <= MAX_TAPS);
+                let n = n.ok_or(bad(at, "conv: weight shape too large"))?;
+                *weights = param(refs[0], n, "conv: weights outside the data section")?;
+                *bias = if refs[1] == NONE {
+                    None
+                } else {
+                    Some(param(
+                        refs[1],
+                        out_c * 4,
+                        "conv: bias outside the data section",
+                    )?)
+                };
+                *scales = param(refs[2], out_c * 4, "conv: scales outside the data section")?;
+                check_scales(blob, *scales, out_c, at)?;
+            }
+            Attrs::Bins {
+                attrs,
+                weights,
+                bias,
+                scales,
+            } => {
+                let nb = attrs.n_bins;
+                *weights = param(
+                    refs[0],
+                    nb * in_c,
+                    "bins_head: weights outside the data section",
+                )?;
+                *bias = if refs[1] == NONE {
+                    None
+                } else {
+                    Some(param(
+                        refs[1],
+                        nb * 4,
+                        "bins_head: bias outside the data section",
+                    )?)
+                };
+                *scales = param(
+                    refs[2],
+                    nb * 4,
+                    "bins_head: scales outside the data section",
+                )?;
+                check_scales(blob, *scales, nb, at)?;
+            }
+            _ => {}
+        }
+    }
+    Ok(Graph {
+        blob,
+        height,
+        width,
+        tensors,
+        ops,
+        rgb,
+        sparse,
+        output,
+    })
+}
+
+fn check_scales(blob: &[u8], p: Param, n: usize, at: usize) -> Result<(), Error> {
+    let bytes = blob.get(p.range()).ok_or(bad(at, "scales"))?;
+    for i in 0..n {
+        let s = f32_at(bytes, i);
+        if !(s.is_finite() && s > 0.0) {
+            return Err(bad(
+                p.offset as usize + 4 * i,
+                "weight scale must be finite and > 0",
+            ));
+        }
+    }
+    Ok(())
+}
+
+const NO_PARAM: Param = Param { offset: 0, len: 0 };
+
+fn read_attrs(code: u8, a: &mut Reader) -> Result<(Attrs, [u32; 3]), Error> {
+    use opcode::*;
+    let at = a.pos;
+    Ok(match code {
+        CONV2D | LINEAR => {
+            let mut raw = [0u16; 9];
+            for x in raw.iter_mut() {
+                *x = a.u16("conv: geometry")?;
+            }
+            let v = raw.map(|x| x as usize);
+            let act_code = a.u8("conv: activation")?;
+            a.u8("conv: reserved")?;
+            let alpha = a.f32("conv: alpha")?;
+            let refs = [
+                a.u32("conv: weight ref")?,
+                a.u32("conv: bias ref")?,
+                a.u32("conv: scale ref")?,
+            ];
+            let geometry = ConvGeometry {
+                kernel: [v[0], v[1]],
+                stride: [v[2], v[3]],
+                dilation: [v[4], v[5]],
+                padding: [v[6], v[7]],
+                groups: v[8],
+            };
+            if v[..6].contains(&0) || v[8] == 0 {
+                return Err(bad(at, "conv: zero kernel, stride, dilation or groups"));
+            }
+            if code == LINEAR && geometry != ConvGeometry::POINTWISE {
+                return Err(bad(at, "linear: geometry must be pointwise"));
+            }
+            let act = match act_code {
+                activation::NONE => Activation::None,
+                activation::RELU => Activation::Relu,
+                activation::LEAKY_RELU if alpha.is_finite() && alpha >= 0.0 => {
+                    Activation::LeakyRelu(alpha)
+                }
+                _ => return Err(bad(at + 18, "conv: bad activation or alpha")),
+            };
+            (
+                Attrs::Conv {
+                    geometry: Geometry(raw),
+                    act,
+                    weights: NO_PARAM,
+                    bias: None,
+                    scales: NO_PARAM,
+                },
+                refs,
+            )
+        }
+        RELU | LEAKY_RELU | SIGMOID | RECIPROCAL => {
+            a.take(256, "table: 256 bytes")?;
+            (
+                Attrs::Lut(Param {
+                    offset: u32::try_from(at).map_err(|_| bad(at, "table offset"))?,
+                    len: 256,
+                }),
+                [NONE; 3],
+            )
+        }
+        ADD | MUL | CONCAT | GLOBAL_AVG_POOL | GLOBAL_MAX_POOL | CHANNEL_MEAN | CHANNEL_MAX => {
+            (Attrs::Plain, [NONE; 3])
+        }
+        UPSAMPLE_BILINEAR => {
+            let mode = a.u8("upsample: mode")?;
+            a.u8("upsample: reserved")?;
+            let x = a.u16("upsample: a")? as usize;
+            let y = a.u16("upsample: b")? as usize;
+            a.zero16("upsample: reserved")?;
+            let ok = match mode {
+                upsample_mode::FIXED | upsample_mode::SCALE => x > 0 && y > 0,
+                upsample_mode::LIKE => x < MAX_TENSORS,
+                _ => false,
+            };
+            if !ok {
+                return Err(bad(at, "upsample: bad mode or size"));
+            }
+            (Attrs::Upsample { mode, a: x, b: y }, [NONE; 3])
+        }
+        PIXEL_SHUFFLE => {
+            let f = a.u16("pixel_shuffle: factor")? as usize;
+            a.zero16("pixel_shuffle: reserved")?;
+            if f == 0 {
+                return Err(bad(at, "pixel_shuffle: zero factor"));
+            }
+            (Attrs::PixelShuffle(f), [NONE; 3])
+        }
+        MINMAX_NORM => {
+            let eps = a.f32("minmax_norm: eps")?;
+            if !(eps.is_finite() && eps >= 0.0) {
+                return Err(bad(at, "minmax_norm: eps must be finite and >= 0"));
+            }
+            (Attrs::MinMax(eps), [NONE; 3])
+        }
+        BINS_HEAD => {
+            let n_bins = a.u16("bins_head: n_bins")? as usize;
+            a.zero16("bins_head: reserved")?;
+            let min_depth = a.f32("bins_head: min_depth")?;
+            let max_depth = a.f32("bins_head: max_depth")?;
+            let refs = [
+                a.u32("bins_head: weight ref")?,
+                a.u32("bins_head: bias ref")?,
+                a.u32("bins_head: scale ref")?,
+            ];
+            if n_bins == 0
+                || n_bins > MAX_BINS
+                || !(min_depth.is_finite() && max_depth.is_finite() && min_depth < max_depth)
+            {
+                return Err(bad(at, "bins_head: bad n_bins or depth range"));
+            }
+            let attrs = BinsAttrs {
+                n_bins,
+                min_depth,
+                max_depth,
+            };
+            (
+                Attrs::Bins {
+                    attrs,
+                    weights: NO_PARAM,
+                    bias: None,
+                    scales: NO_PARAM,
+                },
+                refs,
+            )
+        }
+        REFINE => {
+            let iterations = a.u16("refine: iterations")? as usize;
+            a.zero16("refine: reserved")?;
+            let sigma = [
+                a.f32("refine: sigma3")?,
+                a.f32("refine: sigma5")?,
+                a.f32("refine: sigma7")?,
+            ];
+            if !iterations.is_multiple_of(2)
+                || iterations > MAX_ITERATIONS
+                || sigma.iter().any(|s| !(s.is_finite() && *s > 0.0))
+            {
+                return Err(bad(
+                    at,
+                    "refine: iterations must be even and <= 64, sigmas finite and > 0",
+                ));
+            }
+            (Attrs::Refine(RefineAttrs { iterations, sigma }), [NONE; 3])
+        }
+        _ => return Err(bad(at, "op: unknown opcode")),
+    })
+}
+
+/// Static dtype / channel rules per op (spatial sizes are the planner's job).
+fn check_types(
+    op: &OpInfo,
+    tensors: &[TensorInfo],
+    produced: &[bool; MAX_TENSORS],
+) -> Result<(), Error> {
+    use opcode::*;
+    let at = op.offset;
+    let t = |id: u16| {
+        tensors
+            .get(id as usize)
+            .copied()
+            .ok_or(bad(at, "tensor id out of range"))
+    };
+    let out = t(op.output)?;
+    let x = t(op.inputs[0])?;
+    let all_i8 = op
+        .inputs
+        .iter()
+        .all(|&i| t(i).is_ok_and(|ti| ti.dtype == DType::I8))
+        && out.dtype == DType::I8;
+    let fail = |what| Err(bad(at, what));
+    match op.code {
+        CONV2D | LINEAR | RELU | LEAKY_RELU | SIGMOID | RECIPROCAL | ADD | MUL | CONCAT
+        | GLOBAL_AVG_POOL | GLOBAL_MAX_POOL | CHANNEL_MEAN | CHANNEL_MAX | MINMAX_NORM
+            if !all_i8 =>
+        {
+            return fail("op: inputs and output must be int8");
+        }
+        _ => {}
+    }
+    let ok = match (op.code, &op.attrs) {
+        (CONV2D | LINEAR, Attrs::Conv { geometry, .. }) => {
+            let g = geometry.get().groups;
+            x.channels % g == 0 && out.channels % g == 0
+        }
+        (RELU | LEAKY_RELU | SIGMOID | RECIPROCAL | MINMAX_NORM, _) => x.channels == out.channels,
+        (ADD, _) => {
+            let y = t(op.inputs[1])?;
+            x.channels == out.channels && y.channels == x.channels
+        }
+        (MUL, _) => {
+            let y = t(op.inputs[1])?;
+            x.channels == out.channels && (y.channels == x.channels || y.channels == 1)
+        }
+        (CONCAT, _) => {
+            op.inputs
+                .iter()
+                .try_fold(0usize, |s, &i| t(i).map(|ti| s + ti.channels))?
+                == out.channels
+        }
+        (UPSAMPLE_BILINEAR, Attrs::Upsample { mode, a, .. }) => {
+            let like_ok = *mode != upsample_mode::LIKE || (*a < tensors.len() && produced[*a]);
+            like_ok
+                && x.channels == out.channels
+                && x.dtype == out.dtype
+                && (x.dtype == DType::F32 || x.q == out.q)
+        }
+        (PIXEL_SHUFFLE, Attrs::PixelShuffle(f)) => {
+            Some(x.channels) == out.channels.checked_mul(f * f)
+                && x.dtype == out.dtype
+                && (x.dtype == DType::F32 || x.q == out.q)
+        }
+        (GLOBAL_AVG_POOL | GLOBAL_MAX_POOL, _) => x.channels == out.channels,
+        (CHANNEL_MEAN | CHANNEL_MAX, _) => out.channels == 1,
+        (BINS_HEAD, Attrs::Bins { attrs, .. }) => {
+            let l = t(op.inputs[1])?;
+            x.dtype == DType::I8
+                && x.channels <= MAX_BIN_FEATURES
+                && l.channels == attrs.n_bins
+                && out.dtype == DType::F32
+                && out.channels == 1
+        }
+        (REFINE, _) => {
+            let want = [
+                (DType::F32, 1),
+                (DType::I8, 8),
+                (DType::I8, 24),
+                (DType::I8, 48),
+                (DType::I8, 3),
+                (DType::I8, 3),
+            ];
+            let ins_ok = op
+                .inputs
+                .iter()
+                .zip(want)
+                .all(|(&i, (d, c))| t(i).is_ok_and(|ti| ti.dtype == d && ti.channels == c));
+            ins_ok && out.dtype == DType::F32 && out.channels == 1
+        }
+        _ => false,
+    };
+    if ok {
+        Ok(())
+    } else {
+        fail("op: input/output dtypes or channel counts do not fit the op")
+    }
+}

@@ -1,0 +1,745 @@
+//! [`Engine`]: prepare once (`new`), run many (`run`).
+
+use super::cast::{view, view_mut, Pod};
+use super::error::Error;
+use super::plan::{plan, Plan, ALIGN};
+use crate::blob::format::{opcode, MAX_INPUTS};
+use crate::blob::parse::{f32_at, i32_at, parse, Attrs, DType, Graph, OpInfo};
+use crate::kernels::bins::{bin_centres, bins_head_i8, BinChannel, MAX_BINS};
+use crate::kernels::conv::{conv2d, ChannelQuant, Conv2d, ConvQuant};
+use crate::kernels::elementwise::{self, AddQuant, MulQuant, Rescale};
+use crate::kernels::pool::{self, MeanQuant};
+use crate::kernels::refine::{refine, I8Map, KERNELS};
+use crate::kernels::requant::QParams;
+use crate::kernels::resize;
+use crate::kernels::KernelError;
+use core::ops::Range;
+
+/// What one [`Engine::run`] did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RunStats {
+    /// Ops executed.
+    pub ops: usize,
+    /// Multiply-accumulates of the convs, linears and the bins head.
+    pub macs: u64,
+}
+
+/// One op's output as [`Engine::run_observed`] shows it to its observer (a debugging aid: the
+/// host quantizer compares every tensor with its float reference).
+#[derive(Clone, Copy, Debug)]
+pub enum Observed<'b> {
+    /// An int8 tensor with its quantisation parameters (`real = scale · (q − zero_point)`).
+    I8(&'b [i8], QParams),
+    /// An f32 tensor (depth maps in metres).
+    F32(&'b [f32]),
+}
+
+/// The callback [`Engine::run_observed`] calls after each op.
+pub type Observer<'o> = dyn FnMut(usize, Observed<'_>) + 'o;
+
+/// A prepared model: the parsed blob, its arena plan and the caller's arena holding the cached
+/// constants. `Engine` itself holds the op and buffer tables (fixed capacity, no heap); its
+/// size is `size_of::<Engine>()` (see the crate's engine tests), so on a microcontroller keep it
+/// in a `static` rather than on a small stack.
+pub struct Engine<'a> {
+    graph: Graph<'a>,
+    plan: Plan,
+    arena: &'a mut [u8],
+    rgb_lut: [i8; 256],
+}
+
+/// Arena bytes `blob` needs at `height × width` (parses and plans; nothing runs).
+pub fn required_arena_bytes(blob: &[u8], height: usize, width: usize) -> Result<usize, Error> {
+    let g = parse(blob)?;
+    Ok(plan(&g, height, width)?.arena_bytes())
+}
+
+fn kerr(op: usize) -> impl Fn(KernelError) -> Error + Copy {
+    move |error| Error::Kernel { op, error }
+}
+
+fn typed<T: Pod>(b: &[u8], op: usize) -> Result<&[T], Error> {
+    view(b).ok_or(Error::Kernel {
+        op,
+        error: KernelError::Shape,
+    })
+}
+
+fn typed_mut<T: Pod>(b: &mut [u8], op: usize) -> Result<&mut [T], Error> {
+    view_mut(b).ok_or(Error::Kernel {
+        op,
+        error: KernelError::Shape,
+    })
+}
+
+/// Splits `act` into two disjoint mutable ranges (`m1`, `m2`) and read-only `ins` (each of which
+/// must lie outside both; the plan guarantees it, this checks it).
+fn split<'b>(
+    act: &'b mut [u8],
+    m1: Range<usize>,
+    m2: Range<usize>,
+    ins: &[Range<usize>],
+    out_ins: &mut [&'b [u8]; MAX_INPUTS],
+    op: usize,
+) -> Result<(&'b mut [u8], &'b mut [u8]), Error> {
+    let bad = Error::Kernel {
+        op,
+        error: KernelError::Shape,
+    };
+    // An empty range may sit anywhere; move it next to the other so ordering is well defined.
+    let m2 = if m2.is_empty() { m1.end..m1.end } else { m2 };
+    let swapped = m2.start < m1.start;
+    let (a, b) = if swapped { (m2, m1) } else { (m1, m2) };
+    if a.start > a.end || b.start > b.end || a.end > b.start || b.end > act.len() {
+        return Err(bad);
+    }
+    let (p0, rest) = act.split_at_mut(a.start);
+    let (ma, rest) = rest.split_at_mut(a.end - a.start);
+    let (p1, rest) = rest.split_at_mut(b.start - a.end);
+    let (mb, p2) = rest.split_at_mut(b.end - b.start);
+    let pieces: [(usize, &'b [u8]); 3] = [(0, p0), (a.end, p1), (b.end, p2)];
+    for (slot, r) in out_ins.iter_mut().zip(ins) {
+        *slot = pieces
+            .iter()
+            .find(|(base, p)| r.start >= *base && r.end <= base + p.len())
+            .and_then(|(base, p)| p.get(r.start - base..r.end - base))
+            .ok_or(bad)?;
+    }
+    Ok(if swapped { (mb, ma) } else { (ma, mb) })
+}
+
+impl<'a> Engine<'a> {
+    /// Validates `blob` (format, CRC, every op), plans the arena for the blob's native input
+    /// size and caches requantisation constants in `arena`.
+    pub fn new(blob: &'a [u8], arena: &'a mut [u8]) -> Result<Engine<'a>, Error> {
+        let g = parse(blob)?;
+        let (h, w) = (g.height, g.width);
+        Self::prepare(g, arena, h, w)
+    }
+
+    /// As [`Engine::new`] for an input of `height × width` instead of the native size.
+    pub fn with_size(
+        blob: &'a [u8],
+        arena: &'a mut [u8],
+        height: usize,
+        width: usize,
+    ) -> Result<Engine<'a>, Error> {
+        Self::prepare(parse(blob)?, arena, height, width)
+    }
+
+    fn prepare(
+        graph: Graph<'a>,
+        arena: &'a mut [u8],
+        h: usize,
+        w: usize,
+    ) -> Result<Engine<'a>, Error> {
+        let plan = plan(&graph, h, w)?;
+        let have = arena.len();
+        let need = plan.arena_bytes();
+        let pad = arena.as_ptr().align_offset(ALIGN);
+        let body = plan.persistent_bytes() + plan.activation_bytes();
+        if pad >= ALIGN || have < pad + body {
+            return Err(Error::ArenaTooSmall { need, have });
+        }
+        let arena = &mut arena[pad..pad + body];
+        for (i, op) in graph.ops.iter().enumerate() {
+            let r = plan.const_range(i).ok_or(Error::Kernel {
+                op: i,
+                error: KernelError::Shape,
+            })?;
+            let region = arena.get_mut(r).ok_or(Error::Kernel {
+                op: i,
+                error: KernelError::Shape,
+            })?;
+            write_consts(&graph, &plan, i, op, region)?;
+        }
+        let mut rgb_lut = [0i8; 256];
+        let rq = graph.tensor(graph.rgb)?.q;
+        for (v, q) in rgb_lut.iter_mut().enumerate() {
+            *q = rq.quantize(v as f32 / 255.0);
+        }
+        Ok(Engine {
+            graph,
+            plan,
+            arena,
+            rgb_lut,
+        })
+    }
+
+    /// Input size `(height, width)` this engine runs at.
+    pub fn input_shape(&self) -> (usize, usize) {
+        self.plan.size()
+    }
+
+    /// The arena plan.
+    pub fn plan(&self) -> &Plan {
+        &self.plan
+    }
+
+    /// The parsed graph.
+    pub fn graph(&self) -> &Graph<'a> {
+        &self.graph
+    }
+
+    /// Runs one frame: `rgb` is RGB888 interleaved `H×W×3`, `sparse_m` the projected dToF depth
+    /// `H×W` in metres (0 = no point), `out_depth_m` receives `H×W` metres.
+    pub fn run(
+        &mut self,
+        rgb: &[u8],
+        sparse_m: &[f32],
+        out_depth_m: &mut [f32],
+    ) -> Result<RunStats, Error> {
+        let (h, w) = self.plan.size();
+        let n = h * w;
+        check_len("sparse_m", n, sparse_m.len())?;
+        check_len("out_depth_m", n, out_depth_m.len())?;
+        self.write_rgb(rgb)?;
+        self.write_sparse(|i| sparse_m.get(i).copied().unwrap_or(0.0))?;
+        let stats = self.execute(None)?;
+        self.read_output(|i, v| {
+            if let Some(o) = out_depth_m.get_mut(i) {
+                *o = v;
+            }
+        })?;
+        Ok(stats)
+    }
+
+    /// As [`Engine::run`], calling `observer(op_index, output)` right after each op with that
+    /// op's whole output tensor (before later ops may reuse its arena bytes).
+    pub fn run_observed(
+        &mut self,
+        rgb: &[u8],
+        sparse_m: &[f32],
+        out_depth_m: &mut [f32],
+        observer: &mut Observer<'_>,
+    ) -> Result<RunStats, Error> {
+        let (h, w) = self.plan.size();
+        let n = h * w;
+        check_len("sparse_m", n, sparse_m.len())?;
+        check_len("out_depth_m", n, out_depth_m.len())?;
+        self.write_rgb(rgb)?;
+        self.write_sparse(|i| sparse_m.get(i).copied().unwrap_or(0.0))?;
+        let stats = self.execute(Some(observer))?;
+        self.read_output(|i, v| {
+            if let Some(o) = out_depth_m.get_mut(i) {
+                *o = v;
+            }
+        })?;
+        Ok(stats)
+    }
+
+    /// As [`Engine::run`] with integer millimetres: `sparse_mm` (0 = no point) and
+    /// `out_depth_mm` (rounded, clamped to `0..=65535`).
+    pub fn run_mm(
+        &mut self,
+        rgb: &[u8],
+        sparse_mm: &[u16],
+        out_depth_mm: &mut [u16],
+    ) -> Result<RunStats, Error> {
+        let (h, w) = self.plan.size();
+        let n = h * w;
+        check_len("sparse_mm", n, sparse_mm.len())?;
+        check_len("out_depth_mm", n, out_depth_mm.len())?;
+        self.write_rgb(rgb)?;
+        self.write_sparse(|i| sparse_mm.get(i).map_or(0.0, |&v| v as f32 * 0.001))?;
+        let stats = self.execute(None)?;
+        self.read_output(|i, v| {
+            if let Some(o) = out_depth_mm.get_mut(i) {
+                let mm = v * 1000.0 + 0.5;
+                *o = if mm >= 65535.0 {
+                    u16::MAX
+                } else if mm >= 0.0 {
+                    mm as u16
+                } else {
+                    0
+                };
+            }
+        })?;
+        Ok(stats)
+    }
+
+    fn act(&mut self) -> &mut [u8] {
+        let p = self.plan.persistent_bytes();
+        &mut self.arena[p..]
+    }
+
+    fn write_rgb(&mut self, rgb: &[u8]) -> Result<(), Error> {
+        let (h, w) = self.plan.size();
+        let n = h * w;
+        check_len("rgb", 3 * n, rgb.len())?;
+        let info = *self.graph.tensor(self.graph.rgb)?;
+        let r = self
+            .plan
+            .tensor_range(self.graph.rgb)
+            .ok_or(Error::Kernel {
+                op: 0,
+                error: KernelError::Shape,
+            })?;
+        let lut = self.rgb_lut;
+        let buf = self.act().get_mut(r).ok_or(Error::Kernel {
+            op: 0,
+            error: KernelError::Shape,
+        })?;
+        match info.dtype {
+            DType::I8 => {
+                let t: &mut [i8] = typed_mut(buf, 0)?;
+                for (i, px) in rgb.chunks_exact(3).enumerate().take(n) {
+                    for c in 0..3 {
+                        t[c * n + i] = lut[px[c] as usize];
+                    }
+                }
+            }
+            DType::F32 => {
+                let t: &mut [f32] = typed_mut(buf, 0)?;
+                for (i, px) in rgb.chunks_exact(3).enumerate().take(n) {
+                    for c in 0..3 {
+                        t[c * n + i] = px[c] as f32 / 255.0;
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn write_sparse(&mut self, get: impl Fn(usize) -> f32) -> Result<(), Error> {
+        let (h, w) = self.plan.size();
+        let info = *self.graph.tensor(self.graph.sparse)?;
+        let r = self
+            .plan
+            .tensor_range(self.graph.sparse)
+            .ok_or(Error::Kernel {
+                op: 0,
+                error: KernelError::Shape,
+            })?;
+        let buf = self.act().get_mut(r).ok_or(Error::Kernel {
+            op: 0,
+            error: KernelError::Shape,
+        })?;
+        match info.dtype {
+            DType::I8 => {
+                let t: &mut [i8] = typed_mut(buf, 0)?;
+                for (i, v) in t.iter_mut().enumerate().take(h * w) {
+                    *v = info.q.quantize(get(i));
+                }
+            }
+            DType::F32 => {
+                let t: &mut [f32] = typed_mut(buf, 0)?;
+                for (i, v) in t.iter_mut().enumerate().take(h * w) {
+                    *v = get(i);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn read_output(&mut self, mut put: impl FnMut(usize, f32)) -> Result<(), Error> {
+        let (h, w) = self.plan.size();
+        let info = *self.graph.tensor(self.graph.output)?;
+        let r = self
+            .plan
+            .tensor_range(self.graph.output)
+            .ok_or(Error::Kernel {
+                op: 0,
+                error: KernelError::Shape,
+            })?;
+        let buf = self.act().get(r).ok_or(Error::Kernel {
+            op: 0,
+            error: KernelError::Shape,
+        })?;
+        match info.dtype {
+            DType::I8 => {
+                for (i, &q) in typed::<i8>(buf, 0)?.iter().enumerate().take(h * w) {
+                    put(i, info.q.dequantize(q));
+                }
+            }
+            DType::F32 => {
+                for (i, &v) in typed::<f32>(buf, 0)?.iter().enumerate().take(h * w) {
+                    put(i, v);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn execute(&mut self, mut observer: Option<&mut Observer<'_>>) -> Result<RunStats, Error> {
+        let persistent = self.plan.persistent_bytes();
+        let (consts, act) = self.arena.split_at_mut(persistent);
+        for (i, op) in self.graph.ops.iter().enumerate() {
+            exec(&self.graph, &self.plan, i, op, consts, act)?;
+            if let Some(f) = observer.as_deref_mut() {
+                observe(&self.graph, &self.plan, i, op, act, f)?;
+            }
+        }
+        Ok(RunStats {
+            ops: self.graph.ops.len(),
+            macs: self.plan.macs(),
+        })
+    }
+}
+
+/// Hands op `i`'s output tensor to `f`.
+fn observe(
+    g: &Graph,
+    plan: &Plan,
+    i: usize,
+    op: &OpInfo,
+    act: &[u8],
+    f: &mut Observer<'_>,
+) -> Result<(), Error> {
+    let bad = Error::Kernel {
+        op: i,
+        error: KernelError::Shape,
+    };
+    let info = g.tensor(op.output)?;
+    let n = plan.shape(op.output).and_then(|s| s.len()).ok_or(bad)?;
+    let buf = act
+        .get(plan.tensor_range(op.output).ok_or(bad)?)
+        .ok_or(bad)?;
+    match info.dtype {
+        DType::I8 => f(
+            i,
+            Observed::I8(typed::<i8>(buf, i)?.get(..n).ok_or(bad)?, info.q),
+        ),
+        DType::F32 => f(i, Observed::F32(typed::<f32>(buf, i)?.get(..n).ok_or(bad)?)),
+    }
+    Ok(())
+}
+
+fn check_len(what: &'static str, expected: usize, found: usize) -> Result<(), Error> {
+    if expected != found {
+        return Err(Error::ShapeMismatch {
+            what,
+            expected,
+            found,
+        });
+    }
+    Ok(())
+}
+
+/// Computes and stores op `i`'s constants (prepare time).
+fn write_consts(
+    g: &Graph,
+    plan: &Plan,
+    i: usize,
+    op: &OpInfo,
+    region: &mut [u8],
+) -> Result<(), Error> {
+    let q = |id: u16| g.tensor(id).map(|t| t.q);
+    let out_q = q(op.output)?;
+    let in_q = q(op.inputs[0])?;
+    let shape = |id: u16| {
+        plan.shape(id).ok_or(Error::Kernel {
+            op: i,
+            error: KernelError::Shape,
+        })
+    };
+    match (op.code, &op.attrs) {
+        (
+            opcode::CONV2D | opcode::LINEAR,
+            Attrs::Conv {
+                act, bias, scales, ..
+            },
+        ) => {
+            let dst: &mut [ChannelQuant] = typed_mut(region, i)?;
+            let sb = g.bytes(*scales);
+            for (o, cq) in dst.iter_mut().enumerate() {
+                let b = bias.map_or(0, |p| i32_at(g.bytes(p), o));
+                *cq = ChannelQuant::new(b, in_q.scale, f32_at(sb, o), out_q.scale, *act);
+            }
+        }
+        (opcode::BINS_HEAD, Attrs::Bins { bias, scales, .. }) => {
+            let dst: &mut [BinChannel] = typed_mut(region, i)?;
+            let sb = g.bytes(*scales);
+            for (o, bc) in dst.iter_mut().enumerate() {
+                let b = bias.map_or(0, |p| i32_at(g.bytes(p), o));
+                *bc = BinChannel {
+                    bias: b,
+                    scale: in_q.scale * f32_at(sb, o),
+                };
+            }
+        }
+        (opcode::ADD, _) => {
+            let dst: &mut [AddQuant] = typed_mut(region, i)?;
+            if let Some(d) = dst.first_mut() {
+                *d = AddQuant::new(in_q, q(op.inputs[1])?, out_q);
+            }
+        }
+        (opcode::MUL, _) => {
+            let dst: &mut [MulQuant] = typed_mut(region, i)?;
+            if let Some(d) = dst.first_mut() {
+                *d = MulQuant::new(in_q, q(op.inputs[1])?, out_q);
+            }
+        }
+        (opcode::CONCAT, _) => {
+            let dst: &mut [Rescale] = typed_mut(region, i)?;
+            for (d, &id) in dst.iter_mut().zip(&op.inputs) {
+                *d = Rescale::new(q(id)?, out_q);
+            }
+        }
+        (opcode::GLOBAL_AVG_POOL | opcode::CHANNEL_MEAN, _) => {
+            let s = shape(op.inputs[0])?;
+            let n = if op.code == opcode::CHANNEL_MEAN {
+                s.c
+            } else {
+                s.h * s.w
+            };
+            let dst: &mut [MeanQuant] = typed_mut(region, i)?;
+            if let Some(d) = dst.first_mut() {
+                *d = MeanQuant::new(in_q, out_q, n);
+            }
+        }
+        (opcode::GLOBAL_MAX_POOL | opcode::CHANNEL_MAX, _) => {
+            let dst: &mut [Rescale] = typed_mut(region, i)?;
+            if let Some(d) = dst.first_mut() {
+                *d = Rescale::new(in_q, out_q);
+            }
+        }
+        _ => {}
+    }
+    Ok(())
+}
+
+fn first<T: Pod + Default>(b: &[u8], op: usize) -> Result<T, Error> {
+    typed::<T>(b, op)?.first().copied().ok_or(Error::Kernel {
+        op,
+        error: KernelError::Shape,
+    })
+}
+
+/// Runs op `i` on the arena (run time; nothing is validated twice except cheap slice bounds).
+fn exec(
+    g: &Graph,
+    plan: &Plan,
+    i: usize,
+    op: &OpInfo,
+    consts: &[u8],
+    act: &mut [u8],
+) -> Result<(), Error> {
+    let e = kerr(i);
+    let bad = Error::Kernel {
+        op: i,
+        error: KernelError::Shape,
+    };
+    let out_r = plan.tensor_range(op.output).ok_or(bad)?;
+    let scr_r = plan.scratch_range(i).ok_or(bad)?;
+    let mut in_r: [Range<usize>; MAX_INPUTS] = Default::default();
+    for (r, &id) in in_r.iter_mut().zip(&op.inputs) {
+        *r = plan.tensor_range(id).ok_or(bad)?;
+    }
+    let n_in = op.inputs.len();
+    let mut ins: [&[u8]; MAX_INPUTS] = [&[]; MAX_INPUTS];
+    let (out_b, scr_b) = split(act, out_r, scr_r, &in_r[..n_in], &mut ins, i)?;
+    let cb = consts.get(plan.const_range(i).ok_or(bad)?).ok_or(bad)?;
+    let shape = |id: u16| plan.shape(id).ok_or(bad);
+    let tq = |id: u16| g.tensor(id).map(|t| t.q);
+    let x_shape = shape(op.inputs[0])?;
+    let out_shape = shape(op.output)?;
+    let out_dtype = g.tensor(op.output)?.dtype;
+    match (op.code, &op.attrs) {
+        (
+            opcode::CONV2D | opcode::LINEAR,
+            Attrs::Conv {
+                geometry,
+                act,
+                weights,
+                ..
+            },
+        ) => {
+            let conv = Conv2d {
+                geometry: geometry.get(),
+                quant: ConvQuant::new(
+                    tq(op.inputs[0])?.zero_point,
+                    tq(op.output)?.zero_point,
+                    *act,
+                ),
+                weights: typed(g.bytes(*weights), i)?,
+                channels: typed(cb, i)?,
+            };
+            conv2d(
+                &conv,
+                typed(ins[0], i)?,
+                x_shape,
+                typed_mut(out_b, i)?,
+                typed_mut(scr_b, i)?,
+            )
+            .map_err(e)?;
+        }
+        (
+            opcode::RELU | opcode::LEAKY_RELU | opcode::SIGMOID | opcode::RECIPROCAL,
+            Attrs::Lut(p),
+        ) => {
+            let t: &[i8; 256] = typed::<i8>(g.bytes(*p), i)?.try_into().map_err(|_| bad)?;
+            elementwise::lut(typed(ins[0], i)?, t, typed_mut(out_b, i)?).map_err(e)?;
+        }
+        (opcode::ADD, _) => {
+            let q: AddQuant = first(cb, i)?;
+            let n = x_shape.len().ok_or(bad)?;
+            let (a, b): (&[i8], &[i8]) = (typed(ins[0], i)?, typed(ins[1], i)?);
+            let (a, b) = (a.get(..n).ok_or(bad)?, b.get(..n).ok_or(bad)?);
+            elementwise::add(&q, a, b, typed_mut(out_b, i)?).map_err(e)?;
+        }
+        (opcode::MUL, _) => {
+            let q: MulQuant = first(cb, i)?;
+            let b: &[i8] = typed(ins[1], i)?;
+            let b = b.get(..shape(op.inputs[1])?.len().ok_or(bad)?).ok_or(bad)?;
+            elementwise::mul(
+                &q,
+                typed(ins[0], i)?,
+                x_shape,
+                b,
+                plan.broadcast(i),
+                typed_mut(out_b, i)?,
+            )
+            .map_err(e)?;
+        }
+        (opcode::CONCAT, _) => {
+            let rs: &[Rescale] = typed(cb, i)?;
+            let out: &mut [i8] = typed_mut(out_b, i)?;
+            let mut c0 = 0;
+            for ((&id, r), b) in op.inputs.iter().zip(rs).zip(&ins) {
+                let s = shape(id)?;
+                elementwise::concat_part(typed(b, i)?, s, r, out, out_shape, c0).map_err(e)?;
+                c0 += s.c;
+            }
+        }
+        (opcode::UPSAMPLE_BILINEAR, _) => match out_dtype {
+            DType::I8 => resize::upsample_bilinear(
+                typed(ins[0], i)?,
+                x_shape,
+                typed_mut(out_b, i)?,
+                out_shape,
+            )
+            .map_err(e)?,
+            DType::F32 => resize::upsample_bilinear_f32(
+                typed(ins[0], i)?,
+                x_shape,
+                typed_mut(out_b, i)?,
+                out_shape,
+            )
+            .map_err(e)?,
+        },
+        (opcode::PIXEL_SHUFFLE, Attrs::PixelShuffle(r)) => {
+            match out_dtype {
+                DType::I8 => elementwise::pixel_shuffle::<i8>(
+                    typed(ins[0], i)?,
+                    x_shape,
+                    *r,
+                    typed_mut(out_b, i)?,
+                ),
+                DType::F32 => elementwise::pixel_shuffle::<f32>(
+                    typed(ins[0], i)?,
+                    x_shape,
+                    *r,
+                    typed_mut(out_b, i)?,
+                ),
+            }
+            .map_err(e)?;
+        }
+        (opcode::GLOBAL_AVG_POOL, _) => pool::global_avg_pool(
+            &first(cb, i)?,
+            typed(ins[0], i)?,
+            x_shape,
+            typed_mut(out_b, i)?,
+        )
+        .map_err(e)?,
+        (opcode::GLOBAL_MAX_POOL, _) => pool::global_max_pool(
+            &first(cb, i)?,
+            typed(ins[0], i)?,
+            x_shape,
+            typed_mut(out_b, i)?,
+        )
+        .map_err(e)?,
+        (opcode::CHANNEL_MEAN, _) => pool::channel_mean(
+            &first(cb, i)?,
+            typed(ins[0], i)?,
+            x_shape,
+            typed_mut(out_b, i)?,
+        )
+        .map_err(e)?,
+        (opcode::CHANNEL_MAX, _) => pool::channel_max(
+            &first(cb, i)?,
+            typed(ins[0], i)?,
+            x_shape,
+            typed_mut(out_b, i)?,
+        )
+        .map_err(e)?,
+        (opcode::MINMAX_NORM, Attrs::MinMax(eps)) => {
+            let n = x_shape.len().ok_or(bad)?;
+            let x: &[i8] = typed(ins[0], i)?;
+            elementwise::minmax_norm(
+                x.get(..n).ok_or(bad)?,
+                tq(op.inputs[0])?,
+                *eps,
+                tq(op.output)?,
+                typed_mut(out_b, i)?,
+            )
+            .map_err(e)?;
+        }
+        (opcode::BINS_HEAD, Attrs::Bins { attrs, weights, .. }) => {
+            let li = g.tensor(op.inputs[1])?;
+            let mut logits = [0f32; MAX_BINS];
+            let nb = attrs.n_bins.min(MAX_BINS);
+            match li.dtype {
+                DType::I8 => {
+                    for (l, &q) in logits[..nb].iter_mut().zip(typed::<i8>(ins[1], i)?) {
+                        *l = li.q.dequantize(q);
+                    }
+                }
+                DType::F32 => {
+                    for (l, &v) in logits[..nb].iter_mut().zip(typed::<f32>(ins[1], i)?) {
+                        *l = v;
+                    }
+                }
+            }
+            let mut centres = [0f32; MAX_BINS];
+            bin_centres(&logits[..nb], attrs, &mut centres).map_err(e)?;
+            let fz = tq(op.inputs[0])?.zero_point;
+            bins_head_i8(
+                typed(ins[0], i)?,
+                x_shape,
+                fz,
+                typed(g.bytes(*weights), i)?,
+                typed(cb, i)?,
+                &centres[..nb],
+                typed_mut(out_b, i)?,
+            )
+            .map_err(e)?;
+        }
+        (opcode::REFINE, Attrs::Refine(attrs)) => {
+            let p = x_shape.plane().ok_or(bad)?;
+            let m = |k: usize, c: usize| -> Result<I8Map<'_>, Error> {
+                I8Map::new(typed(ins[k], i)?, tq(op.inputs[k])?, c, p).map_err(e)
+            };
+            let aff = [
+                m(1, KERNELS[0] * KERNELS[0] - 1)?,
+                m(2, KERNELS[1] * KERNELS[1] - 1)?,
+                m(3, KERNELS[2] * KERNELS[2] - 1)?,
+            ];
+            let (km, tm) = (m(4, 3)?, m(5, 3)?);
+            refine(
+                typed(ins[0], i)?,
+                x_shape.h,
+                x_shape.w,
+                [&aff[0], &aff[1], &aff[2]],
+                &km,
+                &tm,
+                attrs,
+                typed_mut(out_b, i)?,
+                typed_mut(scr_b, i)?,
+            )
+            .map_err(e)?;
+        }
+        _ => return Err(bad),
+    }
+    Ok(())
+}
+
+impl core::fmt::Debug for Engine<'_> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Engine")
+            .field("input_shape", &self.plan.size())
+            .field("ops", &self.graph.ops.len())
+            .field("arena_bytes", &self.plan.arena_bytes())
+            .finish()
+    }
+}

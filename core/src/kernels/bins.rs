@@ -1,0 +1,255 @@
+//! Adaptive-bins head (graph.md `bins_head`): per-pixel logits over `N` bins from a 1×1 conv
+//! of the features (int8 × int8 → int32, never stored as a map), then a softmax-weighted sum of
+//! bin centres → depth in metres.
+//!
+//! **Why f32 after the int32 logits.** A 128-way softmax needs logit differences resolved to a
+//! few hundredths over a range of tens; an int8 logit (256 levels over that range) moves the
+//! expectation by whole bins, and a fixed-point exp would need a 32-bit LUT pipeline like
+//! TFLite's `SOFTMAX` with Q5.26 inputs. Cortex-M4F/M7 have a single-precision FPU, so the
+//! logits are dequantised (`acc · s_F · s_w[i]`) and the softmax and expectation run in f32 with
+//! [`float::exp`](super::float::exp) (micromath) in a fixed order: `m = max l`, then for
+//! `i = 0..N` in order `e = exp(l_i − m); S += e; D += e·c_i`, result `D / S`. No FMA is used
+//! (Rust never contracts `a*b+c`), so host and MCU give the same bits. The output map is f32 metres.
+
+use super::float::exp;
+use super::{need, KernelError, Shape};
+
+/// Most bins supported (stack arrays of this size hold logits and centres).
+pub const MAX_BINS: usize = 256;
+/// Most feature channels supported by the int8 head.
+pub const MAX_BIN_FEATURES: usize = 512;
+
+/// Attributes of `bins_head`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BinsAttrs {
+    /// Number of bins `N` (≤ [`MAX_BINS`]).
+    pub n_bins: usize,
+    /// Lower end of the depth range, metres.
+    pub min_depth: f32,
+    /// Upper end of the depth range, metres.
+    pub max_depth: f32,
+}
+
+/// Per-bin constants of the int8 head: int32 bias (units `s_F·s_w[i]`) and the logit scale.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+#[repr(C)]
+pub struct BinChannel {
+    /// Bias in accumulator units.
+    pub bias: i32,
+    /// `s_F · s_w[i]`: accumulator → logit.
+    pub scale: f32,
+}
+
+/// Bin centres from the bin logits: `w_i = relu(l_i) + 0.1`, normalised; widths
+/// `(max − min)·w_i`; `centre_i = min + Σ_{j<i} width_j + width_i/2`.
+pub fn bin_centres(
+    bin_logits: &[f32],
+    attrs: &BinsAttrs,
+    centres: &mut [f32],
+) -> Result<(), KernelError> {
+    let n = attrs.n_bins;
+    if n == 0 || n > MAX_BINS || bin_logits.len() < n || centres.len() < n {
+        return Err(KernelError::Shape);
+    }
+    let mut total = 0.0f32;
+    for &l in &bin_logits[..n] {
+        total += super::float::relu(l) + 0.1;
+    }
+    let range = attrs.max_depth - attrs.min_depth;
+    let mut edge = attrs.min_depth;
+    for (c, &l) in centres[..n].iter_mut().zip(bin_logits) {
+        let width = range * ((super::float::relu(l) + 0.1) / total);
+        *c = edge + width / 2.0;
+        edge += width;
+    }
+    Ok(())
+}
+
+/// Softmax expectation `Σ softmax(l)_i · c_i` in the fixed order described in the module doc.
+pub fn expected_depth(logits: &[f32], centres: &[f32]) -> f32 {
+    let m = logits.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
+    let (mut s, mut d) = (0.0f32, 0.0f32);
+    for (&l, &c) in logits.iter().zip(centres) {
+        let e = exp(l - m);
+        s += e;
+        d += e * c;
+    }
+    if s > 0.0 {
+        d / s
+    } else {
+        0.0
+    }
+}
+
+/// int8 head: `features` `[C,h,w]` with zero point `zp`, weights `[N, C]` int8, one
+/// [`BinChannel`] per bin, `centres` from [`bin_centres`]; writes `h·w` metres.
+pub fn bins_head_i8(
+    features: &[i8],
+    shape: Shape,
+    zp: i32,
+    weights: &[i8],
+    channels: &[BinChannel],
+    centres: &[f32],
+    out: &mut [f32],
+) -> Result<(), KernelError> {
+    let n = channels.len();
+    let c = shape.c;
+    need(features, shape)?;
+    let p = shape.plane().ok_or(KernelError::Shape)?;
+    if n == 0
+        || n > MAX_BINS
+        || c == 0
+        || c > MAX_BIN_FEATURES
+        || Some(weights.len()) != n.checked_mul(c)
+    {
+        return Err(KernelError::Attr);
+    }
+    if centres.len() < n || out.len() < p {
+        return Err(KernelError::Shape);
+    }
+    let mut col = [0i32; MAX_BIN_FEATURES];
+    let mut logits = [0f32; MAX_BINS];
+    for (i, o) in out[..p].iter_mut().enumerate() {
+        for (k, v) in col[..c].iter_mut().enumerate() {
+            *v = features[k * p + i] as i32 - zp;
+        }
+        for ((l, ch), wrow) in logits[..n]
+            .iter_mut()
+            .zip(channels)
+            .zip(weights.chunks_exact(c))
+        {
+            let mut acc = ch.bias;
+            for (&w, &x) in wrow.iter().zip(&col[..c]) {
+                acc = acc.wrapping_add(w as i32 * x);
+            }
+            *l = acc as f32 * ch.scale;
+        }
+        *o = expected_depth(&logits[..n], &centres[..n]);
+    }
+    Ok(())
+}
+
+/// f32 head (the float reference): weights `[N, C]`, bias `[N]`.
+pub fn bins_head_f32(
+    features: &[f32],
+    shape: Shape,
+    bin_logits: &[f32],
+    weights: &[f32],
+    bias: &[f32],
+    attrs: &BinsAttrs,
+    out: &mut [f32],
+) -> Result<(), KernelError> {
+    let n = attrs.n_bins;
+    let c = shape.c;
+    need(features, shape)?;
+    let p = shape.plane().ok_or(KernelError::Shape)?;
+    if n == 0
+        || n > MAX_BINS
+        || Some(weights.len()) != n.checked_mul(c)
+        || bias.len() < n
+        || out.len() < p
+    {
+        return Err(KernelError::Shape);
+    }
+    let mut centres = [0f32; MAX_BINS];
+    bin_centres(bin_logits, attrs, &mut centres)?;
+    let mut logits = [0f32; MAX_BINS];
+    for (i, o) in out[..p].iter_mut().enumerate() {
+        for (b, l) in logits[..n].iter_mut().enumerate() {
+            let mut acc = bias[b];
+            for k in 0..c {
+                acc += weights[b * c + k] * features[k * p + i];
+            }
+            *l = acc;
+        }
+        *o = expected_depth(&logits[..n], &centres[..n]);
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kernels::requant::QParams;
+    use std::vec::Vec;
+
+    #[test]
+    fn centres_by_hand() {
+        // logits 0.9, −5 → w = 1.0, 0.1 → 10/11, 1/11 of [1, 12]: widths 10, 1.
+        let a = BinsAttrs {
+            n_bins: 2,
+            min_depth: 1.0,
+            max_depth: 12.0,
+        };
+        let mut c = [0f32; 2];
+        bin_centres(&[0.9, -5.0], &a, &mut c).unwrap();
+        assert!(
+            (c[0] - 6.0).abs() < 1e-5 && (c[1] - 11.5).abs() < 1e-5,
+            "{c:?}"
+        );
+        assert!(bin_centres(&[0.0], &BinsAttrs { n_bins: 0, ..a }, &mut c).is_err());
+    }
+
+    #[test]
+    fn expectation_by_hand() {
+        // equal logits → mean of centres; one dominant logit → that centre.
+        assert!((expected_depth(&[0.0, 0.0], &[2.0, 4.0]) - 3.0).abs() < 1e-5);
+        assert!((expected_depth(&[40.0, 0.0], &[2.0, 4.0]) - 2.0).abs() < 1e-5);
+        // ln 3 difference → weights 3/4, 1/4.
+        assert!((expected_depth(&[1.0986123, 0.0], &[2.0, 4.0]) - 2.5).abs() < 1e-3);
+    }
+
+    #[test]
+    fn int8_head_matches_float_head() {
+        let (c, n, h, w) = (6usize, 16usize, 3usize, 4usize);
+        let shape = Shape::new(c, h, w);
+        let fq = QParams {
+            scale: 0.05,
+            zero_point: -7,
+        };
+        let feats: Vec<i8> = (0..c * h * w)
+            .map(|i| ((i * 37 + 11) % 200) as i8)
+            .collect();
+        let wq: Vec<i8> = (0..n * c).map(|i| ((i * 53 + 5) % 255) as i8).collect();
+        let ws: Vec<f32> = (0..n).map(|i| 0.002 + 0.0003 * i as f32).collect();
+        let bias: Vec<i32> = (0..n).map(|i| i as i32 * 40 - 300).collect();
+        let attrs = BinsAttrs {
+            n_bins: n,
+            min_depth: 0.1,
+            max_depth: 10.0,
+        };
+        let bl: Vec<f32> = (0..n).map(|i| (i as f32 * 0.7).sin()).collect();
+        let mut centres = [0f32; MAX_BINS];
+        bin_centres(&bl, &attrs, &mut centres).unwrap();
+        let chans: Vec<BinChannel> = (0..n)
+            .map(|i| BinChannel {
+                bias: bias[i],
+                scale: fq.scale * ws[i],
+            })
+            .collect();
+        let mut y = std::vec![0f32; h * w];
+        bins_head_i8(
+            &feats,
+            shape,
+            fq.zero_point,
+            &wq,
+            &chans,
+            &centres[..n],
+            &mut y,
+        )
+        .unwrap();
+        let ff: Vec<f32> = feats.iter().map(|&q| fq.dequantize(q)).collect();
+        let wf: Vec<f32> = wq
+            .iter()
+            .enumerate()
+            .map(|(i, &q)| q as f32 * ws[i / c])
+            .collect();
+        let bf: Vec<f32> = (0..n).map(|i| bias[i] as f32 * fq.scale * ws[i]).collect();
+        let mut r = std::vec![0f32; h * w];
+        bins_head_f32(&ff, shape, &bl, &wf, &bf, &attrs, &mut r).unwrap();
+        for (a, b) in y.iter().zip(&r) {
+            assert!((a - b).abs() < 1e-4 * b.abs().max(1.0), "{a} vs {b}");
+            assert!((0.1..=10.0).contains(a));
+        }
+    }
+}

@@ -1,0 +1,659 @@
+//! 2-D convolution (incl. depthwise, grouped, dilated, 1×1 and `linear` as a 1×1 conv on a 1×1
+//! map) with int8 activations, int8 symmetric per-output-channel weights, int32 bias and a fused
+//! ReLU / LeakyReLU, per the TFLite int8 spec.
+//!
+//! For output channel `o`: `acc = bias[o] + Σ w · (x − zp_in)` over the valid taps (padding is
+//! real zero, i.e. `zp_in`), then `y = zp_out + M·acc` with `M = s_in·s_w[o]/s_out` for
+//! `acc ≥ 0` and `M_neg = α·M` for `acc < 0` (LeakyReLU; `M_neg = M` otherwise), clamped to the
+//! activation range (`[zp_out, 127]` for ReLU). Weights are `[O, I/groups, kh, kw]` row-major.
+
+use super::requant::{clamp_i8, Requant};
+use super::{need, KernelError, Shape};
+
+/// Activation fused after the bias (sigmoid is a separate LUT op in the blob).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Activation {
+    /// Identity.
+    None,
+    /// `max(x, 0)`.
+    Relu,
+    /// `x` for `x ≥ 0`, `alpha·x` otherwise (`alpha ≥ 0`).
+    LeakyRelu(f32),
+}
+
+/// Per-output-channel constants, computed once at prepare time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[repr(C)]
+pub struct ChannelQuant {
+    /// int32 bias in units of `s_in · s_w[o]`.
+    pub bias: i32,
+    /// Multiplier for non-negative accumulators: `s_in·s_w[o]/s_out`.
+    pub pos: Requant,
+    /// Multiplier for negative accumulators (`alpha ·` the above for LeakyReLU).
+    pub neg: Requant,
+}
+
+impl ChannelQuant {
+    /// Builds the constants of one channel from the real scales.
+    pub fn new(bias: i32, s_in: f32, s_w: f32, s_out: f32, act: Activation) -> ChannelQuant {
+        let m = s_in as f64 * s_w as f64 / s_out as f64;
+        let pos = Requant::from_real(m);
+        let neg = match act {
+            Activation::LeakyRelu(a) => Requant::from_real(m * a as f64),
+            _ => pos,
+        };
+        ChannelQuant { bias, pos, neg }
+    }
+}
+
+/// Kernel size, stride, dilation, symmetric zero padding and groups.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ConvGeometry {
+    /// Kernel `[kh, kw]`.
+    pub kernel: [usize; 2],
+    /// Stride `[sh, sw]` (≥ 1).
+    pub stride: [usize; 2],
+    /// Dilation `[dh, dw]` (≥ 1).
+    pub dilation: [usize; 2],
+    /// Zero padding `[ph, pw]` on both sides.
+    pub padding: [usize; 2],
+    /// Groups (divides both channel counts; `groups = C` is depthwise).
+    pub groups: usize,
+}
+
+impl ConvGeometry {
+    /// A 1×1, stride-1, unpadded, ungrouped conv (also `linear` on a `[I,1,1]` input).
+    pub const POINTWISE: ConvGeometry = ConvGeometry {
+        kernel: [1, 1],
+        stride: [1, 1],
+        dilation: [1, 1],
+        padding: [0, 0],
+        groups: 1,
+    };
+
+    /// Output shape for an input shape and `out_c` output channels; `None` if inconsistent.
+    pub fn output_shape(&self, input: Shape, out_c: usize) -> Option<Shape> {
+        let g = self.groups;
+        if g == 0
+            || !input.c.is_multiple_of(g)
+            || !out_c.is_multiple_of(g)
+            || out_c == 0
+            || input.c == 0
+        {
+            return None;
+        }
+        let dim = |n: usize, k: usize, s: usize, d: usize, p: usize| -> Option<usize> {
+            if k == 0 || s == 0 || d == 0 {
+                return None;
+            }
+            let span = d.checked_mul(k - 1)?.checked_add(1)?;
+            let padded = n.checked_add(p.checked_mul(2)?)?;
+            if padded < span {
+                return None;
+            }
+            Some((padded - span) / s + 1)
+        };
+        let h = dim(
+            input.h,
+            self.kernel[0],
+            self.stride[0],
+            self.dilation[0],
+            self.padding[0],
+        )?;
+        let w = dim(
+            input.w,
+            self.kernel[1],
+            self.stride[1],
+            self.dilation[1],
+            self.padding[1],
+        )?;
+        Some(Shape::new(out_c, h, w))
+    }
+
+    /// Number of weights, `[O, I/groups, kh, kw]`.
+    pub fn weight_len(&self, in_c: usize, out_c: usize) -> Option<usize> {
+        out_c
+            .checked_mul(in_c.checked_div(self.groups)?)?
+            .checked_mul(self.kernel[0])?
+            .checked_mul(self.kernel[1])
+    }
+}
+
+/// Zero points and the clamp range of the output.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ConvQuant {
+    /// Input zero point.
+    pub input_zero_point: i32,
+    /// Output zero point.
+    pub output_zero_point: i32,
+    /// Lowest output code (`zp_out` for ReLU, −128 otherwise).
+    pub act_min: i32,
+    /// Highest output code.
+    pub act_max: i32,
+}
+
+impl ConvQuant {
+    /// Zero points and the clamp range for an activation.
+    pub fn new(input_zero_point: i32, output_zero_point: i32, act: Activation) -> ConvQuant {
+        let act_min = if act == Activation::Relu {
+            output_zero_point.max(-128)
+        } else {
+            -128
+        };
+        ConvQuant {
+            input_zero_point,
+            output_zero_point,
+            act_min,
+            act_max: 127,
+        }
+    }
+}
+
+/// One prepared convolution: geometry, zero points, weights and per-channel constants.
+#[derive(Clone, Copy, Debug)]
+pub struct Conv2d<'a> {
+    /// Kernel geometry.
+    pub geometry: ConvGeometry,
+    /// Zero points and clamp range.
+    pub quant: ConvQuant,
+    /// `[O, I/groups, kh, kw]` int8 weights.
+    pub weights: &'a [i8],
+    /// One entry per output channel.
+    pub channels: &'a [ChannelQuant],
+}
+
+/// Largest `I/groups · kh · kw` accepted, so that `acc` cannot overflow `i32`
+/// (`127 · 255 · 65536 < 2^31`).
+pub const MAX_TAPS: usize = 65_536;
+
+impl Conv2d<'_> {
+    /// Checks the op against an input shape; returns the output shape.
+    pub fn check(&self, in_shape: Shape) -> Result<Shape, KernelError> {
+        let out_c = self.channels.len();
+        let out = self
+            .geometry
+            .output_shape(in_shape, out_c)
+            .ok_or(KernelError::Attr)?;
+        let wl = self
+            .geometry
+            .weight_len(in_shape.c, out_c)
+            .ok_or(KernelError::Attr)?;
+        if self.weights.len() != wl || wl / out_c > MAX_TAPS {
+            return Err(KernelError::Attr);
+        }
+        Ok(out)
+    }
+
+    /// i32 scratch elements the fast path needs: one output row per output channel plus one
+    /// input row.
+    pub fn scratch_len(in_shape: Shape, out_shape: Shape) -> usize {
+        out_shape
+            .c
+            .saturating_mul(out_shape.w)
+            .saturating_add(in_shape.w)
+    }
+
+    #[inline]
+    fn finish(&self, o: usize, acc: i32) -> i8 {
+        let cq = &self.channels[o];
+        let r = if acc >= 0 {
+            cq.pos.apply(acc)
+        } else {
+            cq.neg.apply(acc)
+        };
+        clamp_i8(
+            r.saturating_add(self.quant.output_zero_point),
+            self.quant.act_min,
+            self.quant.act_max,
+        )
+    }
+}
+
+/// Reference convolution: plain loops over every output element and tap (the spec).
+pub fn conv2d_ref(
+    op: &Conv2d,
+    input: &[i8],
+    in_shape: Shape,
+    output: &mut [i8],
+    _scratch: &mut [i32],
+) -> Result<Shape, KernelError> {
+    let out = op.check(in_shape)?;
+    need(input, in_shape)?;
+    need(output, out)?;
+    let g = &op.geometry;
+    let icg = in_shape.c / g.groups;
+    let ocg = out.c / g.groups;
+    let zp = op.quant.input_zero_point;
+    for o in 0..out.c {
+        let grp = o / ocg;
+        for oy in 0..out.h {
+            for ox in 0..out.w {
+                let mut acc = op.channels[o].bias;
+                for i in 0..icg {
+                    let ic = grp * icg + i;
+                    for ky in 0..g.kernel[0] {
+                        for kx in 0..g.kernel[1] {
+                            let iy = (oy * g.stride[0] + ky * g.dilation[0]) as isize
+                                - g.padding[0] as isize;
+                            let ix = (ox * g.stride[1] + kx * g.dilation[1]) as isize
+                                - g.padding[1] as isize;
+                            if iy < 0
+                                || ix < 0
+                                || iy >= in_shape.h as isize
+                                || ix >= in_shape.w as isize
+                            {
+                                continue;
+                            }
+                            let x = input
+                                [(ic * in_shape.h + iy as usize) * in_shape.w + ix as usize]
+                                as i32;
+                            let w = op.weights
+                                [((o * icg + i) * g.kernel[0] + ky) * g.kernel[1] + kx]
+                                as i32;
+                            acc = acc.wrapping_add(w * (x - zp));
+                        }
+                    }
+                }
+                output[(o * out.h + oy) * out.w + ox] = op.finish(o, acc);
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Range of output columns `ox` whose input column `ox·s + off` lies in `0..n`.
+#[inline]
+fn valid_cols(off: isize, s: usize, n: usize, out_w: usize) -> Option<(usize, usize)> {
+    let s = s as isize;
+    let lo = if off < 0 { (-off + s - 1) / s } else { 0 };
+    let last_in = n as isize - 1 - off;
+    if last_in < 0 {
+        return None;
+    }
+    let hi = (last_in / s).min(out_w as isize - 1);
+    if lo > hi {
+        return None;
+    }
+    Some((lo as usize, hi as usize))
+}
+
+/// Fast convolution: same contract and bits as [`conv2d_ref`]. For each output row it walks
+/// the input rows once, subtracts the zero point into a row buffer, and accumulates that row
+/// into the rows of *all* output channels of the group (taps outside, columns inside, so the
+/// inner loop is a contiguous i32 multiply-accumulate the compiler vectorises). `scratch` holds
+/// ≥ [`Conv2d::scratch_len`] i32: `out.c × out.w` accumulators plus one input row.
+pub fn conv2d(
+    op: &Conv2d,
+    input: &[i8],
+    in_shape: Shape,
+    output: &mut [i8],
+    scratch: &mut [i32],
+) -> Result<Shape, KernelError> {
+    let out = op.check(in_shape)?;
+    need(input, in_shape)?;
+    need(output, out)?;
+    if scratch.len() < Conv2d::scratch_len(in_shape, out) {
+        return Err(KernelError::Scratch);
+    }
+    let g = &op.geometry;
+    let (kh, kw) = (g.kernel[0], g.kernel[1]);
+    let icg = in_shape.c / g.groups;
+    let ocg = out.c / g.groups;
+    let zp = op.quant.input_zero_point;
+    let plane = in_shape.h * in_shape.w;
+    let (acc, rest) = scratch.split_at_mut(out.c * out.w);
+    let xrow = &mut rest[..in_shape.w];
+    let taps = icg * kh * kw;
+    for oy in 0..out.h {
+        for (o, a) in acc.chunks_exact_mut(out.w).enumerate() {
+            a.fill(op.channels[o].bias);
+        }
+        for grp in 0..g.groups {
+            for i in 0..icg {
+                let chan = &input[(grp * icg + i) * plane..(grp * icg + i + 1) * plane];
+                for ky in 0..kh {
+                    let iy =
+                        (oy * g.stride[0] + ky * g.dilation[0]) as isize - g.padding[0] as isize;
+                    if iy < 0 || iy >= in_shape.h as isize {
+                        continue;
+                    }
+                    let row = &chan[iy as usize * in_shape.w..(iy as usize + 1) * in_shape.w];
+                    for (d, &x) in xrow.iter_mut().zip(row) {
+                        *d = x as i32 - zp;
+                    }
+                    for kx in 0..kw {
+                        let off = (kx * g.dilation[1]) as isize - g.padding[1] as isize;
+                        let Some((lo, hi)) = valid_cols(off, g.stride[1], in_shape.w, out.w) else {
+                            continue;
+                        };
+                        let start = (lo as isize * g.stride[1] as isize + off) as usize;
+                        let src = &xrow[start..];
+                        for o in grp * ocg..(grp + 1) * ocg {
+                            let w = op.weights[o * taps + (i * kh + ky) * kw + kx] as i32;
+                            if w == 0 {
+                                continue;
+                            }
+                            let dst = &mut acc[o * out.w + lo..=o * out.w + hi];
+                            if g.stride[1] == 1 {
+                                for (a, &x) in dst.iter_mut().zip(src) {
+                                    *a = a.wrapping_add(w * x);
+                                }
+                            } else {
+                                for (a, &x) in dst.iter_mut().zip(src.iter().step_by(g.stride[1])) {
+                                    *a = a.wrapping_add(w * x);
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        for (o, a) in acc.chunks_exact(out.w).enumerate() {
+            let dst = &mut output[(o * out.h + oy) * out.w..(o * out.h + oy + 1) * out.w];
+            for (d, &v) in dst.iter_mut().zip(a) {
+                *d = op.finish(o, v);
+            }
+        }
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use crate::kernels::float;
+    use crate::kernels::kernel_tests;
+    use crate::kernels::requant::QParams;
+    use proptest::prelude::*;
+    use std::vec::Vec;
+
+    /// A conv test case with real-valued ground truth.
+    #[derive(Clone, Debug)]
+    pub struct Case {
+        pub name: &'static str,
+        pub geometry: ConvGeometry,
+        pub in_shape: Shape,
+        pub out_c: usize,
+        pub input: Vec<i8>,
+        pub in_q: QParams,
+        pub weights: Vec<i8>,
+        pub w_scales: Vec<f32>,
+        pub bias: Vec<i32>,
+        pub out_q: QParams,
+        pub act: Activation,
+        /// Exact expected output, when hand-computed.
+        pub expect: Option<Vec<i8>>,
+    }
+
+    type Impl = fn(&Conv2d, &[i8], Shape, &mut [i8], &mut [i32]) -> Result<Shape, KernelError>;
+
+    fn channels(c: &Case) -> Vec<ChannelQuant> {
+        (0..c.out_c)
+            .map(|o| {
+                ChannelQuant::new(c.bias[o], c.in_q.scale, c.w_scales[o], c.out_q.scale, c.act)
+            })
+            .collect()
+    }
+
+    fn run(c: &Case, f: Impl) -> (Shape, Vec<i8>) {
+        let ch = channels(c);
+        let op = Conv2d {
+            geometry: c.geometry,
+            quant: ConvQuant::new(c.in_q.zero_point, c.out_q.zero_point, c.act),
+            weights: &c.weights,
+            channels: &ch,
+        };
+        let out = op.check(c.in_shape).unwrap();
+        let mut y = std::vec![0i8; out.len().unwrap()];
+        let mut scratch = std::vec![0i32; Conv2d::scratch_len(c.in_shape, out)];
+        assert_eq!(
+            f(&op, &c.input, c.in_shape, &mut y, &mut scratch).unwrap(),
+            out
+        );
+        (out, y)
+    }
+
+    fn check(c: &Case, f: Impl) {
+        let (out, y) = run(c, f);
+        let (_, yr) = run(c, conv2d_ref);
+        assert_eq!(y, yr, "{}: differs from conv2d_ref", c.name);
+        if let Some(e) = &c.expect {
+            assert_eq!(&y, e, "{}", c.name);
+        }
+        // Float reference on dequantised values: within 1 LSB of round(real/scale)+zp.
+        let xf: Vec<f32> = c.input.iter().map(|&q| c.in_q.dequantize(q)).collect();
+        let ocg_len = c.weights.len() / c.out_c;
+        let wf: Vec<f32> = c
+            .weights
+            .iter()
+            .enumerate()
+            .map(|(i, &q)| q as f32 * c.w_scales[i / ocg_len])
+            .collect();
+        let bf: Vec<f32> = (0..c.out_c)
+            .map(|o| c.bias[o] as f32 * c.in_q.scale * c.w_scales[o])
+            .collect();
+        let mut yf = std::vec![0f32; out.len().unwrap()];
+        float::conv2d(
+            &c.geometry,
+            &xf,
+            c.in_shape,
+            &wf,
+            Some(&bf),
+            c.act,
+            &mut yf,
+            out,
+        )
+        .unwrap();
+        for (i, (&q, &r)) in y.iter().zip(&yf).enumerate() {
+            let want = c.out_q.quantize(r) as i32;
+            assert!(
+                (q as i32 - want).abs() <= 1,
+                "{}: [{i}] {q} vs {want} ({r})",
+                c.name
+            );
+        }
+    }
+
+    pub fn golden() -> Vec<Case> {
+        let unit = QParams {
+            scale: 1.0,
+            zero_point: 0,
+        };
+        std::vec![
+            // 1×3×3 input 1..9, 2×2 kernel of ones, stride 1: sums of 2×2 windows.
+            Case {
+                name: "sum2x2",
+                geometry: ConvGeometry {
+                    kernel: [2, 2],
+                    ..ConvGeometry::POINTWISE
+                },
+                in_shape: Shape::new(1, 3, 3),
+                out_c: 1,
+                input: (1..=9).collect(),
+                in_q: unit,
+                weights: std::vec![1; 4],
+                w_scales: std::vec![1.0],
+                bias: std::vec![0],
+                out_q: unit,
+                act: Activation::None,
+                expect: Some(std::vec![12, 16, 24, 28]),
+            },
+            // Same with padding 1, stride 2, zero point 2 (padding is real 0 = code 2), bias 1.
+            Case {
+                name: "pad_stride_zp",
+                geometry: ConvGeometry {
+                    kernel: [2, 2],
+                    stride: [2, 2],
+                    padding: [1, 1],
+                    ..ConvGeometry::POINTWISE
+                },
+                in_shape: Shape::new(1, 3, 3),
+                out_c: 1,
+                input: (3..=11).collect(), // real 1..9
+                in_q: QParams {
+                    scale: 1.0,
+                    zero_point: 2
+                },
+                weights: std::vec![1; 4],
+                w_scales: std::vec![1.0],
+                bias: std::vec![1],
+                out_q: unit,
+                // windows: {1}, {2,3}, {4,7}, {5,6,8,9} → +1
+                act: Activation::None,
+                expect: Some(std::vec![2, 6, 12, 29]),
+            },
+            // Depthwise 2 channels, leaky relu 0.5 and relu semantics via weights −1.
+            Case {
+                name: "depthwise_leaky",
+                geometry: ConvGeometry {
+                    kernel: [1, 1],
+                    groups: 2,
+                    ..ConvGeometry::POINTWISE
+                },
+                in_shape: Shape::new(2, 1, 2),
+                out_c: 2,
+                input: std::vec![4, -6, 8, 10],
+                in_q: unit,
+                weights: std::vec![1, -1],
+                w_scales: std::vec![1.0, 0.5],
+                bias: std::vec![0, 0],
+                out_q: unit,
+                act: Activation::LeakyRelu(0.5),
+                // ch0: 4, −6·0.5 = −3; ch1: −8·0.5 = −4 → ·0.5 = −2, −10·0.5=−5 → −2.5 → −3
+                expect: Some(std::vec![4, -3, -2, -3]),
+            },
+            // Dilated 1×3 kernel, relu clamps at zp_out = −10.
+            Case {
+                name: "dilated_relu",
+                geometry: ConvGeometry {
+                    kernel: [1, 3],
+                    dilation: [1, 2],
+                    padding: [0, 2],
+                    ..ConvGeometry::POINTWISE
+                },
+                in_shape: Shape::new(1, 1, 4),
+                out_c: 1,
+                input: std::vec![1, 2, 3, 4],
+                in_q: unit,
+                weights: std::vec![1, 0, -2],
+                w_scales: std::vec![1.0],
+                bias: std::vec![0],
+                out_q: QParams {
+                    scale: 1.0,
+                    zero_point: -10
+                },
+                act: Activation::Relu,
+                // taps at x−2, x, x+2 with weights 1,0,−2: x0: −2·3=−6→0; x1: −2·4=−8→0; x2: 1; x3: 2
+                expect: Some(std::vec![-10, -10, -9, -8]),
+            },
+        ]
+    }
+
+    prop_compose! {
+        pub fn arb_case()(
+            groups in 1usize..=3, icg in 1usize..=3, ocg in 1usize..=3,
+            kh in 1usize..=3, kw in 1usize..=3, sh in 1usize..=2, sw in 1usize..=3,
+            dh in 1usize..=2, dw in 1usize..=2, ph in 0usize..=2, pw in 0usize..=2,
+            h in 3usize..=9, w in 3usize..=11, act in 0u8..3,
+            in_zp in -20i32..20, out_zp in -20i32..20, seed in any::<u64>(),
+        ) -> Case {
+            let in_shape = Shape::new(groups * icg, h, w);
+            let out_c = groups * ocg;
+            let geometry = ConvGeometry { kernel: [kh, kw], stride: [sh, sw], dilation: [dh, dw], padding: [ph, pw], groups };
+            let mut s = seed;
+            let mut next = move || { s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407); (s >> 33) as u32 };
+            let input = (0..in_shape.len().unwrap()).map(|_| next() as i8).collect();
+            let weights = (0..geometry.weight_len(in_shape.c, out_c).unwrap()).map(|_| (next() % 255) as i32 as i8 ).map(|v| v.max(-127)).collect();
+            let w_scales = (0..out_c).map(|_| 0.001 + (next() % 1000) as f32 * 1e-5).collect();
+            let bias = (0..out_c).map(|_| (next() % 2001) as i32 - 1000).collect();
+            let act = [Activation::None, Activation::Relu, Activation::LeakyRelu(0.1)][act as usize];
+            Case { name: "arb", geometry, in_shape, out_c, input, in_q: QParams { scale: 0.02, zero_point: in_zp },
+                   weights, w_scales, bias, out_q: QParams { scale: 0.05, zero_point: out_zp }, act, expect: None }
+        }
+    }
+
+    fn arb_valid() -> impl Strategy<Value = Case> {
+        arb_case().prop_filter("output must exist", |c| {
+            c.geometry.output_shape(c.in_shape, c.out_c).is_some()
+        })
+    }
+
+    kernel_tests!(suite, ref: conv2d_ref, fast: conv2d, golden: golden, arb: arb_valid(), check: check);
+
+    /// Speed of the fast path against the reference on a 3×3 16→16 conv at 60×80 (a typical
+    /// `mcu` half-resolution layer). Run: `cargo test --release -p depthor-core --lib
+    /// conv_speed -- --ignored --nocapture`.
+    #[test]
+    #[ignore]
+    fn conv_speed() {
+        let (ic, oc, h, w) = (16usize, 16usize, 60usize, 80usize);
+        let g = ConvGeometry {
+            kernel: [3, 3],
+            padding: [1, 1],
+            ..ConvGeometry::POINTWISE
+        };
+        let input: Vec<i8> = (0..ic * h * w).map(|i| (i * 31 % 251) as i8).collect();
+        let weights: Vec<i8> = (0..g.weight_len(ic, oc).unwrap())
+            .map(|i| (i * 17 % 253) as i8)
+            .collect();
+        let ch: Vec<ChannelQuant> = (0..oc)
+            .map(|_| ChannelQuant::new(0, 0.02, 0.003, 0.1, Activation::Relu))
+            .collect();
+        let op = Conv2d {
+            geometry: g,
+            quant: ConvQuant::new(3, -2, Activation::Relu),
+            weights: &weights,
+            channels: &ch,
+        };
+        let s = Shape::new(ic, h, w);
+        let out = op.check(s).unwrap();
+        let mut y = std::vec![0i8; out.len().unwrap()];
+        let mut scratch = std::vec![0i32; Conv2d::scratch_len(s, out)];
+        let macs = (out.len().unwrap() * ic * 9) as f64;
+        for (name, f) in [
+            ("conv2d_ref", conv2d_ref as Impl),
+            ("conv2d", conv2d as Impl),
+        ] {
+            let t = std::time::Instant::now();
+            let reps = 20;
+            for _ in 0..reps {
+                f(&op, &input, s, &mut y, &mut scratch).unwrap();
+            }
+            let dt = t.elapsed().as_secs_f64() / reps as f64;
+            std::println!("{name}: {:.3} ms, {:.2} GMAC/s", dt * 1e3, macs / dt / 1e9);
+        }
+    }
+
+    #[test]
+    fn short_slices_are_errors_not_panics() {
+        let c = &golden()[0];
+        let ch = channels(c);
+        let op = Conv2d {
+            geometry: c.geometry,
+            quant: ConvQuant::new(0, 0, Activation::None),
+            weights: &c.weights,
+            channels: &ch,
+        };
+        let mut y = [0i8; 4];
+        assert_eq!(
+            conv2d(&op, &c.input[..8], c.in_shape, &mut y, &mut [0; 2]),
+            Err(KernelError::Shape)
+        );
+        assert_eq!(
+            conv2d(&op, &c.input, c.in_shape, &mut y[..3], &mut [0; 2]),
+            Err(KernelError::Shape)
+        );
+        assert_eq!(
+            conv2d(&op, &c.input, c.in_shape, &mut y, &mut [0; 1]),
+            Err(KernelError::Scratch)
+        );
+        let bad = Conv2d {
+            weights: &c.weights[..3],
+            ..op
+        };
+        assert_eq!(
+            conv2d_ref(&bad, &c.input, c.in_shape, &mut y, &mut []),
+            Err(KernelError::Attr)
+        );
+    }
+}

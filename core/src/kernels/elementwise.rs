@@ -1,0 +1,559 @@
+//! Elementwise int8 ops: 256-entry lookup tables (relu, leaky_relu, sigmoid, reciprocal — the
+//! blob stores the table, so the core does no transcendental math for them), add and mul with
+//! requantisation (TFLite int8 `ADD` / `MUL` arithmetic), concat with per-input requantisation,
+//! pixel_shuffle and minmax_norm.
+
+use super::float::{broadcast_index, broadcast_len, Broadcast};
+use super::requant::{clamp_i8, QParams, Requant};
+use super::{need, KernelError, Shape};
+
+/// A 256-entry int8→int8 table, indexed by `q as u8` (so code −128 is entry 128).
+pub type Lut = [i8; 256];
+
+/// Builds the table of `f` for the given input and output quantisation (at prepare / export
+/// time; `f` is the op's float reference, e.g. [`super::float::sigmoid`]).
+pub fn build_lut(in_q: QParams, out_q: QParams, f: impl Fn(f32) -> f32) -> Lut {
+    let mut t = [0i8; 256];
+    for q in -128i32..=127 {
+        t[(q as i8) as u8 as usize] = out_q.quantize(f(in_q.dequantize(q as i8)));
+    }
+    t
+}
+
+/// Applies a table: `out[i] = lut[in[i]]`.
+pub fn lut(input: &[i8], table: &Lut, output: &mut [i8]) -> Result<(), KernelError> {
+    if output.len() < input.len() {
+        return Err(KernelError::Shape);
+    }
+    for (o, &x) in output.iter_mut().zip(input) {
+        *o = table[x as u8 as usize];
+    }
+    Ok(())
+}
+
+/// Requantisation of one int8 code from one tensor's parameters to another's.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[repr(C)]
+pub struct Rescale {
+    /// `s_in / s_out`.
+    pub m: Requant,
+    /// Input zero point.
+    pub zp_in: i32,
+    /// Output zero point.
+    pub zp_out: i32,
+}
+
+impl Rescale {
+    /// From the input and output parameters.
+    pub fn new(from: QParams, to: QParams) -> Rescale {
+        Rescale {
+            m: Requant::from_real(from.scale as f64 / to.scale as f64),
+            zp_in: from.zero_point,
+            zp_out: to.zero_point,
+        }
+    }
+
+    /// True when codes pass through unchanged.
+    pub fn is_identity(&self) -> bool {
+        self.zp_in == self.zp_out && self.m == Requant::from_real(1.0)
+    }
+
+    /// Requantises one code.
+    #[inline]
+    pub fn apply(&self, q: i8) -> i8 {
+        clamp_i8(
+            self.m
+                .apply(q as i32 - self.zp_in)
+                .saturating_add(self.zp_out),
+            -128,
+            127,
+        )
+    }
+}
+
+/// Constants of int8 `add` (TFLite: inputs shifted left by 20 bits, scaled to `2·max(s_a, s_b)`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[repr(C)]
+pub struct AddQuant {
+    /// Zero points of a, b and out.
+    pub zp: [i32; 3],
+    /// `s_a / (2·max)`.
+    pub ma: Requant,
+    /// `s_b / (2·max)`.
+    pub mb: Requant,
+    /// `2·max / (2^20 · s_out)`.
+    pub mo: Requant,
+}
+
+/// Left shift applied to add inputs (TFLite's `left_shift = 20` for int8).
+pub const ADD_LEFT_SHIFT: i32 = 20;
+
+impl AddQuant {
+    /// From the three tensors' parameters.
+    pub fn new(a: QParams, b: QParams, out: QParams) -> AddQuant {
+        let twice_max = 2.0 * (a.scale.max(b.scale) as f64);
+        AddQuant {
+            zp: [a.zero_point, b.zero_point, out.zero_point],
+            ma: Requant::from_real(a.scale as f64 / twice_max),
+            mb: Requant::from_real(b.scale as f64 / twice_max),
+            mo: Requant::from_real(
+                twice_max / ((1u64 << ADD_LEFT_SHIFT) as f64 * out.scale as f64),
+            ),
+        }
+    }
+
+    #[inline]
+    fn apply(&self, a: i8, b: i8) -> i8 {
+        let xa = self.ma.apply((a as i32 - self.zp[0]) << ADD_LEFT_SHIFT);
+        let xb = self.mb.apply((b as i32 - self.zp[1]) << ADD_LEFT_SHIFT);
+        clamp_i8(
+            self.mo
+                .apply(xa.saturating_add(xb))
+                .saturating_add(self.zp[2]),
+            -128,
+            127,
+        )
+    }
+}
+
+/// Reference `add`: same-shape operands, plain loop.
+pub fn add_ref(q: &AddQuant, a: &[i8], b: &[i8], out: &mut [i8]) -> Result<(), KernelError> {
+    if a.len() != b.len() || out.len() < a.len() {
+        return Err(KernelError::Shape);
+    }
+    for i in 0..a.len() {
+        out[i] = q.apply(a[i], b[i]);
+    }
+    Ok(())
+}
+
+/// Fast `add`: same bits as [`add_ref`], iterator form without bounds checks in the loop.
+pub fn add(q: &AddQuant, a: &[i8], b: &[i8], out: &mut [i8]) -> Result<(), KernelError> {
+    if a.len() != b.len() || out.len() < a.len() {
+        return Err(KernelError::Shape);
+    }
+    for ((o, &x), &y) in out.iter_mut().zip(a).zip(b) {
+        *o = q.apply(x, y);
+    }
+    Ok(())
+}
+
+/// Constants of int8 `mul`: `out = zp_out + (s_a·s_b/s_out)·(a − zp_a)(b − zp_b)`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[repr(C)]
+pub struct MulQuant {
+    /// Zero points of a, b and out.
+    pub zp: [i32; 3],
+    /// `s_a·s_b/s_out`.
+    pub m: Requant,
+}
+
+impl MulQuant {
+    /// From the three tensors' parameters.
+    pub fn new(a: QParams, b: QParams, out: QParams) -> MulQuant {
+        MulQuant {
+            zp: [a.zero_point, b.zero_point, out.zero_point],
+            m: Requant::from_real(a.scale as f64 * b.scale as f64 / out.scale as f64),
+        }
+    }
+
+    #[inline]
+    fn apply(&self, a: i8, b: i8) -> i8 {
+        let p = (a as i32 - self.zp[0]) * (b as i32 - self.zp[1]);
+        clamp_i8(self.m.apply(p).saturating_add(self.zp[2]), -128, 127)
+    }
+}
+
+/// Reference `mul` with `b` broadcast per [`Broadcast`] (graph.md: `[1,1,H,W]` or `[1,C,1,1]`).
+pub fn mul_ref(
+    q: &MulQuant,
+    a: &[i8],
+    shape: Shape,
+    b: &[i8],
+    bc: Broadcast,
+    out: &mut [i8],
+) -> Result<(), KernelError> {
+    let n = need(a, shape)?;
+    if Some(b.len()) != broadcast_len(bc, shape) || out.len() < n {
+        return Err(KernelError::Shape);
+    }
+    for i in 0..n {
+        out[i] = q.apply(a[i], b[broadcast_index(bc, shape, i)]);
+    }
+    Ok(())
+}
+
+/// Fast `mul`: same bits as [`mul_ref`], looping per channel plane so no index arithmetic per
+/// element.
+pub fn mul(
+    q: &MulQuant,
+    a: &[i8],
+    shape: Shape,
+    b: &[i8],
+    bc: Broadcast,
+    out: &mut [i8],
+) -> Result<(), KernelError> {
+    let n = need(a, shape)?;
+    if Some(b.len()) != broadcast_len(bc, shape) || out.len() < n {
+        return Err(KernelError::Shape);
+    }
+    let p = shape.h * shape.w;
+    if p == 0 {
+        return Ok(());
+    }
+    for (c, (oc, ac)) in out[..n]
+        .chunks_exact_mut(p)
+        .zip(a[..n].chunks_exact(p))
+        .enumerate()
+    {
+        match bc {
+            Broadcast::None => {
+                for ((o, &x), &y) in oc.iter_mut().zip(ac).zip(&b[c * p..(c + 1) * p]) {
+                    *o = q.apply(x, y);
+                }
+            }
+            Broadcast::OverChannels => {
+                for ((o, &x), &y) in oc.iter_mut().zip(ac).zip(b) {
+                    *o = q.apply(x, y);
+                }
+            }
+            Broadcast::OverSpace => {
+                let y = b[c];
+                for (o, &x) in oc.iter_mut().zip(ac) {
+                    *o = q.apply(x, y);
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Writes one input of a channel concat into `out` (shape `out_shape`) starting at channel
+/// `c_offset`, requantised to the output's parameters.
+pub fn concat_part(
+    input: &[i8],
+    in_shape: Shape,
+    rescale: &Rescale,
+    out: &mut [i8],
+    out_shape: Shape,
+    c_offset: usize,
+) -> Result<(), KernelError> {
+    let n = need(input, in_shape)?;
+    need(out, out_shape)?;
+    let end = c_offset.checked_add(in_shape.c).ok_or(KernelError::Shape)?;
+    if in_shape.h != out_shape.h || in_shape.w != out_shape.w || end > out_shape.c {
+        return Err(KernelError::Shape);
+    }
+    let p = out_shape.h * out_shape.w;
+    let dst = &mut out[c_offset * p..c_offset * p + n];
+    if rescale.is_identity() {
+        dst.copy_from_slice(&input[..n]);
+    } else {
+        for (o, &x) in dst.iter_mut().zip(input) {
+            *o = rescale.apply(x);
+        }
+    }
+    Ok(())
+}
+
+/// PyTorch `pixel_shuffle` for any element type: `out[c, y·r+i, x·r+j] = in[c·r²+i·r+j, y, x]`.
+pub fn pixel_shuffle<T: Copy>(
+    input: &[T],
+    in_shape: Shape,
+    r: usize,
+    out: &mut [T],
+) -> Result<Shape, KernelError> {
+    let rr = r.checked_mul(r).ok_or(KernelError::Attr)?;
+    if r == 0 || !in_shape.c.is_multiple_of(rr) {
+        return Err(KernelError::Attr);
+    }
+    let os = Shape::new(
+        in_shape.c / rr,
+        in_shape.h.checked_mul(r).ok_or(KernelError::Shape)?,
+        in_shape.w.checked_mul(r).ok_or(KernelError::Shape)?,
+    );
+    need(input, in_shape)?;
+    need(out, os)?;
+    for c in 0..os.c {
+        for i in 0..r {
+            for j in 0..r {
+                let src = &input[(c * rr + i * r + j) * in_shape.h * in_shape.w..];
+                for y in 0..in_shape.h {
+                    let orow = (c * os.h + y * r + i) * os.w;
+                    for x in 0..in_shape.w {
+                        out[orow + x * r + j] = src[y * in_shape.w + x];
+                    }
+                }
+            }
+        }
+    }
+    Ok(os)
+}
+
+/// int8 `minmax_norm`: finds the code range `[lo, hi]` of the tensor, then maps each code through
+/// a table built with f32 from `(q − lo)·s/((hi − lo)·s + eps)` and the output parameters.
+pub fn minmax_norm(
+    input: &[i8],
+    in_q: QParams,
+    eps: f32,
+    out_q: QParams,
+    out: &mut [i8],
+) -> Result<(), KernelError> {
+    if out.len() < input.len() || input.is_empty() {
+        return Err(KernelError::Shape);
+    }
+    let lo = input.iter().copied().min().unwrap_or(0) as i32;
+    let hi = input.iter().copied().max().unwrap_or(0) as i32;
+    let denom = (hi - lo) as f32 * in_q.scale + eps;
+    let mut t = [0i8; 256];
+    for q in lo..=hi {
+        t[(q as i8) as u8 as usize] = out_q.quantize((q - lo) as f32 * in_q.scale / denom);
+    }
+    lut(input, &t, out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kernels::{float, kernel_tests};
+    use proptest::prelude::*;
+    use std::vec::Vec;
+
+    #[derive(Clone, Debug)]
+    struct BinCase {
+        name: &'static str,
+        shape: Shape,
+        a: Vec<i8>,
+        b: Vec<i8>,
+        bc: Broadcast,
+        qa: QParams,
+        qb: QParams,
+        qo: QParams,
+    }
+
+    fn deq(v: &[i8], q: QParams) -> Vec<f32> {
+        v.iter().map(|&x| q.dequantize(x)).collect()
+    }
+
+    type AddImpl = fn(&AddQuant, &[i8], &[i8], &mut [i8]) -> Result<(), KernelError>;
+    type MulImpl =
+        fn(&MulQuant, &[i8], Shape, &[i8], Broadcast, &mut [i8]) -> Result<(), KernelError>;
+
+    fn check_add(c: &BinCase, f: AddImpl) {
+        let mut y = std::vec![0i8; c.a.len()];
+        f(&AddQuant::new(c.qa, c.qb, c.qo), &c.a, &c.b, &mut y).unwrap();
+        let mut r = std::vec![0f32; c.a.len()];
+        float::add(&deq(&c.a, c.qa), &deq(&c.b, c.qb), &mut r).unwrap();
+        for (i, (&q, &x)) in y.iter().zip(&r).enumerate() {
+            let want = c.qo.quantize(x) as i32;
+            assert!(
+                (q as i32 - want).abs() <= 1,
+                "{} [{i}]: {q} vs {want}",
+                c.name
+            );
+        }
+    }
+
+    fn check_mul(c: &BinCase, f: MulImpl) {
+        let mut y = std::vec![0i8; c.a.len()];
+        f(
+            &MulQuant::new(c.qa, c.qb, c.qo),
+            &c.a,
+            c.shape,
+            &c.b,
+            c.bc,
+            &mut y,
+        )
+        .unwrap();
+        let mut r = std::vec![0f32; c.a.len()];
+        float::mul(&deq(&c.a, c.qa), c.shape, &deq(&c.b, c.qb), c.bc, &mut r).unwrap();
+        for (i, (&q, &x)) in y.iter().zip(&r).enumerate() {
+            let want = c.qo.quantize(x) as i32;
+            assert!(
+                (q as i32 - want).abs() <= 1,
+                "{} [{i}]: {q} vs {want}",
+                c.name
+            );
+        }
+    }
+
+    fn golden_add() -> Vec<BinCase> {
+        let q = |s, z| QParams {
+            scale: s,
+            zero_point: z,
+        };
+        std::vec![BinCase {
+            name: "add_mixed_scales",
+            shape: Shape::new(1, 1, 4),
+            a: std::vec![10, -20, 127, -128],
+            b: std::vec![3, 4, 127, -128],
+            bc: Broadcast::None,
+            qa: q(0.1, 0),
+            qb: q(0.5, 2),
+            qo: q(0.25, -5),
+        }]
+    }
+
+    fn golden_mul() -> Vec<BinCase> {
+        let q = |s, z| QParams {
+            scale: s,
+            zero_point: z,
+        };
+        std::vec![
+            BinCase {
+                name: "mul_over_space",
+                shape: Shape::new(2, 1, 2),
+                a: std::vec![10, 20, 30, 40],
+                b: std::vec![64, -128],
+                bc: Broadcast::OverSpace,
+                qa: q(0.1, 0),
+                qb: q(1.0 / 128.0, -128),
+                qo: q(0.1, 0),
+            },
+            BinCase {
+                name: "mul_over_channels",
+                shape: Shape::new(2, 1, 2),
+                a: std::vec![10, 20, 30, 40],
+                b: std::vec![0, 127],
+                bc: Broadcast::OverChannels,
+                qa: q(0.1, 3),
+                qb: q(1.0 / 255.0, -128),
+                qo: q(0.05, 1),
+            },
+        ]
+    }
+
+    prop_compose! {
+        fn arb_bin(bcs: [Broadcast; 3])(c in 1usize..4, h in 1usize..5, w in 1usize..6, k in 0usize..3,
+            sa in 0.01f32..1.0, sb in 0.01f32..1.0, so in 0.01f32..1.0, za in -30i32..30, zb in -30i32..30,
+            zo in -30i32..30, seed in any::<u64>()) -> BinCase {
+            let shape = Shape::new(c, h, w);
+            let bc = bcs[k];
+            let mut s = seed;
+            let mut next = move || { s = s.wrapping_mul(6364136223846793005).wrapping_add(1); (s >> 40) as i8 };
+            let a = (0..shape.len().unwrap()).map(|_| next()).collect();
+            let b = (0..broadcast_len(bc, shape).unwrap()).map(|_| next()).collect();
+            let q = |s, z| QParams { scale: s, zero_point: z };
+            BinCase { name: "arb", shape, a, b, bc, qa: q(sa, za), qb: q(sb, zb), qo: q(so, zo) }
+        }
+    }
+
+    kernel_tests!(add_suite, ref: add_ref, fast: add, golden: golden_add,
+        arb: arb_bin([Broadcast::None; 3]), check: check_add);
+    kernel_tests!(mul_suite, ref: mul_ref, fast: mul, golden: golden_mul,
+        arb: arb_bin([Broadcast::None, Broadcast::OverChannels, Broadcast::OverSpace]), check: check_mul);
+
+    #[test]
+    fn mul_fast_equals_ref_bits() {
+        for c in golden_mul() {
+            let mq = MulQuant::new(c.qa, c.qb, c.qo);
+            let (mut y1, mut y2) = (std::vec![0i8; 4], std::vec![0i8; 4]);
+            mul_ref(&mq, &c.a, c.shape, &c.b, c.bc, &mut y1).unwrap();
+            mul(&mq, &c.a, c.shape, &c.b, c.bc, &mut y2).unwrap();
+            assert_eq!(y1, y2);
+        }
+    }
+
+    #[test]
+    fn sigmoid_lut_within_one_lsb() {
+        let qi = QParams {
+            scale: 0.0625,
+            zero_point: 0,
+        };
+        let qo = QParams {
+            scale: 1.0 / 256.0,
+            zero_point: -128,
+        };
+        let t = build_lut(qi, qo, float::sigmoid);
+        assert_eq!(t[0], 0); // sigmoid(0) = 0.5 → 128 − 128
+        let x: Vec<i8> = (-128..=127).map(|v| v as i8).collect();
+        let mut y = std::vec![0i8; 256];
+        lut(&x, &t, &mut y).unwrap();
+        for (&q, &yq) in x.iter().zip(&y) {
+            let want = (1.0 / (1.0 + (-(q as f64) * 0.0625).exp()) * 256.0 - 128.0)
+                .round()
+                .clamp(-128.0, 127.0);
+            assert!((yq as f64 - want).abs() <= 1.0, "{q}: {yq} vs {want}");
+        }
+    }
+
+    #[test]
+    fn concat_requantises_and_places_channels() {
+        let out_q = QParams {
+            scale: 0.2,
+            zero_point: 0,
+        };
+        let mut out = [0i8; 6];
+        let os = Shape::new(3, 1, 2);
+        concat_part(
+            &[5, 6],
+            Shape::new(1, 1, 2),
+            &Rescale::new(out_q, out_q),
+            &mut out,
+            os,
+            0,
+        )
+        .unwrap();
+        let q2 = QParams {
+            scale: 0.1,
+            zero_point: 10,
+        };
+        concat_part(
+            &[10, 20, 30, 11],
+            Shape::new(2, 1, 2),
+            &Rescale::new(q2, out_q),
+            &mut out,
+            os,
+            1,
+        )
+        .unwrap();
+        // (20−10)·0.1/0.2 = 5; (30−10)/2 = 10; (11−10)/2 = 0.5 → 1
+        assert_eq!(out, [5, 6, 0, 5, 10, 1]);
+        assert_eq!(
+            concat_part(
+                &[1, 2],
+                Shape::new(1, 1, 2),
+                &Rescale::default(),
+                &mut out,
+                os,
+                3
+            ),
+            Err(KernelError::Shape)
+        );
+    }
+
+    #[test]
+    fn pixel_shuffle_matches_pytorch_order() {
+        // [4,1,1] r=2 → [1,2,2]: channel k goes to (k/2, k%2).
+        let mut o = [0u8; 4];
+        assert_eq!(
+            pixel_shuffle(&[1u8, 2, 3, 4], Shape::new(4, 1, 1), 2, &mut o),
+            Ok(Shape::new(1, 2, 2))
+        );
+        assert_eq!(o, [1, 2, 3, 4]);
+        // [4,1,2] r=2 → [1,2,4]
+        let mut o = [0u8; 8];
+        pixel_shuffle(&[1u8, 5, 2, 6, 3, 7, 4, 8], Shape::new(4, 1, 2), 2, &mut o).unwrap();
+        assert_eq!(o, [1, 2, 5, 6, 3, 4, 7, 8]);
+        assert_eq!(
+            pixel_shuffle(&[0u8; 3], Shape::new(3, 1, 1), 2, &mut o),
+            Err(KernelError::Attr)
+        );
+    }
+
+    #[test]
+    fn minmax_norm_by_hand() {
+        let qi = QParams {
+            scale: 0.5,
+            zero_point: 0,
+        };
+        let qo = QParams {
+            scale: 1.0 / 255.0,
+            zero_point: -128,
+        };
+        let mut y = [0i8; 3];
+        minmax_norm(&[-4, 0, 6], qi, 0.0, qo, &mut y).unwrap();
+        // (x − (−2))/(3 − (−2)): 0, 0.4, 1 → −128, round(102) − 128 = −26, 127
+        assert_eq!(y, [-128, -26, 127]);
+    }
+}

@@ -1,0 +1,371 @@
+//! Affinity propagation (graph.md `refine`), in f32.
+//!
+//! **Why f32.** Depth in metres is propagated `T` times with weights that sum to one; int8
+//! (4 cm steps over 10 m) would add a quantisation step per iteration, and Q-format would need
+//! per-model range analysis. Cortex-M4F/M7 have a single-precision FPU, and IEEE f32 is
+//! deterministic when the order of operations is fixed and nothing is fused (Rust never
+//! contracts `a*b + c` into an FMA). The affinity, kmix and tmix maps stay int8 in the arena and
+//! are dequantised on the fly.
+//!
+//! **Fixed order.** Per kernel `k` ∈ {3, 5, 7} (in that order), per iteration, per pixel in
+//! raster order: `r_j = relu(aff_k[j]) · g_j` for neighbours `j` in raster order (0 outside the
+//! image), `S = Σ r_j` summed in that order, `q = 1/(1 + S)`, `w_j = r_j · q`,
+//! `w_c = 1 − Σ w_j` (in order), `D' = w_c·D + Σ w_j·D_j` (in order). The Gaussians
+//! `g_j = exp(−(dx²+dy²)/(2σ_k²))` are computed once per run with micromath. After `t ∈ {0, T/2,
+//! T}` the output gains `(τ_t · σ_k) · D_{k,t}` with `σ`, `τ` per-pixel 3-way softmaxes of
+//! kmix / tmix. Scratch: two f32 `H×W` maps (ping-pong), i.e. `8·H·W` bytes; the output map is
+//! the accumulator.
+
+use super::float::{exp, relu};
+use super::requant::QParams;
+use super::KernelError;
+
+/// Most iterations accepted.
+pub const MAX_ITERATIONS: usize = 64;
+/// Kernel sizes of the three branches.
+pub const KERNELS: [usize; 3] = [3, 5, 7];
+
+/// Attributes of `refine`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RefineAttrs {
+    /// `T` (even, ≤ [`MAX_ITERATIONS`]).
+    pub iterations: usize,
+    /// `[σ3, σ5, σ7]` of the spatial Gaussians (> 0).
+    pub sigma: [f32; 3],
+}
+
+/// A multi-channel `H×W` map read as f32 (int8 maps dequantise on the fly).
+pub trait Map {
+    /// Channels available.
+    fn channels(&self) -> usize;
+    /// Value of channel `c` at flat pixel index `i` (`c < channels()`, `i < plane`).
+    fn value(&self, c: usize, i: usize) -> f32;
+}
+
+/// An f32 CHW map.
+#[derive(Clone, Copy, Debug)]
+pub struct F32Map<'a> {
+    data: &'a [f32],
+    channels: usize,
+    plane: usize,
+}
+
+impl<'a> F32Map<'a> {
+    /// Wraps `data` holding at least `channels × plane` values.
+    pub fn new(data: &'a [f32], channels: usize, plane: usize) -> Result<Self, KernelError> {
+        if channels.checked_mul(plane).is_none_or(|n| data.len() < n) {
+            return Err(KernelError::Shape);
+        }
+        Ok(F32Map {
+            data,
+            channels,
+            plane,
+        })
+    }
+}
+
+impl Map for F32Map<'_> {
+    fn channels(&self) -> usize {
+        self.channels
+    }
+    #[inline]
+    fn value(&self, c: usize, i: usize) -> f32 {
+        self.data[c * self.plane + i]
+    }
+}
+
+/// An int8 CHW map with its quantisation.
+#[derive(Clone, Copy, Debug)]
+pub struct I8Map<'a> {
+    data: &'a [i8],
+    q: QParams,
+    channels: usize,
+    plane: usize,
+}
+
+impl<'a> I8Map<'a> {
+    /// Wraps `data` holding at least `channels × plane` codes.
+    pub fn new(
+        data: &'a [i8],
+        q: QParams,
+        channels: usize,
+        plane: usize,
+    ) -> Result<Self, KernelError> {
+        if channels.checked_mul(plane).is_none_or(|n| data.len() < n) {
+            return Err(KernelError::Shape);
+        }
+        Ok(I8Map {
+            data,
+            q,
+            channels,
+            plane,
+        })
+    }
+}
+
+impl Map for I8Map<'_> {
+    fn channels(&self) -> usize {
+        self.channels
+    }
+    #[inline]
+    fn value(&self, c: usize, i: usize) -> f32 {
+        self.q.dequantize(self.data[c * self.plane + i])
+    }
+}
+
+/// Per-pixel softmax over 3 channels of `m` at pixel `i`.
+#[inline]
+fn softmax3<M: Map>(m: &M, i: usize) -> [f32; 3] {
+    let v = [m.value(0, i), m.value(1, i), m.value(2, i)];
+    let mx = v[0].max(v[1]).max(v[2]);
+    let e = [exp(v[0] - mx), exp(v[1] - mx), exp(v[2] - mx)];
+    let s = e[0] + e[1] + e[2];
+    [e[0] / s, e[1] / s, e[2] / s]
+}
+
+/// Neighbour offsets of an `s×s` window in raster order, centre skipped.
+fn offsets(s: usize, out: &mut [(isize, isize); 48]) -> usize {
+    let r = (s / 2) as isize;
+    let mut n = 0;
+    for dy in -r..=r {
+        for dx in -r..=r {
+            if (dy, dx) != (0, 0) {
+                out[n] = (dy, dx);
+                n += 1;
+            }
+        }
+    }
+    n
+}
+
+/// Runs the propagation (module doc). `d0`, `out`: `h·w` f32; `aff[k]`: `s_k² − 1` channels;
+/// `kmix`, `tmix`: 3 channels; `scratch`: ≥ `2·h·w` f32.
+#[allow(clippy::too_many_arguments)]
+pub fn refine<A: Map, B: Map>(
+    d0: &[f32],
+    h: usize,
+    w: usize,
+    aff: [&A; 3],
+    kmix: &B,
+    tmix: &B,
+    attrs: &RefineAttrs,
+    out: &mut [f32],
+    scratch: &mut [f32],
+) -> Result<(), KernelError> {
+    let p = h.checked_mul(w).ok_or(KernelError::Shape)?;
+    let t_max = attrs.iterations;
+    if t_max > MAX_ITERATIONS
+        || !t_max.is_multiple_of(2)
+        || attrs.sigma.iter().any(|s| s.is_nan() || *s <= 0.0)
+    {
+        return Err(KernelError::Attr);
+    }
+    if d0.len() < p
+        || out.len() < p
+        || scratch.len() < 2 * p
+        || kmix.channels() < 3
+        || tmix.channels() < 3
+    {
+        return Err(KernelError::Shape);
+    }
+    for (a, s) in aff.iter().zip(KERNELS) {
+        if a.channels() < s * s - 1 {
+            return Err(KernelError::Shape);
+        }
+    }
+    let times = [0, t_max / 2, t_max];
+    let out = &mut out[..p];
+    out.fill(0.0);
+    let (mut cur, mut nxt) = scratch[..2 * p].split_at_mut(p);
+    let mut off = [(0isize, 0isize); 48];
+    for (k, (&a, &s)) in aff.iter().zip(&KERNELS).enumerate() {
+        let nn = offsets(s, &mut off);
+        let mut g = [0f32; 48];
+        let two_s2 = 2.0 * attrs.sigma[k] * attrs.sigma[k];
+        for (gj, &(dy, dx)) in g.iter_mut().zip(&off[..nn]) {
+            *gj = exp(-((dx * dx + dy * dy) as f32) / two_s2);
+        }
+        cur.copy_from_slice(&d0[..p]);
+        for t in 0..=t_max {
+            if t > 0 {
+                step(a, &off[..nn], &g[..nn], h, w, cur, nxt);
+                core::mem::swap(&mut cur, &mut nxt);
+            }
+            for (ti, &tt) in times.iter().enumerate() {
+                if tt == t {
+                    for (i, o) in out.iter_mut().enumerate() {
+                        let coef = softmax3(tmix, i)[ti] * softmax3(kmix, i)[k];
+                        *o += coef * cur[i];
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// One propagation step of one kernel: `nxt` from `cur`.
+fn step<A: Map>(
+    a: &A,
+    off: &[(isize, isize)],
+    g: &[f32],
+    h: usize,
+    w: usize,
+    cur: &[f32],
+    nxt: &mut [f32],
+) {
+    let mut r = [0f32; 48];
+    let mut idx = [0usize; 48];
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            let mut s = 0.0f32;
+            for (j, &(dy, dx)) in off.iter().enumerate() {
+                let (ny, nx) = (y as isize + dy, x as isize + dx);
+                if ny < 0 || nx < 0 || ny >= h as isize || nx >= w as isize {
+                    r[j] = 0.0;
+                    idx[j] = i;
+                } else {
+                    r[j] = relu(a.value(j, i)) * g[j];
+                    idx[j] = ny as usize * w + nx as usize;
+                }
+                s += r[j];
+            }
+            let q = 1.0 / (1.0 + s);
+            let mut wsum = 0.0f32;
+            for rj in r[..off.len()].iter_mut() {
+                *rj *= q;
+                wsum += *rj;
+            }
+            let mut d = (1.0 - wsum) * cur[i];
+            for (&wj, &n) in r[..off.len()].iter().zip(&idx[..off.len()]) {
+                d += wj * cur[n];
+            }
+            nxt[i] = d;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kernels::float;
+    use std::vec::Vec;
+
+    fn run(
+        d0: &[f32],
+        h: usize,
+        w: usize,
+        aff3: &[f32],
+        km: [f32; 3],
+        tm: [f32; 3],
+        t: usize,
+    ) -> Vec<f32> {
+        let p = h * w;
+        let z5 = std::vec![0f32; 24 * p];
+        let z7 = std::vec![0f32; 48 * p];
+        let kmix: Vec<f32> = km.iter().flat_map(|&v| std::iter::repeat_n(v, p)).collect();
+        let tmix: Vec<f32> = tm.iter().flat_map(|&v| std::iter::repeat_n(v, p)).collect();
+        let attrs = RefineAttrs {
+            iterations: t,
+            sigma: [1e6, 1.0, 1.0],
+        };
+        let mut out = std::vec![0f32; p];
+        let mut scratch = std::vec![0f32; 2 * p];
+        float::refine(
+            d0,
+            h,
+            w,
+            [aff3, &z5, &z7],
+            &kmix,
+            &tmix,
+            &attrs,
+            &mut out,
+            &mut scratch,
+        )
+        .unwrap();
+        out
+    }
+
+    #[test]
+    fn one_neighbour_by_hand() {
+        // 1×2 image, pixel 0 pulls from its right neighbour (raster index 4 of the 3×3 window)
+        // with r = 1: w = 1/2, w_c = 1/2. d0 = [2, 4] → t1 [3, 4] → t2 [3.5, 4].
+        let mut aff3 = std::vec![0f32; 8 * 2];
+        aff3[4 * 2] = 1.0;
+        let at_t = run(
+            &[2.0, 4.0],
+            1,
+            2,
+            &aff3,
+            [60.0, 0.0, 0.0],
+            [0.0, 0.0, 60.0],
+            2,
+        );
+        assert!(
+            (at_t[0] - 3.5).abs() < 1e-4 && (at_t[1] - 4.0).abs() < 1e-4,
+            "{at_t:?}"
+        );
+        let at_half = run(
+            &[2.0, 4.0],
+            1,
+            2,
+            &aff3,
+            [60.0, 0.0, 0.0],
+            [0.0, 60.0, 0.0],
+            2,
+        );
+        assert!((at_half[0] - 3.0).abs() < 1e-4, "{at_half:?}");
+        // Equal mixes: (1/3)(d0 + D1 + D2) of kernel 3 weighted 1/3, plus 2/3 · d0 from 5 and 7.
+        let mixed = run(&[2.0, 4.0], 1, 2, &aff3, [0.0; 3], [0.0; 3], 2);
+        let want = (2.0 + 3.0 + 3.5) / 9.0 + 2.0 * 2.0 / 3.0;
+        assert!((mixed[0] - want).abs() < 1e-4, "{mixed:?} vs {want}");
+    }
+
+    #[test]
+    fn constant_depth_is_a_fixed_point() {
+        let (h, w) = (5, 6);
+        let aff3: Vec<f32> = (0..8 * h * w)
+            .map(|i| ((i * 7) % 5) as f32 * 0.3 - 0.2)
+            .collect();
+        let out = run(
+            &std::vec![2.5; h * w],
+            h,
+            w,
+            &aff3,
+            [0.3, -1.0, 2.0],
+            [1.0, 0.0, -1.0],
+            6,
+        );
+        assert!(out.iter().all(|&v| (v - 2.5).abs() < 1e-5), "{out:?}");
+    }
+
+    #[test]
+    fn rejects_bad_attrs_and_shapes() {
+        let d0 = [1.0f32; 4];
+        let a = std::vec![0f32; 48 * 4];
+        let m = [0f32; 12];
+        let mut o = [0f32; 4];
+        let mut s = [0f32; 8];
+        let bad_t = RefineAttrs {
+            iterations: 3,
+            sigma: [1.0; 3],
+        };
+        assert_eq!(
+            float::refine(&d0, 2, 2, [&a, &a, &a], &m, &m, &bad_t, &mut o, &mut s),
+            Err(KernelError::Attr)
+        );
+        let ok = RefineAttrs {
+            iterations: 2,
+            sigma: [1.0; 3],
+        };
+        assert_eq!(
+            float::refine(&d0, 2, 2, [&a, &a, &a], &m, &m, &ok, &mut o, &mut s[..7]),
+            Err(KernelError::Shape)
+        );
+        assert_eq!(
+            float::refine(&d0, 2, 2, [&a[..31], &a, &a], &m, &m, &ok, &mut o, &mut s),
+            Err(KernelError::Shape)
+        );
+    }
+}

@@ -1,0 +1,208 @@
+//! Bilinear resize to an explicit size with `align_corners = true` (graph.md `upsample_bilinear`).
+//!
+//! Source coordinate of output index `o` is `o·(n_in − 1)/(n_out − 1)`, an exact rational
+//! `i0 + f/D` with `D = n_out − 1`. The int8 path interpolates the codes with these exact
+//! integer weights in `i64` and rounds once (half away from zero), so it is within 0.5 LSB of the
+//! real result; input and output share quantisation parameters (as TFLite requires).
+
+use super::{need, KernelError, Shape};
+
+/// Index, numerator and denominator of the source coordinate of output index `o`.
+#[inline]
+fn src(o: usize, n_in: usize, n_out: usize) -> (usize, i64, i64) {
+    if n_out <= 1 || n_in <= 1 {
+        return (0, 0, 1);
+    }
+    let num = o * (n_in - 1);
+    let den = n_out - 1;
+    (num / den, (num % den) as i64, den as i64)
+}
+
+fn check<T>(input: &[T], in_shape: Shape, out: &[T], out_shape: Shape) -> Result<(), KernelError> {
+    need(input, in_shape)?;
+    need(out, out_shape)?;
+    if in_shape.c != out_shape.c
+        || in_shape.h == 0
+        || in_shape.w == 0
+        || in_shape.h > 1 << 15
+        || in_shape.w > 1 << 15
+    {
+        return Err(KernelError::Shape);
+    }
+    if out_shape.h > 1 << 15 || out_shape.w > 1 << 15 {
+        return Err(KernelError::Shape);
+    }
+    Ok(())
+}
+
+#[inline]
+fn div_round(n: i64, d: i64) -> i64 {
+    if n >= 0 {
+        (n + d / 2) / d
+    } else {
+        -((-n + d / 2) / d)
+    }
+}
+
+/// Reference int8 bilinear resize: every output element computed independently.
+pub fn upsample_bilinear_ref(
+    input: &[i8],
+    in_shape: Shape,
+    out: &mut [i8],
+    out_shape: Shape,
+) -> Result<(), KernelError> {
+    check(input, in_shape, out, out_shape)?;
+    let (ih, iw) = (in_shape.h, in_shape.w);
+    for c in 0..out_shape.c {
+        for oy in 0..out_shape.h {
+            let (y0, fy, dy) = src(oy, ih, out_shape.h);
+            let y1 = (y0 + 1).min(ih - 1);
+            for ox in 0..out_shape.w {
+                let (x0, fx, dx) = src(ox, iw, out_shape.w);
+                let x1 = (x0 + 1).min(iw - 1);
+                let v = |y: usize, x: usize| input[(c * ih + y) * iw + x] as i64;
+                let top = v(y0, x0) * (dx - fx) + v(y0, x1) * fx;
+                let bot = v(y1, x0) * (dx - fx) + v(y1, x1) * fx;
+                let total = top * (dy - fy) + bot * fy;
+                out[(c * out_shape.h + oy) * out_shape.w + ox] =
+                    div_round(total, dx * dy).clamp(-128, 127) as i8;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Fast int8 bilinear resize: same bits as [`upsample_bilinear_ref`], with the row weights and
+/// row slices hoisted out of the column loop.
+pub fn upsample_bilinear(
+    input: &[i8],
+    in_shape: Shape,
+    out: &mut [i8],
+    out_shape: Shape,
+) -> Result<(), KernelError> {
+    check(input, in_shape, out, out_shape)?;
+    let (ih, iw) = (in_shape.h, in_shape.w);
+    for c in 0..out_shape.c {
+        let chan = &input[c * ih * iw..(c + 1) * ih * iw];
+        for oy in 0..out_shape.h {
+            let (y0, fy, dy) = src(oy, ih, out_shape.h);
+            let y1 = (y0 + 1).min(ih - 1);
+            let (r0, r1) = (&chan[y0 * iw..(y0 + 1) * iw], &chan[y1 * iw..(y1 + 1) * iw]);
+            let orow = &mut out
+                [(c * out_shape.h + oy) * out_shape.w..(c * out_shape.h + oy + 1) * out_shape.w];
+            for (ox, o) in orow.iter_mut().enumerate() {
+                let (x0, fx, dx) = src(ox, iw, out_shape.w);
+                let x1 = (x0 + 1).min(iw - 1);
+                let top = r0[x0] as i64 * (dx - fx) + r0[x1] as i64 * fx;
+                let bot = r1[x0] as i64 * (dx - fx) + r1[x1] as i64 * fx;
+                *o = div_round(top * (dy - fy) + bot * fy, dx * dy).clamp(-128, 127) as i8;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// f32 bilinear resize (`align_corners = true`); used for depth maps and as the float reference.
+pub fn upsample_bilinear_f32(
+    input: &[f32],
+    in_shape: Shape,
+    out: &mut [f32],
+    out_shape: Shape,
+) -> Result<(), KernelError> {
+    check(input, in_shape, out, out_shape)?;
+    let (ih, iw) = (in_shape.h, in_shape.w);
+    for c in 0..out_shape.c {
+        for oy in 0..out_shape.h {
+            let (y0, fy, dy) = src(oy, ih, out_shape.h);
+            let y1 = (y0 + 1).min(ih - 1);
+            let wy = fy as f32 / dy as f32;
+            for ox in 0..out_shape.w {
+                let (x0, fx, dx) = src(ox, iw, out_shape.w);
+                let x1 = (x0 + 1).min(iw - 1);
+                let wx = fx as f32 / dx as f32;
+                let v = |y: usize, x: usize| input[(c * ih + y) * iw + x];
+                let top = v(y0, x0) * (1.0 - wx) + v(y0, x1) * wx;
+                let bot = v(y1, x0) * (1.0 - wx) + v(y1, x1) * wx;
+                out[(c * out_shape.h + oy) * out_shape.w + ox] = top * (1.0 - wy) + bot * wy;
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kernels::kernel_tests;
+    use proptest::prelude::*;
+    use std::vec::Vec;
+
+    #[derive(Clone, Debug)]
+    struct Case {
+        x: Vec<i8>,
+        s: Shape,
+        o: Shape,
+        expect: Option<Vec<i8>>,
+    }
+
+    type Impl = fn(&[i8], Shape, &mut [i8], Shape) -> Result<(), KernelError>;
+
+    fn check_case(c: &Case, f: Impl) {
+        let mut y = std::vec![0i8; c.o.len().unwrap()];
+        f(&c.x, c.s, &mut y, c.o).unwrap();
+        let xf: Vec<f32> = c.x.iter().map(|&v| v as f32).collect();
+        let mut r = std::vec![0f32; y.len()];
+        upsample_bilinear_f32(&xf, c.s, &mut r, c.o).unwrap();
+        for (i, (&q, &v)) in y.iter().zip(&r).enumerate() {
+            assert!((q as f32 - v).abs() <= 0.5 + 1e-3, "[{i}] {q} vs {v}");
+        }
+        if let Some(e) = &c.expect {
+            assert_eq!(&y, e);
+        }
+        let mut y2 = std::vec![0i8; y.len()];
+        upsample_bilinear_ref(&c.x, c.s, &mut y2, c.o).unwrap();
+        assert_eq!(y, y2);
+    }
+
+    fn golden() -> Vec<Case> {
+        std::vec![
+            // 1×2 → 1×3 align_corners: 0, mid, 10.
+            Case {
+                x: std::vec![0, 10],
+                s: Shape::new(1, 1, 2),
+                o: Shape::new(1, 1, 3),
+                expect: Some(std::vec![0, 5, 10])
+            },
+            // 1×2 → 1×4: 0, 10/3, 20/3, 10 → 0, 3, 7, 10; negative: −10/3 → −3, −20/3 → −7
+            Case {
+                x: std::vec![0, 10],
+                s: Shape::new(1, 1, 2),
+                o: Shape::new(1, 1, 4),
+                expect: Some(std::vec![0, 3, 7, 10])
+            },
+            Case {
+                x: std::vec![0, -10],
+                s: Shape::new(1, 1, 2),
+                o: Shape::new(1, 1, 4),
+                expect: Some(std::vec![0, -3, -7, -10])
+            },
+            // 2×2 → 3×3 centre = mean of 4 corners (1+2+3+5)/4 = 2.75 → 3
+            Case {
+                x: std::vec![1, 2, 3, 5],
+                s: Shape::new(1, 2, 2),
+                o: Shape::new(1, 3, 3),
+                expect: Some(std::vec![1, 2, 2, 2, 3, 4, 3, 4, 5])
+            },
+        ]
+    }
+
+    prop_compose! {
+        fn arb()(c in 1usize..3, ih in 1usize..6, iw in 1usize..6, oh in 1usize..12, ow in 1usize..12, seed in any::<u32>()) -> Case {
+            let s = Shape::new(c, ih, iw);
+            let x = (0..s.len().unwrap()).map(|i| ((i as u32).wrapping_mul(2654435761) ^ seed) as i8).collect();
+            Case { x, s, o: Shape::new(c, oh, ow), expect: None }
+        }
+    }
+
+    kernel_tests!(suite, ref: upsample_bilinear_ref, fast: upsample_bilinear, golden: golden, arb: arb(), check: check_case);
+}

@@ -1,0 +1,204 @@
+//! End-to-end: a tiny graph using every op, quantised from a float network by the test writer,
+//! run by the engine and compared with the float run; plan and arena properties.
+
+mod common;
+
+use common::{frame, rgb_planar, sqnr_db, tiny_net};
+use depthor_core::blob::parse;
+use depthor_core::engine::{plan, required_arena_bytes, Engine, Error};
+
+const H: usize = 12;
+const W: usize = 16;
+
+fn blob_and_float() -> (Vec<u8>, Vec<f32>, Vec<u8>, Vec<f32>) {
+    let net = tiny_net(H, W);
+    let (rgb, sparse) = frame(H, W);
+    let vals = net.run_float(&rgb_planar(&rgb, H, W), &sparse);
+    let blob = net.to_blob(&vals);
+    let depth = vals.last().unwrap().1.clone();
+    (blob, depth, rgb, sparse)
+}
+
+/// Minimum SQNR of the int8 engine's depth against the float network (dB). Measured 60.5 dB (27.0 dB on the variation) with the
+/// command `cargo test -p depthor-core --test engine -- --nocapture`.
+const MIN_SQNR_DB: f64 = 45.0;
+/// Minimum SQNR on the depth variation (mean removed), dB.
+const MIN_AC_SQNR_DB: f64 = 22.0;
+
+#[test]
+fn int8_engine_matches_float_network() {
+    let (blob, want, rgb, sparse) = blob_and_float();
+    let need = required_arena_bytes(&blob, H, W).unwrap();
+    let mut arena = vec![0u8; need];
+    let mut eng = Engine::new(&blob, &mut arena).unwrap();
+    assert_eq!(eng.input_shape(), (H, W));
+    let mut out = vec![0f32; H * W];
+    let stats = eng.run(&rgb, &sparse, &mut out).unwrap();
+    assert_eq!(stats.ops, tiny_net(H, W).ops.len());
+    assert!(stats.macs > 0);
+    let db = sqnr_db(&want, &out);
+    // Also against the depth *variation* (mean removed), which a constant output cannot fake.
+    let mean = want.iter().sum::<f32>() / want.len() as f32;
+    let ac_want: Vec<f32> = want.iter().map(|v| v - mean).collect();
+    let ac_out: Vec<f32> = out.iter().map(|v| v - mean).collect();
+    let ac_db = sqnr_db(&ac_want, &ac_out);
+    let spread = want.iter().fold(0f32, |m, v| m.max(v - mean).max(mean - v));
+    println!("depth SQNR int8 vs f32: {db:.1} dB ({ac_db:.1} dB on the variation, ±{spread:.3} m), arena {need} B, macs {}", stats.macs);
+    assert!(
+        spread > 0.05,
+        "float depth is nearly constant: the test would be weak"
+    );
+    assert!(db >= MIN_SQNR_DB, "SQNR {db:.1} dB < {MIN_SQNR_DB}");
+    assert!(
+        ac_db >= MIN_AC_SQNR_DB,
+        "variation SQNR {ac_db:.1} dB < {MIN_AC_SQNR_DB}"
+    );
+    assert!(out
+        .iter()
+        .all(|v| v.is_finite() && (0.1..=10.0).contains(v)));
+
+    // run() is repeatable bit for bit and the mm variant agrees.
+    let mut again = vec![0f32; H * W];
+    eng.run(&rgb, &sparse, &mut again).unwrap();
+    assert_eq!(out, again);
+    let sparse_mm: Vec<u16> = sparse
+        .iter()
+        .map(|&m| (m * 1000.0).round() as u16)
+        .collect();
+    let mut mm = vec![0u16; H * W];
+    eng.run_mm(&rgb, &sparse_mm, &mut mm).unwrap();
+    for (a, &b) in out.iter().zip(&mm) {
+        assert!((a * 1000.0 - b as f32).abs() <= 40.0, "{a} m vs {b} mm"); // sparse rounding moves ≤ 1 LSB
+    }
+}
+
+#[test]
+fn runs_at_another_size() {
+    let (blob, ..) = blob_and_float();
+    let (h, w) = (8, 10);
+    let need = required_arena_bytes(&blob, h, w).unwrap();
+    assert!(need < required_arena_bytes(&blob, H, W).unwrap());
+    let mut arena = vec![0u8; need];
+    let mut eng = Engine::with_size(&blob, &mut arena, h, w).unwrap();
+    let (rgb, sparse) = frame(h, w);
+    let mut out = vec![0f32; h * w];
+    eng.run(&rgb, &sparse, &mut out).unwrap();
+    let net = tiny_net(h, w);
+    let want = net
+        .run_float(&rgb_planar(&rgb, h, w), &sparse)
+        .last()
+        .unwrap()
+        .1
+        .clone();
+    assert!(sqnr_db(&want, &out) > 20.0);
+}
+
+#[test]
+fn arena_too_small_and_bad_buffers_are_errors() {
+    let (blob, _, rgb, sparse) = blob_and_float();
+    let need = required_arena_bytes(&blob, H, W).unwrap();
+    let mut small = vec![0u8; need - 16];
+    match Engine::new(&blob, &mut small) {
+        Err(Error::ArenaTooSmall { need: n, have }) => {
+            assert_eq!((n, have), (need, need - 16));
+        }
+        other => panic!("expected ArenaTooSmall, got {other:?}"),
+    }
+    let mut arena = vec![0u8; need];
+    let mut eng = Engine::new(&blob, &mut arena).unwrap();
+    let mut out = vec![0f32; H * W];
+    assert!(matches!(
+        eng.run(&rgb[1..], &sparse, &mut out),
+        Err(Error::ShapeMismatch { what: "rgb", .. })
+    ));
+    assert!(matches!(
+        eng.run(&rgb, &sparse[1..], &mut out),
+        Err(Error::ShapeMismatch { .. })
+    ));
+    assert!(matches!(
+        eng.run(&rgb, &sparse, &mut out[1..]),
+        Err(Error::ShapeMismatch { .. })
+    ));
+    // Display is informative.
+    let msg = format!("{}", Error::ArenaTooSmall { need: 10, have: 5 });
+    assert!(msg.contains("need 10"));
+}
+
+#[test]
+fn arena_base_misalignment_is_absorbed() {
+    let (blob, _, rgb, sparse) = blob_and_float();
+    let need = required_arena_bytes(&blob, H, W).unwrap();
+    let mut buf = vec![0u8; need + 16];
+    let mut reference = None;
+    for shift in [1usize, 3, 8, 15] {
+        let mut eng = Engine::new(&blob, &mut buf[shift..shift + need]).unwrap();
+        let mut out = vec![0f32; H * W];
+        eng.run(&rgb, &sparse, &mut out).unwrap();
+        if let Some(r) = &reference {
+            assert_eq!(r, &out);
+        }
+        reference = Some(out);
+    }
+}
+
+#[test]
+fn no_two_live_buffers_overlap() {
+    let (blob, ..) = blob_and_float();
+    let g = parse(&blob).unwrap();
+    for (h, w) in [(H, W), (8, 10), (64, 80)] {
+        let p = plan(&g, h, w).unwrap();
+        let bufs: Vec<_> = p.buffers().collect();
+        for (i, (a, oa)) in bufs.iter().enumerate() {
+            assert_eq!(oa % 16, 0);
+            assert!(oa + a.bytes <= p.activation_bytes());
+            for (b, ob) in &bufs[..i] {
+                if a.bytes > 0 && b.bytes > 0 && a.first <= b.last && b.first <= a.last {
+                    assert!(
+                        oa + a.bytes <= *ob || ob + b.bytes <= *oa,
+                        "overlap at {h}x{w}"
+                    );
+                }
+            }
+        }
+        // Liveness reuse pays: less than the sum of all buffers.
+        let sum: usize = bufs.iter().map(|(b, _)| b.bytes).sum();
+        assert!(p.activation_bytes() < sum);
+        assert_eq!(p.arena_bytes(), required_arena_bytes(&blob, h, w).unwrap());
+    }
+}
+
+#[test]
+fn engine_struct_size_is_known() {
+    let size = core::mem::size_of::<Engine>();
+    println!("size_of::<Engine>() = {size} bytes");
+    assert!(size <= 48 * 1024, "Engine grew to {size} bytes");
+}
+
+/// Arena of the test network at the `mcu` size, with its largest buffers (a figure for the
+/// report; the real `mcu` graph's budget test belongs with its blob).
+#[test]
+fn arena_at_mcu_size() {
+    let (blob, ..) = blob_and_float();
+    let g = parse(&blob).unwrap();
+    let p = plan(&g, 120, 160).unwrap();
+    let mut bufs: Vec<_> = p
+        .buffers()
+        .enumerate()
+        .filter(|(_, (b, _))| b.bytes > 0)
+        .collect();
+    bufs.sort_by_key(|(_, (b, _))| std::cmp::Reverse(b.bytes));
+    println!(
+        "tiny net at 120x160: arena {} B = persistent {} + activations {} (sum of buffers {})",
+        p.arena_bytes(),
+        p.persistent_bytes(),
+        p.activation_bytes(),
+        bufs.iter().map(|(_, (b, _))| b.bytes).sum::<usize>()
+    );
+    for (i, (b, off)) in bufs.iter().take(6) {
+        println!(
+            "  buffer {i}: {} B at {off}, steps {}..={}",
+            b.bytes, b.first, b.last
+        );
+    }
+    assert!(p.arena_bytes() < 4 << 20);
+}

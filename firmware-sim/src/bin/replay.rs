@@ -1,0 +1,159 @@
+//! Scenario `replay` (the default `cargo run --release`): replays the embedded image through the
+//! shared loop ([`depthor_replay::pipeline`]), prints one hash line per frame (identical to the
+//! host build's `replay-host`), then the instruction, RAM and flash figures, `TEST OK`, and
+//! exits 0. A bad image or a loop error prints `ERROR <code>: <what>` and exits with the code.
+#![no_std]
+#![no_main]
+
+use cortex_m_rt::entry;
+use depthor_core::hal::ZoneFrame;
+use depthor_firmware_sim::{console, cycles, memory, println};
+use depthor_replay::format::Image;
+use depthor_replay::pipeline::{FrameOutput, Probe, ReplayLoop, Stage, Workspace};
+
+/// 4-byte alignment for the embedded image, so its (4-aligned) RGB records copy by words.
+#[repr(C, align(4))]
+struct Aligned<B: ?Sized>(B);
+
+static ALIGNED_IMAGE: &Aligned<[u8]> =
+    &Aligned(*include_bytes!(concat!(env!("OUT_DIR"), "/replay.img")));
+
+/// The replay image, copied into `OUT_DIR` by `build.rs` (flash, via `.rodata`).
+static IMAGE: &[u8] = &ALIGNED_IMAGE.0;
+
+/// Stages timed per frame (all but [`Stage::Done`]).
+const STAGES: [Stage; 3] = [Stage::Camera, Stage::Dtof, Stage::Projection];
+
+/// Accumulates SysTick ticks per stage from the loop's stage marks.
+#[derive(Default)]
+struct TickProbe {
+    current: Option<usize>,
+    since: u64,
+    ticks: [u64; STAGES.len()],
+}
+
+impl Probe for TickProbe {
+    fn mark(&mut self, stage: Stage) {
+        let now = cycles::ticks();
+        if let Some(slot) = self.current.and_then(|i| self.ticks.get_mut(i)) {
+            *slot += now - self.since;
+        }
+        self.current = STAGES.iter().position(|s| *s == stage);
+        self.since = now;
+    }
+}
+
+/// Image size this build holds: the `mcu` variant's 120×160 (DESIGN.md).
+const PIXELS: usize = 120 * 160;
+/// Zones this build holds: 8×8 (VL53L5CX class).
+const ZONES: usize = 64;
+
+/// Busy-wait delay for the dToF driver's polls (the simulated bridge is always ready, so it
+/// does not run in practice). Assumes the 25 MHz core clock of the board model.
+struct SpinDelay;
+
+impl embedded_hal::delay::DelayNs for SpinDelay {
+    fn delay_ns(&mut self, ns: u32) {
+        cortex_m::asm::delay(ns.div_ceil(1_000_000_000 / cycles::SYSCLK_HZ));
+    }
+}
+
+#[entry]
+fn main() -> ! {
+    // `static mut` inside `#[entry]`: cortex-m-rt turns each into a unique `&'static mut`.
+    static mut RGB: [u8; 3 * PIXELS] = [0; 3 * PIXELS];
+    static mut SPARSE: [f32; PIXELS] = [0.0; PIXELS];
+    static mut BRIDGE: [f32; ZONES] = [0.0; ZONES];
+    static mut ZONE_FRAME: ZoneFrame<ZONES> = ZoneFrame::new();
+
+    memory::paint_stack();
+    let Some(peripherals) = cortex_m::Peripherals::take() else {
+        println!(
+            "ERROR {}: core peripherals taken twice",
+            depthor_replay::EXIT_PANIC
+        );
+        console::exit(depthor_replay::EXIT_PANIC);
+    };
+    cycles::start(peripherals.SYST);
+
+    let image = match Image::parse(IMAGE) {
+        Ok(image) => image,
+        Err(e) => {
+            println!("ERROR {}: {e}", e.exit_code());
+            console::exit(e.exit_code());
+        }
+    };
+    let (h, w) = image.size();
+    let (rows, cols) = image.zone_grid();
+    println!(
+        "replay image: {} frames, {h}x{w} RGB, {rows}x{cols} zones, {} bytes",
+        image.frame_count(),
+        IMAGE.len()
+    );
+
+    let mut ws = Workspace {
+        rgb: RGB,
+        sparse_m: SPARSE,
+        bridge_mm: BRIDGE,
+        zones: ZONE_FRAME,
+    };
+    let mut replay = ReplayLoop::new(image, SpinDelay);
+
+    let (mut frames, mut min, mut max) = (0u64, u64::MAX, 0u64);
+    let mut stage_totals = [0u64; STAGES.len()];
+    loop {
+        let mut probe = TickProbe::default();
+        let result = replay.process_probed(&mut ws, &mut probe);
+        match result {
+            Ok(Some(processed)) => {
+                let per_stage = probe.ticks.map(cycles::instructions);
+                let instructions: u64 = per_stage.iter().sum();
+                println!("{}", FrameOutput::new(&processed, ws.sparse_m));
+                println!(
+                    "icount frame {} instructions={instructions} camera={} dtof={} projection={}",
+                    processed.index, per_stage[0], per_stage[1], per_stage[2]
+                );
+                frames += 1;
+                for (total, n) in stage_totals.iter_mut().zip(per_stage) {
+                    *total += n;
+                }
+                min = min.min(instructions);
+                max = max.max(instructions);
+            }
+            Ok(None) => break,
+            Err(e) => {
+                println!("ERROR {}: {e}", e.exit_code());
+                console::exit(e.exit_code());
+            }
+        }
+    }
+
+    let stack = memory::stack_high_water();
+    let statics = memory::statics_bytes();
+    let flash = memory::flash_bytes();
+    println!("frames {frames}");
+    let mean = |n: u64| n / frames.max(1);
+    println!(
+        "instructions/frame: mean {} min {min} max {max}; mean camera {} dtof {} projection {} \
+         (SysTick x{} under -icount shift={}, +-{} per stage)",
+        mean(stage_totals.iter().sum()),
+        mean(stage_totals[0]),
+        mean(stage_totals[1]),
+        mean(stage_totals[2]),
+        cycles::INSTRUCTIONS_PER_TICK,
+        cycles::ICOUNT_SHIFT,
+        cycles::INSTRUCTIONS_PER_TICK
+    );
+    println!(
+        "ram: statics {statics} B + stack high-water {stack} B = {} B (of {} B stack region)",
+        statics + stack,
+        memory::stack_region_bytes()
+    );
+    println!(
+        "flash: {flash} B = firmware {} B + replay image {} B",
+        flash.saturating_sub(IMAGE.len()),
+        IMAGE.len()
+    );
+    println!("TEST OK");
+    console::exit(0)
+}

@@ -1,0 +1,76 @@
+//! Subcommands of `depthor`, one file each; each file's `handle(args)` calls library code.
+
+use clap::{Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+
+mod bench;
+mod demo;
+mod gap;
+mod gap_bench;
+mod import;
+mod info;
+mod project;
+mod quantize;
+mod sim;
+
+/// Exit status for every failure (clap also uses 2 for usage errors).
+pub const EXIT_FAILURE: u8 = 2;
+
+/// Depth completion from a light-weight dToF sensor and an RGB camera (DEPTHOR).
+#[derive(Debug, Parser)]
+#[command(name = "depthor", version, about)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+/// One variant per subcommand; add new ones here and in [`run`].
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Print throughput figures (scene + simulator, …).
+    Bench(bench::Args),
+    /// The main job: scene (or --recording) → dToF → int8 model in the core, vs baselines.
+    Demo(demo::Args),
+    /// Compare a real recording with the simulator: locate the mismatch, name and fit the missing physics.
+    Gap(gap::Args),
+    /// Concealed-effect benchmark of the gap tool (hidden effects in simulated "real" recordings).
+    GapBench(gap_bench::Args),
+    /// Import a real RGB-D set (Middlebury, NYU, Redwood, TUM, SUN, raw NYU, ARKit) as a recording.
+    Import(import::Args),
+    /// Summarise a recording: frames, resolution, reference depth and zone validity.
+    Info(info::Args),
+    /// Simulate dToF: synthetic scenes (--scenes) or an existing recording (--from).
+    Sim(sim::Args),
+    /// Draw a frame's dToF zones projected onto its RGB image.
+    Project(project::Args),
+    /// Quantise an exported float graph (graph.json) to the core's int8 blob.
+    Quantize(quantize::Args),
+}
+
+/// Runs the parsed command line.
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Bench(args) => bench::handle(args),
+        Command::Demo(args) => demo::handle(args),
+        Command::Gap(args) => gap::handle(args),
+        Command::GapBench(args) => gap_bench::handle(args),
+        Command::Import(args) => import::handle(args),
+        Command::Info(args) => info::handle(args),
+        Command::Project(args) => project::handle(args),
+        Command::Sim(args) => sim::handle(args),
+        Command::Quantize(args) => quantize::handle(args),
+    }
+}
+
+/// A progress bar on stderr for `len` steps (drawn only on a terminal, so piped output and
+/// error messages stay clean).
+pub fn progress(len: u64, what: &str) -> ProgressBar {
+    let bar = ProgressBar::new(len);
+    if let Ok(style) =
+        ProgressStyle::with_template("{msg} {wide_bar} {pos}/{len} [{elapsed}<{eta}]")
+    {
+        bar.set_style(style);
+    }
+    bar.set_message(what.to_string());
+    bar
+}

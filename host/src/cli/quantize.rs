@@ -1,0 +1,126 @@
+//! `depthor quantize --graph models/mcu/graph.json --out models/mcu/depthor.dblob`: calibrates
+//! the exported float graph on simulated frames and writes the int8 blob; `--report` also checks
+//! the float graph against the Python golden tensors and the engine against the float graph.
+
+use anyhow::{Context, Result};
+use depthor_core::engine::required_arena_bytes;
+use depthor_host::quantize::calibrate::simulated_frames;
+use depthor_host::quantize::check::{compare, golden_diff};
+use depthor_host::quantize::fold::fold;
+use depthor_host::quantize::golden::read_golden;
+use depthor_host::quantize::graph::Graph;
+use depthor_host::quantize::quantize;
+use std::path::PathBuf;
+
+/// DESIGN.md budgets of the `mcu` variant (bytes).
+const MCU_WEIGHTS_BUDGET: usize = 512 * 1024;
+const MCU_ARENA_BUDGET: usize = 2 * 1024 * 1024;
+const MCU_ARENA_GOAL: usize = 384 * 1024;
+
+/// Arguments of `depthor quantize`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// graph.json of the Python export.
+    #[arg(long)]
+    graph: PathBuf,
+    /// weights.bin (default: beside graph.json).
+    #[arg(long)]
+    weights: Option<PathBuf>,
+    /// Output blob.
+    #[arg(long)]
+    out: PathBuf,
+    /// Calibration frames.
+    #[arg(long, default_value_t = 16)]
+    frames: usize,
+    /// Seed of the first calibration scene (scene k uses seed + k).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// dToF simulator preset (default: the graph's variant).
+    #[arg(long)]
+    preset: Option<String>,
+    /// Also check: float graph vs golden, engine vs float graph on `--eval-frames` new scenes.
+    #[arg(long)]
+    report: bool,
+    /// Evaluation frames for `--report` (scenes after the calibration ones).
+    #[arg(long, default_value_t = 20)]
+    eval_frames: usize,
+}
+
+/// Quantises, writes the blob, prints sizes (and the report).
+pub fn handle(args: Args) -> Result<()> {
+    let graph = Graph::load(&args.graph, args.weights.as_deref())?;
+    let net = fold(&graph).with_context(|| format!("{}", args.graph.display()))?;
+    let preset = args.preset.clone().unwrap_or_else(|| graph.variant.clone());
+    let frames = simulated_frames(&preset, net.height, net.width, args.frames, args.seed)?;
+    let q = quantize(&net, &frames)?;
+    std::fs::write(&args.out, &q.blob)
+        .with_context(|| format!("writing {}", args.out.display()))?;
+    let arena = required_arena_bytes(&q.blob, net.height, net.width)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", args.out.display()))?;
+    println!(
+        "{}: variant {} at {}×{} (H×W), {} ops, {} tensors, {} blob bytes",
+        args.out.display(),
+        net.variant,
+        net.height,
+        net.width,
+        net.ops.len(),
+        net.values.len(),
+        q.blob.len()
+    );
+    println!(
+        "calibration: {} frames (preset {preset}, seeds {}..{}), activation ranges = min/max",
+        frames.len(),
+        args.seed,
+        args.seed + frames.len() as u64
+    );
+    let wb = net.weight_count();
+    println!("int8 weight bytes {wb} ({:.1} KiB)", wb as f64 / 1024.0);
+    println!(
+        "arena bytes at {}×{}: {arena} ({:.1} KiB)",
+        net.height,
+        net.width,
+        arena as f64 / 1024.0
+    );
+    if net.variant == "mcu" {
+        let verdict = |ok: bool| if ok { "within" } else { "OVER" };
+        println!(
+            "mcu budgets: weights {} 512 KiB; arena {} 2 MiB, {} the 384 KiB goal",
+            verdict(wb <= MCU_WEIGHTS_BUDGET),
+            verdict(arena <= MCU_ARENA_BUDGET),
+            verdict(arena <= MCU_ARENA_GOAL)
+        );
+    }
+    if !args.report {
+        return Ok(());
+    }
+    let index = args.graph.with_file_name("golden").join("index.json");
+    if index.exists() {
+        let golden = read_golden(&index)?;
+        for (name, d) in golden_diff(&net, &golden)? {
+            println!("golden: f32 graph vs Python {name}: max |diff| {d:.3e}");
+        }
+    }
+    let eval_seed = args.seed + args.frames as u64;
+    let eval = simulated_frames(&preset, net.height, net.width, args.eval_frames, eval_seed)?;
+    let c = compare(&q.blob, &net, &eval)?;
+    let (m, lo) = c.depth_mean_min();
+    let (cm, clo) = c.centred_mean_min();
+    let worst = c.depth_max_abs_m.iter().copied().fold(0f32, f32::max);
+    println!(
+        "int8 vs f32 on {} frames (seeds {eval_seed}..): depth SQNR mean {m:.1} dB, min {lo:.1} dB; \
+         depth − mean: mean {cm:.1} dB, min {clo:.1} dB; max |err| {worst:.3} m",
+        eval.len()
+    );
+    println!("per-op SQNR (dequantised int8 vs f32, all frames):");
+    for l in &c.layers {
+        println!(
+            "  {:3} {:40} {:7.1} dB  max|err| {:.4}",
+            l.op, l.name, l.sqnr_db, l.max_abs_err
+        );
+    }
+    println!("worst ops:");
+    for l in c.worst_layers(8) {
+        println!("  {:3} {:40} {:7.1} dB", l.op, l.name, l.sqnr_db);
+    }
+    Ok(())
+}

@@ -1,0 +1,258 @@
+//! `depthor sim`: synthetic recordings (scene generator + dToF simulator) or the simulated sensor
+//! for an existing recording with reference depth.
+//!
+//! ```text
+//! depthor sim --preset l5 --scenes N --seed S --out DIR [--width W --height H] [--preview]
+//! depthor sim --config cfg.json --from RECORDING --out DIR [--preview]
+//! ```
+
+use anyhow::{bail, Context, Result};
+use depthor_core::calibration::CameraIntrinsics;
+use depthor_core::projection::for_each_point;
+use depthor_host::dataset::{
+    dtof_frame, preset_size, recording_meta, scene_config_for, simulate_recording_frame,
+    synth_frame, to_recording_frame, SynthFrame,
+};
+use depthor_host::recording::{
+    CameraMeta, Frame, FrameMeta, Recording, RecordingWriter, WriteOptions,
+};
+use depthor_host::sim::{preset, SimConfig};
+use depthor_host::viz::{depth_image, labels_image, mosaic, render_projection, Overlay};
+use image::RgbImage;
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+
+/// Arguments of `depthor sim`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Sensor preset: l5, phone or mcu (DESIGN.md "Sensor presets").
+    #[arg(long)]
+    preset: Option<String>,
+    /// Simulator configuration JSON (overrides --preset's aspects; see `depthor_host::sim`).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Number of synthetic scenes to render and simulate.
+    #[arg(long, conflicts_with = "from")]
+    scenes: Option<u64>,
+    /// Simulate the sensor for this recording's reference depth instead of rendering scenes.
+    #[arg(long)]
+    from: Option<PathBuf>,
+    /// Random seed (frame i uses the sub-stream (seed, i)).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Output recording directory.
+    #[arg(long)]
+    out: PathBuf,
+    /// Image width (default: the preset's, or the source recording's).
+    #[arg(long)]
+    width: Option<u32>,
+    /// Image height (default: the preset's, or the source recording's).
+    #[arg(long)]
+    height: Option<u32>,
+    /// Also write a PNG mosaic per frame (RGB | depth | labels | projected points) to OUT/preview.
+    #[arg(long)]
+    preview: bool,
+    /// Replace an existing recording at --out.
+    #[arg(long)]
+    overwrite: bool,
+}
+
+/// Frames generated in parallel before they are written in order.
+const CHUNK: u64 = 32;
+
+/// Validates the arguments, generates and writes the recording, then the previews.
+pub fn handle(args: Args) -> Result<()> {
+    let cfg = match (&args.config, &args.preset) {
+        (Some(path), _) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("{}: cannot read", path.display()))?;
+            SimConfig::from_json(&text).with_context(|| format!("{}", path.display()))?
+        }
+        (None, Some(name)) => preset(name)?,
+        (None, None) => bail!("sim: give --preset l5|phone|mcu or --config cfg.json"),
+    };
+    let preset_name = args.preset.as_deref().unwrap_or("");
+    let out = match (&args.scenes, &args.from) {
+        (Some(n), None) => {
+            let (h, w) = size(&args, preset_name, None)?;
+            synthetic(&args, &cfg, preset_name, *n, w, h)?
+        }
+        (None, Some(src)) => {
+            let rec = Recording::open(src)?;
+            let (h, w) = size(&args, preset_name, Some(&rec))?;
+            from_recording(&args, &cfg, &rec, w, h)?
+        }
+        _ => bail!("sim: give either --scenes N or --from RECORDING"),
+    };
+    if args.preview {
+        write_previews(&out)?;
+    }
+    println!("wrote {}", out.display());
+    Ok(())
+}
+
+/// (height, width): explicit arguments, else the preset's size, else the source's first frame.
+fn size(args: &Args, preset_name: &str, src: Option<&Recording>) -> Result<(u32, u32)> {
+    let default = preset_size(preset_name).or_else(|| {
+        src.filter(|r| !r.is_empty()).map(|r| {
+            let c = r.camera(0);
+            (c.height, c.width)
+        })
+    });
+    match (args.height, args.width, default) {
+        (Some(h), Some(w), _) => Ok((h, w)),
+        (h, w, Some((dh, dw))) => Ok((h.unwrap_or(dh), w.unwrap_or(dw))),
+        _ => bail!("sim: --width and --height are needed with --config and --scenes"),
+    }
+    .and_then(|(h, w)| {
+        if h == 0 || w == 0 || h > 8192 || w > 8192 {
+            bail!("sim: --width/--height: {w}×{h} is not a usable image size")
+        }
+        Ok((h, w))
+    })
+}
+
+/// Renders and simulates `n` scenes, writing them in order.
+fn synthetic(
+    args: &Args,
+    cfg: &SimConfig,
+    preset_name: &str,
+    n: u64,
+    w: u32,
+    h: u32,
+) -> Result<PathBuf> {
+    let scene_cfg = scene_config_for(preset_name);
+    // The header carries the nominal camera; every frame carries its own intrinsics.
+    let nominal = depthor_host::scene::camera_for(&scene_cfg, args.seed, w, h);
+    let meta = recording_meta(cfg, &nominal);
+    let mut writer = RecordingWriter::create_with(
+        &args.out,
+        meta,
+        WriteOptions {
+            overwrite: args.overwrite,
+        },
+    )?;
+    let bar = super::progress(n, "simulating scenes");
+    let mut start = 0;
+    while start < n {
+        let end = (start + CHUNK).min(n);
+        let frames: Vec<SynthFrame> = (start..end)
+            .into_par_iter()
+            .map(|i| synth_frame(&scene_cfg, cfg, args.seed, i, w, h))
+            .collect::<Result<_, _>>()?;
+        for (k, f) in frames.iter().enumerate() {
+            let i = start + k as u64;
+            let (mut fm, frame) = to_recording_frame(&format!("{i:06}"), f);
+            fm.t_s = i as f64;
+            writer.add_frame(fm, &frame)?;
+            bar.inc(1);
+        }
+        start = end;
+    }
+    bar.finish_and_clear();
+    Ok(writer.finish()?)
+}
+
+/// Simulates the sensor for every frame of `rec` at `w × h`.
+fn from_recording(
+    args: &Args,
+    cfg: &SimConfig,
+    rec: &Recording,
+    w: u32,
+    h: u32,
+) -> Result<PathBuf> {
+    if rec.is_empty() {
+        bail!(
+            "{}: frames: the recording has no frames",
+            rec.dir().display()
+        );
+    }
+    let bar = super::progress(rec.len() as u64, "simulating frames");
+    let frames = (0..rec.len())
+        .into_par_iter()
+        .map(|i| {
+            let r = simulate_recording_frame(rec, i, cfg, args.seed, w, h);
+            bar.inc(1);
+            r
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    bar.finish_and_clear();
+    let first = &frames[0].0.camera;
+    let mut writer = RecordingWriter::create_with(
+        &args.out,
+        recording_meta(cfg, first),
+        WriteOptions {
+            overwrite: args.overwrite,
+        },
+    )?;
+    for (i, (r, sim)) in frames.iter().enumerate() {
+        let src = &rec.meta().frames[i];
+        let camera = CameraMeta::from(r.camera);
+        let fm = FrameMeta {
+            id: src.id.clone(),
+            t_s: src.t_s,
+            camera: (camera != CameraMeta::from(*first)).then_some(camera),
+        };
+        let frame = Frame {
+            id: src.id.clone(),
+            rgb: r.rgb.clone(),
+            depth_m: Some(r.depth_m.iter().map(|d| d * sim.depth_scale).collect()),
+            labels: r.labels.clone(),
+            dtof: Some(dtof_frame(sim)),
+        };
+        writer.add_frame(fm, &frame)?;
+    }
+    Ok(writer.finish()?)
+}
+
+/// Writes `<out>/preview/<id>.png` for every frame: RGB | depth | labels | projected points.
+pub fn write_previews(out: &Path) -> Result<()> {
+    let rec = Recording::open(out)?;
+    let dir = out.join("preview");
+    std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+    let bar = super::progress(rec.len() as u64, "previews");
+    (0..rec.len())
+        .into_par_iter()
+        .try_for_each(|i| -> Result<()> {
+            let frame = rec.read_frame(i)?;
+            let img = preview(&rec, i, &frame)?;
+            let path = dir.join(format!("{}.png", frame.id));
+            img.save(&path)
+                .with_context(|| format!("{}: cannot write", path.display()))?;
+            bar.inc(1);
+            Ok(())
+        })?;
+    bar.finish_and_clear();
+    Ok(())
+}
+
+/// One preview mosaic.
+fn preview(rec: &Recording, i: usize, frame: &Frame) -> Result<RgbImage> {
+    let cam: CameraIntrinsics = rec.camera(i);
+    let (w, h) = (cam.width, cam.height);
+    let mut panels = vec![frame.rgb.clone()];
+    let depth = frame.depth_m.as_deref().unwrap_or(&[]);
+    let hi = depth
+        .iter()
+        .copied()
+        .filter(|d| d.is_finite())
+        .fold(0.0f32, f32::max)
+        .max(0.1);
+    panels.push(depth_image(depth, w, h, 0.0, hi));
+    if let Some(l) = &frame.labels {
+        panels.push(labels_image(l, w, h));
+    }
+    if let (Some(cal), Some(d), Some(meta)) =
+        (rec.calibration(i), &frame.dtof, rec.meta().dtof.as_ref())
+    {
+        let mut points = Vec::new();
+        for_each_point(&cal.as_core(), &d.view(meta), |p| points.push(p))?;
+        let overlay = Overlay {
+            lo_m: 0.0,
+            hi_m: hi,
+            ..Overlay::auto(w, h, &points)
+        };
+        panels.push(render_projection(&frame.rgb, &points, &overlay));
+    }
+    Ok(mosaic(&panels, 4))
+}

@@ -1,0 +1,143 @@
+//! Small statistics the gap tool needs: a paired sign-flip test, Holm and Benjamini–Hochberg
+//! multiple-testing control, the normal tail, and a bounded 1-D minimiser.
+
+use crate::rng::Rng;
+
+/// One-sided paired sign-flip (randomisation) test that the mean of `gains` is > 0: the share of
+/// `rounds` random sign patterns whose mean is at least the observed one (plus one, over
+/// `rounds + 1`). Exact under the null that each gain is symmetric about 0; no normality needed.
+pub fn sign_flip_p(gains: &[f64], rounds: usize, seed: u64) -> f64 {
+    if gains.is_empty() {
+        return 1.0;
+    }
+    let obs: f64 = gains.iter().sum();
+    let mut rng = Rng::new(seed);
+    let mut hits = 0usize;
+    for _ in 0..rounds {
+        let mut s = 0.0;
+        for &g in gains {
+            s += if rng.next_u64() & 1 == 1 { g } else { -g };
+        }
+        hits += usize::from(s >= obs - 1e-12);
+    }
+    (hits + 1) as f64 / (rounds + 1) as f64
+}
+
+/// Holm's step-down procedure: which of the `p` values are rejected at family-wise level `alpha`.
+pub fn holm(p: &[f64], alpha: f64) -> Vec<bool> {
+    let mut order: Vec<usize> = (0..p.len()).collect();
+    order.sort_by(|&a, &b| p[a].total_cmp(&p[b]));
+    let mut out = vec![false; p.len()];
+    for (rank, &i) in order.iter().enumerate() {
+        if p[i] <= alpha / (p.len() - rank) as f64 {
+            out[i] = true;
+        } else {
+            break;
+        }
+    }
+    out
+}
+
+/// Benjamini–Hochberg: which of the `p` values are discoveries at false-discovery rate `q`.
+pub fn benjamini_hochberg(p: &[f64], q: f64) -> Vec<bool> {
+    let m = p.len();
+    let mut order: Vec<usize> = (0..m).collect();
+    order.sort_by(|&a, &b| p[a].total_cmp(&p[b]));
+    let mut k = 0;
+    for (rank, &i) in order.iter().enumerate() {
+        if p[i] <= q * (rank + 1) as f64 / m as f64 {
+            k = rank + 1;
+        }
+    }
+    let mut out = vec![false; m];
+    for &i in &order[..k] {
+        out[i] = true;
+    }
+    out
+}
+
+/// Two-sided normal p-value of a z-score: `erfc(|z|/√2)` (Abramowitz & Stegun 7.1.26, error
+/// below 1.5e-7).
+pub fn normal_two_sided_p(z: f64) -> f64 {
+    if !z.is_finite() {
+        return if z.is_nan() { 1.0 } else { 0.0 };
+    }
+    let x = z.abs() / std::f64::consts::SQRT_2;
+    let t = 1.0 / (1.0 + 0.327_591_1 * x);
+    let poly = t
+        * (0.254_829_592
+            + t * (-0.284_496_736
+                + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
+    (poly * (-x * x).exp()).clamp(0.0, 1.0)
+}
+
+/// Minimises `f` on `[lo, hi]` by golden-section search (`iters` steps), also trying both ends;
+/// returns `(x, f(x))`.
+pub fn golden_min(mut f: impl FnMut(f64) -> f64, lo: f64, hi: f64, iters: usize) -> (f64, f64) {
+    let g = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut a, mut b) = (lo, hi);
+    let mut c = b - g * (b - a);
+    let mut d = a + g * (b - a);
+    let (mut fc, mut fd) = (f(c), f(d));
+    for _ in 0..iters {
+        if fc < fd {
+            b = d;
+            d = c;
+            fd = fc;
+            c = b - g * (b - a);
+            fc = f(c);
+        } else {
+            a = c;
+            c = d;
+            fc = fd;
+            d = a + g * (b - a);
+            fd = f(d);
+        }
+    }
+    let mut best = if fc < fd { (c, fc) } else { (d, fd) };
+    for x in [lo, hi] {
+        let fx = f(x);
+        if fx < best.1 {
+            best = (x, fx);
+        }
+    }
+    best
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn holm_and_bh_hand_computed() {
+        let p = [0.01, 0.04, 0.03, 0.2];
+        // Holm at 0.05: 0.01 ≤ 0.0125 yes; 0.03 ≤ 0.0167 no → stop.
+        assert_eq!(holm(&p, 0.05), vec![true, false, false, false]);
+        // BH at 0.05: sorted 0.01, 0.03, 0.04, 0.2 vs 0.0125, 0.025, 0.0375, 0.05 → k = 1.
+        assert_eq!(
+            benjamini_hochberg(&p, 0.05),
+            vec![true, false, false, false]
+        );
+        // BH at 0.2: thresholds 0.05, 0.1, 0.15, 0.2 → all four.
+        assert_eq!(benjamini_hochberg(&p, 0.2), vec![true; 4]);
+    }
+
+    #[test]
+    fn normal_p_and_sign_flip() {
+        assert!((normal_two_sided_p(1.959_964) - 0.05).abs() < 1e-6);
+        assert!((normal_two_sided_p(0.0) - 1.0).abs() < 1e-6);
+        // All 10 gains positive: only the all-positive pattern (1/1024) reaches the sum.
+        let p = sign_flip_p(&[1.0; 10], 4999, 1);
+        assert!(p < 0.01, "{p}");
+        let p = sign_flip_p(&[1.0, -1.0, 1.0, -1.0], 999, 1);
+        assert!(p > 0.3, "{p}");
+    }
+
+    #[test]
+    fn golden_finds_parabola_minimum_and_ends() {
+        let (x, _) = golden_min(|x| (x - 0.3) * (x - 0.3), 0.0, 1.0, 40);
+        assert!((x - 0.3).abs() < 1e-6);
+        let (x, _) = golden_min(|x| x, 0.0, 1.0, 10);
+        assert_eq!(x, 0.0);
+    }
+}

@@ -1,0 +1,81 @@
+//! The int8 quantizer: graph.json + weights.bin (the Python export) → the core's model blob.
+//!
+//! 1. [`graph`] reads the export; [`fold`] folds batch norm into the convs and maps the graph
+//!    onto the blob's ops ([`net::Net`]), which [`net::Net::run_f32`] executes with the core's
+//!    f32 reference kernels.
+//! 2. [`calibrate`] renders simulated frames (scene generator → dToF simulator → projection),
+//!    records every value's min/max over them and chooses int8 asymmetric per-tensor parameters.
+//! 3. [`blob_writer`] quantises weights (symmetric int8 per output channel, int32 bias), bakes
+//!    the LUTs and writes blob format v1; the engine derives its Q31 multipliers from the stored
+//!    f32 scales when it prepares the blob.
+//! 4. [`check`] compares the engine on the blob with the float network, per frame and per op.
+//!
+//! ```no_run
+//! use depthor_host::quantize::{graph::Graph, fold::fold, calibrate::simulated_frames, quantize};
+//! let g = Graph::load("models/mcu/graph.json".as_ref(), None).unwrap();
+//! let net = fold(&g).unwrap();
+//! let frames = simulated_frames("mcu", net.height, net.width, 16, 0).unwrap();
+//! let q = quantize(&net, &frames).unwrap();
+//! std::fs::write("models/mcu/depthor.dblob", &q.blob).unwrap();
+//! ```
+
+pub mod blob_writer;
+pub mod calibrate;
+pub mod check;
+pub mod fold;
+pub mod golden;
+pub mod graph;
+pub mod net;
+
+use calibrate::{choose_qparams, Frame, Ranges};
+use depthor_core::kernels::requant::QParams;
+use net::{Net, RunError};
+
+/// A quantised model.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Quantized {
+    /// Blob bytes (format v1).
+    pub blob: Vec<u8>,
+    /// Parameters of every value.
+    pub qparams: Vec<QParams>,
+    /// Calibrated ranges of every value.
+    pub ranges: Ranges,
+}
+
+/// Why quantisation failed.
+#[derive(Debug, thiserror::Error)]
+pub enum QuantizeError {
+    /// The float run on a calibration frame failed.
+    #[error("calibration run: {0}")]
+    Run(#[from] RunError),
+    /// The network does not fit the blob format.
+    #[error("blob: {0}")]
+    Blob(#[from] blob_writer::BlobError),
+    /// No calibration frames were given.
+    #[error("no calibration frames")]
+    NoFrames,
+}
+
+/// Min/max of every value of `net` over `frames` (float runs).
+pub fn calibrate_ranges(net: &Net, frames: &[Frame]) -> Result<Ranges, RunError> {
+    let mut r = Ranges::new(net.values.len());
+    for f in frames {
+        r.observe(&net.run_f32(&f.rgb_planar(), &f.sparse_m)?);
+    }
+    Ok(r)
+}
+
+/// Calibrates `net` on `frames` and writes its blob.
+pub fn quantize(net: &Net, frames: &[Frame]) -> Result<Quantized, QuantizeError> {
+    if frames.is_empty() {
+        return Err(QuantizeError::NoFrames);
+    }
+    let ranges = calibrate_ranges(net, frames)?;
+    let qparams = choose_qparams(net, &ranges);
+    let blob = blob_writer::write_blob(net, &qparams)?;
+    Ok(Quantized {
+        blob,
+        qparams,
+        ranges,
+    })
+}

@@ -1,0 +1,80 @@
+//! `border_dropout` (gap-tool library, DESIGN.md): vignetting and illumination roll-off toward the
+//! zone grid's corners. Forward model: a zone at normalised radius `r` (0 at the grid centre, 1 at
+//! a corner) is lost with probability `p_corner · r^exponent`.
+use serde::{Deserialize, Serialize};
+
+use super::covariates::grid_position;
+use super::error::{check_positive, check_prob, SimError};
+use super::frame::{Scene, ZoneEffect, ZoneGrid};
+use super::truth::ZoneEvents;
+use crate::rng::Rng;
+
+/// Parameters of the radial dropout.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BorderDropout {
+    /// Switch.
+    pub enabled: bool,
+    /// Loss probability at the grid's corners.
+    pub p_corner: f32,
+    /// Steepness of the roll-off (4: cos⁴-like vignetting).
+    pub exponent: f32,
+}
+
+impl Default for BorderDropout {
+    /// Disabled; quartic roll-off.
+    fn default() -> Self {
+        BorderDropout {
+            enabled: false,
+            p_corner: 0.0,
+            exponent: 4.0,
+        }
+    }
+}
+
+impl BorderDropout {
+    /// Probability that a zone at normalised radius `radius` is lost.
+    pub fn loss_probability(&self, radius: f32) -> f32 {
+        (self.p_corner * radius.max(0.0).powf(self.exponent)).min(1.0)
+    }
+}
+
+impl ZoneEffect for BorderDropout {
+    fn name(&self) -> &'static str {
+        "border_dropout"
+    }
+    fn enabled(&self) -> bool {
+        self.enabled
+    }
+    fn validate(&self) -> Result<(), SimError> {
+        check_prob(self.name(), "p_corner", self.p_corner)?;
+        check_positive(self.name(), "exponent", self.exponent)
+    }
+    fn apply(&self, _scene: &Scene<'_>, zones: &mut ZoneGrid, rng: &mut Rng) {
+        let (rows, cols) = (zones.rows, zones.cols);
+        for (z, zone) in zones.zones.iter_mut().enumerate() {
+            let u = rng.f32();
+            let (_, r) = grid_position(z / cols, z % cols, rows, cols);
+            if zone.has_target() && u < self.loss_probability(r) {
+                zone.lose(ZoneEvents::SIGNAL_LOSS);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn loss_probability_hand_computed() {
+        let b = BorderDropout {
+            enabled: true,
+            p_corner: 0.8,
+            exponent: 4.0,
+        };
+        assert_eq!(b.loss_probability(0.0), 0.0);
+        assert!((b.loss_probability(0.5) - 0.05).abs() < 1e-6);
+        assert!((b.loss_probability(1.0) - 0.8).abs() < 1e-6);
+    }
+}

@@ -1,0 +1,178 @@
+//! [`SimConfig`]: the sensor's zone grid plus a list of independently switchable aspects, each
+//! defined (parameters and forward model) in its own module. JSON via serde; unknown fields are
+//! rejected, missing aspects are off.
+//!
+//! Adding an aspect: a new module with its parameter struct implementing
+//! `frame::ZoneEffect`, a `#[serde(default)]` field here, and one entry in
+//! `SimConfig::zone_effects` (which fixes where in the pipeline it runs).
+
+use serde::{Deserialize, Serialize};
+
+use super::anomalies::Anomalies;
+use super::bin_wiggle::BinWiggle;
+use super::border_dropout::BorderDropout;
+use super::calibration_shift::CalibrationShift;
+use super::dark::DarkAspect;
+use super::dark_dropout::DarkDropout;
+use super::edge_mixing::EdgeMixing;
+use super::error::SimError;
+use super::frame::ZoneEffect;
+use super::grid::{GridConfig, OverallDistribution};
+use super::halving::DepthHalving;
+use super::multipath::Multipath;
+use super::radial_distance::RadialDistance;
+use super::range::RangeAspect;
+use super::range_bias::RangeBias;
+use super::range_dropout::RangeDropout;
+use super::range_noise::RangeNoise;
+use super::signal_loss::SignalLoss;
+use super::surfaces::{Surface, SurfaceAspect};
+use super::zone_crosstalk::ZoneCrosstalk;
+
+/// Complete simulator configuration (see the module docs of each aspect for its physics and
+/// figures). The paper's Table 4 groups: OD = `overall_distribution`; SR = `transparent`,
+/// `specular`, `dark`, `range` (and l5's `signal_loss`); RA = `anomalies`; calibration errors =
+/// `calibration_shift`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimConfig {
+    /// Zone grid, FoV bounds and iFoV (always applied).
+    pub grid: GridConfig,
+    /// Hypersim-style halving of over-deep frames (before sampling).
+    #[serde(default)]
+    pub depth_halving: DepthHalving,
+    /// Random window motion and peak-of-histogram zone values.
+    #[serde(default)]
+    pub overall_distribution: OverallDistribution,
+    /// Transparent surfaces (label 1): loss or the surface behind.
+    #[serde(default)]
+    pub transparent: SurfaceAspect,
+    /// Specular surfaces (label 2): loss or a farther, mirrored-path distance.
+    #[serde(default)]
+    pub specular: SurfaceAspect,
+    /// Low reflectivity (HSV V below a threshold, label 3): loss.
+    #[serde(default)]
+    pub dark: DarkAspect,
+    /// Long range: loss rising from the practical range to the limit.
+    #[serde(default)]
+    pub range: RangeAspect,
+    /// Random signal loss of low-power sensors.
+    #[serde(default)]
+    pub signal_loss: SignalLoss,
+    /// Background zones shifted by a calibration error.
+    #[serde(default)]
+    pub calibration_shift: CalibrationShift,
+    /// Random noise and blank zones.
+    #[serde(default)]
+    pub anomalies: Anomalies,
+    /// Sim-to-real: range along the ray instead of planar z.
+    #[serde(default)]
+    pub radial_distance: RadialDistance,
+    /// Sim-to-real: offset and scale error of the distance.
+    #[serde(default)]
+    pub range_bias: RangeBias,
+    /// Sim-to-real: mixed returns on zones straddling depth edges.
+    #[serde(default)]
+    pub edge_mixing: EdgeMixing,
+    /// Sim-to-real: farther returns on transparent/specular zones.
+    #[serde(default)]
+    pub multipath: Multipath,
+    /// Sim-to-real: returns blurred into neighbouring zones.
+    #[serde(default)]
+    pub zone_crosstalk: ZoneCrosstalk,
+    /// Sim-to-real: periodic range error of histogram binning.
+    #[serde(default)]
+    pub bin_wiggle: BinWiggle,
+    /// Sim-to-real: noise growing with range.
+    #[serde(default)]
+    pub range_noise: RangeNoise,
+    /// Sim-to-real: dropout rising with range (signal ∝ ρ/r²).
+    #[serde(default)]
+    pub range_dropout: RangeDropout,
+    /// Sim-to-real: dropout on dark (low-reflectance) zones.
+    #[serde(default)]
+    pub dark_dropout: DarkDropout,
+    /// Sim-to-real: dropout rising toward the grid's corners.
+    #[serde(default)]
+    pub border_dropout: BorderDropout,
+}
+
+impl SimConfig {
+    /// A configuration with the given grid and every aspect off (an ideal sensor that reports the
+    /// ground truth at each nominal zone centre).
+    pub fn ideal(grid: GridConfig) -> Self {
+        SimConfig {
+            grid,
+            depth_halving: DepthHalving::default(),
+            overall_distribution: OverallDistribution::default(),
+            transparent: SurfaceAspect::default(),
+            specular: SurfaceAspect::default(),
+            dark: DarkAspect::default(),
+            range: RangeAspect::default(),
+            signal_loss: SignalLoss::default(),
+            calibration_shift: CalibrationShift::default(),
+            anomalies: Anomalies::default(),
+            radial_distance: RadialDistance::default(),
+            range_bias: RangeBias::default(),
+            edge_mixing: EdgeMixing::default(),
+            multipath: Multipath::default(),
+            zone_crosstalk: ZoneCrosstalk::default(),
+            bin_wiggle: BinWiggle::default(),
+            range_noise: RangeNoise::default(),
+            range_dropout: RangeDropout::default(),
+            dark_dropout: DarkDropout::default(),
+            border_dropout: BorderDropout::default(),
+        }
+    }
+
+    /// The per-zone aspects in pipeline order: the physics of what each zone sees first, then the
+    /// projection error that moves background measurements, then sensor-level random anomalies,
+    /// then the sim-to-real effects of the gap tool's library (distance transforms, noise,
+    /// dropouts; all off unless a fitted configuration switches them on).
+    pub(crate) fn zone_effects(&self) -> [Box<dyn ZoneEffect + '_>; 17] {
+        [
+            Box::new(Surface::transparent(&self.transparent)),
+            Box::new(Surface::specular(&self.specular)),
+            Box::new(&self.dark),
+            Box::new(&self.range),
+            Box::new(&self.signal_loss),
+            Box::new(&self.calibration_shift),
+            Box::new(&self.anomalies),
+            Box::new(&self.radial_distance),
+            Box::new(&self.range_bias),
+            Box::new(&self.edge_mixing),
+            Box::new(&self.multipath),
+            Box::new(&self.zone_crosstalk),
+            Box::new(&self.bin_wiggle),
+            Box::new(&self.range_noise),
+            Box::new(&self.range_dropout),
+            Box::new(&self.dark_dropout),
+            Box::new(&self.border_dropout),
+        ]
+    }
+
+    /// Checks every parameter, enabled or not; the error names the field (`dark.p_loss`).
+    pub fn validate(&self) -> Result<(), SimError> {
+        self.grid.validate()?;
+        self.depth_halving.validate()?;
+        self.overall_distribution.validate()?;
+        for e in self.zone_effects() {
+            e.validate()?;
+        }
+        Ok(())
+    }
+
+    /// Parses and validates a JSON configuration.
+    pub fn from_json(text: &str) -> Result<SimConfig, SimError> {
+        let cfg: SimConfig =
+            serde_json::from_str(text).map_err(|e| SimError::Json(e.to_string()))?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    /// Pretty JSON of this configuration.
+    pub fn to_json(&self) -> String {
+        // A struct of numbers, bools and strings always serialises.
+        serde_json::to_string_pretty(self).unwrap_or_default()
+    }
+}

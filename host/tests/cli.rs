@@ -1,0 +1,183 @@
+//! The real `depthor` binary on hand-made and malformed recordings.
+
+mod common;
+
+use common::{entries, write_hand_made, GREY};
+use depthor_host::viz::turbo;
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn depthor(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_depthor"))
+        .args(args)
+        .output()
+        .expect("run depthor")
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn project_draws_turbo_discs_at_the_projected_zone_centres() {
+    let tmp = tempfile::tempdir().unwrap();
+    let rec = write_hand_made(&tmp.path().join("rec"));
+    let out = tmp.path().join("proj.png");
+    let o = depthor(&["project", s(&rec), "--frame", "000000", "--out", s(&out)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        stdout.contains("zones 4  projected 3  invalid_status 1  bad_distance 0"),
+        "{stdout}"
+    );
+
+    let img = image::open(&out).unwrap().to_rgb8();
+    assert_eq!(img.height(), 48);
+    assert!(img.width() > 64, "colour bar panel to the right");
+    // Zone (r, c) has tan = (2c+1)/2 - 1 = ±0.5 → u = 32 ± 16, v = 24 ± 16 (z distance, so
+    // the camera depth is the reported distance). Colour range spans 1 m (blue) … 3 m (red).
+    assert_eq!(*img.get_pixel(16, 8), turbo(0.0)); // zone 0, 1 m
+    assert_eq!(*img.get_pixel(48, 8), turbo(0.5)); // zone 1, 2 m
+    assert_eq!(*img.get_pixel(16, 40), turbo(1.0)); // zone 2, 3 m
+    assert_eq!(*img.get_pixel(48, 40), GREY); // zone 3, no target: no disc
+    assert_eq!(*img.get_pixel(32, 24), GREY);
+    // Black rim (radius 3) around the 2 px disc: pixel (18, 8) has its centre 2.5 px away.
+    assert_eq!(*img.get_pixel(18, 8), image::Rgb([0, 0, 0]));
+    // Colour bar: far (red end) on top, near (blue end) at the bottom.
+    assert_eq!(*img.get_pixel(64 + 3, 3), turbo(1.0));
+    assert_eq!(*img.get_pixel(64 + 3, 44), turbo(0.0));
+    assert_eq!(entries(tmp.path()), vec!["proj.png", "rec"]);
+}
+
+#[test]
+fn info_reports_depth_statistics_and_valid_zones() {
+    let tmp = tempfile::tempdir().unwrap();
+    let rec = write_hand_made(&tmp.path().join("rec"));
+    let o = depthor(&["info", s(&rec)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("frames     1"), "{stdout}");
+    assert!(stdout.contains("64×48"), "{stdout}");
+    // Left half at 1.5 m: 50 % valid, min = median = max = 1.5.
+    assert!(
+        stdout.contains("depth valid  50.0 %  min 1.500 median 1.500 max 1.500 m"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("zones valid 3/4"), "{stdout}");
+    assert!(
+        o.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
+/// Runs `info` and `project` on a broken recording: each must print exactly one `error:` line
+/// naming `file` and `field`, exit 2, and leave nothing behind.
+fn assert_clean_failure(tmp: &Path, rec: &Path, file: &str, field: &str) {
+    let before = entries(tmp);
+    let out = tmp.join("out.png");
+    for args in [
+        vec!["info", s(rec)],
+        vec!["project", s(rec), "--frame", "000000", "--out", s(&out)],
+    ] {
+        let o = depthor(&args);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {stderr}");
+        let lines: Vec<&str> = stderr.lines().collect();
+        assert_eq!(lines.len(), 1, "{args:?}: {stderr}");
+        assert!(lines[0].starts_with("error: "), "{stderr}");
+        assert!(
+            lines[0].contains(file),
+            "{args:?}: want {file:?} in {stderr}"
+        );
+        assert!(
+            lines[0].contains(field),
+            "{args:?}: want {field:?} in {stderr}"
+        );
+        assert!(!out.exists());
+        assert_eq!(entries(tmp), before, "nothing written");
+    }
+}
+
+#[test]
+fn truncated_recording_json_is_one_clean_error() {
+    let tmp = tempfile::tempdir().unwrap();
+    let rec = write_hand_made(&tmp.path().join("rec"));
+    let text = std::fs::read_to_string(rec.join("recording.json")).unwrap();
+    std::fs::write(rec.join("recording.json"), &text[..text.len() / 2]).unwrap();
+    assert_clean_failure(tmp.path(), &rec, "rec/recording.json", "JSON syntax");
+}
+
+#[test]
+fn wrong_zone_count_names_dtof_json_and_distance_mm() {
+    let tmp = tempfile::tempdir().unwrap();
+    let rec = write_hand_made(&tmp.path().join("rec"));
+    std::fs::write(
+        rec.join("frames/000000/dtof.json"),
+        r#"{"distance_mm": [1000, 2000, 3000], "status": [5, 9, 5, 255]}"#,
+    )
+    .unwrap();
+    assert_clean_failure(
+        tmp.path(),
+        &rec,
+        "rec/frames/000000/dtof.json",
+        "distance_mm: expected 4 values (2×2 zones), found 3",
+    );
+}
+
+#[test]
+fn eight_bit_depth_png_is_rejected() {
+    let tmp = tempfile::tempdir().unwrap();
+    let rec = write_hand_made(&tmp.path().join("rec"));
+    image::GrayImage::from_pixel(64, 48, image::Luma([7]))
+        .save(rec.join("frames/000000/depth.png"))
+        .unwrap();
+    assert_clean_failure(
+        tmp.path(),
+        &rec,
+        "rec/frames/000000/depth.png",
+        "color type: expected 16-bit grayscale",
+    );
+}
+
+#[test]
+fn missing_frame_directory_names_the_frame_entry() {
+    let tmp = tempfile::tempdir().unwrap();
+    let rec = write_hand_made(&tmp.path().join("rec"));
+    std::fs::write(
+        rec.join("recording.json"),
+        common::recording_json(&["000000", "000001"]),
+    )
+    .unwrap();
+    assert_clean_failure(
+        tmp.path(),
+        &rec,
+        "rec/frames/000001",
+        "frames[1].id: frame directory does not exist",
+    );
+}
+
+#[test]
+fn wrong_field_type_names_the_nested_field() {
+    let tmp = tempfile::tempdir().unwrap();
+    let rec = write_hand_made(&tmp.path().join("rec"));
+    let text = common::recording_json(&["000000"]).replace("\"fx\": 32.0", "\"fx\": \"32\"");
+    std::fs::write(rec.join("recording.json"), text).unwrap();
+    assert_clean_failure(
+        tmp.path(),
+        &rec,
+        "rec/recording.json",
+        "camera.fx: expected a number, found a string",
+    );
+}
+
+#[test]
+fn unknown_frame_id_is_an_error() {
+    let tmp = tempfile::tempdir().unwrap();
+    let rec = write_hand_made(&tmp.path().join("rec"));
+    let out = tmp.path().join("o.png");
+    let o = depthor(&["project", s(&rec), "--frame", "nope", "--out", s(&out)]);
+    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(String::from_utf8_lossy(&o.stderr).lines().count(), 1);
+    assert!(!out.exists());
+}

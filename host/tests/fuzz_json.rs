@@ -1,0 +1,56 @@
+//! Random and mutated bytes as `recording.json` / `dtof.json` never panic the reader.
+
+mod common;
+
+use depthor_host::recording::Recording;
+use proptest::prelude::*;
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(200))]
+
+    #[test]
+    fn random_bytes_as_recording_json(bytes in proptest::collection::vec(any::<u8>(), 0..400)) {
+        let tmp = tempfile::tempdir().unwrap();
+        let rec = common::write_hand_made(&tmp.path().join("rec"));
+        std::fs::write(rec.join("recording.json"), &bytes).unwrap();
+        let err = Recording::open(&rec).unwrap_err();
+        prop_assert!(!err.to_string().contains('\n'));
+    }
+
+    #[test]
+    fn mutated_recording_json(pos in 0usize..10_000, len in 0usize..8, fill in any::<u8>()) {
+        let tmp = tempfile::tempdir().unwrap();
+        let rec = common::write_hand_made(&tmp.path().join("rec"));
+        let mut bytes = common::recording_json(&["000000"]).into_bytes();
+        let at = pos % bytes.len();
+        let end = (at + len).min(bytes.len());
+        bytes[at..end].fill(fill);
+        std::fs::write(rec.join("recording.json"), &bytes).unwrap();
+        if let Ok(r) = Recording::open(&rec) {
+            if !r.is_empty() {
+                let _ = r.read_frame(0);
+            }
+        }
+    }
+
+    #[test]
+    fn random_and_mutated_bytes_as_dtof_json(
+        bytes in proptest::collection::vec(any::<u8>(), 0..200),
+        pos in 0usize..10_000,
+        fill in any::<u8>(),
+    ) {
+        let tmp = tempfile::tempdir().unwrap();
+        let rec = common::write_hand_made(&tmp.path().join("rec"));
+        let r = Recording::open(&rec).unwrap();
+        let dtof = rec.join("frames/000000/dtof.json");
+        std::fs::write(&dtof, &bytes).unwrap();
+        prop_assert!(r.read_frame(0).is_err());
+        let mut text = common::DTOF_JSON.as_bytes().to_vec();
+        let at = pos % text.len();
+        text[at] = fill;
+        std::fs::write(&dtof, &text).unwrap();
+        if let Err(e) = r.read_frame(0) {
+            prop_assert!(e.path.ends_with("frames/000000/dtof.json"), "{}", e);
+        }
+    }
+}

@@ -1,0 +1,100 @@
+//! The quantizer on the exported `mcu` network (models/mcu, written by models/ Python):
+//! the f32 execution of graph.json against the Python golden tensors, the int8 engine on the
+//! blob against the f32 graph on simulated frames, and the committed blob's sizes.
+//! Figures: `cargo test -p depthor-host --test quantize -- --nocapture`.
+
+use depthor_core::engine::{required_arena_bytes, Engine};
+use depthor_host::quantize::calibrate::simulated_frames;
+use depthor_host::quantize::check::{compare, golden_diff};
+use depthor_host::quantize::fold::fold;
+use depthor_host::quantize::golden::read_golden;
+use depthor_host::quantize::graph::Graph;
+use depthor_host::quantize::net::Net;
+use depthor_host::quantize::quantize;
+use std::path::PathBuf;
+
+fn models() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../models")
+}
+
+fn mcu() -> Net {
+    let g = Graph::load(&models().join("mcu/graph.json"), None).unwrap();
+    fold(&g).unwrap()
+}
+
+/// `kernels::float`'s `exp` is micromath's (≈2.4e-3 worst relative error over [−20, 20]), so
+/// values computed through sigmoid, the bins softmax and refine differ from PyTorch by more than
+/// f32 rounding; values before any `exp` agree to f32 rounding.
+#[test]
+fn float_graph_matches_python_golden() {
+    let net = mcu();
+    let golden = read_golden(&models().join("mcu/golden/index.json")).unwrap();
+    let diffs = golden_diff(&net, &golden).unwrap();
+    for (name, d) in &diffs {
+        println!("f32 graph vs Python golden {name}: max |diff| {d:.3e}");
+    }
+    let get = |n: &str| diffs.iter().find(|(k, _)| k == n).map(|(_, d)| *d).unwrap();
+    assert!(get("prior.relu") <= 1e-5, "exp-free prior output");
+    assert!(get("depth") <= 1e-3, "final depth, metres");
+    assert!(diffs.iter().all(|(_, d)| *d <= 2e-3));
+}
+
+#[test]
+fn int8_engine_tracks_float_graph() {
+    let net = mcu();
+    let calib = simulated_frames("mcu", net.height, net.width, 8, 0).unwrap();
+    let q = quantize(&net, &calib).unwrap();
+    let eval = simulated_frames("mcu", net.height, net.width, 20, 1000).unwrap();
+    let c = compare(&q.blob, &net, &eval).unwrap();
+    let (m, lo) = c.depth_mean_min();
+    let (cm, clo) = c.centred_mean_min();
+    println!(
+        "depth SQNR over {} frames: mean {m:.1} dB, min {lo:.1} dB",
+        eval.len()
+    );
+    println!("depth − mean SQNR: mean {cm:.1} dB, min {clo:.1} dB");
+    for l in c.worst_layers(8) {
+        println!("worst op {:3} {:36} {:6.1} dB", l.op, l.name, l.sqnr_db);
+    }
+    assert!(lo >= 30.0, "depth SQNR {lo} dB < 30 dB");
+    assert!(c
+        .layers
+        .iter()
+        .all(|l| l.sqnr_db.is_finite() || l.max_abs_err == 0.0));
+}
+
+#[test]
+fn committed_mcu_blob_loads_and_fits_budgets() {
+    let blob = std::fs::read(models().join("mcu/depthor.dblob")).unwrap();
+    let net = mcu();
+    let arena = required_arena_bytes(&blob, 120, 160).unwrap();
+    let weights = net.weight_count();
+    println!(
+        "mcu: blob {} bytes, int8 weights {weights} bytes, arena at 120×160 {arena} bytes",
+        blob.len()
+    );
+    assert!(weights <= 512 * 1024, "DESIGN.md: weights ≤ 512 KiB");
+    assert!(arena <= 2 * 1024 * 1024, "DESIGN.md: arena ≤ 2 MiB");
+    let mut mem = vec![0u8; arena + 64];
+    let e = Engine::new(&blob, &mut mem).unwrap();
+    assert_eq!(e.input_shape(), (120, 160));
+    assert_eq!(e.graph().ops.len(), net.ops.len());
+}
+
+#[test]
+fn blob_runs_at_another_input_size() {
+    // Upsamples are written "like tensor k", so the native-size blob runs at 2× the size.
+    let blob = std::fs::read(models().join("mcu/depthor.dblob")).unwrap();
+    let (h, w) = (240, 320);
+    let need = required_arena_bytes(&blob, h, w).unwrap();
+    let mut mem = vec![0u8; need + 64];
+    let mut e = Engine::with_size(&blob, &mut mem, h, w).unwrap();
+    let rgb: Vec<u8> = (0..h * w * 3).map(|i| (i * 7 % 251) as u8).collect();
+    let mut sparse = vec![0f32; h * w];
+    sparse[(h / 2) * w + w / 2] = 2.0;
+    let mut out = vec![0f32; h * w];
+    e.run(&rgb, &sparse, &mut out).unwrap();
+    assert!(out
+        .iter()
+        .all(|d| d.is_finite() && (0.05..=10.5).contains(d)));
+}

@@ -1,0 +1,77 @@
+"""Building blocks written only with graph.md ops (see ops.py)."""
+
+from __future__ import annotations
+
+from torch import Tensor, nn
+
+from . import ops
+
+
+class Act(nn.Module):
+    """A standalone activation node (relu or leaky_relu) following a batch_norm."""
+
+    def __init__(self, kind: str, alpha: float = 0.1):
+        super().__init__()
+        if kind not in ("relu", "leaky_relu"):
+            raise ValueError(f"Act: unsupported {kind!r}")
+        self.kind, self.alpha = kind, alpha
+
+    def forward(self, x: Tensor) -> Tensor:
+        if self.kind == "relu":
+            return ops.relu(x, owner=self)
+        return ops.leaky_relu(x, self.alpha, owner=self)
+
+
+class ConvBNAct(nn.Module):
+    """conv2d (no bias, no activation) → batch_norm → relu / leaky_relu: the foldable triple."""
+
+    def __init__(self, cin, cout, kernel=3, stride=1, dilation=1, act="relu", alpha=0.1):
+        super().__init__()
+        self.conv = ops.Conv(cin, cout, kernel, stride, dilation, bias=False)
+        self.bn = ops.BatchNorm(cout)
+        self.act = Act(act, alpha)
+
+    def forward(self, x: Tensor) -> Tensor:
+        return self.act(self.bn(self.conv(x)))
+
+
+class BasicBlock(nn.Module):
+    """ResNet BasicBlock in the graph.md form.
+
+    graph.md lets a batch_norm sit only between a conv2d and an activation, so the second conv and
+    the projection shortcut carry a bias instead of a BN: conv-BN-relu → conv(+b) ; shortcut =
+    identity or 1×1 conv(+b, stride) ; add → relu.
+    """
+
+    def __init__(self, cin: int, cout: int, stride: int = 1):
+        super().__init__()
+        self.conv1 = ConvBNAct(cin, cout, 3, stride, act="relu")
+        self.conv2 = ops.Conv(cout, cout, 3)
+        self.short = None
+        if stride != 1 or cin != cout:
+            self.short = ops.Conv(cin, cout, 1, stride, padding=0)
+
+    def forward(self, x: Tensor) -> Tensor:
+        y = self.conv2(self.conv1(x))
+        s = x if self.short is None else self.short(x)
+        return ops.relu(ops.add(y, s))
+
+
+class CBAM(nn.Module):
+    """CBAM written out in graph.md ops: channel attention (shared 1×1-conv MLP over avg and max
+    pools, add, sigmoid, mul) then spatial attention (channel mean/max, concat, 7×7 sigmoid conv,
+    mul)."""
+
+    def __init__(self, channels: int, reduction: int = 4, spatial_kernel: int = 7):
+        super().__init__()
+        hidden = max(channels // reduction, 4)
+        self.mlp1 = ops.Conv(channels, hidden, 1, padding=0, activation="relu")
+        self.mlp2 = ops.Conv(hidden, channels, 1, padding=0)
+        self.spatial = ops.Conv(2, 1, spatial_kernel, activation="sigmoid")
+
+    def forward(self, x: Tensor) -> Tensor:
+        a = self.mlp2(self.mlp1(ops.global_avg_pool(x)))
+        m = self.mlp2(self.mlp1(ops.global_max_pool(x)))
+        x = ops.mul(x, ops.sigmoid(ops.add(a, m)))
+        s = ops.concat([ops.channel_mean(x), ops.channel_max(x)])
+        return ops.mul(x, self.spatial(s))

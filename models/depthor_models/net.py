@@ -1,0 +1,221 @@
+"""The DEPTHOR network (graph.md "Network shape"), variants `mcu` and `phone`.
+
+rgb → prior → (D_inv, F_mde); depth input cat(minmax(D_inv), minmax(1/(D_inv+ε)), S) → depth
+encoder; RGB encoder; fusing decoder → F_unet (1/2); bin logits MLP; bins_head → d_half;
+refinement guidance cat(F_unet, F_mde) → CBAM → conv → pixel_shuffle → affinity heads; refine.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import torch
+from torch import Tensor, nn
+
+from . import ops
+from .blocks import CBAM, BasicBlock, ConvBNAct
+from .prior import Prior, PriorConfig
+
+
+@dataclass(frozen=True)
+class NetConfig:
+    """Widths, depths and ranges of one variant. Encoder tuples have 5 entries: scales 1/2…1/32;
+    `dec_widths` runs from 1/32 up to 1/2 (its last entry is the F_unet channel count)."""
+
+    variant: str
+    height: int
+    width: int
+    prior: PriorConfig = field(default_factory=PriorConfig)
+    rgb_widths: tuple[int, ...] = (16, 24, 32, 48, 64)
+    rgb_blocks: tuple[int, ...] = (0, 1, 1, 1, 1)
+    depth_stem: int = 8
+    depth_widths: tuple[int, ...] = (8, 16, 24, 32, 48)
+    dec_widths: tuple[int, ...] = (48, 32, 24, 16, 16)
+    mlp_hidden: int = 64
+    n_bins: int = 128
+    min_depth_m: float = 0.1
+    max_depth_m: float = 10.0
+    cspn_channels: int = 8
+    iterations: int = 6
+    sigmas: tuple[float, float, float] = (1.0, 2.0, 3.0)
+    cbam_reduction: int = 4
+    leaky_alpha: float = 0.1
+
+    def __post_init__(self):
+        for name in ("rgb_widths", "rgb_blocks", "depth_widths", "dec_widths"):
+            if len(getattr(self, name)) != 5:
+                raise ValueError(f"{name} needs 5 entries (1/2 … 1/32)")
+        if any(b < 1 for b in self.rgb_blocks[1:]):
+            raise ValueError("rgb_blocks[1:] must be >= 1 (the strided block)")
+        if self.height % 2 or self.width % 2:
+            raise ValueError("height and width must be even (pixel_shuffle(2) back to full size)")
+
+
+VARIANTS: dict[str, NetConfig] = {
+    # DESIGN.md: 120×160, all weights ≤ 512 KiB int8.
+    "mcu": NetConfig(variant="mcu", height=120, width=160),
+    # DESIGN.md: 320×240 portrait, ≥ 30 fps int8 on one x86 core (≲ 1.5 GMAC, graph.md).
+    "phone": NetConfig(
+        variant="phone",
+        height=320,
+        width=240,
+        prior=PriorConfig(widths=(8, 16, 32, 48), mde_channels=16),
+        rgb_widths=(16, 32, 48, 64, 96),
+        rgb_blocks=(0, 1, 2, 2, 1),
+        depth_stem=8,
+        depth_widths=(12, 16, 32, 48, 64),
+        dec_widths=(64, 48, 32, 24, 16),
+        mlp_hidden=96,
+        cspn_channels=6,
+    ),
+}
+
+
+def config(variant: str, **overrides) -> NetConfig:
+    """The named variant's config, with optional field overrides."""
+    if variant not in VARIANTS:
+        raise KeyError(f"unknown variant {variant!r} (have {sorted(VARIANTS)})")
+    return replace(VARIANTS[variant], **overrides)
+
+
+class RgbEncoder(nn.Module):
+    """Stem conv-BN-relu (stride 2) then BasicBlock stages: features at 1/2 … 1/32."""
+
+    def __init__(self, widths, blocks):
+        super().__init__()
+        self.stem = ConvBNAct(3, widths[0], 3, 2)
+        stages, prev = [], widths[0]
+        for i, (w, n) in enumerate(zip(widths, blocks)):
+            layers = []
+            for b in range(n):
+                layers.append(BasicBlock(prev, w, 2 if (i > 0 and b == 0) else 1))
+                prev = w
+            stages.append(nn.Sequential(*layers))
+        self.stages = nn.ModuleList(stages)
+
+    def forward(self, x: Tensor) -> list[Tensor]:
+        out, x = [], self.stem(x)
+        for stage in self.stages:
+            x = stage(x)
+            out.append(x)
+        return out
+
+
+class DepthEncoder(nn.Module):
+    """5×5 dilation-2 stem at full resolution, stride-2 3×3 stages (BN + LeakyReLU) to 1/32,
+    CBAM on the deepest."""
+
+    def __init__(self, stem, widths, alpha, reduction):
+        super().__init__()
+        self.stem = ConvBNAct(3, stem, 5, 1, dilation=2, act="leaky_relu", alpha=alpha)
+        chans = (stem,) + tuple(widths)
+        self.stages = nn.ModuleList(
+            ConvBNAct(cin, cout, 3, 2, act="leaky_relu", alpha=alpha)
+            for cin, cout in zip(chans[:-1], chans[1:])
+        )
+        self.cbam = CBAM(widths[-1], reduction)
+
+    def forward(self, x: Tensor) -> list[Tensor]:
+        out, x = [], self.stem(x)
+        for stage in self.stages:
+            x = stage(x)
+            out.append(x)
+        out[-1] = self.cbam(out[-1])
+        return out
+
+
+class Depthor(nn.Module):
+    """The full network: (rgb [1,3,H,W] in [0,1], sparse [1,1,H,W] metres) → depth [1,1,H,W] m."""
+
+    def __init__(self, cfg: NetConfig):
+        super().__init__()
+        self.cfg = cfg
+        a = cfg.leaky_alpha
+        self.prior = Prior(cfg.prior)
+        self.rgb_enc = RgbEncoder(cfg.rgb_widths, cfg.rgb_blocks)
+        self.depth_enc = DepthEncoder(cfg.depth_stem, cfg.depth_widths, a, cfg.cbam_reduction)
+        rw, dw, cw = cfg.rgb_widths, cfg.depth_widths, cfg.dec_widths
+        dec = [ConvBNAct(rw[4] + dw[4], cw[0], 3, 1, act="leaky_relu", alpha=a)]
+        for i in range(1, 5):
+            s = 4 - i  # encoder index of this decoder scale
+            dec.append(ConvBNAct(cw[i - 1] + rw[s] + dw[s], cw[i], 3, 1, act="leaky_relu", alpha=a))
+        self.dec = nn.ModuleList(dec)
+        self.bins_fc1 = ops.Linear(cw[0], cfg.mlp_hidden, activation="relu")
+        self.bins_fc2 = ops.Linear(cfg.mlp_hidden, cfg.n_bins)
+        self.bins_head = ops.BinsHead(cw[4], cfg.n_bins, cfg.min_depth_m, cfg.max_depth_m)
+        guide = cw[4] + cfg.prior.mde_channels
+        self.guide_cbam = CBAM(guide, cfg.cbam_reduction)
+        self.guide_conv = ConvBNAct(guide, 4 * cfg.cspn_channels, 3, 1, act="leaky_relu", alpha=a)
+        c = cfg.cspn_channels
+        self.aff3 = ops.Conv(c, 8, 3)
+        self.aff5 = ops.Conv(c, 24, 3)
+        self.aff7 = ops.Conv(c, 48, 3)
+        self.kmix = ops.Conv(c, 3, 3)
+        self.tmix = ops.Conv(c, 3, 3)
+        self.refine = ops.Refine(cfg.iterations, cfg.sigmas)
+
+    def forward(self, rgb: Tensor, sparse: Tensor) -> Tensor:
+        h, w = int(rgb.shape[2]), int(rgb.shape[3])
+        d_inv, f_mde = self.prior(rgb)
+        d_in = ops.concat([
+            ops.minmax_norm(d_inv, 1e-6),
+            ops.minmax_norm(ops.reciprocal(d_inv, 1e-3), 1e-6),
+            sparse,
+        ])
+        dep = self.depth_enc(d_in)
+        rgbf = self.rgb_enc(rgb)
+        x = self.dec[0](ops.concat([rgbf[4], dep[4]]))
+        bin_logits = self.bins_fc2(self.bins_fc1(ops.global_avg_pool(x)))
+        for i in range(1, 5):
+            s = 4 - i
+            x = ops.upsample_bilinear(x, int(rgbf[s].shape[2]), int(rgbf[s].shape[3]))
+            x = self.dec[i](ops.concat([x, rgbf[s], dep[s]]))
+        f_unet = x
+        d_half = self.bins_head(f_unet, bin_logits)
+        g = self.guide_conv(self.guide_cbam(ops.concat([f_unet, f_mde])))
+        f_cspn = ops.pixel_shuffle(g, 2)
+        d0 = ops.upsample_bilinear(d_half, h, w)
+        return self.refine(
+            d0, self.aff3(f_cspn), self.aff5(f_cspn), self.aff7(f_cspn),
+            self.kmix(f_cspn), self.tmix(f_cspn),
+        )
+
+
+def build(variant: str, seed: int = 0, calibrate_bn: bool = True, **overrides) -> Depthor:
+    """Builds a variant with seeded random weights in eval mode.
+
+    With `calibrate_bn`, BN affine parameters are randomised and running statistics are gathered
+    from a few train-mode passes on random inputs, so BN folding is exercised by the exporters.
+    """
+    cfg = config(variant, **overrides)
+    g = torch.Generator().manual_seed(seed)
+    torch.manual_seed(seed)
+    net = Depthor(cfg)
+    if calibrate_bn:
+        with torch.no_grad():
+            for m in net.modules():
+                if isinstance(m, ops.BatchNorm):
+                    m.weight.copy_(0.5 + torch.rand(m.weight.shape, generator=g))
+                    m.bias.copy_(0.2 * (torch.rand(m.bias.shape, generator=g) - 0.5))
+                    m.momentum = None  # cumulative average over the calibration passes
+            net.train()
+            for _ in range(3):
+                rgb, sparse = random_inputs(cfg, generator=g)
+                net(rgb, sparse)
+    net.eval()
+    return net
+
+
+def random_inputs(cfg: NetConfig, generator: torch.Generator | None = None,
+                  n_points: int = 64) -> tuple[Tensor, Tensor]:
+    """A smooth-ish random rgb in [0,1] and a sparse depth map with `n_points` points in range."""
+    g = generator if generator is not None else torch.Generator().manual_seed(0)
+    h, w = cfg.height, cfg.width
+    low = torch.rand(1, 3, h // 8, w // 8, generator=g)
+    rgb = torch.nn.functional.interpolate(low, size=(h, w), mode="bilinear", align_corners=True)
+    rgb = (0.8 * rgb + 0.2 * torch.rand(1, 3, h, w, generator=g)).clamp(0.0, 1.0)
+    sparse = torch.zeros(1, 1, h, w)
+    idx = torch.randperm(h * w, generator=g)[:n_points]
+    depth = cfg.min_depth_m + (cfg.max_depth_m - cfg.min_depth_m) * torch.rand(n_points, generator=g)
+    sparse.view(-1)[idx] = depth
+    return rgb, sparse

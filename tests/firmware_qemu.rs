@@ -1,0 +1,257 @@
+//! Host vs firmware, bit for bit: builds `firmware-sim` for thumbv7em-none-eabihf with a replay
+//! image made here, runs it under `qemu-system-arm` (mps2-an386, `-icount shift=0`), and
+//! requires exit status 0 and per-frame hash lines equal to the host build of the same loop.
+//! Bad images must make the firmware print `ERROR <code>` and exit with that code, not panic.
+//!
+//! Needs `qemu-system-arm` and the `thumbv7em-none-eabihf` Rust target (CI installs both);
+//! without them these tests FAIL with a message saying what to install.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+use depthor_core::hal::ZoneFrame;
+use depthor_replay::format::{Image, HEADER_LEN};
+use depthor_replay::pipeline::{ReplayLoop, Workspace};
+use depthor_replay::{synthetic, writer};
+
+const TARGET: &str = "thumbv7em-none-eabihf";
+/// Wall-clock limit for one QEMU run (5 frames take about a second).
+const QEMU_TIMEOUT: Duration = Duration::from_secs(120);
+
+/// One firmware build at a time: the image is baked in at build time and all builds share
+/// `firmware-sim/target`, so build + copy of the ELF must not interleave between tests.
+static BUILD: Mutex<()> = Mutex::new(());
+
+fn firmware_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("firmware-sim")
+}
+
+/// Builds the `bin` scenario with `image` embedded and copies the ELF into `dir`.
+fn build_firmware(bin: &str, image: &Path, dir: &Path) -> PathBuf {
+    let _guard = BUILD.lock().unwrap_or_else(|e| e.into_inner());
+    let fw = firmware_dir();
+    let target_dir = fw.join("target");
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let out = Command::new(cargo)
+        .current_dir(&fw)
+        .args([
+            "build",
+            "--release",
+            "--bin",
+            bin,
+            "--target",
+            TARGET,
+            "--target-dir",
+        ])
+        .arg(&target_dir)
+        .env("DEPTHOR_REPLAY_IMAGE", image)
+        // The outer `cargo test` sets these for the root package; the firmware must not see them.
+        .env_remove("RUSTFLAGS")
+        .env_remove("CARGO_ENCODED_RUSTFLAGS")
+        .env_remove("CARGO_BUILD_TARGET")
+        .output()
+        .expect("run cargo to build firmware-sim");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success(),
+        "building firmware-sim failed (is the Rust target installed? \
+         `rustup target add {TARGET}`):\n{stderr}"
+    );
+    let elf = target_dir.join(TARGET).join("release").join(bin);
+    let copy = dir.join(format!("{bin}.elf"));
+    std::fs::copy(&elf, &copy).expect("copy firmware ELF");
+    copy
+}
+
+/// Runs `elf` in QEMU; returns (exit status, stdout). Fails when QEMU is missing or hangs.
+fn run_qemu(elf: &Path) -> (i32, String) {
+    let spawned = Command::new("qemu-system-arm")
+        .args([
+            "-machine",
+            "mps2-an386",
+            "-cpu",
+            "cortex-m4",
+            "-icount",
+            "shift=0",
+        ])
+        .args([
+            "-semihosting-config",
+            "enable=on,target=native",
+            "-nographic",
+        ])
+        .args(["-monitor", "none", "-serial", "none", "-kernel"])
+        .arg(elf)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn();
+    let mut child = match spawned {
+        Ok(c) => c,
+        Err(e) => panic!(
+            "cannot run qemu-system-arm ({e}); install it: \
+             `apt-get install -y qemu-system-arm` (Debian). This test must not be skipped."
+        ),
+    };
+    let start = Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("wait for qemu") {
+            break status;
+        }
+        if start.elapsed() > QEMU_TIMEOUT {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("qemu-system-arm ran longer than {QEMU_TIMEOUT:?}: firmware hung");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let out = child.wait_with_output().expect("collect qemu output");
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    let code = status
+        .code()
+        .unwrap_or_else(|| panic!("qemu killed by a signal; output:\n{stdout}"));
+    (code, stdout)
+}
+
+/// The host build of the loop over `bytes`: the `frame …` lines it prints.
+fn host_lines(bytes: &[u8]) -> Vec<String> {
+    struct NoDelay;
+    impl embedded_hal::delay::DelayNs for NoDelay {
+        fn delay_ns(&mut self, _ns: u32) {}
+    }
+    let image = Image::parse(bytes).expect("host parses the image");
+    let (h, w) = image.size();
+    let pixels = usize::from(h) * usize::from(w);
+    let (mut rgb, mut sparse) = (vec![0u8; 3 * pixels], vec![0f32; pixels]);
+    let mut bridge = [0f32; 64];
+    let mut zones = ZoneFrame::<64>::new();
+    let mut ws = Workspace {
+        rgb: &mut rgb,
+        sparse_m: &mut sparse,
+        bridge_mm: &mut bridge,
+        zones: &mut zones,
+    };
+    let mut lines = Vec::new();
+    ReplayLoop::new(image, NoDelay)
+        .run_all(&mut ws, |out| lines.push(out.to_string()))
+        .expect("host loop runs");
+    lines
+}
+
+fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
+    let path = dir.join(name);
+    std::fs::write(&path, bytes).expect("write image");
+    path
+}
+
+#[test]
+fn qemu_hashes_equal_host_bit_for_bit() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let frames = 6;
+    let bytes = writer::image_bytes(
+        &synthetic::mcu_calibration(),
+        &synthetic::mcu_frames(frames),
+    )
+    .expect("make image");
+    let image = write(dir.path(), "good.dri", &bytes);
+    let host = host_lines(&bytes);
+    assert_eq!(host.len(), frames as usize);
+
+    let elf = build_firmware("replay", &image, dir.path());
+    let (code, stdout) = run_qemu(&elf);
+    assert_eq!(code, 0, "firmware exit status; output:\n{stdout}");
+    let firmware: Vec<String> = stdout
+        .lines()
+        .filter(|l| l.starts_with("frame "))
+        .map(str::to_owned)
+        .collect();
+    for (i, (h, f)) in host.iter().zip(&firmware).enumerate() {
+        assert_eq!(
+            h, f,
+            "frame {i}: host and QEMU differ; firmware output:\n{stdout}"
+        );
+    }
+    assert_eq!(firmware.len(), host.len(), "frame count; output:\n{stdout}");
+    for needle in [
+        "instructions/frame: mean",
+        "ram: statics",
+        "flash: ",
+        "TEST OK",
+    ] {
+        assert!(stdout.contains(needle), "missing {needle:?} in:\n{stdout}");
+    }
+    assert!(!stdout.contains("PANIC"), "{stdout}");
+}
+
+/// Runs the firmware on a defective image: it must report `ERROR <code>` and exit with it.
+fn assert_firmware_rejects(name: &str, bytes: &[u8], code: u8) {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let image = write(dir.path(), name, bytes);
+    let elf = build_firmware("replay", &image, dir.path());
+    let (status, stdout) = run_qemu(&elf);
+    assert_eq!(
+        status,
+        i32::from(code),
+        "exit status for {name}; output:\n{stdout}"
+    );
+    assert!(
+        stdout.contains(&format!("ERROR {code}: ")),
+        "{name}:\n{stdout}"
+    );
+    assert!(
+        !stdout.contains("PANIC") && !stdout.contains("TEST OK"),
+        "{name}:\n{stdout}"
+    );
+}
+
+fn good_bytes(frames: u32) -> Vec<u8> {
+    writer::image_bytes(
+        &synthetic::mcu_calibration(),
+        &synthetic::mcu_frames(frames),
+    )
+    .expect("make image")
+}
+
+#[test]
+fn qemu_rejects_truncated_image() {
+    let mut bytes = good_bytes(2);
+    bytes.truncate(bytes.len() - 1000);
+    assert_firmware_rejects("truncated.dri", &bytes, 5);
+}
+
+#[test]
+fn qemu_rejects_zone_count_mismatch() {
+    // Frame 1's zone count says 63 while the header's grid is 8×8; CRC recomputed so only the
+    // count is wrong.
+    let mut bytes = good_bytes(2);
+    let record = (bytes.len() - HEADER_LEN - 4) / 2;
+    let at = HEADER_LEN + record;
+    bytes[at..at + 2].copy_from_slice(&63u16.to_le_bytes());
+    writer::reseal(&mut bytes);
+    assert_firmware_rejects("zone_count.dri", &bytes, 8);
+}
+
+#[test]
+fn qemu_rejects_more_zones_than_the_build_holds() {
+    // A valid image with a 10×10 grid: the firmware holds 8×8, so the loop stops (code 13).
+    let mut cal = synthetic::mcu_calibration();
+    cal.dtof.rows = 10;
+    cal.dtof.cols = 10;
+    let frames: Vec<_> = (0..2)
+        .map(|i| synthetic::frame(i, 10, 10, 120, 160))
+        .collect();
+    let bytes = writer::image_bytes(&cal, &frames).expect("make image");
+    assert_firmware_rejects("zones_10x10.dri", &bytes, 13);
+}
+
+#[test]
+fn qemu_instruction_count_method_checks_out() {
+    // Not image-dependent; any image will do.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let image = write(dir.path(), "any.dri", &good_bytes(1));
+    let elf = build_firmware("icount_check", &image, dir.path());
+    let (code, stdout) = run_qemu(&elf);
+    assert_eq!(code, 0, "{stdout}");
+    assert!(stdout.contains("TEST OK"), "{stdout}");
+}
