@@ -9,6 +9,7 @@ pub mod import;
 pub mod inference;
 pub mod quantize;
 pub mod recording;
+pub mod reference;
 pub mod rng;
 pub mod scene;
 pub mod sensors;
