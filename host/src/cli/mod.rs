@@ -10,8 +10,8 @@ mod gap_bench;
 mod import;
 mod info;
 mod project;
-mod sim;
 mod quantize;
+mod sim;
 
 /// Exit status for every failure (clap also uses 2 for usage errors).
 pub const EXIT_FAILURE: u8 = 2;
