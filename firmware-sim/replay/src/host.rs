@@ -8,6 +8,17 @@ use crate::format::Image;
 use crate::model::{prepare, ARENA_BUDGET_BYTES, MCU_BLOB};
 use crate::pipeline::{FrameOutput, LoopError, ReplayLoop, Workspace};
 
+/// A [`DelayNs`] that sleeps for real (the simulated bridge is always ready, so the driver
+/// never waits in practice).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct StdDelay;
+
+impl DelayNs for StdDelay {
+    fn delay_ns(&mut self, ns: u32) {
+        std::thread::sleep(std::time::Duration::from_nanos(u64::from(ns)));
+    }
+}
+
 /// Runs every frame of `image` through the loop with the `mcu` model, holding up to `N` zones
 /// (the firmware holds 64), and calls `emit` with each frame's output; returns the frame count.
 pub fn replay_image<const N: usize>(

@@ -5,16 +5,7 @@
 use std::process::ExitCode;
 
 use depthor_replay::format::Image;
-use depthor_replay::host::replay_image;
-
-/// Sleeps for real; the simulated bridge is always ready, so it is never called in practice.
-struct StdDelay;
-
-impl embedded_hal::delay::DelayNs for StdDelay {
-    fn delay_ns(&mut self, ns: u32) {
-        std::thread::sleep(std::time::Duration::from_nanos(u64::from(ns)));
-    }
-}
+use depthor_replay::host::{replay_image, StdDelay};
 
 /// Zone capacity, as in the firmware (8×8).
 const ZONES: usize = 64;
