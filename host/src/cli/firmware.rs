@@ -4,7 +4,8 @@
 //!   (`DPTHRPLY` v1, see `firmware-sim/README.md`) from the first `N` frames of a recording: RGB
 //!   resampled to the `mcu` size (120×160, `dataset::resample_frame`) when it differs, the
 //!   recording's dToF zones (dtof.json) as they are, and one calibration (the resampled camera,
-//!   the recording's zone geometry and extrinsics).
+//!   the recording's zone geometry and extrinsics; per-zone rectangles, which format v1 cannot
+//!   hold, are dropped with a note, so the firmware projects with the FoV geometry).
 //! - `firmware-replay IMAGE|RECORDING` runs the host build of the firmware loop (same core
 //!   calls, same `mcu` blob) and prints the firmware's per-frame lines
 //!   (`frame i depth_fnv1a64=… points=… skipped=… collisions=…`).
@@ -106,9 +107,10 @@ pub fn image_from_recording(dir: &Path, frames: usize, height: u32, width: u32) 
         let cal = rec
             .calibration(i)
             .with_context(|| format!("{}: the recording has no dToF", dir.display()))?;
-        if cal.zone_rects_px.is_some() {
-            bail!(
-                "{}: zone rectangles cannot be stored in a replay image (v1)",
+        if cal.zone_rects_px.is_some() && i == 0 {
+            eprintln!(
+                "note: {}: the recording's zone rectangles are not stored (image format v1); \
+                 the firmware projects with the FoV geometry",
                 dir.display()
             );
         }
