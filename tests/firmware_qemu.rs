@@ -11,14 +11,14 @@ use std::process::{Command, Stdio};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use depthor_core::hal::ZoneFrame;
 use depthor_replay::format::{Image, HEADER_LEN};
-use depthor_replay::pipeline::{ReplayLoop, Workspace};
+use depthor_replay::host::replay_image;
 use depthor_replay::{synthetic, writer};
 
 const TARGET: &str = "thumbv7em-none-eabihf";
-/// Wall-clock limit for one QEMU run (5 frames take about a second).
-const QEMU_TIMEOUT: Duration = Duration::from_secs(120);
+/// Wall-clock limit for one QEMU run. With the model, a 120×160 frame is ≈ 3.5 G instructions:
+/// 5 frames took 43 s of wall time on a loaded 2-core machine (QEMU 7.2, `-icount shift=0`).
+const QEMU_TIMEOUT: Duration = Duration::from_secs(600);
 
 /// One firmware build at a time: the image is baked in at build time and all builds share
 /// `firmware-sim/target`, so build + copy of the ELF must not interleave between tests.
@@ -114,28 +114,15 @@ fn run_qemu(elf: &Path) -> (i32, String) {
     (code, stdout)
 }
 
-/// The host build of the loop over `bytes`: the `frame …` lines it prints.
+/// The host build of the loop (same engine and blob) over `bytes`: the `frame …` lines it prints.
 fn host_lines(bytes: &[u8]) -> Vec<String> {
     struct NoDelay;
     impl embedded_hal::delay::DelayNs for NoDelay {
         fn delay_ns(&mut self, _ns: u32) {}
     }
     let image = Image::parse(bytes).expect("host parses the image");
-    let (h, w) = image.size();
-    let pixels = usize::from(h) * usize::from(w);
-    let (mut rgb, mut sparse) = (vec![0u8; 3 * pixels], vec![0f32; pixels]);
-    let mut bridge = [0f32; 64];
-    let mut zones = ZoneFrame::<64>::new();
-    let mut ws = Workspace {
-        rgb: &mut rgb,
-        sparse_m: &mut sparse,
-        bridge_mm: &mut bridge,
-        zones: &mut zones,
-    };
     let mut lines = Vec::new();
-    ReplayLoop::new(image, NoDelay)
-        .run_all(&mut ws, |out| lines.push(out.to_string()))
-        .expect("host loop runs");
+    replay_image::<64>(image, NoDelay, |out| lines.push(out.to_string())).expect("host loop runs");
     lines
 }
 
@@ -148,7 +135,7 @@ fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
 #[test]
 fn qemu_hashes_equal_host_bit_for_bit() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let frames = 6;
+    let frames = 5;
     let bytes = writer::image_bytes(
         &synthetic::mcu_calibration(),
         &synthetic::mcu_frames(frames),
@@ -174,7 +161,9 @@ fn qemu_hashes_equal_host_bit_for_bit() {
     }
     assert_eq!(firmware.len(), host.len(), "frame count; output:\n{stdout}");
     for needle in [
+        "engine: blob",
         "instructions/frame: mean",
+        "estimate (not a measurement)",
         "ram: statics",
         "flash: ",
         "TEST OK",

@@ -5,10 +5,11 @@
 //! - [`format`]: the replay flash image (`DPTHRPLY` v1): layout, and a `no_std` parser that
 //!   validates everything and never panics; [`crc32`] for its checksum.
 //! - [`camera`]: [`camera::ReplayCamera`], an [`depthor_core::hal::RgbCamera`] over the image.
-//! - [`pipeline`]: the per-frame loop (camera → zone bridge driver → projection → *engine
-//!   seam*) and the hash line both builds print.
-//! - with the `std` feature: [`writer`] (`write_image`) and [`synthetic`] frames, plus the
-//!   binaries `make-image` and `replay-host` (the host build of the loop).
+//! - [`model`]: the `mcu` int8 blob (embedded, 16-byte aligned) and the arena budget.
+//! - [`pipeline`]: the per-frame loop (camera → zone bridge driver → projection → int8 engine)
+//!   and the hash line both builds print.
+//! - with the `std` feature: [`host`] (the host build of the loop), [`writer`] (`write_image`)
+//!   and [`synthetic`] frames, plus the binaries `make-image` and `replay-host`.
 //!
 //! # Exit status of the firmware
 //!
@@ -16,7 +17,7 @@
 //! |---|---|
 //! | 0 | every frame processed |
 //! | 2–8 | the image is unusable: [`format::ImageError::exit_code`] (2 magic, 3 version, 4 header, 5 truncated, 6 trailing bytes, 7 CRC, 8 zone count) |
-//! | 10–15 | the loop stopped: [`pipeline::LoopError::exit_code`] (10 camera, 11 dToF driver, 12 bridge device, 13 zone capacity, 14 workspace, 15 projection) |
+//! | 10–16 | the loop stopped: [`pipeline::LoopError::exit_code`] (10 camera, 11 dToF driver, 12 bridge device, 13 zone capacity, 14 workspace, 15 projection, 16 engine) |
 //! | 101 | panic (a bug: nothing here should panic on any image) |
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
 #![warn(missing_docs)]
@@ -24,6 +25,9 @@
 pub mod camera;
 pub mod crc32;
 pub mod format;
+#[cfg(any(test, feature = "std"))]
+pub mod host;
+pub mod model;
 pub mod pipeline;
 #[cfg(any(test, feature = "std"))]
 pub mod synthetic;

@@ -6,17 +6,18 @@
 //!    [`ZoneBridgeSensor`] (an [`depthor_core::hal::DtofSensor`]), so the bytes cross the same
 //!    register protocol a board's bus would carry.
 //! 3. **Projection**: [`project_to_sparse`] writes the sparse depth map `S`.
-//! 4. **Model**: *not yet*. The int8 engine is the seam marked `ENGINE SEAM` in
-//!    [`ReplayLoop::process`]; until it lands the frame's output is the sparse map `S` itself.
+//! 4. **Model**: the int8 [`Engine`] (prepared once by the caller, see [`crate::model`]) runs on
+//!    the RGB frame and `S` and writes the dense depth map into [`Workspace::depth_m`].
 //!
-//! [`FrameOutput`] hashes the output (FNV-1a 64 over the `f32` bits, little endian) and formats
-//! the line both builds print, so the host and the firmware can be compared bit for bit.
+//! [`FrameOutput`] hashes the depth output (FNV-1a 64 over the `f32` bits, little endian) and
+//! formats the line both builds print, so the host and the firmware can be compared bit for bit.
 //!
 //! The driver is created per frame over a device holding that frame (the device borrows the
 //! frame's zones and the driver owns the device); it reads the header registers again each
 //! frame, which costs one 11-byte transaction.
 
 use depthor_core::drivers::zone_bridge::{DeviceError, ZoneBridgeDevice, ZoneBridgeSensor};
+use depthor_core::engine::{self, Engine, RunStats};
 use depthor_core::hal::{self, DtofSensor, ErrorKind, RgbCamera, RgbFrame, ZoneFrame};
 use depthor_core::projection::{project_to_sparse, ProjectionError, ProjectionStats};
 use embedded_hal::delay::DelayNs;
@@ -32,6 +33,8 @@ pub struct Workspace<'b, const N: usize> {
     pub rgb: &'b mut [u8],
     /// Sparse depth `S` in metres, at least `H · W` values.
     pub sparse_m: &'b mut [f32],
+    /// Dense depth the model writes, in metres, at least `H · W` values.
+    pub depth_m: &'b mut [f32],
     /// Staging for the zone bridge device (the bridge MCU's memory in a real system).
     pub bridge_mm: &'b mut [f32; N],
     /// The zone frame the driver fills.
@@ -59,6 +62,8 @@ pub enum LoopError {
     Workspace(&'static str),
     /// Projection refused the calibration or the zones.
     Projection(ProjectionError),
+    /// The engine failed (or was prepared for another input size than the image's).
+    Engine(engine::Error),
 }
 
 impl LoopError {
@@ -71,6 +76,7 @@ impl LoopError {
             LoopError::ZoneCapacity { .. } => 13,
             LoopError::Workspace(_) => 14,
             LoopError::Projection(_) => 15,
+            LoopError::Engine(_) => 16,
         }
     }
 }
@@ -87,6 +93,7 @@ impl core::fmt::Display for LoopError {
             ),
             LoopError::Workspace(what) => write!(f, "workspace too small: {what}"),
             LoopError::Projection(e) => write!(f, "projection: {e}"),
+            LoopError::Engine(e) => write!(f, "engine: {e}"),
         }
     }
 }
@@ -102,17 +109,20 @@ pub enum Stage {
     Dtof,
     /// Zones → sparse depth.
     Projection,
+    /// The int8 model: RGB + sparse depth → dense depth.
+    Model,
     /// The frame is done (no stage runs after this mark).
     Done,
 }
 
 impl Stage {
-    /// Short lowercase name (`camera`, `dtof`, `projection`, `done`).
+    /// Short lowercase name (`camera`, `dtof`, `projection`, `model`, `done`).
     pub fn name(self) -> &'static str {
         match self {
             Stage::Camera => "camera",
             Stage::Dtof => "dtof",
             Stage::Projection => "projection",
+            Stage::Model => "model",
             Stage::Done => "done",
         }
     }
@@ -134,10 +144,12 @@ impl Probe for () {
 pub struct Processed {
     /// Frame index in the image.
     pub index: u32,
-    /// Output pixels (`H · W`) at the start of [`Workspace::sparse_m`].
+    /// Output pixels (`H · W`) at the start of [`Workspace::depth_m`].
     pub pixels: usize,
     /// Projection counters.
     pub stats: ProjectionStats,
+    /// What the engine did (ops, MACs).
+    pub run: RunStats,
 }
 
 /// One frame's printable result.
@@ -145,16 +157,16 @@ pub struct Processed {
 pub struct FrameOutput {
     /// Frame index in the image.
     pub index: u32,
-    /// FNV-1a 64 of the output's `f32` bits, little endian ([`fnv1a64_f32`]).
+    /// FNV-1a 64 of the depth output's `f32` bits, little endian ([`fnv1a64_f32`]).
     pub hash: u64,
     /// Projection counters.
     pub stats: ProjectionStats,
 }
 
 impl FrameOutput {
-    /// Hashes the output `processed` left in `sparse_m`.
-    pub fn new(processed: &Processed, sparse_m: &[f32]) -> Self {
-        let out = sparse_m.get(..processed.pixels).unwrap_or(sparse_m);
+    /// Hashes the depth output `processed` left in `depth_m` ([`Workspace::depth_m`]).
+    pub fn new(processed: &Processed, depth_m: &[f32]) -> Self {
+        let out = depth_m.get(..processed.pixels).unwrap_or(depth_m);
         FrameOutput {
             index: processed.index,
             hash: fnv1a64_f32(out),
@@ -164,12 +176,12 @@ impl FrameOutput {
 }
 
 impl core::fmt::Display for FrameOutput {
-    /// `frame 3 sparse_fnv1a64=0123456789abcdef points=52 skipped=12 collisions=0`: the line the
+    /// `frame 3 depth_fnv1a64=0123456789abcdef points=52 skipped=12 collisions=0`: the line the
     /// firmware and the host print, compared bit for bit by the tests.
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         write!(
             f,
-            "frame {} sparse_fnv1a64={:016x} points={} skipped={} collisions={}",
+            "frame {} depth_fnv1a64={:016x} points={} skipped={} collisions={}",
             self.index,
             self.hash,
             self.stats.projected,
@@ -217,18 +229,21 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
         }
     }
 
-    /// Reads the next frame's sensors and projects its zones into `ws.sparse_m`; `Ok(None)`
-    /// after the last frame. This is the part of a frame the firmware times.
+    /// Reads the next frame's sensors, projects its zones into `ws.sparse_m` and runs `engine`
+    /// (prepared for the image's size) into `ws.depth_m`; `Ok(None)` after the last frame. This
+    /// is the part of a frame the firmware times.
     pub fn process<const N: usize>(
         &mut self,
+        engine: &mut Engine<'_>,
         ws: &mut Workspace<'_, N>,
     ) -> Result<Option<Processed>, LoopError> {
-        self.process_probed(ws, &mut ())
+        self.process_probed(engine, ws, &mut ())
     }
 
     /// [`ReplayLoop::process`], telling `probe` where each stage begins.
     pub fn process_probed<const N: usize>(
         &mut self,
+        engine: &mut Engine<'_>,
         ws: &mut Workspace<'_, N>,
         probe: &mut impl Probe,
     ) -> Result<Option<Processed>, LoopError> {
@@ -281,11 +296,25 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
         let stats =
             project_to_sparse(&cal, &ws.zones.view(), sparse).map_err(LoopError::Projection)?;
 
-        // ENGINE SEAM (issue 5, model path): once the int8 engine exists, prepared once with
-        // `Engine::new(&BLOB, &mut ARENA)` outside the loop, it runs here:
-        //     engine.run(rgb, sparse, &mut depth)?;
-        // and `FrameOutput` hashes `depth` instead of `sparse`. Until then NO MODEL RUNS: the
-        // output is the projection's sparse map.
+        // 4. Model: RGB + S → dense depth (the engine was prepared once, outside the loop).
+        probe.mark(Stage::Model);
+        if engine.input_shape() != (h as usize, w as usize) {
+            let (eh, ew) = engine.input_shape();
+            return Err(LoopError::Engine(engine::Error::ShapeMismatch {
+                what: "engine input size vs replay image",
+                expected: eh * ew,
+                found: pixels,
+            }));
+        }
+        let depth = ws
+            .depth_m
+            .get_mut(..pixels)
+            .ok_or(LoopError::Workspace("depth buffer"))?;
+        let rgb = ws
+            .rgb
+            .get(..3 * pixels)
+            .ok_or(LoopError::Workspace("RGB buffer"))?;
+        let run = engine.run(rgb, sparse, depth).map_err(LoopError::Engine)?;
 
         probe.mark(Stage::Done);
         self.next += 1;
@@ -293,18 +322,20 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
             index,
             pixels,
             stats,
+            run,
         }))
     }
 
     /// Runs every remaining frame, calling `emit` with each frame's output.
     pub fn run_all<const N: usize>(
         &mut self,
+        engine: &mut Engine<'_>,
         ws: &mut Workspace<'_, N>,
         mut emit: impl FnMut(&FrameOutput),
     ) -> Result<u32, LoopError> {
         let mut frames = 0;
-        while let Some(p) = self.process(ws)? {
-            emit(&FrameOutput::new(&p, ws.sparse_m));
+        while let Some(p) = self.process(engine, ws)? {
+            emit(&FrameOutput::new(&p, ws.depth_m));
             frames += 1;
         }
         Ok(frames)
@@ -314,6 +345,7 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::{prepare, ARENA_BUDGET_BYTES, MCU_BLOB};
     use crate::synthetic::{mcu_calibration, mcu_frames};
     use crate::writer::image_bytes;
 
@@ -346,16 +378,22 @@ mod tests {
         let bytes = image_bytes(&cal, &frames).unwrap();
         let image = Image::parse(&bytes).unwrap();
         let (mut rgb, mut sparse) = (vec![0u8; 57_600], vec![0f32; 19_200]);
+        let mut depth = vec![0f32; 19_200];
         let (mut bridge, mut zones) = ([0f32; 64], ZoneFrame::<64>::new());
         let mut ws = Workspace {
             rgb: &mut rgb,
             sparse_m: &mut sparse,
+            depth_m: &mut depth,
             bridge_mm: &mut bridge,
             zones: &mut zones,
         };
+        let mut arena = vec![0u8; ARENA_BUDGET_BYTES];
+        let mut engine = prepare(MCU_BLOB, &mut arena, 120, 160).unwrap();
+        let mut arena2 = vec![0u8; ARENA_BUDGET_BYTES];
+        let mut direct_engine = prepare(MCU_BLOB, &mut arena2, 120, 160).unwrap();
         let mut replay = ReplayLoop::new(image, NoDelay);
         for (i, f) in frames.iter().enumerate() {
-            let p = replay.process(&mut ws).unwrap().unwrap();
+            let p = replay.process(&mut engine, &mut ws).unwrap().unwrap();
             assert_eq!(p.index as usize, i);
             // The RGB went through the camera unchanged, the zones through the bridge.
             assert_eq!(&ws.rgb[..], &f.rgb[..]);
@@ -369,8 +407,19 @@ mod tests {
             assert_eq!(fnv1a64_f32(ws.sparse_m), fnv1a64_f32(&direct));
             // Synthetic frames: one 255, one status 4, one zero distance → 3 skipped.
             assert_eq!(stats.skipped(), 3);
+            // The depth is the engine's on these inputs, and it is what the line hashes.
+            let mut want_depth = vec![0f32; 19_200];
+            let run = direct_engine.run(&f.rgb, &direct, &mut want_depth).unwrap();
+            assert_eq!(p.run, run);
+            assert!(run.macs > 0);
+            assert_eq!(fnv1a64_f32(ws.depth_m), fnv1a64_f32(&want_depth));
+            assert_eq!(
+                FrameOutput::new(&p, ws.depth_m).hash,
+                fnv1a64_f32(&want_depth)
+            );
+            assert_ne!(fnv1a64_f32(ws.depth_m), fnv1a64_f32(ws.sparse_m));
         }
-        assert_eq!(replay.process(&mut ws).unwrap(), None);
+        assert_eq!(replay.process(&mut engine, &mut ws).unwrap(), None);
     }
 
     #[test]
@@ -378,15 +427,19 @@ mod tests {
         let bytes = image_bytes(&mcu_calibration(), &mcu_frames(1)).unwrap();
         let image = Image::parse(&bytes).unwrap();
         let (mut rgb, mut sparse) = (vec![0u8; 57_600], vec![0f32; 19_200]);
+        let mut depth = vec![0f32; 19_200];
         let (mut bridge, mut zones) = ([0f32; 16], ZoneFrame::<16>::new());
         let mut ws = Workspace {
             rgb: &mut rgb,
             sparse_m: &mut sparse,
+            depth_m: &mut depth,
             bridge_mm: &mut bridge,
             zones: &mut zones,
         };
+        let mut arena = vec![0u8; ARENA_BUDGET_BYTES];
+        let mut engine = prepare(MCU_BLOB, &mut arena, 120, 160).unwrap();
         let err = ReplayLoop::new(image, NoDelay)
-            .process(&mut ws)
+            .process(&mut engine, &mut ws)
             .unwrap_err();
         assert_eq!(
             err,
@@ -396,5 +449,41 @@ mod tests {
             }
         );
         assert_eq!(err.exit_code(), 13);
+    }
+}
+
+#[cfg(test)]
+mod engine_size_tests {
+    use super::*;
+    use crate::model::{prepare, ARENA_BUDGET_BYTES, MCU_BLOB};
+    use crate::synthetic::{mcu_calibration, mcu_frames};
+    use crate::writer::image_bytes;
+
+    struct NoDelay;
+    impl DelayNs for NoDelay {
+        fn delay_ns(&mut self, _ns: u32) {}
+    }
+
+    #[test]
+    fn engine_prepared_for_another_size_is_an_error() {
+        let bytes = image_bytes(&mcu_calibration(), &mcu_frames(1)).unwrap();
+        let image = Image::parse(&bytes).unwrap();
+        let (mut rgb, mut sparse) = (vec![0u8; 57_600], vec![0f32; 19_200]);
+        let mut depth = vec![0f32; 19_200];
+        let (mut bridge, mut zones) = ([0f32; 64], ZoneFrame::<64>::new());
+        let mut ws = Workspace {
+            rgb: &mut rgb,
+            sparse_m: &mut sparse,
+            depth_m: &mut depth,
+            bridge_mm: &mut bridge,
+            zones: &mut zones,
+        };
+        let mut arena = vec![0u8; ARENA_BUDGET_BYTES];
+        let mut engine = prepare(MCU_BLOB, &mut arena, 64, 64).unwrap();
+        let err = ReplayLoop::new(image, NoDelay)
+            .process(&mut engine, &mut ws)
+            .unwrap_err();
+        assert!(matches!(err, LoopError::Engine(_)), "{err:?}");
+        assert_eq!(err.exit_code(), 16);
     }
 }

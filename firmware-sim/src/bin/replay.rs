@@ -9,7 +9,8 @@ use cortex_m_rt::entry;
 use depthor_core::hal::ZoneFrame;
 use depthor_firmware_sim::{console, cycles, memory, println};
 use depthor_replay::format::Image;
-use depthor_replay::pipeline::{FrameOutput, Probe, ReplayLoop, Stage, Workspace};
+use depthor_replay::model::{self, ARENA_BUDGET_BYTES, MCU_BLOB};
+use depthor_replay::pipeline::{FrameOutput, LoopError, Probe, ReplayLoop, Stage, Workspace};
 
 /// 4-byte alignment for the embedded image, so its (4-aligned) RGB records copy by words.
 #[repr(C, align(4))]
@@ -22,7 +23,7 @@ static ALIGNED_IMAGE: &Aligned<[u8]> =
 static IMAGE: &[u8] = &ALIGNED_IMAGE.0;
 
 /// Stages timed per frame (all but [`Stage::Done`]).
-const STAGES: [Stage; 3] = [Stage::Camera, Stage::Dtof, Stage::Projection];
+const STAGES: [Stage; 4] = [Stage::Camera, Stage::Dtof, Stage::Projection, Stage::Model];
 
 /// Accumulates SysTick ticks per stage from the loop's stage marks.
 #[derive(Default)]
@@ -48,6 +49,11 @@ const PIXELS: usize = 120 * 160;
 /// Zones this build holds: 8×8 (VL53L5CX class).
 const ZONES: usize = 64;
 
+/// The engine's arena: a `.bss` static in SSRAM (`RAM` in `memory.x`), 16-byte aligned like the
+/// engine's buffers (it would realign a misaligned one at the cost of up to 15 bytes).
+#[repr(C, align(16))]
+struct Arena([u8; ARENA_BUDGET_BYTES]);
+
 /// Busy-wait delay for the dToF driver's polls (the simulated bridge is always ready, so it
 /// does not run in practice). Assumes the 25 MHz core clock of the board model.
 struct SpinDelay;
@@ -63,6 +69,8 @@ fn main() -> ! {
     // `static mut` inside `#[entry]`: cortex-m-rt turns each into a unique `&'static mut`.
     static mut RGB: [u8; 3 * PIXELS] = [0; 3 * PIXELS];
     static mut SPARSE: [f32; PIXELS] = [0.0; PIXELS];
+    static mut DEPTH: [f32; PIXELS] = [0.0; PIXELS];
+    static mut ARENA: Arena = Arena([0; ARENA_BUDGET_BYTES]);
     static mut BRIDGE: [f32; ZONES] = [0.0; ZONES];
     static mut ZONE_FRAME: ZoneFrame<ZONES> = ZoneFrame::new();
 
@@ -91,9 +99,30 @@ fn main() -> ! {
         IMAGE.len()
     );
 
+    let before = cycles::ticks();
+    let mut engine = match model::prepare(MCU_BLOB, &mut ARENA.0, h, w) {
+        Ok(engine) => engine,
+        Err(e) => {
+            let e = LoopError::Engine(e);
+            println!("ERROR {}: {e}", e.exit_code());
+            console::exit(e.exit_code());
+        }
+    };
+    let arena_used = engine.plan().arena_bytes();
+    println!(
+        "engine: blob {} B at {:p}, arena {arena_used} B of {} B reserved, {} MAC/frame, \
+         prepared in {} instructions",
+        MCU_BLOB.len(),
+        MCU_BLOB.as_ptr(),
+        ARENA_BUDGET_BYTES,
+        engine.plan().macs(),
+        cycles::instructions(cycles::ticks() - before)
+    );
+
     let mut ws = Workspace {
         rgb: RGB,
         sparse_m: SPARSE,
+        depth_m: DEPTH,
         bridge_mm: BRIDGE,
         zones: ZONE_FRAME,
     };
@@ -103,15 +132,16 @@ fn main() -> ! {
     let mut stage_totals = [0u64; STAGES.len()];
     loop {
         let mut probe = TickProbe::default();
-        let result = replay.process_probed(&mut ws, &mut probe);
+        let result = replay.process_probed(&mut engine, &mut ws, &mut probe);
         match result {
             Ok(Some(processed)) => {
                 let per_stage = probe.ticks.map(cycles::instructions);
                 let instructions: u64 = per_stage.iter().sum();
-                println!("{}", FrameOutput::new(&processed, ws.sparse_m));
+                println!("{}", FrameOutput::new(&processed, ws.depth_m));
                 println!(
-                    "icount frame {} instructions={instructions} camera={} dtof={} projection={}",
-                    processed.index, per_stage[0], per_stage[1], per_stage[2]
+                    "icount frame {} instructions={instructions} camera={} dtof={} projection={} \
+                     model={}",
+                    processed.index, per_stage[0], per_stage[1], per_stage[2], per_stage[3]
                 );
                 frames += 1;
                 for (total, n) in stage_totals.iter_mut().zip(per_stage) {
@@ -133,25 +163,37 @@ fn main() -> ! {
     let flash = memory::flash_bytes();
     println!("frames {frames}");
     let mean = |n: u64| n / frames.max(1);
+    let mean_total = mean(stage_totals.iter().sum());
     println!(
-        "instructions/frame: mean {} min {min} max {max}; mean camera {} dtof {} projection {} \
-         (SysTick x{} under -icount shift={}, +-{} per stage)",
-        mean(stage_totals.iter().sum()),
+        "instructions/frame: mean {mean_total} min {min} max {max}; mean camera {} dtof {} \
+         projection {} model {} (SysTick x{} under -icount shift={}, +-{} per stage)",
         mean(stage_totals[0]),
         mean(stage_totals[1]),
         mean(stage_totals[2]),
+        mean(stage_totals[3]),
         cycles::INSTRUCTIONS_PER_TICK,
         cycles::ICOUNT_SHIFT,
         cycles::INSTRUCTIONS_PER_TICK
     );
+    // 480 MHz at 1 instruction/cycle: frames/s = 480e6 / instructions, printed with 2 decimals.
+    let centi_fps = 48_000_000_000u64 / mean_total.max(1);
     println!(
-        "ram: statics {statics} B + stack high-water {stack} B = {} B (of {} B stack region)",
+        "estimate (not a measurement): {}.{:02} frames/s on a 480 MHz Cortex-M7 at 1 \
+         instruction/cycle",
+        centi_fps / 100,
+        centi_fps % 100
+    );
+    println!(
+        "ram: statics {statics} B (of which arena reserved {} B, used {arena_used} B) + stack \
+         high-water {stack} B = {} B (of {} B stack region)",
+        ARENA_BUDGET_BYTES,
         statics + stack,
         memory::stack_region_bytes()
     );
     println!(
-        "flash: {flash} B = firmware {} B + replay image {} B",
-        flash.saturating_sub(IMAGE.len()),
+        "flash: {flash} B = firmware {} B + model blob {} B + replay image {} B",
+        flash.saturating_sub(IMAGE.len() + MCU_BLOB.len()),
+        MCU_BLOB.len(),
         IMAGE.len()
     );
     println!("TEST OK");

@@ -5,6 +5,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 mod bench;
 mod demo;
+mod firmware;
 mod gap;
 mod gap_bench;
 mod import;
@@ -31,6 +32,10 @@ enum Command {
     Bench(bench::Args),
     /// The main job: scene (or --recording) → dToF → int8 model in the core, vs baselines.
     Demo(demo::Args),
+    /// Write a firmware-sim replay flash image (RGB 120×160 + zones) from a recording.
+    FirmwareImage(firmware::ImageArgs),
+    /// Host build of the firmware-sim loop: per-frame depth hashes, as the QEMU firmware prints.
+    FirmwareReplay(firmware::ReplayArgs),
     /// Compare a real recording with the simulator: locate the mismatch, name and fit the missing physics.
     Gap(gap::Args),
     /// Concealed-effect benchmark of the gap tool (hidden effects in simulated "real" recordings).
@@ -52,6 +57,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Bench(args) => bench::handle(args),
         Command::Demo(args) => demo::handle(args),
+        Command::FirmwareImage(args) => firmware::handle_image(args),
+        Command::FirmwareReplay(args) => firmware::handle_replay(args),
         Command::Gap(args) => gap::handle(args),
         Command::GapBench(args) => gap_bench::handle(args),
         Command::Import(args) => import::handle(args),

@@ -1,21 +1,11 @@
 //! `replay-host IMAGE`: the host build of the firmware loop. Prints the same per-frame lines as
-//! the QEMU firmware (`frame i sparse_fnv1a64=…`) and exits with the same status codes
-//! (see the crate doc). Later exposed as `depthor firmware-replay`.
+//! the QEMU firmware (`frame i depth_fnv1a64=…`) and exits with the same status codes
+//! (see the crate doc). Also exposed as `depthor firmware-replay`.
 
 use std::process::ExitCode;
 
-use depthor_core::hal::ZoneFrame;
 use depthor_replay::format::Image;
-use depthor_replay::pipeline::{ReplayLoop, Workspace};
-
-/// Sleeps for real; the simulated bridge is always ready, so it is never called in practice.
-struct StdDelay;
-
-impl embedded_hal::delay::DelayNs for StdDelay {
-    fn delay_ns(&mut self, ns: u32) {
-        std::thread::sleep(std::time::Duration::from_nanos(u64::from(ns)));
-    }
-}
+use depthor_replay::host::{replay_image, StdDelay};
 
 /// Zone capacity, as in the firmware (8×8).
 const ZONES: usize = 64;
@@ -39,20 +29,7 @@ fn main() -> ExitCode {
             return ExitCode::from(e.exit_code());
         }
     };
-    let (h, w) = image.size();
-    let pixels = usize::from(h) * usize::from(w);
-    let mut rgb = vec![0u8; 3 * pixels];
-    let mut sparse = vec![0f32; pixels];
-    let mut bridge = [0f32; ZONES];
-    let mut zones = ZoneFrame::<ZONES>::new();
-    let mut ws = Workspace {
-        rgb: &mut rgb,
-        sparse_m: &mut sparse,
-        bridge_mm: &mut bridge,
-        zones: &mut zones,
-    };
-    let mut replay = ReplayLoop::new(image, StdDelay);
-    match replay.run_all(&mut ws, |out| println!("{out}")) {
+    match replay_image::<ZONES>(image, StdDelay, |out| println!("{out}")) {
         Ok(n) => {
             println!("frames {n}");
             println!("TEST OK");

@@ -1,0 +1,51 @@
+//! The `mcu` model both builds run: the int8 blob `models/mcu/depthor.dblob`, embedded with
+//! `include_bytes!` (in the firmware it lies in flash, in `.rodata`), and the arena size the
+//! firmware reserves for it.
+//!
+//! The blob parser reads every field through byte slices (`from_le_bytes`), so it needs no
+//! alignment of the blob in memory; its parameters are 16-byte aligned *relative to the blob
+//! start* (see `depthor_core::blob::format`), and [`MCU_BLOB`] is placed on a 16-byte boundary so
+//! that they are also 16-byte aligned in memory, should a kernel ever read them by words.
+
+use depthor_core::engine::{self, Engine};
+
+/// 16-byte alignment wrapper for embedded bytes.
+#[repr(C, align(16))]
+pub struct Align16<B: ?Sized>(pub B);
+
+static ALIGNED_BLOB: &Align16<[u8]> = &Align16(*include_bytes!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../models/mcu/depthor.dblob"
+)));
+
+/// The `mcu` int8 model blob (16-byte aligned).
+pub static MCU_BLOB: &[u8] = &ALIGNED_BLOB.0;
+
+/// Arena bytes the firmware reserves: the DESIGN.md `mcu` arena budget, 2 MiB (its goal is
+/// 384 KiB). [`Engine::with_size`] reports `ArenaTooSmall` when a blob needs more.
+pub const ARENA_BUDGET_BYTES: usize = 2 * 1024 * 1024;
+
+/// Prepares the engine once for the replay image's `height × width` (the blob's native size
+/// for a 120×160 image, where this is the same as [`Engine::new`]).
+pub fn prepare<'a>(
+    blob: &'a [u8],
+    arena: &'a mut [u8],
+    height: u16,
+    width: u16,
+) -> Result<Engine<'a>, engine::Error> {
+    Engine::with_size(blob, arena, usize::from(height), usize::from(width))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn blob_is_aligned_and_fits_the_budgets() {
+        assert_eq!(MCU_BLOB.as_ptr() as usize % 16, 0);
+        // DESIGN.md: mcu weights ≤ 512 KiB (the blob holds the weights plus the graph).
+        assert!(MCU_BLOB.len() <= 512 * 1024, "{}", MCU_BLOB.len());
+        let need = engine::required_arena_bytes(MCU_BLOB, 120, 160).unwrap();
+        assert!(need <= ARENA_BUDGET_BYTES, "{need}");
+    }
+}
