@@ -1,7 +1,7 @@
 """Exports one variant: NNEF of the full network and of the prior (torch-to-nnef, offline),
 graph.json + weights.bin (graph.md), golden tensors, and summary.json with parameter/MAC counts.
 
-    python -m depthor_models.export --variant mcu --out mcu
+    python -m depthor_models.export --variant mcu --out mcu [--weights runs/mcu/ckpt.pt]
 
 torch-to-nnef's TractNNEF target always resolves a tract CLI when it is built and downloads one
 unless given a path. No network is reachable here and building tract-cli takes too long, so by
@@ -90,13 +90,27 @@ def export_nnef(model: nn.Module, args: tuple[Tensor, ...], path: str | Path,
     return out
 
 
+def build_trained(variant: str, weights: str | Path) -> Depthor:
+    """The variant with trained weights from a training checkpoint (`{"model": state_dict}`,
+    e.g. runs/mcu/ckpt.pt) or a plain state-dict file, in eval mode."""
+    obj = torch.load(weights, map_location="cpu", weights_only=False)
+    state = obj["model"] if isinstance(obj, dict) and "model" in obj else obj
+    net = build(variant, calibrate_bn=False)
+    net.load_state_dict(state)
+    return net.eval()
+
+
 def export_variant(variant: str, out_dir: str | Path, seed: int = DEFAULT_SEED,
                    golden_seed: int = GOLDEN_SEED, nnef: bool = True,
-                   tract_cli: str | Path | None = None, net: Depthor | None = None) -> dict:
-    """Writes every artefact of `variant` into out_dir and returns the summary dict."""
+                   tract_cli: str | Path | None = None, net: Depthor | None = None,
+                   weights: str | Path | None = None) -> dict:
+    """Writes every artefact of `variant` into out_dir and returns the summary dict. With
+    `weights` (a training checkpoint or state dict) the trained network is exported instead of
+    the seeded random one."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    net = net if net is not None else build(variant, seed=seed)
+    if net is None:
+        net = build_trained(variant, weights) if weights else build(variant, seed=seed)
     cfg = net.cfg
     rgb, sparse = random_inputs(cfg, torch.Generator().manual_seed(golden_seed))
     traced = graph_export.trace(net, rgb, sparse)
@@ -120,15 +134,25 @@ def export_variant(variant: str, out_dir: str | Path, seed: int = DEFAULT_SEED,
         "width": cfg.width,
         "seed": seed,
         "golden_seed": golden_seed,
-        "weights": "random init (untrained), BN statistics from 3 train-mode passes",
+        "weights": (_describe_weights(weights) if weights else
+                    "random init (untrained), BN statistics from 3 train-mode passes"),
+        "weights_path": str(weights) if weights else None,
         **counts,
         "files": {k: {"path": Path(v).name if k != "golden_index" else "golden/index.json",
                       "bytes": Path(v).stat().st_size} for k, v in files.items()},
         "export_timings": timings,
-        "command": f"python -m depthor_models.export --variant {variant} --out <dir>",
+        "command": f"python -m depthor_models.export --variant {variant} --out <dir>"
+                   + (f" --weights {weights}" if weights else ""),
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     return summary
+
+
+def _describe_weights(weights: str | Path) -> str:
+    obj = torch.load(weights, map_location="cpu", weights_only=False)
+    if isinstance(obj, dict) and "step" in obj:
+        return f"trained: {Path(weights).name}, step {obj['step']}"
+    return f"trained: {Path(weights).name}"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -137,11 +161,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--variant", required=True, choices=["mcu", "phone"])
     ap.add_argument("--out", required=True, help="output folder, e.g. models/mcu")
     ap.add_argument("--seed", type=int, default=DEFAULT_SEED)
+    ap.add_argument("--weights", default=None,
+                    help="trained weights (training checkpoint or state dict; default: random)")
     ap.add_argument("--no-nnef", action="store_true", help="skip the NNEF exports")
     ap.add_argument("--tract-cli", default=os.environ.get("DEPTHOR_TRACT_CLI"),
                     help="real tract CLI to check NNEF outputs with (default: none, no check)")
     a = ap.parse_args(argv)
-    s = export_variant(a.variant, a.out, a.seed, nnef=not a.no_nnef, tract_cli=a.tract_cli)
+    s = export_variant(a.variant, a.out, a.seed, nnef=not a.no_nnef, tract_cli=a.tract_cli,
+                       weights=a.weights)
     print(json.dumps({k: s[k] for k in ("variant", "params_deployed", "params_prior", "macs",
                                          "macs_prior", "files", "export_timings")}, indent=1))
     return 0

@@ -136,13 +136,27 @@ def test_golden_round_trip(tmp_path, traced):
 
 @pytest.mark.parametrize("variant", VARIANTS)
 def test_committed_artefacts_match_the_code(traced, variant):
-    """models/<variant>/graph.json, weights.bin (and mcu's golden) are what the code exports now;
-    re-run the export command when this fails after a deliberate change."""
+    """models/<variant>/graph.json, weights.bin (and mcu's golden) are what the code exports now
+    (from the trained weights that summary.json's `weights_path` names, relative to models/, or
+    the seeded random network); re-run the export command when this fails after a deliberate
+    change."""
+    import json
     from pathlib import Path
 
-    root = Path(__file__).resolve().parents[1] / variant
+    import torch
+
+    from depthor_models.export import build_trained
+    from depthor_models.net import random_inputs
+
+    models = Path(__file__).resolve().parents[1]
+    root = models / variant
     graph, weights = graph_export.load(root / "graph.json")
-    t = traced[variant]
+    trained = json.loads((root / "summary.json").read_text()).get("weights_path")
+    if trained:
+        net = build_trained(variant, models / trained)
+        t = graph_export.trace(net, *random_inputs(net.cfg, torch.Generator().manual_seed(1)))
+    else:
+        t = traced[variant]
     assert graph["nodes"] == t.graph["nodes"]
     assert set(weights) == set(t.params)
     for name, arr in weights.items():

@@ -1,0 +1,178 @@
+"""Training data from `depthor-recording/1` folders (DESIGN.md), loaded into memory once.
+
+A frame gives the network's inputs and target:
+- rgb: `rgb.png` as float [3, H, W] in [0, 1];
+- sparse S [1, H, W] in metres: each zone with a valid status puts its `distance_mm / 1000` at the
+  pixel `floor(centre + 0.5)` of its rectangle in `recording.json` `dtof.zone_rects_px`
+  (`[y0, x0, y1, x1]`, centre = ((y0 + y1) / 2, (x0 + x1) / 2)); zones whose pixel falls outside
+  the image are dropped; everything else is 0;
+- gt [1, H, W] in metres: `depth.png` (16-bit millimetres, 0 = unknown).
+
+`load_recording` decodes the PNGs once (Pillow) and keeps numpy arrays; with `cache=True` it also
+stores them as `<recording>/.depthor-train-cache.npz`, reused while recording.json is unchanged.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch.utils.data import Dataset
+
+CACHE_NAME = ".depthor-train-cache.npz"
+CACHE_VERSION = 1
+
+
+@dataclass
+class Recording:
+    """A recording in memory: rgb uint8 [N,H,W,3], depth_mm uint16 [N,H,W], zone distances
+    float32 [N,Z] (metres), zone status uint8 [N,Z], zone pixels int64 [Z,2] (row, col; -1 when
+    outside the image), zone grid shape (rows, cols), frame ids."""
+
+    rgb: np.ndarray
+    depth_mm: np.ndarray
+    zone_m: np.ndarray
+    status: np.ndarray
+    zone_px: np.ndarray
+    grid: tuple[int, int]
+    ids: list[str]
+
+    def __len__(self) -> int:
+        return int(self.rgb.shape[0])
+
+    @property
+    def height(self) -> int:
+        """Image height in pixels."""
+        return int(self.rgb.shape[1])
+
+    @property
+    def width(self) -> int:
+        """Image width in pixels."""
+        return int(self.rgb.shape[2])
+
+
+def zone_pixels(rects: list[list[float]], height: int, width: int) -> np.ndarray:
+    """Pixel (row, col) = floor(centre + 0.5) of each `[y0, x0, y1, x1]` rectangle; (-1, -1) for
+    a zone whose pixel is outside the image."""
+    r = np.asarray(rects, dtype=np.float64).reshape(-1, 4)
+    cy = (r[:, 0] + r[:, 2]) / 2.0
+    cx = (r[:, 1] + r[:, 3]) / 2.0
+    px = np.stack([np.floor(cy + 0.5), np.floor(cx + 0.5)], axis=1).astype(np.int64)
+    inside = (px[:, 0] >= 0) & (px[:, 0] < height) & (px[:, 1] >= 0) & (px[:, 1] < width)
+    px[~inside] = -1
+    return px
+
+
+def _read_png(path: Path) -> np.ndarray:
+    from PIL import Image
+
+    with Image.open(path) as im:
+        if im.mode.startswith("I"):  # 16-bit grey ("I;16") or 32-bit ("I")
+            return np.asarray(im).astype(np.uint16)
+        return np.asarray(im if im.mode in ("L", "RGB") else im.convert("RGB"))
+
+
+def _meta_key(meta_text: str) -> str:
+    return hashlib.sha256(f"{CACHE_VERSION}:{meta_text}".encode()).hexdigest()
+
+
+def load_recording(path: str | Path, cache: bool = True) -> Recording:
+    """Loads every frame of a recording (see module doc). Raises ValueError for a recording
+    without `zone_rects_px`, without reference depth, or with frames of another size."""
+    root = Path(path)
+    meta_text = (root / "recording.json").read_text()
+    meta = json.loads(meta_text)
+    if meta.get("format") != "depthor-recording/1":
+        raise ValueError(f"{root}: not a depthor-recording/1")
+    cam, dtof = meta["camera"], meta["dtof"]
+    h, w = int(cam["height"]), int(cam["width"])
+    rects = dtof.get("zone_rects_px")
+    if rects is None:
+        raise ValueError(f"{root}: dtof.zone_rects_px is null (the loader needs zone rectangles)")
+    grid = (int(dtof["rows"]), int(dtof["cols"]))
+    if len(rects) != grid[0] * grid[1]:
+        raise ValueError(f"{root}: {len(rects)} zone rectangles for a {grid} grid")
+    zone_px = zone_pixels(rects, h, w)
+    ids = [str(f["id"]) for f in meta["frames"]]
+    key = _meta_key(meta_text)
+    cache_path = root / CACHE_NAME
+    if cache and cache_path.exists():
+        with np.load(cache_path, allow_pickle=False) as z:
+            if str(z["key"]) == key:
+                return Recording(z["rgb"], z["depth_mm"], z["zone_m"], z["status"], zone_px,
+                                 grid, ids)
+    n, nz = len(ids), grid[0] * grid[1]
+    rgb = np.empty((n, h, w, 3), np.uint8)
+    depth = np.empty((n, h, w), np.uint16)
+    zone_m = np.zeros((n, nz), np.float32)
+    status = np.full((n, nz), 255, np.uint8)
+    for i, fid in enumerate(ids):
+        fdir = root / "frames" / fid
+        im = _read_png(fdir / "rgb.png")
+        dp = _read_png(fdir / "depth.png")
+        if im.shape != (h, w, 3) or dp.shape != (h, w):
+            raise ValueError(f"{fdir}: rgb {im.shape} / depth {dp.shape}, expected {h}x{w}")
+        rgb[i], depth[i] = im, dp
+        z = json.loads((fdir / "dtof.json").read_text())
+        zone_m[i] = np.asarray(z["distance_mm"], np.float32) / 1000.0
+        status[i] = np.asarray(z["status"], np.int64).clip(0, 255).astype(np.uint8)
+    if cache:
+        tmp = root / (CACHE_NAME + ".tmp.npz")
+        np.savez(tmp, key=np.array(key), rgb=rgb, depth_mm=depth, zone_m=zone_m, status=status)
+        tmp.replace(cache_path)
+    return Recording(rgb, depth, zone_m, status, zone_px, grid, ids)
+
+
+def sparse_maps(rec: Recording, idx: np.ndarray,
+                valid_status: tuple[int, ...] = (5,)) -> np.ndarray:
+    """Sparse depth maps float32 [len(idx), H, W] (metres) of the frames `idx`."""
+    idx = np.asarray(idx, dtype=np.int64)
+    out = np.zeros((len(idx), rec.height, rec.width), np.float32)
+    ok_px = rec.zone_px[:, 0] >= 0
+    valid = np.isin(rec.status[idx], valid_status) & ok_px[None, :] & (rec.zone_m[idx] > 0)
+    b, z = np.nonzero(valid)
+    out[b, rec.zone_px[z, 0], rec.zone_px[z, 1]] = rec.zone_m[idx][b, z]
+    return out
+
+
+def batch(rec: Recording, idx: np.ndarray, flip: np.ndarray | None = None,
+          valid_status: tuple[int, ...] = (5,)) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(rgb [B,3,H,W] in [0,1], sparse [B,1,H,W] m, gt [B,1,H,W] m; 0 = unknown) for frames
+    `idx`; frames with `flip[b]` are mirrored left-right (rgb, sparse and gt together)."""
+    idx = np.asarray(idx, dtype=np.int64)
+    rgb = rec.rgb[idx].astype(np.float32) / 255.0
+    gt = rec.depth_mm[idx].astype(np.float32) / 1000.0
+    sp = sparse_maps(rec, idx, valid_status)
+    if flip is not None:
+        f = np.asarray(flip, dtype=bool)
+        rgb[f] = rgb[f][:, :, ::-1]
+        gt[f] = gt[f][:, :, ::-1]
+        sp[f] = sp[f][:, :, ::-1]
+    return (torch.from_numpy(np.ascontiguousarray(rgb.transpose(0, 3, 1, 2))),
+            torch.from_numpy(np.ascontiguousarray(sp[:, None])),
+            torch.from_numpy(np.ascontiguousarray(gt[:, None])))
+
+
+class RecordingDataset(Dataset):
+    """torch Dataset over a Recording: item i = (rgb [3,H,W], sparse [1,H,W], gt [1,H,W]), with a
+    random horizontal flip (probability `flip_p`, drawn from `generator`) when `augment`."""
+
+    def __init__(self, rec: Recording, augment: bool = False, flip_p: float = 0.5,
+                 generator: torch.Generator | None = None, valid_status: tuple[int, ...] = (5,)):
+        self.rec, self.augment, self.flip_p = rec, augment, flip_p
+        self.generator = generator
+        self.valid_status = valid_status
+
+    def __len__(self) -> int:
+        return len(self.rec)
+
+    def __getitem__(self, i: int):
+        flip = None
+        if self.augment:
+            flip = np.array([float(torch.rand((), generator=self.generator)) < self.flip_p])
+        rgb, sp, gt = batch(self.rec, np.array([i]), flip, self.valid_status)
+        return rgb[0], sp[0], gt[0]

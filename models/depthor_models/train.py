@@ -1,0 +1,479 @@
+"""Trains a DEPTHOR variant on simulated recordings (paper sec. 3.3 and supplement "Training Setting").
+
+    python -m depthor_models.train --train /work/data/mcu_train --test /work/data/mcu_test \
+        --out runs/mcu --steps 2000 [--resume]
+
+Recipe: scaled SILog loss (α = 10, λ = 0.85) on pixels whose reference depth is inside the
+sensor's theoretical range (0.1, 10) m; AdamW (weight decay 0.1); gradient l2-norm clipping at 0.1;
+OneCycle (initial lr = max/25, final lr = max/100). The monocular prior is trained jointly with an
+auxiliary scale-and-shift-invariant loss on its inverse depth D_inv (MiDaS style, weight
+`--prior-weight`); it also receives the main loss's gradients through the depth encoder input and
+F_mde.
+
+The run folder holds `ckpt.pt` (model, optimizer, scheduler, step, RNG states, arguments; written
+atomically every `--ckpt-every-s` seconds, on SIGTERM/SIGINT and at the end), `train.csv` (one row
+per step), `eval.csv` (held-out metrics at every checkpoint, with the zone baselines) and
+`loss.png`. Batches are a pure function of (seed, step), so `--resume` continues exactly where the
+last checkpoint left off, whatever killed the run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import os
+import signal
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from . import data
+from .net import Depthor, build
+
+MIN_DEPTH_M = 0.1
+MAX_DEPTH_M = 10.0
+TRAIN_FIELDS = ["step", "wall_s", "lr", "loss", "silog", "prior", "grad_norm"]
+EVAL_FIELDS = ["step", "wall_s", "frames", "model_rmse", "model_delta1", "model_rel",
+               "bilinear_rmse", "bilinear_delta1", "bilinear_rel",
+               "nearest_rmse", "nearest_delta1", "nearest_rel"]
+
+
+# ----------------------------------------------------------------------------------- losses
+
+def valid_mask(gt: Tensor, lo: float = MIN_DEPTH_M, hi: float = MAX_DEPTH_M) -> Tensor:
+    """Pixels whose reference depth lies strictly inside (lo, hi) metres."""
+    return (gt > lo) & (gt < hi)
+
+
+def silog_loss(pred: Tensor, gt: Tensor, alpha: float = 10.0, lam: float = 0.85,
+               lo: float = MIN_DEPTH_M, hi: float = MAX_DEPTH_M) -> Tensor:
+    """α·sqrt(mean g² − λ·(mean g)²), g = log pred − log gt over the batch's valid pixels
+    (paper eq. loss). Returns 0 (with a graph) when no pixel is valid."""
+    m = valid_mask(gt, lo, hi)
+    if not bool(m.any()):
+        return pred.sum() * 0.0
+    g = torch.log(pred[m].clamp_min(1e-3)) - torch.log(gt[m])
+    d = (g * g).mean() - lam * g.mean() ** 2
+    return alpha * torch.sqrt(d.clamp_min(1e-12))
+
+
+def _normalise(x: Tensor) -> Tensor:
+    t = x.median()
+    s = (x - t).abs().mean().clamp_min(1e-6)
+    return (x - t) / s
+
+
+def ssi_inverse_loss(d_inv: Tensor, gt: Tensor, lo: float = MIN_DEPTH_M,
+                     hi: float = MAX_DEPTH_M) -> Tensor:
+    """MiDaS-style affine-invariant loss: per image, the prediction and the reference inverse
+    depth 1/gt over valid pixels are each shifted by their median and scaled by their mean
+    absolute deviation, then compared with the mean absolute difference; averaged over images
+    with at least 16 valid pixels."""
+    losses = []
+    for b in range(d_inv.shape[0]):
+        m = valid_mask(gt[b], lo, hi)
+        if int(m.sum()) < 16:
+            continue
+        p = _normalise(d_inv[b][m])
+        g = _normalise(1.0 / gt[b][m])
+        losses.append((p - g).abs().mean())
+    if not losses:
+        return d_inv.sum() * 0.0
+    return torch.stack(losses).mean()
+
+
+# ---------------------------------------------------------------------------------- metrics
+
+def metrics(pred: np.ndarray, gt: np.ndarray, lo: float = MIN_DEPTH_M,
+            hi: float = MAX_DEPTH_M) -> dict[str, float]:
+    """Per-image RMSE (m), δ1 (max(p/g, g/p) < 1.25) and Rel over pixels with gt in (lo, hi),
+    averaged over the images that have any such pixel. pred, gt: [N, H, W]."""
+    rmse, d1, rel = [], [], []
+    for p, g in zip(pred, gt):
+        m = (g > lo) & (g < hi)
+        if not m.any():
+            continue
+        pm, gm = np.maximum(p[m].astype(np.float64), 1e-3), g[m].astype(np.float64)
+        rmse.append(math.sqrt(float(np.mean((pm - gm) ** 2))))
+        d1.append(float(np.mean(np.maximum(pm / gm, gm / pm) < 1.25)))
+        rel.append(float(np.mean(np.abs(pm - gm) / gm)))
+    return {"rmse": float(np.mean(rmse)), "delta1": float(np.mean(d1)), "rel": float(np.mean(rel))}
+
+
+def zone_baselines(rec: data.Recording, idx: np.ndarray,
+                   valid_status: tuple[int, ...] = (5,)) -> dict[str, np.ndarray]:
+    """Classical references from the zones alone, [N, H, W] metres each:
+    `nearest` = the distance of the nearest valid zone pixel; `bilinear` = bilinear interpolation
+    over the zone grid (nodes at the zones' pixels, clamped outside them) using only valid zones
+    (weights renormalised), falling back to `nearest` where all four neighbours are invalid.
+    A frame without any valid zone gets 1 m everywhere."""
+    rows, cols = rec.grid
+    h, w = rec.height, rec.width
+    px = rec.zone_px.astype(np.float64)
+    inside = rec.zone_px[:, 0] >= 0
+    yy, xx = np.meshgrid(np.arange(h, dtype=np.float64), np.arange(w, dtype=np.float64),
+                         indexing="ij")
+    # nearest: pixel → zone distances
+    d2 = (yy.reshape(-1, 1) - px[None, :, 0]) ** 2 + (xx.reshape(-1, 1) - px[None, :, 1]) ** 2
+    # bilinear: grid node coordinates per row / column (zones' pixels, averaged along the grid)
+    gy = px[:, 0].reshape(rows, cols).mean(axis=1)
+    gx = px[:, 1].reshape(rows, cols).mean(axis=0)
+    fy = np.interp(yy[:, 0], gy, np.arange(rows, dtype=np.float64))
+    fx = np.interp(xx[0], gx, np.arange(cols, dtype=np.float64))
+    r0 = np.clip(np.floor(fy).astype(np.int64), 0, max(rows - 2, 0))
+    c0 = np.clip(np.floor(fx).astype(np.int64), 0, max(cols - 2, 0))
+    ty, tx = fy - r0, fx - c0
+    r1, c1 = np.minimum(r0 + 1, rows - 1), np.minimum(c0 + 1, cols - 1)
+    corners = [(r0, c0, (1 - ty)[:, None] * (1 - tx)[None, :]),
+               (r0, c1, (1 - ty)[:, None] * tx[None, :]),
+               (r1, c0, ty[:, None] * (1 - tx)[None, :]),
+               (r1, c1, ty[:, None] * tx[None, :])]
+    near, bil = [], []
+    for i in np.asarray(idx, dtype=np.int64):
+        ok = np.isin(rec.status[i], valid_status) & inside & (rec.zone_m[i] > 0)
+        if not ok.any():
+            near.append(np.ones((h, w), np.float32))
+            bil.append(np.ones((h, w), np.float32))
+            continue
+        z = rec.zone_m[i].astype(np.float64)
+        nz = np.where(ok[None, :], d2, np.inf).argmin(axis=1).reshape(h, w)
+        n_map = z[nz]
+        grid_v = z.reshape(rows, cols)
+        grid_ok = ok.reshape(rows, cols).astype(np.float64)
+        num = np.zeros((h, w))
+        den = np.zeros((h, w))
+        for rr, cc, wt in corners:
+            k = grid_ok[rr[:, None], cc[None, :]] * wt
+            num += k * grid_v[rr[:, None], cc[None, :]]
+            den += k
+        b_map = np.where(den > 1e-9, num / np.maximum(den, 1e-9), n_map)
+        near.append(n_map.astype(np.float32))
+        bil.append(b_map.astype(np.float32))
+    return {"nearest": np.stack(near), "bilinear": np.stack(bil)}
+
+
+@torch.no_grad()
+def predict(net: Depthor, rec: data.Recording, idx: np.ndarray, batch_size: int = 16,
+            valid_status: tuple[int, ...] = (5,)) -> np.ndarray:
+    """The network's depth [N, H, W] for frames `idx` (eval mode; restores the previous mode)."""
+    was_training = net.training
+    net.eval()
+    out = []
+    for s in range(0, len(idx), batch_size):
+        rgb, sp, _ = data.batch(rec, idx[s:s + batch_size], None, valid_status)
+        out.append(net(rgb, sp)[:, 0].numpy())
+    net.train(was_training)
+    return np.concatenate(out)
+
+
+class Evaluator:
+    """Held-out evaluation: the zone baselines are computed once, the model at every call."""
+
+    def __init__(self, rec: data.Recording, frames: int, valid_status: tuple[int, ...] = (5,)):
+        self.rec = rec
+        self.idx = np.arange(min(frames, len(rec)) if frames > 0 else len(rec))
+        self.valid_status = valid_status
+        self.gt = rec.depth_mm[self.idx].astype(np.float32) / 1000.0
+        base = zone_baselines(rec, self.idx, valid_status)
+        self.base = {k: metrics(v, self.gt) for k, v in base.items()}
+
+    def __call__(self, net: Depthor) -> dict[str, float]:
+        m = metrics(predict(net, self.rec, self.idx, valid_status=self.valid_status), self.gt)
+        row = {"frames": len(self.idx)}
+        for name, res in [("model", m), *self.base.items()]:
+            for k, v in res.items():
+                row[f"{name}_{k}"] = v
+        return row
+
+
+# --------------------------------------------------------------------------------- training
+
+def batch_plan(seed: int, step: int, batch_size: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Frame indices and flip flags of training step `step`: epochs are seeded permutations of
+    the n frames walked in order; flips are drawn from the (seed, step) stream."""
+    k = step * batch_size + np.arange(batch_size)
+    epochs, pos = k // n, k % n
+    idx = np.empty(batch_size, np.int64)
+    for e in np.unique(epochs):
+        perm = np.random.default_rng([seed, int(e)]).permutation(n)
+        sel = epochs == e
+        idx[sel] = perm[pos[sel]]
+    flips = np.random.default_rng([seed, 1_000_000, step]).random(batch_size) < 0.5
+    return idx, flips
+
+
+def make_model(variant: str, seed: int) -> Depthor:
+    """A fresh trainable network: default PyTorch init (no random BN calibration), train mode."""
+    net = build(variant, seed=seed, calibrate_bn=False)
+    return net.train()
+
+
+def make_optim(net: Depthor, max_lr: float, steps: int, weight_decay: float = 0.1):
+    """AdamW + OneCycle (initial max/25, final max/100, 30 % warm-up, cosine)."""
+    opt = torch.optim.AdamW(net.parameters(), lr=max_lr / 25.0, weight_decay=weight_decay)
+    sched = torch.optim.lr_scheduler.OneCycleLR(
+        opt, max_lr=max_lr, total_steps=steps, div_factor=25.0, final_div_factor=4.0)
+    return opt, sched
+
+
+def load_weights(path: str | Path) -> dict[str, Tensor]:
+    """A model state dict from a checkpoint (`{"model": ...}`) or a plain state-dict file."""
+    obj = torch.load(path, map_location="cpu", weights_only=False)
+    return obj["model"] if isinstance(obj, dict) and "model" in obj else obj
+
+
+def _atomic_save(obj, path: Path) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    torch.save(obj, tmp)
+    os.replace(tmp, path)
+
+
+def _rewrite_csv(path: Path, fields: list[str], keep_below: int) -> None:
+    """Creates the CSV with a header, or drops rows at or beyond step `keep_below` (written
+    after the checkpoint a resumed run starts from)."""
+    rows = []
+    if path.exists():
+        with path.open() as f:
+            rows = [r for r in csv.DictReader(f) if int(r["step"]) < keep_below]
+    with path.open("w", newline="") as f:
+        wr = csv.DictWriter(f, fields)
+        wr.writeheader()
+        wr.writerows(rows)
+
+
+def _append(path: Path, fields: list[str], row: dict) -> None:
+    with path.open("a", newline="") as f:
+        csv.DictWriter(f, fields).writerow({k: row.get(k, "") for k in fields})
+
+
+class Stop:
+    """Set by SIGTERM/SIGINT: the loop checkpoints and exits at the end of the current step."""
+
+    def __init__(self):
+        self.flag = False
+        self._old = {s: signal.signal(s, self._set) for s in (signal.SIGTERM, signal.SIGINT)}
+
+    def _set(self, *_):
+        self.flag = True
+
+    def close(self) -> None:
+        """Puts the previous handlers back."""
+        for s, h in self._old.items():
+            signal.signal(s, h)
+
+
+def train(args: argparse.Namespace) -> dict:
+    """Runs (or resumes) training as configured by the CLI arguments; returns the last eval row."""
+    torch.set_num_threads(args.threads)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    ckpt_path = out / "ckpt.pt"
+    net = make_model(args.variant, args.seed)
+    opt, sched = make_optim(net, args.max_lr, args.steps, args.weight_decay)
+    step, wall = 0, 0.0
+    if args.resume and ckpt_path.exists():
+        ck = torch.load(ckpt_path, map_location="cpu", weights_only=False)
+        net.load_state_dict(ck["model"])
+        opt.load_state_dict(ck["optimizer"])
+        sched.load_state_dict(ck["scheduler"])
+        step, wall = int(ck["step"]), float(ck["wall_s"])
+        torch.set_rng_state(ck["rng"]["torch"])
+        saved = ck["args"]
+        for k in ("variant", "seed", "batch", "steps", "max_lr", "train"):
+            if saved.get(k) != getattr(args, k):
+                print(f"resume: using the checkpoint's {k}={saved.get(k)!r} "
+                      f"(command line said {getattr(args, k)!r})")
+                setattr(args, k, saved.get(k))
+        print(f"resumed from {ckpt_path} at step {step} ({wall:.0f} s trained)")
+    elif args.init:
+        net.load_state_dict(load_weights(args.init))
+        print(f"initialised from {args.init}")
+    if not args.resume or step == 0:
+        torch.manual_seed(args.seed)
+    _rewrite_csv(out / "train.csv", TRAIN_FIELDS, step + 1)
+    _rewrite_csv(out / "eval.csv", EVAL_FIELDS, step + 1)
+    (out / "args.json").write_text(json.dumps(vars(args), indent=1) + "\n")
+
+    t0 = time.perf_counter()
+    train_rec = data.load_recording(args.train)
+    test_rec = data.load_recording(args.test)
+    evaluator = Evaluator(test_rec, args.eval_frames)
+    print(f"data: {len(train_rec)} train / {len(evaluator.idx)} test frames "
+          f"({time.perf_counter() - t0:.1f} s); baselines {json.dumps(evaluator.base)}")
+
+    captured: dict[str, Tensor] = {}
+    net.prior.register_forward_hook(lambda _m, _i, o: captured.__setitem__("d_inv", o[0]))
+
+    def checkpoint(evaluate: bool) -> dict:
+        _atomic_save({"model": net.state_dict(), "optimizer": opt.state_dict(),
+                      "scheduler": sched.state_dict(), "step": step, "wall_s": wall,
+                      "rng": {"torch": torch.get_rng_state()}, "args": vars(args)}, ckpt_path)
+        row = {}
+        if evaluate:
+            te = time.perf_counter()
+            row = {"step": step, "wall_s": round(wall, 1), **evaluator(net)}
+            _append(out / "eval.csv", EVAL_FIELDS, row)
+            print(f"step {step}: eval {json.dumps(row)} ({time.perf_counter() - te:.0f} s)",
+                  flush=True)
+        plot(out)
+        return row
+
+    stop = Stop()
+    last_ckpt = time.perf_counter()
+    deadline = time.perf_counter() + args.time_limit_s if args.time_limit_s > 0 else math.inf
+    stop_at = step + args.stop_after if args.stop_after > 0 else args.steps
+    last_row: dict = {}
+    net.train()
+    while step < min(args.steps, stop_at) and not stop.flag and time.perf_counter() < deadline:
+        ts = time.perf_counter()
+        idx, flips = batch_plan(args.seed, step, args.batch, len(train_rec))
+        rgb, sp, gt = data.batch(train_rec, idx, flips)
+        pred = net(rgb, sp)
+        l_main = silog_loss(pred, gt)
+        l_prior = ssi_inverse_loss(captured["d_inv"], gt)
+        loss = l_main + args.prior_weight * l_prior
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        gn = torch.nn.utils.clip_grad_norm_(net.parameters(), args.clip)
+        lr = opt.param_groups[0]["lr"]
+        opt.step()
+        sched.step()
+        step += 1
+        wall += time.perf_counter() - ts
+        _append(out / "train.csv", TRAIN_FIELDS, {
+            "step": step, "wall_s": round(wall, 2), "lr": f"{lr:.3e}", "loss": f"{loss.item():.5f}",
+            "silog": f"{l_main.item():.5f}", "prior": f"{l_prior.item():.5f}",
+            "grad_norm": f"{float(gn):.4f}"})
+        if step % 10 == 0:
+            print(f"step {step} loss {loss.item():.4f} silog {l_main.item():.4f} "
+                  f"prior {l_prior.item():.4f} lr {lr:.2e} ({wall:.0f} s)", flush=True)
+        if time.perf_counter() - last_ckpt >= args.ckpt_every_s:
+            last_row = checkpoint(evaluate=True) or last_row
+            last_ckpt = time.perf_counter()
+    stop.close()
+    last_row = checkpoint(evaluate=True) or last_row
+    torch.save(net.state_dict(), out / "model_final.pt")
+    print(f"stopped at step {step}/{args.steps}; checkpoint {ckpt_path}", flush=True)
+    return last_row
+
+
+# ------------------------------------------------------------------------------------- plot
+
+def _read_csv(path: Path) -> list[dict]:
+    if not path.exists():
+        return []
+    with path.open() as f:
+        return list(csv.DictReader(f))
+
+
+def plot(run_dir: str | Path, width: int = 900, height: int = 600) -> Path | None:
+    """Writes `<run>/loss.png`: training loss per step (grey) with a moving average (blue) on a
+    log scale, and held-out RMSE of the model (red) vs the bilinear zone baseline (green)."""
+    from PIL import Image, ImageDraw
+
+    run = Path(run_dir)
+    tr, ev = _read_csv(run / "train.csv"), _read_csv(run / "eval.csv")
+    if not tr:
+        return None
+    steps = np.array([int(r["step"]) for r in tr], np.float64)
+    loss = np.array([float(r["loss"]) for r in tr], np.float64)
+    im = Image.new("RGB", (width, height), "white")
+    dr = ImageDraw.Draw(im)
+    panels = [(50, 30, width - 20, height // 2 - 20), (50, height // 2 + 30, width - 20, height - 30)]
+    xmax = max(float(steps.max()), 1.0)
+
+    def axes(box, title, ylo, yhi, log):
+        x0, y0, x1, y1 = box
+        dr.rectangle(box, outline="black")
+        dr.text((x0 + 5, y0 - 14), title, fill="black")
+        for t in range(5):
+            v = ylo + (yhi - ylo) * t / 4
+            yy = y1 - (y1 - y0) * t / 4
+            dr.text((2, yy - 6), f"{(10 ** v if log else v):.3g}", fill="black")
+        for t in range(5):
+            xx = x0 + (x1 - x0) * t / 4
+            dr.text((xx - 10, y1 + 3), f"{xmax * t / 4:.0f}", fill="black")
+
+    def line(box, xs, ys, ylo, yhi, colour, w=1):
+        x0, y0, x1, y1 = box
+        if len(xs) == 0:
+            return
+        px = x0 + (x1 - x0) * xs / xmax
+        py = y1 - (y1 - y0) * (np.clip(ys, ylo, yhi) - ylo) / max(yhi - ylo, 1e-9)
+        pts = list(zip(px.tolist(), py.tolist()))
+        if len(pts) == 1:
+            dr.ellipse([pts[0][0] - 2, pts[0][1] - 2, pts[0][0] + 2, pts[0][1] + 2], fill=colour)
+        else:
+            dr.line(pts, fill=colour, width=w)
+            for p in pts if len(pts) < 60 else []:
+                dr.ellipse([p[0] - 2, p[1] - 2, p[0] + 2, p[1] + 2], fill=colour)
+
+    ll = np.log10(np.maximum(loss, 1e-6))
+    k = max(1, min(50, len(ll) // 10))
+    smooth = np.convolve(ll, np.ones(k) / k, mode="valid")
+    lo, hi = float(np.percentile(ll, 1)) - 0.05, float(np.percentile(ll, 99.5)) + 0.05
+    axes(panels[0], "train loss (SILog + prior aux), log10; grey = per step, blue = moving avg",
+         lo, hi, True)
+    line(panels[0], steps, ll, lo, hi, (170, 170, 170))
+    line(panels[0], steps[k - 1:], smooth, lo, hi, (20, 60, 220), 2)
+    if ev:
+        es = np.array([int(r["step"]) for r in ev], np.float64)
+        mr = np.array([float(r["model_rmse"]) for r in ev])
+        br = np.array([float(r["bilinear_rmse"]) for r in ev])
+        top = float(max(mr.max(), br.max())) * 1.1
+        axes(panels[1], "held-out RMSE (m): red = model, green = bilinear zones", 0.0, top, False)
+        line(panels[1], es, mr, 0.0, top, (220, 30, 30), 2)
+        line(panels[1], es, br, 0.0, top, (20, 160, 60), 2)
+    path = run / "loss.png"
+    im.save(path)
+    return path
+
+
+def main(argv: list[str] | None = None) -> int:
+    """CLI entry point (see module doc)."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--variant", default="mcu", choices=["mcu", "phone"])
+    ap.add_argument("--train", help="training recording folder (required to train)")
+    ap.add_argument("--test", help="held-out recording folder (required to train or evaluate)")
+    ap.add_argument("--out", default="runs/mcu", help="run folder (checkpoint, logs, plot)")
+    ap.add_argument("--steps", type=int, default=2000, help="OneCycle length (total steps)")
+    ap.add_argument("--batch", type=int, default=8)
+    ap.add_argument("--max-lr", type=float, default=3e-4, help="OneCycle peak (paper: 3e-4)")
+    ap.add_argument("--weight-decay", type=float, default=0.1)
+    ap.add_argument("--clip", type=float, default=0.1, help="gradient l2-norm clip")
+    ap.add_argument("--prior-weight", type=float, default=1.0, help="weight of the prior's aux loss")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--ckpt-every-s", type=float, default=180.0)
+    ap.add_argument("--eval-frames", type=int, default=0, help="held-out frames (0 = all)")
+    ap.add_argument("--time-limit-s", type=float, default=0.0, help="stop after this long (0 = no limit)")
+    ap.add_argument("--stop-after", type=int, default=0,
+                    help="leave after this many steps in this invocation (0 = run to the end)")
+    ap.add_argument("--resume", action="store_true", help="continue from <out>/ckpt.pt")
+    ap.add_argument("--init", default=None, help="start from these weights with a fresh schedule")
+    ap.add_argument("--plot-only", action="store_true", help="only redraw <out>/loss.png")
+    ap.add_argument("--eval-only", default=None, metavar="WEIGHTS",
+                    help="only evaluate these weights on --test (first --eval-frames) and exit")
+    a = ap.parse_args(argv)
+    if a.plot_only:
+        print(plot(a.out))
+        return 0
+    if not a.test or not (a.train or a.eval_only):
+        ap.error("--test is required, and --train unless --eval-only is given")
+    if a.eval_only:
+        torch.set_num_threads(a.threads)
+        net = make_model(a.variant, a.seed)
+        net.load_state_dict(load_weights(a.eval_only))
+        print(json.dumps(Evaluator(data.load_recording(a.test), a.eval_frames)(net)))
+        return 0
+    print(json.dumps(train(a)))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

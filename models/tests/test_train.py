@@ -1,0 +1,192 @@
+"""Training pieces: losses, metrics, zone baselines, the recording loader and resumable training,
+on hand-computed cases and a tiny synthetic recording."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from depthor_models import data
+from depthor_models import train as T
+
+H, W = 32, 48
+
+
+def write_recording(root: Path, n: int = 3, seed: int = 0) -> Path:
+    """A 2×2-zone recording of H×W frames: zone k's rectangle is centred on pixel ZONE_PX[k]."""
+    from PIL import Image
+
+    rng = np.random.default_rng(seed)
+    rects = [[2.0, 4.0, 10.0, 14.0],      # centre (6, 9)
+             [2.0, 30.0, 10.0, 40.0],     # centre (6, 35)
+             [18.0, 4.0, 26.0, 14.0],     # centre (22, 9)
+             [18.0, 30.0, 26.5, 41.0]]    # centre (22.25, 35.5) -> (22, 36)
+    meta = {"format": "depthor-recording/1",
+            "camera": {"width": W, "height": H, "fx": 40.0, "fy": 40.0, "cx": 24.0, "cy": 16.0},
+            "dtof": {"rows": 2, "cols": 2, "fov_deg": [45.0, 45.0], "distance": "z",
+                     "max_range_m": 4.0, "zone_rects_px": rects},
+            "frames": [{"id": f"{i:06d}", "t_s": float(i)} for i in range(n)]}
+    root.mkdir(parents=True)
+    (root / "recording.json").write_text(json.dumps(meta))
+    for i in range(n):
+        f = root / "frames" / f"{i:06d}"
+        f.mkdir(parents=True)
+        Image.fromarray(rng.integers(0, 256, (H, W, 3), dtype=np.uint8)).save(f / "rgb.png")
+        depth = (1000 + 100 * np.arange(W)[None, :] + 10 * np.arange(H)[:, None] + 500 * i)
+        Image.fromarray(depth.astype(np.uint16)).save(f / "depth.png")
+        dist = [1000.0, 2000.0, 3000.0, 4000.0]
+        status = [5, 255, 5, 9] if i == 0 else [5, 5, 5, 5]
+        (f / "dtof.json").write_text(json.dumps({"distance_mm": dist, "status": status}))
+    return root
+
+
+ZONE_PX = [(6, 9), (6, 35), (22, 9), (22, 36)]
+
+
+@pytest.fixture
+def rec(tmp_path):
+    return data.load_recording(write_recording(tmp_path / "rec"))
+
+
+def test_zone_pixels_round_half_up_and_outside():
+    px = data.zone_pixels([[-6.03125, 21.28125, 6.96875, 35.28125],  # centre (0.47, 28.28)
+                           [0.0, 0.0, 1.0, 1.0],                     # centre (0.5, 0.5) -> (1, 1)
+                           [-3.0, 0.0, -1.0, 2.0]], 10, 40)          # centre row -2: outside
+    assert px.tolist() == [[0, 28], [1, 1], [-1, -1]]
+
+
+def test_loader_sparse_and_cache(rec, tmp_path):
+    assert len(rec) == 3 and (rec.height, rec.width) == (H, W)
+    assert rec.zone_px.tolist() == [list(p) for p in ZONE_PX]
+    assert rec.depth_mm[1, 2, 3] == 1000 + 300 + 20 + 500
+    sp = data.sparse_maps(rec, np.array([0, 1]))
+    # frame 0: zone 1 has no target (255) and zone 3 status 9 is not used (status 5 only)
+    assert np.count_nonzero(sp[0]) == 2 and np.count_nonzero(sp[1]) == 4
+    assert sp[0][6, 9] == pytest.approx(1.0) and sp[0][22, 9] == pytest.approx(3.0)
+    assert sp[1][22, 36] == pytest.approx(4.0)
+    assert np.count_nonzero(data.sparse_maps(rec, np.array([0]), (5, 9))) == 3
+    again = data.load_recording(tmp_path / "rec")  # from the cache
+    assert (tmp_path / "rec" / data.CACHE_NAME).exists()
+    assert np.array_equal(again.rgb, rec.rgb) and np.array_equal(again.zone_m, rec.zone_m)
+
+
+def test_batch_flip_is_consistent(rec):
+    rgb, sp, gt = data.batch(rec, np.array([1, 1]), np.array([False, True]))
+    assert rgb.shape == (2, 3, H, W) and sp.shape == (2, 1, H, W) and gt.shape == (2, 1, H, W)
+    assert torch.equal(rgb[1], rgb[0].flip(-1)) and torch.equal(gt[1], gt[0].flip(-1))
+    assert sp[1, 0, 22, W - 1 - 36] == pytest.approx(4.0) and sp[1, 0, 22, 36] == 0.0
+    assert gt[0, 0, 0, 0] == pytest.approx(1.5) and gt[1, 0, 0, 0] == pytest.approx(1.5 + 4.7)
+    ds = data.RecordingDataset(rec, augment=True, generator=torch.Generator().manual_seed(0))
+    items = [ds[1] for _ in range(16)]
+    flipped = [torch.equal(it[2], gt[1]) for it in items]
+    assert any(flipped) and not all(flipped)
+
+
+def test_silog_hand_case():
+    gt = torch.tensor([[[[1.0, 2.0], [4.0, 20.0]]]])  # 20 m is outside (0.1, 10): ignored
+    pred = gt * math.exp(0.5)
+    pred[0, 0, 1, 1] = 1.0
+    # g = 0.5 on 3 pixels: mean g² - λ (mean g)² = 0.25 (1 - 0.85)
+    assert float(T.silog_loss(pred, gt)) == pytest.approx(10 * math.sqrt(0.25 * 0.15), rel=1e-5)
+    g = torch.tensor([0.1, -0.2, 0.4])  # unequal g: variance term appears
+    d = float((g * g).mean() - 0.85 * g.mean() ** 2)
+    pred2 = torch.tensor([[[[1.0, 2.0], [4.0, 1.0]]]]) * torch.tensor(
+        [[[[math.exp(0.1), math.exp(-0.2)], [math.exp(0.4), 1.0]]]])
+    assert float(T.silog_loss(pred2, gt)) == pytest.approx(10 * math.sqrt(d), rel=1e-5)
+
+
+def test_ssi_inverse_loss_is_affine_invariant():
+    gt = torch.linspace(0.5, 8.0, 64).reshape(1, 1, 8, 8).repeat(2, 1, 1, 1)
+    d_inv = 3.0 / gt + 0.7
+    assert float(T.ssi_inverse_loss(d_inv, gt)) < 1e-5
+    assert float(T.ssi_inverse_loss(gt.clone(), gt)) > 0.3  # depth instead of inverse depth
+
+
+def test_metrics_hand_case():
+    gt = np.array([[[1.0, 2.0], [4.0, 0.0]]])
+    pred = np.array([[[1.0, 2.0], [2.0, 5.0]]])  # last pixel has no gt
+    m = T.metrics(pred, gt)
+    assert m["rmse"] == pytest.approx(math.sqrt(4.0 / 3.0))
+    assert m["delta1"] == pytest.approx(2.0 / 3.0)
+    assert m["rel"] == pytest.approx(0.5 / 3.0)
+
+
+def test_zone_baselines_hand_case(rec):
+    b = T.zone_baselines(rec, np.array([0, 1]))
+    bil, near = b["bilinear"], b["nearest"]
+    # frame 1: all four zones valid (1, 2, 3, 4 m) at rows 6/22 and cols 9/35.5 (mean of 35, 36)
+    assert bil[1, 6, 9] == pytest.approx(1.0) and bil[1, 22, 9] == pytest.approx(3.0)
+    assert bil[1, 14, 9] == pytest.approx(2.0)            # halfway down column 9
+    assert bil[1, 0, 0] == pytest.approx(1.0)             # clamped outside the grid
+    ty = (14 - 6) / 16.0
+    tx = (22 - 9) / 26.5
+    want = (1 - ty) * (1 - tx) * 1 + (1 - ty) * tx * 2 + ty * (1 - tx) * 3 + ty * tx * 4
+    assert bil[1, 14, 22] == pytest.approx(want, rel=1e-5)
+    assert near[1, 20, 40] == pytest.approx(4.0) and near[1, 0, 0] == pytest.approx(1.0)
+    # frame 0: zones 1 (255) and 3 (status 9) invalid: row 6 is 1.0 m all along
+    assert bil[0, 6, 40] == pytest.approx(1.0) and near[0, 6, 40] == pytest.approx(1.0)
+    assert bil[0, 14, 9] == pytest.approx(2.0)            # renormalised between zones 0 and 2
+
+
+def test_batch_plan_epochs_and_determinism():
+    seen = np.concatenate([T.batch_plan(7, s, 4, 10)[0] for s in range(5)])  # two epochs
+    assert sorted(seen[:10].tolist()) == list(range(10))
+    assert sorted(seen[10:20].tolist()) == list(range(10))
+    a, b = T.batch_plan(7, 3, 4, 10), T.batch_plan(7, 3, 4, 10)
+    assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+
+
+def _args(train_dir, out, *extra):
+    return ["--train", str(train_dir), "--test", str(train_dir), "--out", str(out),
+            "--steps", "3", "--batch", "2", "--max-lr", "1e-3", "--eval-frames", "1",
+            "--ckpt-every-s", "1e9", "--threads", "2", *extra]
+
+
+def test_resume_matches_uninterrupted_run(tmp_path, capsys):
+    rec_dir = write_recording(tmp_path / "rec", n=5)
+    T.main(_args(rec_dir, tmp_path / "full"))
+    T.main(_args(rec_dir, tmp_path / "cut", "--stop-after", "2"))
+    ck = torch.load(tmp_path / "cut" / "ckpt.pt", weights_only=False)
+    assert ck["step"] == 2 and ck["scheduler"]["last_epoch"] == 2
+    with (tmp_path / "cut" / "train.csv").open("a") as f:
+        f.write("3,99,0,0,0,0,0\n")  # a step logged after the checkpoint, then killed
+    T.main(_args(rec_dir, tmp_path / "cut", "--resume"))
+    full = torch.load(tmp_path / "full" / "model_final.pt")
+    cut = torch.load(tmp_path / "cut" / "model_final.pt")
+    for k in full:
+        assert torch.allclose(full[k].float(), cut[k].float(), atol=1e-6), k
+    with (tmp_path / "cut" / "train.csv").open() as f:
+        steps = [int(r["step"]) for r in csv.DictReader(f)]
+    assert steps == [1, 2, 3]
+    with (tmp_path / "cut" / "eval.csv").open() as f:
+        assert [int(r["step"]) for r in csv.DictReader(f)] == [2, 3]
+    assert (tmp_path / "cut" / "loss.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    with (tmp_path / "cut" / "eval.csv").open() as f:
+        last = list(csv.DictReader(f))[-1]
+    capsys.readouterr()
+    assert T.main(["--test", str(rec_dir), "--eval-frames", "1", "--eval-only",
+                   str(tmp_path / "cut" / "model_final.pt")]) == 0
+    row = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert row["model_rmse"] == pytest.approx(float(last["model_rmse"]), rel=1e-6)
+
+
+def test_export_loads_trained_weights(tmp_path):
+    from depthor_models.export import build_trained
+
+    net = T.make_model("mcu", seed=3)
+    with torch.no_grad():
+        net.refine.sigma.fill_(0.25)
+        net.prior.enc[0].down.bn.running_mean.fill_(0.5)
+    torch.save({"model": net.state_dict(), "step": 7}, tmp_path / "ckpt.pt")
+    torch.save(net.state_dict(), tmp_path / "plain.pt")
+    for f in ("ckpt.pt", "plain.pt"):
+        got = build_trained("mcu", tmp_path / f)
+        assert not got.training
+        for k, v in net.state_dict().items():
+            assert torch.equal(got.state_dict()[k], v), k
