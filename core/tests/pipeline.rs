@@ -153,78 +153,80 @@ fn matches_the_stages_called_by_hand_in_both_units() {
     }
 }
 
+/// `depth_frame` on the fixed sensor with the given camera and buffers, metres out.
+fn run(
+    engine: &mut Engine<'_>,
+    camera: &mut FixedCamera,
+    sparse_m: &mut [f32],
+    zones: &mut ZoneFrame<16>,
+    out: &mut [f32],
+) -> Result<(), FrameError> {
+    let mut rgb = vec![0u8; 3 * H * W];
+    let mut buffers = FrameBuffers {
+        rgb: &mut rgb,
+        sparse_m,
+        zones,
+    };
+    let cal = calibration();
+    depth_frame(
+        camera,
+        &mut FixedSensor,
+        &cal,
+        engine,
+        &mut buffers,
+        DepthOut::Metres(out),
+    )
+    .map(|_| ())
+}
+
 #[test]
 fn failures_are_errors_not_panics() {
     let blob = blob();
     let mut arena = vec![0u8; required_arena_bytes(&blob, H, W).unwrap() + 64];
     let mut engine = Engine::new(&blob, &mut arena).unwrap();
-    let cal = calibration();
     let (rgb, _) = frame(H, W);
     let mut zones = ZoneFrame::<16>::new();
-    let mut small_zones = ZoneFrame::<8>::new();
-    let (mut rgb_buf, mut sparse_buf) = (vec![0u8; 3 * H * W], vec![0f32; H * W]);
+    let mut sparse = vec![0f32; H * W];
     let mut out = vec![0f32; H * W];
-
-    let mut broken = FixedCamera {
-        rgb: rgb.clone(),
-        fail: Some(ErrorKind::Timeout),
-    };
-    let r = depth_frame(
-        &mut broken,
-        &mut FixedSensor,
-        &cal,
-        &mut engine,
-        &mut FrameBuffers {
-            rgb: &mut rgb_buf,
-            sparse_m: &mut sparse_buf,
-            zones: &mut zones,
-        },
-        DepthOut::Metres(&mut out),
-    );
-    assert_eq!(r, Err(FrameError::Camera(ErrorKind::Timeout)));
-
     let mut camera = FixedCamera { rgb, fail: None };
-    let r = depth_frame(
-        &mut camera,
-        &mut FixedSensor,
-        &cal,
-        &mut engine,
-        &mut FrameBuffers {
-            rgb: &mut rgb_buf,
-            sparse_m: &mut sparse_buf,
-            zones: &mut small_zones,
-        },
-        DepthOut::Metres(&mut out),
-    );
-    assert_eq!(r, Err(FrameError::Sensor(ErrorKind::BufferShape)));
+
+    camera.fail = Some(ErrorKind::Timeout);
+    let r = run(&mut engine, &mut camera, &mut sparse, &mut zones, &mut out);
+    assert_eq!(r, Err(FrameError::Camera(ErrorKind::Timeout)));
+    camera.fail = None;
 
     let mut short = vec![0f32; H * W - 1];
+    let r = run(&mut engine, &mut camera, &mut short, &mut zones, &mut out);
+    assert_eq!(r, Err(FrameError::Buffer("sparse depth buffer")));
+
+    let r = run(
+        &mut engine,
+        &mut camera,
+        &mut sparse,
+        &mut zones,
+        &mut [0f32; 3],
+    );
+    assert!(matches!(r, Err(FrameError::Engine(_))), "{r:?}");
+    run(&mut engine, &mut camera, &mut sparse, &mut zones, &mut out).unwrap();
+
+    // A zone frame too small for the sensor's 4×4 grid.
+    let cal = calibration();
+    let mut small = ZoneFrame::<8>::new();
+    let mut rgb = vec![0u8; 3 * H * W];
     let r = depth_frame(
         &mut camera,
         &mut FixedSensor,
         &cal,
         &mut engine,
         &mut FrameBuffers {
-            rgb: &mut rgb_buf,
-            sparse_m: &mut short,
-            zones: &mut zones,
+            rgb: &mut rgb,
+            sparse_m: &mut sparse,
+            zones: &mut small,
         },
         DepthOut::Metres(&mut out),
     );
-    assert_eq!(r, Err(FrameError::Buffer("sparse depth buffer")));
-
-    let mut short_out = vec![0f32; 3];
-    let r = depth_frame(
-        &mut camera,
-        &mut FixedSensor,
-        &cal,
-        &mut engine,
-        &mut FrameBuffers {
-            rgb: &mut rgb_buf,
-            sparse_m: &mut sparse_buf,
-            zones: &mut zones,
-        },
-        DepthOut::Metres(&mut short_out),
+    assert_eq!(
+        r.map(|_| ()),
+        Err(FrameError::Sensor(ErrorKind::BufferShape))
     );
-    assert!(matches!(r, Err(FrameError::Engine(_))), "{r:?}");
 }

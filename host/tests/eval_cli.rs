@@ -1,25 +1,9 @@
 //! `depthor eval` and `depthor demo` end to end through the real binary: files written, every
 //! method scored, the comparisons the model cards quote present, and clean errors.
 
-use std::path::Path;
-use std::process::{Command, Output};
+mod common;
 
-fn depthor(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_depthor"))
-        .args(args)
-        .output()
-        .expect("run depthor")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn ok(o: &Output) -> String {
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "{err}");
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
+use common::{arg as s, depthor, depthor_ok};
 
 #[test]
 fn eval_scores_every_method_on_every_frame() {
@@ -27,8 +11,8 @@ fn eval_scores_every_method_on_every_frame() {
     let rec = tmp.path().join("rec");
     let out = tmp.path().join("eval");
     let args = ["sim", "--preset", "mcu", "--scenes", "3", "--seed", "31337"];
-    ok(&depthor(&[&args[..], &["--out", s(&rec)]].concat()));
-    let stdout = ok(&depthor(&[
+    depthor_ok(&[&args[..], &["--out", s(&rec)]].concat());
+    let stdout = depthor_ok(&[
         "eval",
         "--model",
         "mcu",
@@ -38,7 +22,7 @@ fn eval_scores_every_method_on_every_frame() {
         s(&out),
         "--mosaics",
         "2",
-    ]));
+    ]);
     assert!(stdout.contains("int8 model (core)") && stdout.contains("prior + LS fit"));
 
     let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
@@ -99,7 +83,7 @@ fn eval_scores_every_method_on_every_frame() {
 fn demo_writes_depth_and_mosaic_and_prints_the_table() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("demo");
-    let stdout = ok(&depthor(&["demo", "--out", s(&out)]));
+    let stdout = depthor_ok(&["demo", "--out", s(&out)]);
     for m in [
         "int8 model (core)",
         "nearest zone",

@@ -4,21 +4,10 @@
 //! `depthor eval --no-float`, and fails if the RMSE is more than 5 % worse than the card's.
 //! Update the card (models/<variant>/card.json) in the same commit as the model.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
-fn depthor(args: &[&str]) -> String {
-    let o = Command::new(env!("CARGO_BIN_EXE_depthor"))
-        .args(args)
-        .output()
-        .expect("run depthor");
-    assert!(
-        o.status.success(),
-        "depthor {args:?}: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
+use common::{arg as s, depthor_ok as depthor};
+use std::path::PathBuf;
 
 fn card(variant: &str) -> serde_json::Value {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -27,10 +16,6 @@ fn card(variant: &str) -> serde_json::Value {
         .join("card.json");
     let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
 }
 
 fn check(variant: &str) {
