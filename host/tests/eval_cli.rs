@@ -9,15 +9,20 @@ use common::{arg as s, depthor, depthor_ok};
 fn eval_scores_every_method_on_every_frame() {
     let tmp = tempfile::tempdir().unwrap();
     let rec = tmp.path().join("rec");
+    let rec2 = tmp.path().join("rec2");
     let out = tmp.path().join("eval");
     let args = ["sim", "--preset", "mcu", "--scenes", "3", "--seed", "31337"];
     depthor_ok(&[&args[..], &["--out", s(&rec)]].concat());
+    let args = ["sim", "--preset", "mcu", "--scenes", "2", "--seed", "4242"];
+    depthor_ok(&[&args[..], &["--out", s(&rec2)]].concat());
     let stdout = depthor_ok(&[
         "eval",
         "--model",
         "mcu",
         "--recording",
         s(&rec),
+        "--recording",
+        s(&rec2),
         "--out",
         s(&out),
         "--mosaics",
@@ -27,8 +32,8 @@ fn eval_scores_every_method_on_every_frame() {
 
     let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
-    assert!(lines[0].starts_with("frame,method,"));
-    assert_eq!(lines.len(), 1 + 3 * 6, "{csv}");
+    assert!(lines[0].starts_with("recording,frame,method,"));
+    assert_eq!(lines.len(), 1 + 5 * 6, "{csv}");
     for key in [
         "int8",
         "float",
@@ -40,15 +45,28 @@ fn eval_scores_every_method_on_every_frame() {
         assert_eq!(
             lines
                 .iter()
-                .filter(|l| l.split(',').nth(1) == Some(key))
+                .filter(|l| l.split(',').nth(2) == Some(key))
                 .count(),
-            3
+            5
         );
     }
 
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
-    assert_eq!(summary["frames"], 3);
+    assert_eq!(summary["frames"], 5);
+    let per = summary["recordings"].as_array().unwrap();
+    assert_eq!(per.len(), 2);
+    assert_eq!(
+        (per[0]["frames"].clone(), per[1]["frames"].clone()),
+        (3.into(), 2.into())
+    );
+    // The union lies between the two recordings' RMSEs.
+    let r: Vec<f64> = per
+        .iter()
+        .map(|p| p["methods"]["bilinear"]["rmse"].as_f64().unwrap())
+        .collect();
+    let u = summary["methods"]["bilinear"]["rmse"].as_f64().unwrap();
+    assert!(u >= r[0].min(r[1]) - 1e-9 && u <= r[0].max(r[1]) + 1e-9);
     let m = &summary["methods"];
     for key in ["int8", "float", "prior_fit"] {
         let rmse = m[key]["rmse"].as_f64().unwrap();
@@ -76,7 +94,7 @@ fn eval_scores_every_method_on_every_frame() {
             n.to_string_lossy().starts_with("mosaic_")
         })
         .count();
-    assert_eq!(mosaics, 2);
+    assert_eq!(mosaics, 4); // 2 per recording
 }
 
 #[test]
