@@ -14,6 +14,9 @@
 //!    one caller-provided arena planned by [`engine::plan()`].
 //! 4. [`metrics`]: δ1–3, AbsRel, RMSE, log10, MAE and EWMAE against a reference.
 //!
+//! [`pipeline::depth_frame`] chains 1–3 for one frame on the caller's buffers (its module doc
+//! shows the per-frame call on a board); the engine alone:
+//!
 //! ```
 //! use depthor_core::engine::{required_arena_bytes, Engine, Error};
 //!
@@ -40,4 +43,5 @@ mod fmath;
 pub mod hal;
 pub mod kernels;
 pub mod metrics;
+pub mod pipeline;
 pub mod projection;

@@ -20,14 +20,6 @@ pub struct SparseFrame<'a> {
     pub points: &'a [ProjectedPoint],
 }
 
-/// Names of the baselines, in the order [`run_all`] returns them.
-pub const NAMES: [&str; 3] = ["nearest", "bilinear", "joint_bilateral"];
-
-/// Runs every baseline: `[nearest, bilinear, joint_bilateral]`.
-pub fn run_all(s: &SparseFrame<'_>, rgb: &[u8]) -> [Vec<f32>; 3] {
-    [nearest_fill(s), bilinear_zones(s), joint_bilateral(s, rgb)]
-}
-
 /// Every pixel takes the depth of the nearest projected point (0 everywhere without points).
 pub fn nearest_fill(s: &SparseFrame<'_>) -> Vec<f32> {
     let w = s.width as usize;

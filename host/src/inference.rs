@@ -84,6 +84,12 @@ impl Int8Model {
         self.blob.len()
     }
 
+    /// Bytes of int8 weights in the blob (validated at construction, so 0 only for a model
+    /// without convolutions).
+    pub fn int8_weight_bytes(&self) -> usize {
+        depthor_core::blob::parse(&self.blob).map_or(0, |g| g.int8_weight_bytes())
+    }
+
     fn engine(&mut self) -> Result<Engine<'_>, EngineError> {
         Engine::with_size(&self.blob, &mut self.arena, self.height, self.width)
     }

@@ -4,9 +4,11 @@
 //! the real RGB-D sets, and the `depthor` command line.
 pub mod baselines;
 pub mod dataset;
+pub mod evaluation;
 pub mod gap;
 pub mod import;
 pub mod inference;
+pub mod models;
 pub mod quantize;
 pub mod recording;
 pub mod reference;

@@ -19,6 +19,7 @@
 //! [`FloatReference::run_frame`] chains the two.
 
 pub mod frame;
+pub mod prior;
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -97,20 +98,22 @@ pub struct FloatReference {
     rgb_input: usize,
 }
 
-/// Which input is which, found by name or position.
-fn input_order(model: &TypedModel) -> Option<usize> {
+/// Positions of the `wanted` inputs among the model's: by name when every one is found, else in
+/// the given order. `None` when the model has another number of inputs.
+fn input_positions(model: &TypedModel, wanted: &[(&str, usize)]) -> Option<Vec<usize>> {
     let outlets = model.input_outlets().ok()?;
-    if outlets.len() != 2 {
+    if outlets.len() != wanted.len() {
         return None;
     }
     let names: Vec<&str> = outlets
         .iter()
         .map(|o| model.node(o.node).name.as_str())
         .collect();
-    match (names[0], names[1]) {
-        (_, "rgb") | ("sparse", _) => Some(1),
-        _ => Some(0),
-    }
+    let by_name: Option<Vec<usize>> = wanted
+        .iter()
+        .map(|(w, _)| names.iter().position(|n| n == w))
+        .collect();
+    Some(by_name.unwrap_or_else(|| (0..wanted.len()).collect()))
 }
 
 /// Checks `dims` against `expected`, collecting bindings for plain symbolic dimensions.
@@ -162,97 +165,14 @@ impl FloatReference {
     ///
     /// Every error names the file.
     pub fn load(path: &Path, height: u32, width: u32) -> Result<Self, ReferenceError> {
-        let load_err = |stage: &'static str| {
-            move |e: tract_core::internal::TractError| ReferenceError::Load {
-                path: path.to_path_buf(),
-                stage,
-                source: e.into(),
-            }
-        };
-        let contract = |what: String| ReferenceError::Contract {
-            path: path.to_path_buf(),
-            what,
-        };
-        if height == 0 || width == 0 {
-            return Err(contract(format!(
-                "requested size {height}×{width} is empty"
-            )));
-        }
-        if !path.exists() {
-            return Err(ReferenceError::Load {
-                path: path.to_path_buf(),
-                stage: "opening",
-                source: "no such file or directory".into(),
-            });
-        }
-        let mut model = tract_nnef::nnef()
-            .model_for_path(path)
-            .map_err(load_err("reading"))?;
-
-        let rgb_input = input_order(&model).ok_or_else(|| {
-            contract(format!(
-                "expected 2 inputs (rgb, sparse), found {}",
-                model.inputs.len()
-            ))
-        })?;
-        let (h, w) = (height as usize, width as usize);
-        let mut subs = HashMap::new();
-        for (ix, (name, channels)) in [("rgb", 3), ("sparse", 1)].into_iter().enumerate() {
-            let input = if ix == 0 { rgb_input } else { 1 - rgb_input };
-            let fact = model
-                .input_fact(input)
-                .map_err(load_err("reading inputs"))?;
-            if fact.datum_type != DatumType::F32 {
-                return Err(contract(format!(
-                    "input {name} is {:?}, expected f32",
-                    fact.datum_type
-                )));
-            }
-            bind_dims(name, fact.shape.dims(), [1, channels, h, w], &mut subs).map_err(contract)?;
-        }
-
-        let outputs = model
-            .output_outlets()
-            .map_err(load_err("reading outputs"))?;
-        let output = match outputs.len() {
-            1 => 0,
-            _ => outputs
-                .iter()
-                .position(|o| model.node(o.node).name == "depth")
-                .ok_or_else(|| {
-                    contract(format!(
-                        "expected one output (depth), found {} and none named depth",
-                        outputs.len()
-                    ))
-                })?,
-        };
-        if model.outputs.len() > 1 {
-            let keep = model.outputs[output];
-            model.outputs = vec![keep];
-        }
-
-        if !subs.is_empty() {
-            model = model
-                .set_symbols(&subs)
-                .map_err(load_err("binding the input size"))?;
-        }
-        let model = model.into_optimized().map_err(load_err("optimising"))?;
-
-        let out_fact = model.output_fact(0).map_err(load_err("reading outputs"))?;
-        let out_shape = out_fact.shape.as_concrete();
-        if out_fact.datum_type != DatumType::F32 || out_shape != Some(&[1, 1, h, w][..]) {
-            return Err(contract(format!(
-                "output is {:?} {:?}, expected f32 [1, 1, {h}, {w}]",
-                out_fact.datum_type, out_fact.shape
-            )));
-        }
-        let plan = TypedSimplePlan::new(model).map_err(load_err("planning"))?;
+        let (plan, positions) =
+            prepare(path, height, width, &[("rgb", 3), ("sparse", 1)], "depth")?;
         Ok(FloatReference {
             path: path.to_path_buf(),
             height,
             width,
             plan,
-            rgb_input,
+            rgb_input: positions[0],
         })
     }
 
@@ -360,6 +280,109 @@ impl FloatReference {
             Ok(times[times.len() / 2])
         })
     }
+}
+
+/// Reads, checks and optimises an NNEF model whose `inputs` (name, channels) are `[1, C, H, W]`
+/// f32 and whose output `output` (by name, else the only one) is `[1, 1, H, W]` f32; returns the
+/// plan and the position of each wanted input among the model's.
+fn prepare(
+    path: &Path,
+    height: u32,
+    width: u32,
+    inputs: &[(&'static str, usize)],
+    output_name: &str,
+) -> Result<(std::sync::Arc<TypedSimplePlan>, Vec<usize>), ReferenceError> {
+    let load_err = |stage: &'static str| {
+        move |e: tract_core::internal::TractError| ReferenceError::Load {
+            path: path.to_path_buf(),
+            stage,
+            source: e.into(),
+        }
+    };
+    let contract = |what: String| ReferenceError::Contract {
+        path: path.to_path_buf(),
+        what,
+    };
+    if height == 0 || width == 0 {
+        return Err(contract(format!(
+            "requested size {height}×{width} is empty"
+        )));
+    }
+    if !path.exists() {
+        return Err(ReferenceError::Load {
+            path: path.to_path_buf(),
+            stage: "opening",
+            source: "no such file or directory".into(),
+        });
+    }
+    let mut model = tract_nnef::nnef()
+        .model_for_path(path)
+        .map_err(load_err("reading"))?;
+
+    let positions = input_positions(&model, inputs).ok_or_else(|| {
+        let names: Vec<&str> = inputs.iter().map(|i| i.0).collect();
+        contract(format!(
+            "expected {} input(s) ({}), found {}",
+            inputs.len(),
+            names.join(", "),
+            model.inputs.len()
+        ))
+    })?;
+    let (h, w) = (height as usize, width as usize);
+    let mut subs = HashMap::new();
+    for (&(name, channels), &input) in inputs.iter().zip(&positions) {
+        let fact = model
+            .input_fact(input)
+            .map_err(load_err("reading inputs"))?;
+        if fact.datum_type != DatumType::F32 {
+            return Err(contract(format!(
+                "input {name} is {:?}, expected f32",
+                fact.datum_type
+            )));
+        }
+        bind_dims(name, fact.shape.dims(), [1, channels, h, w], &mut subs).map_err(contract)?;
+    }
+
+    let outputs = model
+        .output_outlets()
+        .map_err(load_err("reading outputs"))?;
+    let output = match outputs.len() {
+        1 => 0,
+        _ => outputs
+            .iter()
+            .position(|o| {
+                model.outlet_label(*o) == Some(output_name)
+                    || model.node(o.node).name == output_name
+            })
+            .ok_or_else(|| {
+                contract(format!(
+                    "expected one output ({output_name}), found {} and none named {output_name}",
+                    outputs.len()
+                ))
+            })?,
+    };
+    if model.outputs.len() > 1 {
+        let keep = model.outputs[output];
+        model.outputs = vec![keep];
+    }
+
+    if !subs.is_empty() {
+        model = model
+            .set_symbols(&subs)
+            .map_err(load_err("binding the input size"))?;
+    }
+    let model = model.into_optimized().map_err(load_err("optimising"))?;
+
+    let out_fact = model.output_fact(0).map_err(load_err("reading outputs"))?;
+    let out_shape = out_fact.shape.as_concrete();
+    if out_fact.datum_type != DatumType::F32 || out_shape != Some(&[1, 1, h, w][..]) {
+        return Err(contract(format!(
+            "output is {:?} {:?}, expected f32 [1, 1, {h}, {w}]",
+            out_fact.datum_type, out_fact.shape
+        )));
+    }
+    let plan = TypedSimplePlan::new(model).map_err(load_err("planning"))?;
+    Ok((plan, positions))
 }
 
 fn check_len(name: &'static str, expected: usize, got: usize) -> Result<(), ReferenceError> {

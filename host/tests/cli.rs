@@ -2,21 +2,9 @@
 
 mod common;
 
-use common::{entries, write_hand_made, GREY};
+use common::{arg as s, depthor, entries, write_hand_made, GREY};
 use depthor_host::viz::turbo;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn depthor(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_depthor"))
-        .args(args)
-        .output()
-        .expect("run depthor")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
 
 #[test]
 fn project_draws_turbo_discs_at_the_projected_zone_centres() {

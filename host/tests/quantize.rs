@@ -22,9 +22,9 @@ fn mcu() -> Net {
     fold(&g).unwrap()
 }
 
-/// `kernels::float`'s `exp` is micromath's (≈2.4e-3 worst relative error over [−20, 20]), so
-/// values computed through sigmoid, the bins softmax and refine differ from PyTorch by more than
-/// f32 rounding; values before any `exp` agree to f32 rounding.
+/// The core's f32 ops (its own `exp`, ≈2 ULP) against PyTorch's golden tensors: the final depth
+/// within 1e-4 m, every intermediate within 1e-3 (the largest activations are tens, so this is a
+/// few f32 ULP of relative error accumulated through the layers).
 #[test]
 fn float_graph_matches_python_golden() {
     let net = mcu();
@@ -35,8 +35,8 @@ fn float_graph_matches_python_golden() {
     }
     let get = |n: &str| diffs.iter().find(|(k, _)| k == n).map(|(_, d)| *d).unwrap();
     assert!(get("prior.relu") <= 1e-5, "exp-free prior output");
-    assert!(get("depth") <= 1e-3, "final depth, metres");
-    assert!(diffs.iter().all(|(_, d)| *d <= 2e-3));
+    assert!(get("depth") <= 1e-4, "final depth, metres");
+    assert!(diffs.iter().all(|(_, d)| *d <= 1e-3));
 }
 
 #[test]

@@ -164,6 +164,18 @@ impl Graph<'_> {
     pub fn bytes(&self, p: Param) -> &[u8] {
         self.blob.get(p.range()).unwrap_or(&[])
     }
+
+    /// Bytes of the int8 weights of every conv, linear and bins head (one byte per weight; the
+    /// int32 biases, f32 scales and tables are counted in the blob size, not here).
+    pub fn int8_weight_bytes(&self) -> usize {
+        self.ops
+            .iter()
+            .map(|op| match op.attrs {
+                Attrs::Conv { weights, .. } | Attrs::Bins { weights, .. } => weights.len as usize,
+                _ => 0,
+            })
+            .sum()
+    }
 }
 
 struct Reader<'a> {

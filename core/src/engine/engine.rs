@@ -24,6 +24,58 @@ pub struct RunStats {
     pub macs: u64,
 }
 
+/// Sparse dToF depth given to [`Engine::run_into`] (`H×W`, 0 = no point).
+#[derive(Clone, Copy, Debug)]
+pub enum DepthIn<'i> {
+    /// Metres.
+    Metres(&'i [f32]),
+    /// Integer millimetres.
+    Millimetres(&'i [u16]),
+}
+
+impl DepthIn<'_> {
+    /// Value at pixel `i` in metres (0 past the end).
+    fn metres(&self, i: usize) -> f32 {
+        match self {
+            DepthIn::Metres(s) => s.get(i).copied().unwrap_or(0.0),
+            DepthIn::Millimetres(s) => s.get(i).map_or(0.0, |&v| v as f32 * 0.001),
+        }
+    }
+}
+
+/// Where [`Engine::run_into`] writes the dense depth (`H×W`).
+#[derive(Debug)]
+pub enum DepthOut<'o> {
+    /// Metres.
+    Metres(&'o mut [f32]),
+    /// Millimetres, rounded and clamped to `0..=65535`.
+    Millimetres(&'o mut [u16]),
+}
+
+impl DepthOut<'_> {
+    fn put(&mut self, i: usize, metres: f32) {
+        match self {
+            DepthOut::Metres(o) => {
+                if let Some(o) = o.get_mut(i) {
+                    *o = metres;
+                }
+            }
+            DepthOut::Millimetres(o) => {
+                if let Some(o) = o.get_mut(i) {
+                    let mm = metres * 1000.0 + 0.5;
+                    *o = if mm >= 65535.0 {
+                        u16::MAX
+                    } else if mm >= 0.0 {
+                        mm as u16
+                    } else {
+                        0
+                    };
+                }
+            }
+        }
+    }
+}
+
 /// One op's output as [`Engine::run_observed`] shows it to its observer (a debugging aid: the
 /// host quantizer compares every tensor with its float reference).
 #[derive(Clone, Copy, Debug)]
@@ -189,19 +241,11 @@ impl<'a> Engine<'a> {
         sparse_m: &[f32],
         out_depth_m: &mut [f32],
     ) -> Result<RunStats, Error> {
-        let (h, w) = self.plan.size();
-        let n = h * w;
-        check_len("sparse_m", n, sparse_m.len())?;
-        check_len("out_depth_m", n, out_depth_m.len())?;
-        self.write_rgb(rgb)?;
-        self.write_sparse(|i| sparse_m.get(i).copied().unwrap_or(0.0))?;
-        let stats = self.execute(None)?;
-        self.read_output(|i, v| {
-            if let Some(o) = out_depth_m.get_mut(i) {
-                *o = v;
-            }
-        })?;
-        Ok(stats)
+        self.run_into(
+            rgb,
+            DepthIn::Metres(sparse_m),
+            DepthOut::Metres(out_depth_m),
+        )
     }
 
     /// As [`Engine::run`], calling `observer(op_index, output)` right after each op with that
@@ -213,19 +257,12 @@ impl<'a> Engine<'a> {
         out_depth_m: &mut [f32],
         observer: &mut Observer<'_>,
     ) -> Result<RunStats, Error> {
-        let (h, w) = self.plan.size();
-        let n = h * w;
-        check_len("sparse_m", n, sparse_m.len())?;
-        check_len("out_depth_m", n, out_depth_m.len())?;
-        self.write_rgb(rgb)?;
-        self.write_sparse(|i| sparse_m.get(i).copied().unwrap_or(0.0))?;
-        let stats = self.execute(Some(observer))?;
-        self.read_output(|i, v| {
-            if let Some(o) = out_depth_m.get_mut(i) {
-                *o = v;
-            }
-        })?;
-        Ok(stats)
+        self.run_with(
+            rgb,
+            DepthIn::Metres(sparse_m),
+            DepthOut::Metres(out_depth_m),
+            Some(observer),
+        )
     }
 
     /// As [`Engine::run`] with integer millimetres: `sparse_mm` (0 = no point) and
@@ -236,25 +273,44 @@ impl<'a> Engine<'a> {
         sparse_mm: &[u16],
         out_depth_mm: &mut [u16],
     ) -> Result<RunStats, Error> {
+        self.run_into(
+            rgb,
+            DepthIn::Millimetres(sparse_mm),
+            DepthOut::Millimetres(out_depth_mm),
+        )
+    }
+
+    /// Runs one frame with the sparse input and the depth output in either unit.
+    pub fn run_into(
+        &mut self,
+        rgb: &[u8],
+        sparse: DepthIn<'_>,
+        out: DepthOut<'_>,
+    ) -> Result<RunStats, Error> {
+        self.run_with(rgb, sparse, out, None)
+    }
+
+    fn run_with(
+        &mut self,
+        rgb: &[u8],
+        sparse: DepthIn<'_>,
+        mut out: DepthOut<'_>,
+        observer: Option<&mut Observer<'_>>,
+    ) -> Result<RunStats, Error> {
         let (h, w) = self.plan.size();
         let n = h * w;
-        check_len("sparse_mm", n, sparse_mm.len())?;
-        check_len("out_depth_mm", n, out_depth_mm.len())?;
+        match sparse {
+            DepthIn::Metres(s) => check_len("sparse_m", n, s.len())?,
+            DepthIn::Millimetres(s) => check_len("sparse_mm", n, s.len())?,
+        }
+        match &out {
+            DepthOut::Metres(o) => check_len("out_depth_m", n, o.len())?,
+            DepthOut::Millimetres(o) => check_len("out_depth_mm", n, o.len())?,
+        }
         self.write_rgb(rgb)?;
-        self.write_sparse(|i| sparse_mm.get(i).map_or(0.0, |&v| v as f32 * 0.001))?;
-        let stats = self.execute(None)?;
-        self.read_output(|i, v| {
-            if let Some(o) = out_depth_mm.get_mut(i) {
-                let mm = v * 1000.0 + 0.5;
-                *o = if mm >= 65535.0 {
-                    u16::MAX
-                } else if mm >= 0.0 {
-                    mm as u16
-                } else {
-                    0
-                };
-            }
-        })?;
+        self.write_sparse(|i| sparse.metres(i))?;
+        let stats = self.execute(observer)?;
+        self.read_output(|i, v| out.put(i, v))?;
         Ok(stats)
     }
 

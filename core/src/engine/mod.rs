@@ -19,6 +19,6 @@ mod engine;
 pub mod error;
 pub mod plan;
 
-pub use engine::{required_arena_bytes, Engine, Observed, Observer, RunStats};
+pub use engine::{required_arena_bytes, DepthIn, DepthOut, Engine, Observed, Observer, RunStats};
 pub use error::Error;
 pub use plan::{plan, BufferReq, Plan, PlanError};

@@ -7,7 +7,7 @@
 //! expectation by whole bins, and a fixed-point exp would need a 32-bit LUT pipeline like
 //! TFLite's `SOFTMAX` with Q5.26 inputs. Cortex-M4F/M7 have a single-precision FPU, so the
 //! logits are dequantised (`acc · s_F · s_w[i]`) and the softmax and expectation run in f32 with
-//! [`float::exp`](super::float::exp) (micromath) in a fixed order: `m = max l`, then for
+//! [`float::exp`](super::float::exp) in a fixed order: `m = max l`, then for
 //! `i = 0..N` in order `e = exp(l_i − m); S += e; D += e·c_i`, result `D / S`. No FMA is used
 //! (Rust never contracts `a*b+c`), so host and MCU give the same bits. The output map is f32 metres.
 

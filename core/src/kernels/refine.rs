@@ -11,7 +11,7 @@
 //! raster order: `r_j = relu(aff_k[j]) · g_j` for neighbours `j` in raster order (0 outside the
 //! image), `S = Σ r_j` summed in that order, `q = 1/(1 + S)`, `w_j = r_j · q`,
 //! `w_c = 1 − Σ w_j` (in order), `D' = w_c·D + Σ w_j·D_j` (in order). The Gaussians
-//! `g_j = exp(−(dx²+dy²)/(2σ_k²))` are computed once per run with micromath. After `t ∈ {0, T/2,
+//! `g_j = exp(−(dx²+dy²)/(2σ_k²))` are computed once per run with [`super::float::exp`]. After `t ∈ {0, T/2,
 //! T}` the output gains `(τ_t · σ_k) · D_{k,t}` with `σ`, `τ` per-pixel 3-way softmaxes of
 //! kmix / tmix. Scratch: two f32 `H×W` maps (ping-pong), i.e. `8·H·W` bytes; the output map is
 //! the accumulator.

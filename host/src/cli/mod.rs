@@ -5,6 +5,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 mod bench;
 mod demo;
+mod eval;
 mod firmware;
 mod gap;
 mod gap_bench;
@@ -32,6 +33,8 @@ enum Command {
     Bench(bench::Args),
     /// The main job: scene (or --recording) → dToF → int8 model in the core, vs baselines.
     Demo(demo::Args),
+    /// Evaluate a model (int8 core, float tract) and the baselines on a recording.
+    Eval(eval::Args),
     /// Write a firmware-sim replay flash image (RGB 120×160 + zones) from a recording.
     FirmwareImage(firmware::ImageArgs),
     /// Host build of the firmware-sim loop: per-frame depth hashes, as the QEMU firmware prints.
@@ -57,6 +60,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Bench(args) => bench::handle(args),
         Command::Demo(args) => demo::handle(args),
+        Command::Eval(args) => eval::handle(args),
         Command::FirmwareImage(args) => firmware::handle_image(args),
         Command::FirmwareReplay(args) => firmware::handle_replay(args),
         Command::Gap(args) => gap::handle(args),

@@ -3,6 +3,7 @@
 
 use image::{GrayImage, ImageBuffer, Luma, Rgb, RgbImage};
 use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
 
 /// Background grey of the hand-made RGB.
 pub const GREY: Rgb<u8> = Rgb([100, 100, 100]);
@@ -59,4 +60,28 @@ pub fn entries(dir: &Path) -> Vec<String> {
         .collect();
     v.sort();
     v
+}
+
+/// Runs the `depthor` binary built for these tests.
+pub fn depthor(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_depthor"))
+        .args(args)
+        .output()
+        .expect("run depthor")
+}
+
+/// Runs `depthor`, requires success and returns its stdout.
+pub fn depthor_ok(args: &[&str]) -> String {
+    let o = depthor(args);
+    assert!(
+        o.status.success(),
+        "depthor {args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// A path as `&str` for command lines.
+pub fn arg(p: &Path) -> &str {
+    p.to_str().expect("UTF-8 path")
 }

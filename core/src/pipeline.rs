@@ -1,0 +1,126 @@
+//! One frame end to end on caller buffers: camera and dToF through the [`crate::hal`] traits →
+//! [`crate::projection`] → the int8 [`Engine`] → depth in metres or millimetres.
+//!
+//! ```
+//! use depthor_core::calibration::Calibration;
+//! use depthor_core::engine::{DepthOut, Engine};
+//! use depthor_core::hal::{DtofSensor, RgbCamera, ZoneFrame};
+//! use depthor_core::pipeline::{depth_frame, FrameBuffers, FrameError};
+//!
+//! /// Per frame on a board: 64 zones, 120×160 RGB, depth out in millimetres.
+//! fn frame(
+//!     camera: &mut impl RgbCamera,
+//!     sensor: &mut impl DtofSensor,
+//!     cal: &Calibration,
+//!     engine: &mut Engine,
+//!     rgb: &mut [u8; 120 * 160 * 3],
+//!     sparse_m: &mut [f32; 120 * 160],
+//!     zones: &mut ZoneFrame<64>,
+//!     depth_mm: &mut [u16; 120 * 160],
+//! ) -> Result<(), FrameError> {
+//!     let mut buffers = FrameBuffers { rgb, sparse_m, zones };
+//!     depth_frame(camera, sensor, cal, engine, &mut buffers, DepthOut::Millimetres(depth_mm))?;
+//!     Ok(())
+//! }
+//! ```
+//!
+//! The engine is built once, outside the loop, with [`Engine::new`] from a blob in flash and an
+//! arena of [`crate::engine::required_arena_bytes`] bytes. Buffers per frame: `3·H·W` bytes of
+//! RGB, `4·H·W` bytes of sparse depth, a [`ZoneFrame<N>`] (`17·N + 8` bytes) and the output.
+
+use crate::calibration::Calibration;
+use crate::engine::{self, DepthIn, DepthOut, Engine, RunStats};
+use crate::hal::{DtofSensor, Error as _, ErrorKind, RgbCamera, RgbFrame, ZoneFrame};
+use crate::projection::{project_to_sparse, ProjectionError, ProjectionStats};
+
+/// The caller's buffers for one frame; each may be longer than the frame needs.
+#[derive(Debug)]
+pub struct FrameBuffers<'b, const N: usize> {
+    /// RGB888, at least `3·H·W` bytes (`H×W` = the calibration's camera size).
+    pub rgb: &'b mut [u8],
+    /// Sparse depth `S`, metres, at least `H·W` values.
+    pub sparse_m: &'b mut [f32],
+    /// The zone frame the sensor fills.
+    pub zones: &'b mut ZoneFrame<N>,
+}
+
+/// Why a frame failed; nothing is written to the output after a failure before the model ran.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum FrameError {
+    /// The camera failed (its error's kind).
+    Camera(ErrorKind),
+    /// The dToF sensor failed (its error's kind).
+    Sensor(ErrorKind),
+    /// A buffer is shorter than the frame needs.
+    Buffer(&'static str),
+    /// The calibration or the zones cannot be projected.
+    Projection(ProjectionError),
+    /// The engine refused the inputs (e.g. prepared for another size) or failed.
+    Engine(engine::Error),
+}
+
+impl core::fmt::Display for FrameError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            FrameError::Camera(k) => write!(f, "camera: {k}"),
+            FrameError::Sensor(k) => write!(f, "dToF sensor: {k}"),
+            FrameError::Buffer(what) => write!(f, "{what} is too small for the frame"),
+            FrameError::Projection(e) => write!(f, "projection: {e:?}"),
+            FrameError::Engine(e) => write!(f, "model: {e:?}"),
+        }
+    }
+}
+
+impl From<engine::Error> for FrameError {
+    fn from(e: engine::Error) -> Self {
+        FrameError::Engine(e)
+    }
+}
+
+/// What one frame did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameReport {
+    /// Zones projected and skipped.
+    pub projection: ProjectionStats,
+    /// Ops and MACs the model ran.
+    pub run: RunStats,
+}
+
+/// Captures RGB, reads the zones, projects them and runs the model into `out` (`H×W`).
+pub fn depth_frame<C: RgbCamera, S: DtofSensor, const N: usize>(
+    camera: &mut C,
+    sensor: &mut S,
+    cal: &Calibration,
+    engine: &mut Engine<'_>,
+    buffers: &mut FrameBuffers<'_, N>,
+    out: DepthOut<'_>,
+) -> Result<FrameReport, FrameError> {
+    let (w, h) = (cal.camera.width, cal.camera.height);
+    let pixels = (w as usize)
+        .checked_mul(h as usize)
+        .ok_or(FrameError::Buffer("camera size"))?;
+    let rgb = buffers
+        .rgb
+        .get_mut(..pixels.saturating_mul(3))
+        .ok_or(FrameError::Buffer("RGB buffer"))?;
+    camera
+        .capture(&mut RgbFrame {
+            width: w,
+            height: h,
+            data: rgb,
+        })
+        .map_err(|e| FrameError::Camera(e.kind()))?;
+    sensor
+        .read_frame(buffers.zones)
+        .map_err(|e| FrameError::Sensor(e.kind()))?;
+    let sparse = buffers
+        .sparse_m
+        .get_mut(..pixels)
+        .ok_or(FrameError::Buffer("sparse depth buffer"))?;
+    let projection =
+        project_to_sparse(cal, &buffers.zones.view(), sparse).map_err(FrameError::Projection)?;
+    let rgb = &buffers.rgb[..pixels * 3];
+    let run = engine.run_into(rgb, DepthIn::Metres(sparse), out)?;
+    Ok(FrameReport { projection, run })
+}

@@ -1,0 +1,74 @@
+//! The shipped int8 models against their model cards: each card's `regression` entry names a
+//! small fixed synthetic set (preset, seed, scenes) and the int8 RMSE measured on it by
+//! `depthor eval`; this test rebuilds that set with `depthor sim`, evaluates the shipped blob with
+//! `depthor eval --no-float`, and fails if the RMSE is more than 5 % worse than the card's.
+//! Update the card (models/<variant>/card.json) in the same commit as the model.
+
+mod common;
+
+use common::{arg as s, depthor_ok as depthor};
+use std::path::PathBuf;
+
+fn card(variant: &str) -> serde_json::Value {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../models")
+        .join(variant)
+        .join("card.json");
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+fn check(variant: &str) {
+    let card = card(variant);
+    let r = &card["regression"];
+    let (preset, seed, scenes) = (
+        r["preset"].as_str().expect("regression.preset"),
+        r["seed"].as_u64().expect("regression.seed").to_string(),
+        r["scenes"].as_u64().expect("regression.scenes").to_string(),
+    );
+    let want = r["int8_rmse"].as_f64().expect("regression.int8_rmse");
+    let tmp = tempfile::tempdir().unwrap();
+    let rec = tmp.path().join("set");
+    let out = tmp.path().join("eval");
+    depthor(&[
+        "sim",
+        "--preset",
+        preset,
+        "--scenes",
+        &scenes,
+        "--seed",
+        &seed,
+        "--out",
+        s(&rec),
+    ]);
+    depthor(&[
+        "eval",
+        "--model",
+        variant,
+        "--recording",
+        s(&rec),
+        "--out",
+        s(&out),
+        "--no-float",
+        "--mosaics",
+        "0",
+    ]);
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let got = summary["methods"]["int8"]["rmse"].as_f64().unwrap();
+    println!("{variant}: int8 RMSE {got:.4} m on the card's set (card: {want:.4} m)");
+    assert!(
+        got <= want * 1.05,
+        "{variant}: int8 RMSE {got:.4} m regressed more than 5 % from the card's {want:.4} m"
+    );
+}
+
+#[test]
+fn mcu_matches_its_model_card() {
+    check("mcu");
+}
+
+#[test]
+fn phone_matches_its_model_card() {
+    check("phone");
+}
