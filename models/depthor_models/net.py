@@ -1,6 +1,6 @@
 """The DEPTHOR network (graph.md "Network shape"), variants `mcu` and `phone`.
 
-rgb → prior → (D_inv, F_mde); depth input cat(minmax(D_inv), minmax(1/(D_inv+ε)), S) → depth
+rgb → prior → (D_inv, F_mde); depth input cat(n = minmax(D_inv), minmax(1/(n+0.1)), S) → depth
 encoder; RGB encoder; fusing decoder → F_unet (1/2); bin logits MLP; bins_head → d_half;
 refinement guidance cat(F_unet, F_mde) → CBAM → conv → pixel_shuffle → affinity heads; refine.
 """
@@ -157,11 +157,12 @@ class Depthor(nn.Module):
     def forward(self, rgb: Tensor, sparse: Tensor) -> Tensor:
         h, w = int(rgb.shape[2]), int(rgb.shape[3])
         d_inv, f_mde = self.prior(rgb)
-        d_in = ops.concat([
-            ops.minmax_norm(d_inv, 1e-6),
-            ops.minmax_norm(ops.reciprocal(d_inv, 1e-3), 1e-6),
-            sparse,
-        ])
+        # Normalise first, then invert with ε = 0.1: 1/(n + 0.1) spans [1/1.1, 10] whatever the
+        # prior's scale, so the int8 reciprocal table and the minmax after it keep their
+        # resolution (1/(D_inv + 1e-3) on the raw ReLU output reached 1000 at D_inv = 0).
+        n = ops.minmax_norm(d_inv, 1e-6)
+        d_rel = ops.minmax_norm(ops.reciprocal(n, 0.1), 1e-6)
+        d_in = ops.concat([n, d_rel, sparse])
         dep = self.depth_enc(d_in)
         rgbf = self.rgb_enc(rgb)
         x = self.dec[0](ops.concat([rgbf[4], dep[4]]))

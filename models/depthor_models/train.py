@@ -15,6 +15,11 @@ atomically every `--ckpt-every-s` seconds, on SIGTERM/SIGINT and at the end), `t
 per step), `eval.csv` (held-out metrics at every checkpoint, with the zone baselines) and
 `loss.png`. Batches are a pure function of (seed, step), so `--resume` continues exactly where the
 last checkpoint left off, whatever killed the run.
+
+With `--schedule-s T` the same OneCycle runs over T seconds of training (the summed step times,
+kept in the checkpoint) instead of `--steps` steps, and training stops there: on a shared CPU
+whose speed is not known in advance the schedule still completes. Batches stay a function of
+(seed, step); the learning rate then also depends on the measured step times.
 """
 
 from __future__ import annotations
@@ -221,6 +226,26 @@ def make_optim(net: Depthor, max_lr: float, steps: int, weight_decay: float = 0.
     return opt, sched
 
 
+def onecycle_at(progress: float, max_lr: float, pct_start: float = 0.3, div: float = 25.0,
+                final_div: float = 4.0, base_beta1: float = 0.85,
+                max_beta1: float = 0.95) -> tuple[float, float]:
+    """(lr, AdamW β1) of `make_optim`'s OneCycle (cosine phases, momentum cycled like
+    torch's OneCycleLR) at `progress` in [0, 1] of the schedule: lr max/25 → max over the first
+    `pct_start`, then → max/25/4 (= max/100); β1 0.95 → 0.85 → 0.95."""
+    p = min(max(progress, 0.0), 1.0)
+    initial = max_lr / div
+    final = initial / final_div
+
+    def cos(a: float, b: float, t: float) -> float:
+        return b + (a - b) / 2.0 * (1.0 + math.cos(math.pi * t))
+
+    if p <= pct_start:
+        t = p / pct_start
+        return cos(initial, max_lr, t), cos(max_beta1, base_beta1, t)
+    t = (p - pct_start) / (1.0 - pct_start)
+    return cos(max_lr, final, t), cos(base_beta1, max_beta1, t)
+
+
 def load_weights(path: str | Path) -> dict[str, Tensor]:
     """A model state dict from a checkpoint (`{"model": ...}`) or a plain state-dict file."""
     obj = torch.load(path, map_location="cpu", weights_only=False)
@@ -283,8 +308,8 @@ def train(args: argparse.Namespace) -> dict:
         sched.load_state_dict(ck["scheduler"])
         step, wall = int(ck["step"]), float(ck["wall_s"])
         torch.set_rng_state(ck["rng"]["torch"])
-        saved = ck["args"]
-        for k in ("variant", "seed", "batch", "steps", "max_lr", "train"):
+        saved = {"schedule_s": 0.0, **ck["args"]}  # checkpoints from before --schedule-s
+        for k in ("variant", "seed", "batch", "steps", "max_lr", "train", "schedule_s"):
             if saved.get(k) != getattr(args, k):
                 print(f"resume: using the checkpoint's {k}={saved.get(k)!r} "
                       f"(command line said {getattr(args, k)!r})")
@@ -329,7 +354,10 @@ def train(args: argparse.Namespace) -> dict:
     stop_at = step + args.stop_after if args.stop_after > 0 else args.steps
     last_row: dict = {}
     net.train()
+    by_time = args.schedule_s > 0
     while step < min(args.steps, stop_at) and not stop.flag and time.perf_counter() < deadline:
+        if by_time and wall >= args.schedule_s:
+            break
         ts = time.perf_counter()
         idx, flips = batch_plan(args.seed, step, args.batch, len(train_rec))
         rgb, sp, gt = data.batch(train_rec, idx, flips)
@@ -340,9 +368,15 @@ def train(args: argparse.Namespace) -> dict:
         opt.zero_grad(set_to_none=True)
         loss.backward()
         gn = torch.nn.utils.clip_grad_norm_(net.parameters(), args.clip)
+        if by_time:  # OneCycle over training seconds instead of steps
+            lr, beta1 = onecycle_at(wall / args.schedule_s, args.max_lr)
+            for grp in opt.param_groups:
+                grp["lr"] = lr
+                grp["betas"] = (beta1, grp["betas"][1])
         lr = opt.param_groups[0]["lr"]
         opt.step()
-        sched.step()
+        if not by_time:
+            sched.step()
         step += 1
         wall += time.perf_counter() - ts
         _append(out / "train.csv", TRAIN_FIELDS, {
@@ -452,6 +486,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--ckpt-every-s", type=float, default=180.0)
     ap.add_argument("--eval-frames", type=int, default=0, help="held-out frames (0 = all)")
     ap.add_argument("--time-limit-s", type=float, default=0.0, help="stop after this long (0 = no limit)")
+    ap.add_argument("--schedule-s", type=float, default=0.0,
+                    help="run the OneCycle schedule over this many seconds of training (step "
+                         "time, evaluation excluded) instead of --steps steps, and stop there; "
+                         "--steps stays an upper bound. For a CPU share whose speed is unknown "
+                         "in advance (0 = by steps)")
     ap.add_argument("--stop-after", type=int, default=0,
                     help="leave after this many steps in this invocation (0 = run to the end)")
     ap.add_argument("--resume", action="store_true", help="continue from <out>/ckpt.pt")

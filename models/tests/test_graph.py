@@ -78,6 +78,42 @@ def test_weights_round_trip(tmp_path, traced, variant):
         assert np.array_equal(weights[name], t.params[name].numpy())
 
 
+@pytest.mark.parametrize("variant", VARIANTS)
+def test_depth_input_normalises_before_the_reciprocal(traced, variant):
+    """Depth-encoder input: n = minmax_norm(D_inv), D_rel = minmax_norm(1/(n + 0.1)), concat
+    (n, D_rel, sparse). The reciprocal reads the normalised map, so its output stays within
+    [1/1.1, 10] whatever the prior's scale (int8-friendly), also where the prior's relu is 0."""
+    t = traced[variant]
+    nodes = t.graph["nodes"]
+    by_output = {n["output"]: n for n in nodes}
+    recs = [n for n in nodes if n["op"] == "reciprocal"]
+    assert len(recs) == 1
+    rec = recs[0]
+    assert rec["attrs"]["eps"] == pytest.approx(0.1)
+    norm = by_output[rec["inputs"][0]]
+    assert norm["op"] == "minmax_norm"
+    prior_out = by_output[norm["inputs"][0]]
+    assert prior_out["name"].startswith("prior.") and prior_out["op"] == "relu"
+    users = [n for n in nodes if rec["output"] in n["inputs"]]
+    assert [u["op"] for u in users] == ["minmax_norm"]
+    cat = [n for n in nodes if n["op"] == "concat" and users[0]["output"] in n["inputs"]]
+    assert len(cat) == 1
+    assert cat[0]["inputs"] == [norm["output"], users[0]["output"], "sparse"]
+    r = t.values[rec["output"]]
+    assert 1.0 / 1.1 - 1e-5 <= r.min().item() and r.max().item() <= 10.0 + 1e-4
+
+
+def test_depth_input_bounded_when_prior_is_zero():
+    """A prior output that is 0 everywhere (dead relu) gives finite, bounded depth input."""
+    from depthor_models import ops
+
+    n = ops.minmax_norm(torch.zeros(1, 1, 4, 5), 1e-6)
+    r = ops.reciprocal(n, 0.1)
+    assert torch.equal(n, torch.zeros_like(n))
+    assert torch.allclose(r, torch.full_like(r, 10.0))
+    assert torch.isfinite(ops.minmax_norm(r, 1e-6)).all()
+
+
 def test_budgets(traced):
     mcu = graph_export.count(traced["mcu"])
     phone = graph_export.count(traced["phone"])
@@ -103,8 +139,8 @@ def test_interpreter_reproduces_pytorch(tmp_path, traced, variant):
     env, depth_diff = _interpreter_check(traced[variant], tmp_path)
     print(f"{variant}: max |interp - torch| on depth = {depth_diff:.3g} m")
     assert depth_diff <= 1e-4
-    # the golden intermediates agree too, relative to their magnitude (D_rel = 1/(D_inv + ε) is
-    # ill-conditioned where D_inv ≈ 0, so f32 vs f64 drift grows through the depth encoder)
+    # the golden intermediates agree too, relative to their magnitude (f32 vs f64 drift grows
+    # through the depth encoder)
     for name in golden.intermediate_names(traced[variant].graph):
         ref = traced[variant].values[name][0].numpy()
         assert np.abs(env[name] - ref).max() <= 1e-3 * max(1.0, np.abs(ref).max()), name

@@ -176,6 +176,34 @@ def test_resume_matches_uninterrupted_run(tmp_path, capsys):
     assert row["model_rmse"] == pytest.approx(float(last["model_rmse"]), rel=1e-6)
 
 
+def test_onecycle_at_follows_torch_onecycle():
+    """The time-keyed schedule is make_optim's OneCycle as a function of progress in [0, 1]."""
+    max_lr, total = 1e-3, 1001
+    net = torch.nn.Linear(2, 1)
+    opt, sched = T.make_optim(net, max_lr, total)
+    for k in range(total):
+        lr, beta1 = T.onecycle_at(k / (total - 1), max_lr)
+        assert lr == pytest.approx(opt.param_groups[0]["lr"], abs=0.01 * max_lr), k
+        assert beta1 == pytest.approx(opt.param_groups[0]["betas"][0], abs=0.002), k
+        opt.step()
+        sched.step()
+    assert T.onecycle_at(0.0, max_lr) == pytest.approx((max_lr / 25, 0.95))
+    assert T.onecycle_at(0.3, max_lr) == pytest.approx((max_lr, 0.85))
+    assert T.onecycle_at(1.0, max_lr) == pytest.approx((max_lr / 100, 0.95))
+    assert T.onecycle_at(2.0, max_lr) == T.onecycle_at(1.0, max_lr)
+
+
+def test_schedule_by_time_stops_when_spent(tmp_path):
+    rec_dir = write_recording(tmp_path / "rec", n=5)
+    T.main(_args(rec_dir, tmp_path / "run", "--schedule-s", "1e-9"))
+    with (tmp_path / "run" / "train.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert [int(r["step"]) for r in rows] == [1]  # one step spends any positive budget
+    assert float(rows[0]["lr"]) == pytest.approx(1e-3 / 25, rel=1e-3)  # progress 0
+    ck = torch.load(tmp_path / "run" / "ckpt.pt", weights_only=False)
+    assert ck["step"] == 1 and ck["args"]["schedule_s"] == 1e-9
+
+
 def test_export_loads_trained_weights(tmp_path):
     from depthor_models.export import build_trained
 
