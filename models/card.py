@@ -112,6 +112,9 @@ def main() -> None:
     blob = (d / "depthor.dblob").stat().st_size
     L = [f"# Model card: DEPTHOR `{a.variant}`", "",
          "Written by `models/card.py` from measured files; every figure below comes from a command shown here.", "",
+         *(["**Status: these weights are untrained** (seeded random initialisation), so the model loses to every "
+            "baseline below; the tables are the pipeline's check, not a result.", ""]
+           if "untrained" in str(summary.get("weights")) else []),
          "## Model", "",
          f"- Input {summary['height']}×{summary['width']} (H×W) RGB + projected dToF; output dense depth in metres.",
          f"- Parameters: {summary['params_deployed']:,} deployed (prior {summary['params_prior']:,}); "
