@@ -167,8 +167,12 @@ pub struct Conv2d<'a> {
 pub const MAX_TAPS: usize = 65_536;
 
 impl Conv2d<'_> {
-    /// Checks the op against an input shape; returns the output shape.
+    /// Checks the op against an input shape; returns the output shape. The input zero point
+    /// must be an int8 value (so `x − zp` and its product with a weight fit 16 bits).
     pub fn check(&self, in_shape: Shape) -> Result<Shape, KernelError> {
+        if !(-128..=127).contains(&self.quant.input_zero_point) {
+            return Err(KernelError::Attr);
+        }
         let out_c = self.channels.len();
         let out = self
             .geometry
@@ -208,6 +212,16 @@ impl Conv2d<'_> {
         )
     }
 }
+
+/// Whether the target has wide integer SIMD, where 16-bit products vectorise twice as wide. On
+/// a Cortex-M the 32-bit multiply-accumulate is one `MLA` and the 16-bit form costs an extra
+/// sign extension (measured: 3.49 → 3.70 G instructions per `mcu` frame in QEMU), so it keeps
+/// the 32-bit form. Both give the same bits.
+const WIDE_SIMD: bool = cfg!(any(
+    target_arch = "x86",
+    target_arch = "x86_64",
+    target_arch = "aarch64"
+));
 
 /// Reference convolution: plain loops over every output element and tap (the spec).
 pub fn conv2d_ref(
@@ -334,7 +348,14 @@ pub fn conv2d(
                                 continue;
                             }
                             let dst = &mut acc[o * out.w + lo..=o * out.w + hi];
-                            if g.stride[1] == 1 {
+                            if g.stride[1] == 1 && WIDE_SIMD {
+                                // |w| ≤ 128 and |x − zp| ≤ 255, so the product fits i16 exactly:
+                                // a 16-bit multiply vectorises twice as wide, same bits.
+                                let w16 = w as i16;
+                                for (a, &x) in dst.iter_mut().zip(src) {
+                                    *a = a.wrapping_add(i32::from(w16.wrapping_mul(x as i16)));
+                                }
+                            } else if g.stride[1] == 1 {
                                 for (a, &x) in dst.iter_mut().zip(src) {
                                     *a = a.wrapping_add(w * x);
                                 }

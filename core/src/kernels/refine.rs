@@ -204,7 +204,9 @@ pub fn refine<A: Map, B: Map>(
     Ok(())
 }
 
-/// One propagation step of one kernel: `nxt` from `cur`.
+/// One propagation step of one kernel: `nxt` from `cur`. Pixels whose whole window lies inside
+/// the image take a path without per-neighbour bounds tests; both paths add the same terms in
+/// the same order, so the bits do not depend on which one ran.
 fn step<A: Map>(
     a: &A,
     off: &[(isize, isize)],
@@ -214,32 +216,51 @@ fn step<A: Map>(
     cur: &[f32],
     nxt: &mut [f32],
 ) {
+    let n = off.len();
+    let rad = off
+        .iter()
+        .map(|&(dy, dx)| dy.unsigned_abs().max(dx.unsigned_abs()))
+        .max()
+        .unwrap_or(0);
     let mut r = [0f32; 48];
     let mut idx = [0usize; 48];
+    let mut delta = [0isize; 48];
+    for (d, &(dy, dx)) in delta.iter_mut().zip(off) {
+        *d = dy * w as isize + dx;
+    }
     for y in 0..h {
+        let inner_row = y >= rad && y + rad < h;
         for x in 0..w {
             let i = y * w + x;
             let mut s = 0.0f32;
-            for (j, &(dy, dx)) in off.iter().enumerate() {
-                let (ny, nx) = (y as isize + dy, x as isize + dx);
-                if ny < 0 || nx < 0 || ny >= h as isize || nx >= w as isize {
-                    r[j] = 0.0;
-                    idx[j] = i;
-                } else {
+            if inner_row && x >= rad && x + rad < w {
+                for j in 0..n {
                     r[j] = relu(a.value(j, i)) * g[j];
-                    idx[j] = ny as usize * w + nx as usize;
+                    idx[j] = (i as isize + delta[j]) as usize;
+                    s += r[j];
                 }
-                s += r[j];
+            } else {
+                for (j, &(dy, dx)) in off.iter().enumerate() {
+                    let (ny, nx) = (y as isize + dy, x as isize + dx);
+                    if ny < 0 || nx < 0 || ny >= h as isize || nx >= w as isize {
+                        r[j] = 0.0;
+                        idx[j] = i;
+                    } else {
+                        r[j] = relu(a.value(j, i)) * g[j];
+                        idx[j] = ny as usize * w + nx as usize;
+                    }
+                    s += r[j];
+                }
             }
             let q = 1.0 / (1.0 + s);
             let mut wsum = 0.0f32;
-            for rj in r[..off.len()].iter_mut() {
+            for rj in r[..n].iter_mut() {
                 *rj *= q;
                 wsum += *rj;
             }
             let mut d = (1.0 - wsum) * cur[i];
-            for (&wj, &n) in r[..off.len()].iter().zip(&idx[..off.len()]) {
-                d += wj * cur[n];
+            for (&wj, &k) in r[..n].iter().zip(&idx[..n]) {
+                d += wj * cur[k];
             }
             nxt[i] = d;
         }
