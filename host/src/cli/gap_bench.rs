@@ -43,12 +43,23 @@ pub struct Args {
     /// Seed of the scenes and the "real" measurements.
     #[arg(long, default_value_t = 1000)]
     seed: u64,
+    /// Monte-Carlo draws of the simulator per frame (the tool's `--draws`).
+    #[arg(long, default_value_t = GapOptions::default().draws)]
+    draws: usize,
     /// Print each case's selection log.
     #[arg(long)]
     verbose: bool,
     /// Write the Markdown table here too.
     #[arg(long)]
     out: Option<PathBuf>,
+}
+
+/// The seed of a case: `seed` mixed with its label (FNV-1a), so `--only` reproduces a case of
+/// the full run.
+fn case_seed(seed: u64, label: &str) -> u64 {
+    label.bytes().fold(seed ^ 0xCBF2_9CE4_8422_2325, |h, b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01B3)
+    })
 }
 
 /// Runs `depthor gap-bench`.
@@ -90,7 +101,7 @@ pub fn handle(args: Args) -> anyhow::Result<()> {
     };
     let bar = super::progress(cases.len() as u64, "cases");
     let mut results = Vec::new();
-    for (i, c) in cases.iter().enumerate() {
+    for c in &cases {
         bar.set_message(c.label.clone());
         let set = match c.scenes {
             SceneSet::Sim => &scenes,
@@ -102,8 +113,11 @@ pub fn handle(args: Args) -> anyhow::Result<()> {
             set,
             &base,
             c,
-            &GapOptions::default(),
-            args.seed + 7919 * i as u64,
+            &GapOptions {
+                draws: args.draws,
+                ..GapOptions::default()
+            },
+            case_seed(args.seed, &c.label),
         )?;
         if args.verbose {
             bar.suspend(|| {
