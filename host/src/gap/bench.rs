@@ -645,3 +645,57 @@ pub fn table(results: &[CaseResult]) -> String {
     ));
     s
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dark_far_darkens_with_range_and_absorbed_scale_is_the_grid_mean() {
+        let mut s = render_scenes(1, 16, 12, 3).remove(0);
+        s.depth_m[0] = 0.5;
+        s.depth_m[1] = 6.0;
+        s.rgb[..6].copy_from_slice(&[200, 100, 50, 200, 100, 50]);
+        let d = dark_far(std::slice::from_ref(&s)).remove(0);
+        // Near (1.5 / 0.5 > 1): unchanged; far: × 1.5 / 6 = 0.25.
+        assert_eq!(&d.rgb[..3], &[200, 100, 50]);
+        assert_eq!(&d.rgb[3..6], &[50, 25, 13]);
+        // The mean radial lengthening over the grid: positive, linear in the fraction, and the
+        // mean of the per-zone factors.
+        let a = absorbed_scale(1.0);
+        assert!(a > 0.0 && (absorbed_scale(0.5) - a / 2.0).abs() < 1e-6);
+        let r = crate::sim::radial_distance::RadialDistance {
+            enabled: true,
+            fraction: 1.0,
+            ..Default::default()
+        };
+        let corner = f64::from(r.factor(grid_position(0, 0, 8, 8).0)) - 1.0;
+        assert!(a < corner);
+    }
+
+    #[test]
+    fn standard_cases_cover_every_effect_size_and_special_case() {
+        let v = standard_cases(&[1.0, 2.0, 4.0], 20);
+        assert_eq!(
+            v.iter()
+                .filter(|c| c.hidden.is_empty() && !c.outside)
+                .count(),
+            20
+        );
+        assert_eq!(
+            v.iter()
+                .filter(|c| c.hidden.len() == 1 && c.scenes == SceneSet::Sim)
+                .count(),
+            3 * effects::LIBRARY.len()
+        );
+        assert!(v.iter().any(|c| c.outside));
+        assert!(v.iter().any(|c| c.scenes == SceneSet::DarkFar));
+        let r = real_cases(&[1.0], 3);
+        assert!(r
+            .iter()
+            .all(|c| c.scenes == SceneSet::Real && c.label.starts_with("real:")));
+        assert!(!r
+            .iter()
+            .any(|c| c.hidden.iter().any(|h| h.0 == "multipath")));
+    }
+}
