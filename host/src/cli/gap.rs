@@ -23,7 +23,7 @@ pub struct Args {
     #[arg(long)]
     out: PathBuf,
     /// Monte-Carlo draws of the simulator per frame.
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = GapOptions::default().draws)]
     draws: usize,
     /// Seed of the draws.
     #[arg(long, default_value_t = 1)]

@@ -1,8 +1,11 @@
 //! `depthor gap-bench`: the concealed-effect benchmark table of the gap tool.
 
 use std::path::PathBuf;
+use std::time::Instant;
 
-use depthor_host::gap::bench::{render_scenes, run_case, standard_cases, table};
+use depthor_host::gap::bench::{
+    dark_far, real_cases, real_scenes, render_scenes, run_case, standard_cases, table, SceneSet,
+};
 use depthor_host::gap::GapOptions;
 use depthor_host::sim::preset;
 
@@ -21,15 +24,28 @@ pub struct Args {
     /// Size multiples of each effect's unit size.
     #[arg(long, value_delimiter = ',', default_values_t = vec![1.0, 2.0, 4.0])]
     sizes: Vec<f64>,
-    /// Null cases (no hidden effect).
-    #[arg(long, default_value_t = 5)]
+    /// Null cases (no hidden effect) on rendered scenes.
+    #[arg(long, default_value_t = 20)]
     nulls: usize,
+    /// The real RGB-D sets (`data/real`, see its README); cases on them are skipped when the
+    /// folder is missing.
+    #[arg(long, default_value = "../shared/data/real")]
+    real_data: PathBuf,
+    /// Null cases on the real RGB-D frames.
+    #[arg(long, default_value_t = 5)]
+    real_nulls: usize,
+    /// Leave out the cases on the real RGB-D frames.
+    #[arg(long)]
+    no_real: bool,
     /// Only cases whose label contains this.
     #[arg(long)]
     only: Option<String>,
     /// Seed of the scenes and the "real" measurements.
     #[arg(long, default_value_t = 1000)]
     seed: u64,
+    /// Monte-Carlo draws of the simulator per frame (the tool's `--draws`).
+    #[arg(long, default_value_t = GapOptions::default().draws)]
+    draws: usize,
     /// Print each case's selection log.
     #[arg(long)]
     verbose: bool,
@@ -38,11 +54,39 @@ pub struct Args {
     out: Option<PathBuf>,
 }
 
+/// The seed of a case: `seed` mixed with its label (FNV-1a), so `--only` reproduces a case of
+/// the full run.
+fn case_seed(seed: u64, label: &str) -> u64 {
+    label.bytes().fold(seed ^ 0xCBF2_9CE4_8422_2325, |h, b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01B3)
+    })
+}
+
 /// Runs `depthor gap-bench`.
 pub fn handle(args: Args) -> anyhow::Result<()> {
+    let t0 = Instant::now();
     let base = preset("mcu")?;
     let scenes = render_scenes(args.frames, args.width, args.height, args.seed);
-    let cases: Vec<_> = standard_cases(&args.sizes, args.nulls)
+    let mut cases = standard_cases(&args.sizes, args.nulls);
+    let real = if args.no_real {
+        Vec::new()
+    } else if args.real_data.is_dir() {
+        let (r, notes) = real_scenes(&args.real_data, args.width, args.height);
+        for n in notes {
+            eprintln!("note: {n}");
+        }
+        r
+    } else {
+        eprintln!(
+            "note: {} not found: no cases on real RGB-D frames (pass --real-data)",
+            args.real_data.display()
+        );
+        Vec::new()
+    };
+    if real.len() >= 8 {
+        cases.extend(real_cases(&args.sizes, args.real_nulls));
+    }
+    let cases: Vec<_> = cases
         .into_iter()
         .filter(|c| {
             args.only
@@ -50,25 +94,57 @@ pub fn handle(args: Args) -> anyhow::Result<()> {
                 .is_none_or(|o| c.label.contains(o.as_str()))
         })
         .collect();
+    let dark = if cases.iter().any(|c| c.scenes == SceneSet::DarkFar) {
+        dark_far(&scenes)
+    } else {
+        Vec::new()
+    };
     let bar = super::progress(cases.len() as u64, "cases");
     let mut results = Vec::new();
-    for (i, c) in cases.iter().enumerate() {
+    for c in &cases {
         bar.set_message(c.label.clone());
+        let set = match c.scenes {
+            SceneSet::Sim => &scenes,
+            SceneSet::Real => &real,
+            SceneSet::DarkFar => &dark,
+        };
+        let t = Instant::now();
         let (r, a) = run_case(
-            &scenes,
+            set,
             &base,
             c,
-            &GapOptions::default(),
-            args.seed + 7919 * i as u64,
+            &GapOptions {
+                draws: args.draws,
+                ..GapOptions::default()
+            },
+            case_seed(args.seed, &c.label),
         )?;
         if args.verbose {
-            eprintln!("{}:\n  {}", c.label, a.selection.log.join("\n  "));
+            bar.suspend(|| {
+                eprintln!(
+                    "{} ({:.1} s): named {:?}, fitted {:?}\n  {}",
+                    c.label,
+                    t.elapsed().as_secs_f64(),
+                    r.named,
+                    r.fitted,
+                    a.selection.log.join("\n  ")
+                )
+            });
         }
         bar.inc(1);
         results.push(r);
     }
     bar.finish_and_clear();
-    let t = table(&results);
+    let mut t = table(&results);
+    t.push_str(&format!(
+        "\n{} cases; {} rendered frames and {} real-set frames of {}×{} per recording; wall time {:.0} s.\n",
+        results.len(),
+        scenes.len(),
+        real.len(),
+        args.width,
+        args.height,
+        t0.elapsed().as_secs_f64()
+    ));
     println!("{t}");
     if let Some(p) = args.out {
         std::fs::write(p, &t)?;

@@ -1,15 +1,20 @@
 //! The concealed-effect benchmark (`depthor gap-bench`): "real" recordings built from simulated
-//! scenes with hidden effects switched on (each library effect at 1×, 2× and 4× a unit size, two
-//! effects at once, an effect outside the library, and null cases), analysed against the plain
-//! simulator configuration. Reports detection by size, top-1 attribution, false positives on
-//! nulls, parameter error and held-out gain.
+//! scenes and from the imported real RGB-D sets (`../shared/data/real`) with hidden effects switched
+//! on (each library effect at 1×, 2× and 4× a unit size, two effects at once, confounders, an
+//! effect outside the library, and null cases), analysed against the plain simulator
+//! configuration. Reports detection by size, top-1 attribution, false positives on nulls,
+//! parameter error and held-out gain.
+
+use std::path::Path;
 
 use rayon::prelude::*;
 
 use super::data::{GapData, GapFrame};
 use super::{analyze, effects, Analysis, GapError, GapOptions};
+use crate::import::{self, ImportKind};
 use crate::rng::Rng;
 use crate::scene::{camera_for, render_scene, SceneConfig, SceneFrame};
+use crate::sim::covariates::grid_position;
 use crate::sim::{simulate, SimConfig};
 
 /// A change applied to a "real" frame's zones after the simulator (an effect outside the library).
@@ -119,6 +124,168 @@ pub fn phantom_cover_glass(f: &mut GapFrame, rng: &mut Rng) {
     }
 }
 
+/// The real RGB-D sets the benchmark reads from `data/real` (kind, folder).
+pub const REAL_SETS: [(ImportKind, &str); 7] = [
+    (ImportKind::Middlebury, "middlebury2014-Q"),
+    (ImportKind::Nyu, "metric3d-nyu-demo"),
+    (ImportKind::Redwood, "open3d-rgbd-testdata"),
+    (ImportKind::Tum, "open3d-rgbd-testdata"),
+    (ImportKind::Sun, "open3d-rgbd-testdata"),
+    (ImportKind::NyuRaw, "open3d-rgbd-testdata"),
+    (ImportKind::Arkit, "promptda-iphone-lidar"),
+];
+
+/// Resamples the `crop` (`[x0, y0, w, h]`, source pixels) of `f` to `width × height`: RGB box
+/// averaged, depth nearest (no mixed depths at edges), mirrored left–right when `mirror`.
+fn resample_frame(
+    f: &import::ImportedFrame,
+    crop: [f32; 4],
+    mirror: bool,
+    width: u32,
+    height: u32,
+) -> SceneFrame {
+    let (sw, sh) = f.rgb.dimensions();
+    let [x0, y0, cw, ch] = crop;
+    let (sx, sy) = (cw / width as f32, ch / height as f32);
+    let n = (width * height) as usize;
+    let (mut rgb, mut depth) = (Vec::with_capacity(3 * n), Vec::with_capacity(n));
+    for oy in 0..height {
+        for ox in 0..width {
+            let ux = if mirror { width - 1 - ox } else { ox };
+            let (ax, ay) = (x0 + ux as f32 * sx, y0 + oy as f32 * sy);
+            let (bx, by) = (ax + sx, ay + sy);
+            let (ix0, iy0) = (ax.floor() as u32, ay.floor() as u32);
+            let ix1 = (bx.ceil() as u32).clamp(ix0 + 1, sw);
+            let iy1 = (by.ceil() as u32).clamp(iy0 + 1, sh);
+            let mut acc = [0u32; 3];
+            let mut cnt = 0u32;
+            for y in iy0..iy1 {
+                for x in ix0..ix1 {
+                    let p = f.rgb.get_pixel(x, y).0;
+                    for k in 0..3 {
+                        acc[k] += u32::from(p[k]);
+                    }
+                    cnt += 1;
+                }
+            }
+            for a in acc {
+                rgb.push((a / cnt.max(1)) as u8);
+            }
+            let (cx, cy) = (
+                (((ax + bx) / 2.0) as u32).min(sw - 1),
+                (((ay + by) / 2.0) as u32).min(sh - 1),
+            );
+            let d = f.depth_m[(cy * sw + cx) as usize];
+            depth.push(if d.is_finite() && d > 0.0 { d } else { 0.0 });
+        }
+    }
+    let s = cw / width as f32;
+    let camera = depthor_core::calibration::CameraIntrinsics {
+        width,
+        height,
+        fx: f.camera.fx / s,
+        fy: f.camera.fy / s,
+        cx: (f.camera.cx - x0) / s,
+        cy: (f.camera.cy - y0) / s,
+    };
+    SceneFrame {
+        width,
+        height,
+        camera,
+        rgb,
+        depth_m: depth,
+        second_depth_m: vec![0.0; n],
+        reflectance: vec![0.0; n],
+        labels: vec![0; n],
+        normals: vec![[0.0, 0.0, 1.0]; n],
+    }
+}
+
+/// Frames of the real RGB-D sets under `root` (`data/real`) as `width × height` scenes: each
+/// image twice, first its largest centred crop of the target aspect, then a mirrored 80 % crop
+/// toward its lower right. The two views of an image are `m` frames apart (`m` images), so with
+/// an even `m` both fall on the same side of the even/odd train/test split. No material labels
+/// (all diffuse). Sets that fail to load are skipped and named in the returned notes.
+pub fn real_scenes(root: &Path, width: u32, height: u32) -> (Vec<SceneFrame>, Vec<String>) {
+    let mut imgs = Vec::new();
+    let mut notes = Vec::new();
+    for (kind, folder) in REAL_SETS {
+        match import::load(kind, &root.join(folder)) {
+            Ok(set) => imgs.extend(set.frames),
+            Err(e) => notes.push(format!("{folder} ({}): skipped: {e}", kind.cli_name())),
+        }
+    }
+    if imgs.len() % 2 == 1 {
+        imgs.pop();
+    }
+    let aspect = width as f32 / height as f32;
+    let crop = |f: &import::ImportedFrame, zoom: f32, at: f32| {
+        let (sw, sh) = (f.rgb.width() as f32, f.rgb.height() as f32);
+        let (cw, ch) = if sw / sh > aspect {
+            (sh * aspect, sh)
+        } else {
+            (sw, sw / aspect)
+        };
+        let (cw, ch) = (cw * zoom, ch * zoom);
+        [(sw - cw) * at, (sh - ch) * at, cw, ch]
+    };
+    let mut out: Vec<SceneFrame> = imgs
+        .par_iter()
+        .map(|f| resample_frame(f, crop(f, 1.0, 0.5), false, width, height))
+        .collect();
+    out.extend(
+        imgs.par_iter()
+            .map(|f| resample_frame(f, crop(f, 0.8, 0.8), true, width, height))
+            .collect::<Vec<_>>(),
+    );
+    (out, notes)
+}
+
+/// `scenes` with their far surfaces darkened (RGB × clamp(1.5 m / z, 0.12, 1)): brightness falls
+/// with range, the confounder of `range_dropout` and `dark_dropout`.
+pub fn dark_far(scenes: &[SceneFrame]) -> Vec<SceneFrame> {
+    scenes
+        .par_iter()
+        .map(|s| {
+            let mut s = s.clone();
+            for (i, &d) in s.depth_m.iter().enumerate() {
+                let f = if d > 0.0 {
+                    (1.5 / d).clamp(0.12, 1.0)
+                } else {
+                    1.0
+                };
+                for c in &mut s.rgb[3 * i..3 * i + 3] {
+                    *c = (f32::from(*c) * f).round() as u8;
+                }
+            }
+            s
+        })
+        .collect()
+}
+
+/// Which scenes a case's "real" recording is built from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SceneSet {
+    /// Rendered scenes ([`render_scenes`]).
+    #[default]
+    Sim,
+    /// Imported real RGB-D frames ([`real_scenes`]).
+    Real,
+    /// Rendered scenes with far surfaces darkened ([`dark_far`]).
+    DarkFar,
+}
+
+impl SceneSet {
+    /// Short name (table).
+    pub fn name(self) -> &'static str {
+        match self {
+            SceneSet::Sim => "sim",
+            SceneSet::Real => "real",
+            SceneSet::DarkFar => "dark-far",
+        }
+    }
+}
+
 /// One benchmark case.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Case {
@@ -130,6 +297,8 @@ pub struct Case {
     pub size: f64,
     /// Whether the phantom cover-glass (outside the library) is added.
     pub outside: bool,
+    /// Scenes the "real" recording is built from.
+    pub scenes: SceneSet,
 }
 
 /// The outcome of one case.
@@ -145,6 +314,8 @@ pub struct CaseResult {
     pub gain: f64,
     /// Number of significant residual slices left after the fit.
     pub unexplained_slices: usize,
+    /// Held-out gain of each accepted finding (conditional on the others), nats per zone.
+    pub finding_gains: Vec<f64>,
 }
 
 impl CaseResult {
@@ -216,58 +387,174 @@ pub fn run_case(
             fitted,
             gain: a.fit_before.heldout_nll_per_zone - a.fit_after.heldout_nll_per_zone,
             unexplained_slices: a.slices_after.iter().filter(|s| s.significant).count(),
+            finding_gains: a
+                .selection
+                .findings
+                .iter()
+                .map(|f| f.heldout_gain)
+                .collect(),
         },
         a,
     ))
 }
 
-/// The standard cases: every effect at `sizes`, `nulls` null cases, one pair, one outside-library.
-pub fn standard_cases(sizes: &[f64], nulls: usize) -> Vec<Case> {
+/// One case per library effect and size in `sizes` on `scenes` (effects in `skip` left out).
+fn sized_cases(sizes: &[f64], scenes: SceneSet, skip: &[&str]) -> Vec<Case> {
     let mut v = Vec::new();
     for c in effects::LIBRARY {
+        if skip.contains(&c.name) {
+            continue;
+        }
         for &s in sizes {
             if let Some(p) = sized(c.name, s) {
                 v.push(Case {
-                    label: format!("{}@{s}x", c.name),
+                    label: label(scenes, &format!("{}@{s}x", c.name)),
                     hidden: vec![(c.name, p)],
                     size: s,
                     outside: false,
+                    scenes,
                 });
             }
         }
     }
-    for k in 0..nulls {
-        v.push(Case {
-            label: format!("null#{k}"),
+    v
+}
+
+fn label(scenes: SceneSet, l: &str) -> String {
+    match scenes {
+        SceneSet::Sim => l.to_string(),
+        s => format!("{}:{l}", s.name()),
+    }
+}
+
+/// `n` null cases on `scenes`.
+fn null_cases(n: usize, scenes: SceneSet) -> Vec<Case> {
+    (0..n)
+        .map(|k| Case {
+            label: label(scenes, &format!("null#{k}")),
             hidden: vec![],
             size: 0.0,
             outside: false,
-        });
+            scenes,
+        })
+        .collect()
+}
+
+/// A case hiding `hidden` (each at 4× its unit unless given) on `scenes`.
+fn multi(l: &str, hidden: Vec<(&'static str, Vec<f64>)>, scenes: SceneSet) -> Case {
+    Case {
+        label: label(scenes, l),
+        hidden,
+        size: 4.0,
+        outside: false,
+        scenes,
     }
-    if let (Some(a), Some(b)) = (sized("range_dropout", 4.0), sized("range_bias", 4.0)) {
-        v.push(Case {
-            label: "range_dropout+range_bias@4x".into(),
-            hidden: vec![("range_dropout", a), ("range_bias", b)],
-            size: 4.0,
-            outside: false,
-        });
+}
+
+/// The standard cases on rendered scenes: every effect at `sizes`, `nulls` null cases, pairs,
+/// confounders and one effect outside the library.
+pub fn standard_cases(sizes: &[f64], nulls: usize) -> Vec<Case> {
+    let mut v = sized_cases(sizes, SceneSet::Sim, &[]);
+    v.extend(null_cases(nulls, SceneSet::Sim));
+    let s4 = |n: &'static str| (n, sized(n, 4.0).unwrap_or_default());
+    for (a, b) in [
+        ("range_dropout", "range_bias"),
+        ("dark_dropout", "edge_mixing"),
+        ("multipath", "range_noise"),
+    ] {
+        v.push(multi(
+            &format!("{a}+{b}@4x"),
+            vec![s4(a), s4(b)],
+            SceneSet::Sim,
+        ));
     }
+    v.extend(confounder_cases());
     v.push(Case {
         label: "outside:cover_glass".into(),
         hidden: vec![],
         size: 0.0,
         outside: true,
+        scenes: SceneSet::Sim,
     });
     v
 }
 
-/// Markdown table of `results`: per size, detection rate, top-1 attribution, median parameter
-/// error and mean gain; then nulls' false-positive rate and the special cases.
+/// Confounders: on scenes whose far surfaces are dark, `range_dropout` and `dark_dropout` each
+/// hidden alone (the tool must pick the right one); and `radial_distance` whose mean error a
+/// calibration has absorbed into a range scale (`range_bias.scale = −mean(k − 1)·fraction` over
+/// the grid): the residual is then the radial pattern alone.
+pub fn confounder_cases() -> Vec<Case> {
+    let s4 = |n: &'static str| (n, sized(n, 4.0).unwrap_or_default());
+    let radial = sized("radial_distance", 4.0).unwrap_or_default();
+    let scale = -absorbed_scale(radial.first().copied().unwrap_or(0.0));
+    vec![
+        multi(
+            "range_dropout@4x",
+            vec![s4("range_dropout")],
+            SceneSet::DarkFar,
+        ),
+        multi(
+            "dark_dropout@4x",
+            vec![s4("dark_dropout")],
+            SceneSet::DarkFar,
+        ),
+        multi(
+            "absorbed:radial_distance@4x",
+            vec![
+                ("radial_distance", radial),
+                ("range_bias", vec![0.0, scale]),
+            ],
+            SceneSet::Sim,
+        ),
+    ]
+}
+
+/// Mean of `factor − 1` over the 8×8 grid for a `radial_distance` of `fraction` (45° FoV).
+pub fn absorbed_scale(fraction: f64) -> f64 {
+    let r = crate::sim::radial_distance::RadialDistance {
+        enabled: true,
+        fraction: fraction as f32,
+        ..Default::default()
+    };
+    let mut acc = 0.0;
+    for z in 0..64 {
+        let (pos, _) = grid_position(z / 8, z % 8, 8, 8);
+        acc += f64::from(r.factor(pos)) - 1.0;
+    }
+    acc / 64.0
+}
+
+/// Cases on the imported real RGB-D frames: every effect but `multipath` (the real sets have no
+/// material labels) at `sizes`, `nulls` null cases and one pair.
+pub fn real_cases(sizes: &[f64], nulls: usize) -> Vec<Case> {
+    let mut v = sized_cases(sizes, SceneSet::Real, &["multipath"]);
+    v.extend(null_cases(nulls, SceneSet::Real));
+    let s4 = |n: &'static str| (n, sized(n, 4.0).unwrap_or_default());
+    v.push(multi(
+        "range_dropout+range_bias@4x",
+        vec![s4("range_dropout"), s4("range_bias")],
+        SceneSet::Real,
+    ));
+    v
+}
+
+/// Markdown table of `results`: one row per case; then per scene set and size, detection rate,
+/// top-1 attribution and parameter error; nulls' false-positive rate per scene set; and how many
+/// accepted findings improved the held-out NLL.
 pub fn table(results: &[CaseResult]) -> String {
-    let mut s = String::from("| case | hidden | named | detected | top-1 | param err | held-out gain (nats/zone) | unexplained slices |\n|---|---|---|---|---|---|---|---|\n");
+    let mut s = String::from("| case | hidden | named | detected | top-1 | param err | held-out gain (nats/zone) | findings with gain > 0 | unexplained slices |\n|---|---|---|---|---|---|---|---|---|\n");
+    let yn = |r: &CaseResult, b: bool| {
+        if r.case.hidden.is_empty() {
+            "—"
+        } else if b {
+            "yes"
+        } else {
+            "no"
+        }
+    };
     for r in results {
         s.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {} | {:.4} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} | {:.4} | {}/{} | {} |\n",
             r.case.label,
             r.case
                 .hidden
@@ -280,66 +567,135 @@ pub fn table(results: &[CaseResult]) -> String {
             } else {
                 r.named.join(", ")
             },
-            if r.case.hidden.is_empty() {
-                "—"
-            } else if r.detected() {
-                "yes"
-            } else {
-                "no"
-            },
-            if r.case.hidden.is_empty() {
-                "—"
-            } else if r.top1() {
-                "yes"
-            } else {
-                "no"
-            },
+            yn(r, r.detected()),
+            yn(r, r.top1()),
             r.param_error()
                 .map_or("—".into(), |e| format!("{:.0} %", 100.0 * e)),
             r.gain,
+            r.finding_gains.iter().filter(|&&g| g > 0.0).count(),
+            r.finding_gains.len(),
             r.unexplained_slices
         ));
     }
-    s.push_str("\n| size | cases | detection rate | top-1 attribution | param error ≤ 25 % |\n|---|---|---|---|---|\n");
-    let mut sizes: Vec<f64> = results
-        .iter()
-        .filter(|r| r.case.hidden.len() == 1)
-        .map(|r| r.case.size)
-        .collect();
-    sizes.sort_by(f64::total_cmp);
-    sizes.dedup();
-    for sz in sizes {
-        let rs: Vec<&CaseResult> = results
+    s.push_str("\n| scenes | size | cases | detection rate | top-1 attribution | param error ≤ 25 % | median param error |\n|---|---|---|---|---|---|---|\n");
+    for set in [SceneSet::Sim, SceneSet::Real, SceneSet::DarkFar] {
+        let mut sizes: Vec<f64> = results
             .iter()
-            .filter(|r| r.case.hidden.len() == 1 && r.case.size == sz && !r.case.outside)
+            .filter(|r| r.case.hidden.len() == 1 && r.case.scenes == set && !r.case.outside)
+            .map(|r| r.case.size)
             .collect();
-        let n = rs.len() as f64;
-        let det = rs.iter().filter(|r| r.detected()).count() as f64;
-        let top = rs.iter().filter(|r| r.top1()).count() as f64;
-        let perr = rs
+        sizes.sort_by(f64::total_cmp);
+        sizes.dedup();
+        for sz in sizes {
+            let rs: Vec<&CaseResult> = results
+                .iter()
+                .filter(|r| {
+                    r.case.hidden.len() == 1
+                        && r.case.size == sz
+                        && !r.case.outside
+                        && r.case.scenes == set
+                })
+                .collect();
+            let n = rs.len() as f64;
+            let det = rs.iter().filter(|r| r.detected()).count() as f64;
+            let top = rs.iter().filter(|r| r.top1()).count() as f64;
+            let mut errs: Vec<f64> = rs.iter().filter_map(|r| r.param_error()).collect();
+            let perr = errs.iter().filter(|&&e| e <= 0.25).count() as f64;
+            errs.sort_by(f64::total_cmp);
+            let med = if errs.is_empty() {
+                "—".to_string()
+            } else {
+                format!("{:.0} %", 100.0 * errs[errs.len() / 2])
+            };
+            s.push_str(&format!(
+                "| {} | {sz}× | {} | {:.0} % | {:.0} % | {:.0} % | {med} |\n",
+                set.name(),
+                rs.len(),
+                100.0 * det / n,
+                100.0 * top / n,
+                100.0 * perr / n
+            ));
+        }
+    }
+    s.push('\n');
+    for set in [SceneSet::Sim, SceneSet::Real, SceneSet::DarkFar] {
+        let nulls: Vec<&CaseResult> = results
             .iter()
-            .filter(|r| r.param_error().is_some_and(|e| e <= 0.25))
-            .count() as f64;
-        s.push_str(&format!(
-            "| {sz}× | {} | {:.0} % | {:.0} % | {:.0} % |\n",
-            rs.len(),
-            100.0 * det / n,
-            100.0 * top / n,
-            100.0 * perr / n
-        ));
+            .filter(|r| r.case.hidden.is_empty() && !r.case.outside && r.case.scenes == set)
+            .collect();
+        if !nulls.is_empty() {
+            let fp = nulls.iter().filter(|r| r.false_positives() > 0).count();
+            s.push_str(&format!(
+                "Nulls ({}): {} cases, {} with a false positive ({:.0} %).\n",
+                set.name(),
+                nulls.len(),
+                fp,
+                100.0 * fp as f64 / nulls.len() as f64
+            ));
+        }
     }
-    let nulls: Vec<&CaseResult> = results
+    let gains: Vec<f64> = results
         .iter()
-        .filter(|r| r.case.hidden.is_empty() && !r.case.outside)
+        .flat_map(|r| r.finding_gains.iter().copied())
         .collect();
-    if !nulls.is_empty() {
-        let fp = nulls.iter().filter(|r| r.false_positives() > 0).count();
-        s.push_str(&format!(
-            "\nNulls: {} cases, {} with a false positive ({:.0} %).\n",
-            nulls.len(),
-            fp,
-            100.0 * fp as f64 / nulls.len() as f64
-        ));
-    }
+    s.push_str(&format!(
+        "Accepted findings with a positive held-out gain: {} of {}.\n",
+        gains.iter().filter(|&&g| g > 0.0).count(),
+        gains.len()
+    ));
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dark_far_darkens_with_range_and_absorbed_scale_is_the_grid_mean() {
+        let mut s = render_scenes(1, 16, 12, 3).remove(0);
+        s.depth_m[0] = 0.5;
+        s.depth_m[1] = 6.0;
+        s.rgb[..6].copy_from_slice(&[200, 100, 50, 200, 100, 50]);
+        let d = dark_far(std::slice::from_ref(&s)).remove(0);
+        // Near (1.5 / 0.5 > 1): unchanged; far: × 1.5 / 6 = 0.25.
+        assert_eq!(&d.rgb[..3], &[200, 100, 50]);
+        assert_eq!(&d.rgb[3..6], &[50, 25, 13]);
+        // The mean radial lengthening over the grid: positive, linear in the fraction, and the
+        // mean of the per-zone factors.
+        let a = absorbed_scale(1.0);
+        assert!(a > 0.0 && (absorbed_scale(0.5) - a / 2.0).abs() < 1e-6);
+        let r = crate::sim::radial_distance::RadialDistance {
+            enabled: true,
+            fraction: 1.0,
+            ..Default::default()
+        };
+        let corner = f64::from(r.factor(grid_position(0, 0, 8, 8).0)) - 1.0;
+        assert!(a < corner);
+    }
+
+    #[test]
+    fn standard_cases_cover_every_effect_size_and_special_case() {
+        let v = standard_cases(&[1.0, 2.0, 4.0], 20);
+        assert_eq!(
+            v.iter()
+                .filter(|c| c.hidden.is_empty() && !c.outside)
+                .count(),
+            20
+        );
+        assert_eq!(
+            v.iter()
+                .filter(|c| c.hidden.len() == 1 && c.scenes == SceneSet::Sim)
+                .count(),
+            3 * effects::LIBRARY.len()
+        );
+        assert!(v.iter().any(|c| c.outside));
+        assert!(v.iter().any(|c| c.scenes == SceneSet::DarkFar));
+        let r = real_cases(&[1.0], 3);
+        assert!(r
+            .iter()
+            .all(|c| c.scenes == SceneSet::Real && c.label.starts_with("real:")));
+        assert!(!r
+            .iter()
+            .any(|c| c.hidden.iter().any(|h| h.0 == "multipath")));
+    }
 }

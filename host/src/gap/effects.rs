@@ -146,7 +146,7 @@ pub const LIBRARY: [Candidate; 11] = [
     Candidate {
         name: "multipath",
         physics: "transparent/specular surfaces return farther depth: d·(1 + extra·min(1, 4·f_material))",
-        params: &[p("extra", 0.0, 3.0)],
+        params: &[p("extra", 0.0, 1.0)],
         stratum: Covariate::Material,
     },
     Candidate {

@@ -10,7 +10,7 @@ use super::data::{GapData, GapFrame};
 use super::likelihood::{Density, Draw, ZoneFit};
 use crate::rng::Rng;
 use crate::sim::covariates::{zone_covariates, ZoneCovariates};
-use crate::sim::{simulate, SimConfig, SimError};
+use crate::sim::{simulate_with_covariates, SimConfig, SimError};
 
 /// One frame, prepared.
 #[derive(Clone, Debug)]
@@ -23,8 +23,12 @@ pub struct Prepared {
     pub draws: Vec<Draw>,
     /// Number of draws `K`.
     pub k: usize,
-    /// Covariates per zone over the nominal windows.
+    /// Covariates per zone over the nominal windows (localisation: what a real recording shows).
     pub cov: Vec<ZoneCovariates>,
+    /// Covariates per draw and zone over that draw's own moved windows, draw-major like
+    /// [`Prepared::draws`]: the inputs of the window-dependent forward models (`dark_dropout`,
+    /// `edge_mixing`, `multipath`), exactly as the simulator computes them.
+    pub draw_cov: Vec<ZoneCovariates>,
     /// The real measurement per zone (`None`: no target).
     pub real: Vec<Option<f32>>,
     /// Frame time, seconds.
@@ -37,6 +41,11 @@ impl Prepared {
         self.rows * self.cols
     }
 }
+
+/// Scale of the Student-t₃ kernel that stands for Gaussian noise of standard deviation 1: the
+/// maximum-likelihood t₃ scale on N(0, 1) data (solves E[4z²/(3 + z²)] = 1, z = x/s). With the
+/// plain σ the fitted `range_noise.sigma_per_m` came out ≈ 0.75× the simulator's.
+pub const T3_SCALE_OF_GAUSSIAN: f32 = 0.7935;
 
 /// Seed of draw `k` of frame `f` for a run seeded `seed`.
 fn draw_seed(seed: u64, f: usize, k: usize) -> u64 {
@@ -54,8 +63,10 @@ pub fn prepare_frame(
     let input = frame.sim_input();
     let (rows, cols) = (usize::from(base.grid.rows), usize::from(base.grid.cols));
     let mut draws = Vec::with_capacity(k * rows * cols);
+    let mut draw_cov = Vec::with_capacity(k * rows * cols);
     for j in 0..k {
-        let out = simulate(base, &input, draw_seed(seed, f, j))?;
+        let (out, c) = simulate_with_covariates(base, &input, draw_seed(seed, f, j))?;
+        draw_cov.extend(c);
         for z in 0..rows * cols {
             let valid = out.is_valid(z);
             draws.push(Draw {
@@ -96,6 +107,7 @@ pub fn prepare_frame(
         draws,
         k,
         cov,
+        draw_cov,
         real,
         t_s: frame.t_s,
     })
@@ -180,8 +192,9 @@ pub fn transform(
     let mut valid = vec![0.0f32; z_n];
     for k in 0..prep.k {
         let d = &mut out[k * z_n..(k + 1) * z_n];
+        let dc = &prep.draw_cov[k * z_n..(k + 1) * z_n];
         for (z, x) in d.iter_mut().enumerate() {
-            let c = &prep.cov[z];
+            let c = &dc[z];
             if x.p <= 0.0 {
                 continue;
             }
@@ -209,7 +222,7 @@ pub fn transform(
             }
         }
         for (z, x) in d.iter_mut().enumerate() {
-            let c = &prep.cov[z];
+            let c = &dc[z];
             if x.p <= 0.0 {
                 continue;
             }
@@ -217,7 +230,7 @@ pub fn transform(
                 x.d = model.bin_wiggle.distance(x.d);
             }
             if noise {
-                let s = model.range_noise.sigma(x.d);
+                let s = T3_SCALE_OF_GAUSSIAN * model.range_noise.sigma(x.d);
                 x.s = (x.s * x.s + s * s).sqrt();
             }
             if rdrop {

@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use super::effects::{self, Candidate, LIBRARY};
 use super::likelihood::Density;
 use super::model::{eval_frame, frame_nlls, Prepared};
-use super::stats::{golden_min, holm, sign_flip_p};
+use super::stats::{fixed_sequence, grid_golden_min, holm, sign_flip_p};
 use crate::sim::SimConfig;
 
 /// Knobs of the selection.
@@ -23,19 +23,23 @@ pub struct SelectOptions {
     pub max_effects: usize,
     /// Golden-section steps per parameter.
     pub iters: usize,
+    /// Grid points scanned per parameter before the golden-section refinement.
+    pub grid: usize,
     /// Predictive density constants.
     pub density: Density,
 }
 
 impl Default for SelectOptions {
-    /// α = 0.05, gain ≥ 0.002 nats/zone, 1999 sign patterns, ≤ 4 effects, 16 steps.
+    /// α = 0.05, gain ≥ 0.002 nats/zone, 1999 sign patterns, ≤ 4 effects, a 16-point grid then
+    /// 12 golden-section steps.
     fn default() -> Self {
         SelectOptions {
             alpha: 0.05,
             min_gain: 0.002,
             permutations: 1999,
             max_effects: 4,
-            iters: 16,
+            iters: 12,
+            grid: 16,
             density: Density::default(),
         }
     }
@@ -121,8 +125,9 @@ impl Ctx<'_> {
             .sum::<usize>() as f64
     }
 
-    /// Fits effect `c` in `model` (switched on if off), other effects fixed.
-    pub fn fit_one(&self, model: &SimConfig, c: &Candidate, iters: usize) -> SimConfig {
+    /// Fits effect `c` in `model` (switched on if off), other effects fixed: per continuous
+    /// parameter a grid scan then golden-section refinement ([`grid_golden_min`]).
+    pub fn fit_one(&self, model: &SimConfig, c: &Candidate, opts: &SelectOptions) -> SimConfig {
         let mut m = model.clone();
         let mut v = if effects::enabled(&m, c.name) {
             effects::get(&m, c.name)
@@ -162,7 +167,7 @@ impl Ctx<'_> {
             for _ in 0..sweeps {
                 for &i in &conts {
                     let s = c.params[i];
-                    let (x, fx) = golden_min(
+                    let (x, fx) = grid_golden_min(
                         |x| {
                             let mut t = w.clone();
                             t[i] = x;
@@ -171,7 +176,8 @@ impl Ctx<'_> {
                         },
                         s.lo,
                         s.hi,
-                        iters,
+                        opts.grid,
+                        opts.iters,
                     );
                     w[i] = x;
                     fbest = fx;
@@ -189,13 +195,18 @@ impl Ctx<'_> {
     }
 
     /// Refits the effects `names` of `model` jointly (coordinate descent, two sweeps).
-    pub fn refit(&self, model: &SimConfig, names: &[&'static str], iters: usize) -> SimConfig {
+    pub fn refit(
+        &self,
+        model: &SimConfig,
+        names: &[&'static str],
+        opts: &SelectOptions,
+    ) -> SimConfig {
         let mut m = model.clone();
         let sweeps = if names.len() > 1 { 2 } else { 1 };
         for _ in 0..sweeps {
             for n in names {
                 if let Some(c) = effects::candidate(n) {
-                    m = self.fit_one(&m, c, iters);
+                    m = self.fit_one(&m, c, opts);
                 }
             }
         }
@@ -233,28 +244,44 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
             break;
         }
         let mut res = Vec::new();
+        let mut train_gain = Vec::new();
+        let train_cur = ctx.train_nll(&model);
         for c in &cands {
             progress(&format!("round {} · fitting {}", round + 1, c.name));
-            let m = ctx.fit_one(&model, c, opts.iters);
+            let m = ctx.fit_one(&model, c, opts);
+            let tg = train_cur - ctx.train_nll(&m);
             let after = ctx.test_nlls(&m);
             let (g, p) = ctx.gain(&cur, &after, opts.permutations, 17 + round as u64);
             log.push(format!(
-                "round {} {:<18} gain {:+.4} nats/zone  p {:.4}",
+                "round {} {:<18} gain {:+.4} nats/zone  p {:.4}  (training gain {:+.1} nats)",
                 round + 1,
                 c.name,
                 g,
-                p
+                p,
+                tg
             ));
             res.push((c.name, m, g, p));
+            train_gain.push(tg);
         }
         let ps: Vec<f64> = res.iter().map(|r| r.3).collect();
-        let sig = holm(&ps, opts.alpha);
+        // The gate: Holm at α/2 (no candidate favoured) or fixed-sequence at α/2 in the order of
+        // training gain (set on the training frames, before any held-out p is seen: powerful for
+        // an effect confined to a few frames, whose p cannot reach Holm's α/m). Bonferroni over
+        // the two keeps the family-wise error ≤ α.
+        let mut order: Vec<usize> = (0..res.len()).collect();
+        order.sort_by(|&a, &b| train_gain[b].total_cmp(&train_gain[a]));
+        let fixed = fixed_sequence(&ps, &order, opts.alpha / 2.0);
+        let sig: Vec<bool> = holm(&ps, opts.alpha / 2.0)
+            .into_iter()
+            .zip(fixed)
+            .map(|(a, b)| a || b)
+            .collect();
         if round == 0 {
             for (r, &s) in res.iter().zip(&sig) {
                 solo.insert(r.0, (r.2, s && r.2 >= opts.min_gain));
             }
         }
-        // Gatekeeping: Holm decides whether anything is missing (family-wise error ≤ α); the
+        // Gatekeeping: the gate decides whether anything is missing (family-wise error ≤ α); the
         // effect accepted is then the one with the largest held-out gain among those significant
         // on their own, so a weaker look-alike with a smaller p-value does not win attribution.
         if !res
@@ -270,7 +297,7 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
             .max_by(|a, b| a.2.total_cmp(&b.2));
         let Some(b) = best else { break };
         accepted.push(b.0);
-        model = ctx.refit(&b.1, &accepted, opts.iters);
+        model = ctx.refit(&b.1, &accepted, opts);
         cur = ctx.test_nlls(&model);
     }
     // Prune: drop effects whose conditional held-out gain is no longer significant.
@@ -285,7 +312,7 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
         let without = if rest.is_empty() {
             without
         } else {
-            ctx.refit(&without, &rest, opts.iters)
+            ctx.refit(&without, &rest, opts)
         };
         let (g, p) = ctx.gain(
             &ctx.test_nlls(&without),
@@ -320,7 +347,7 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
             let Some(cb) = effects::candidate(b) else {
                 continue;
             };
-            let swap = ctx.fit_one(without, cb, opts.iters);
+            let swap = ctx.fit_one(without, cb, opts);
             let (gs, _) = ctx.gain(&base_nll, &ctx.test_nlls(&swap), 0, 0);
             if gs >= 0.5 * ga {
                 confounds.push(Confound {

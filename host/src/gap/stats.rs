@@ -38,6 +38,21 @@ pub fn holm(p: &[f64], alpha: f64) -> Vec<bool> {
     out
 }
 
+/// Fixed-sequence testing: the hypotheses are tested in `order` (fixed before the `p` values are
+/// seen), each at level `alpha`, until the first that is not rejected. Family-wise error ≤ `alpha`;
+/// powerful when the order puts the true effects first (the gap tool orders by training gain).
+pub fn fixed_sequence(p: &[f64], order: &[usize], alpha: f64) -> Vec<bool> {
+    let mut out = vec![false; p.len()];
+    for &i in order {
+        if p[i] <= alpha {
+            out[i] = true;
+        } else {
+            break;
+        }
+    }
+    out
+}
+
 /// Benjamini–Hochberg: which of the `p` values are discoveries at false-discovery rate `q`.
 pub fn benjamini_hochberg(p: &[f64], q: f64) -> Vec<bool> {
     let m = p.len();
@@ -69,6 +84,39 @@ pub fn normal_two_sided_p(z: f64) -> f64 {
             + t * (-0.284_496_736
                 + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
     (poly * (-x * x).exp()).clamp(0.0, 1.0)
+}
+
+/// Minimises `f` on `[lo, hi]`: a scan of `grid` evenly spaced points (ends included) finds the
+/// best basin, then golden-section search (`iters` steps) refines within one grid step either side
+/// of the best point. The likelihood of a sharp distance effect (`multipath`: real returns match
+/// the shifted draws only near the true size) has narrow basins a plain golden-section search
+/// over the whole range steps over. Returns `(x, f(x))`, never worse than the best grid point.
+pub fn grid_golden_min(
+    mut f: impl FnMut(f64) -> f64,
+    lo: f64,
+    hi: f64,
+    grid: usize,
+    iters: usize,
+) -> (f64, f64) {
+    if grid < 3 || hi <= lo {
+        return golden_min(f, lo, hi, iters);
+    }
+    let h = (hi - lo) / (grid - 1) as f64;
+    let mut best = (lo, f64::INFINITY);
+    for j in 0..grid {
+        let x = lo + h * j as f64;
+        let fx = f(x);
+        if fx < best.1 {
+            best = (x, fx);
+        }
+    }
+    let (a, b) = ((best.0 - h).max(lo), (best.0 + h).min(hi));
+    let r = golden_min(&mut f, a, b, iters);
+    if r.1 < best.1 {
+        r
+    } else {
+        best
+    }
 }
 
 /// Minimises `f` on `[lo, hi]` by golden-section search (`iters` steps), also trying both ends;
@@ -107,6 +155,29 @@ pub fn golden_min(mut f: impl FnMut(f64) -> f64, lo: f64, hi: f64, iters: usize)
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn fixed_sequence_stops_at_the_first_acceptance() {
+        let p = [0.03, 0.2, 0.001, 0.01];
+        assert_eq!(
+            fixed_sequence(&p, &[0, 3, 1, 2], 0.05),
+            [true, false, false, true]
+        );
+        assert_eq!(fixed_sequence(&p, &[1, 0, 2, 3], 0.05), [false; 4]);
+    }
+
+    #[test]
+    fn grid_golden_finds_a_narrow_basin() {
+        // A wide shallow basin at 2.5 and a narrow deep one at 0.4 (width ≈ 0.05).
+        let f = |x: f64| -0.2 * (-(x - 2.5f64).powi(2)).exp() - (-((x - 0.4) / 0.05).powi(2)).exp();
+        let (x, _) = grid_golden_min(f, 0.0, 3.0, 48, 16);
+        assert!((x - 0.4).abs() < 1e-3, "{x}");
+        let (x, _) = golden_min(f, 0.0, 3.0, 16);
+        assert!(
+            (x - 2.5).abs() < 0.1,
+            "plain golden section finds the wide basin: {x}"
+        );
+    }
 
     #[test]
     fn holm_and_bh_hand_computed() {

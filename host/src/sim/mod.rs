@@ -147,6 +147,27 @@ impl SimOutput {
 
 /// Simulates one dToF frame from `input` under `cfg`; deterministic in `(cfg, input, seed)`.
 pub fn simulate(cfg: &SimConfig, input: &SimInput<'_>, seed: u64) -> Result<SimOutput, SimError> {
+    simulate_inner(cfg, input, seed, false).map(|(out, _)| out)
+}
+
+/// [`simulate`] plus each zone's covariates over the frame's own (moved) sampling windows: what
+/// the window-dependent effects (`dark_dropout`, `edge_mixing`, `multipath`) saw in this draw. The
+/// gap tool transforms its draws with these, so its forward models get the inputs the simulator's
+/// did (the nominal windows differ by up to half an iFoV once `overall_distribution` moves them).
+pub fn simulate_with_covariates(
+    cfg: &SimConfig,
+    input: &SimInput<'_>,
+    seed: u64,
+) -> Result<(SimOutput, Vec<covariates::ZoneCovariates>), SimError> {
+    simulate_inner(cfg, input, seed, true)
+}
+
+fn simulate_inner(
+    cfg: &SimConfig,
+    input: &SimInput<'_>,
+    seed: u64,
+    with_covariates: bool,
+) -> Result<(SimOutput, Vec<covariates::ZoneCovariates>), SimError> {
     cfg.validate()?;
     input.validate()?;
     let depth_scale = cfg.depth_halving.scale(input);
@@ -161,6 +182,11 @@ pub fn simulate(cfg: &SimConfig, input: &SimInput<'_>, seed: u64) -> Result<SimO
             effect.apply(&scene, &mut zones, &mut stream(seed, effect.name()));
         }
     }
+    let cov = if with_covariates {
+        covariates::scene_covariates(&scene, &zones)
+    } else {
+        Vec::new()
+    };
     let status = zones
         .zones
         .iter()
@@ -172,7 +198,7 @@ pub fn simulate(cfg: &SimConfig, input: &SimInput<'_>, seed: u64) -> Result<SimO
             }
         })
         .collect();
-    Ok(SimOutput {
+    let out = SimOutput {
         rows: cfg.grid.rows,
         cols: cfg.grid.cols,
         distance_mm: zones
@@ -184,5 +210,6 @@ pub fn simulate(cfg: &SimConfig, input: &SimInput<'_>, seed: u64) -> Result<SimO
         zone_rects_px: cfg.grid.zone_rects_px(input.width, input.height),
         truth: zones.zones.iter().map(|z| z.truth).collect(),
         depth_scale,
-    })
+    };
+    Ok((out, cov))
 }
