@@ -97,6 +97,7 @@ def main() -> None:
     ap.add_argument("--real-command", default="", help="the command that made --real")
     ap.add_argument("--run", type=Path, help="training run folder")
     ap.add_argument("--regression", type=Path, help="depthor eval summary.json on the card's regression set")
+    ap.add_argument("--note", default="", help="a paragraph placed under the status line (e.g. where trained weights are)")
     a = ap.parse_args()
 
     d = HERE / a.variant
@@ -115,6 +116,7 @@ def main() -> None:
          *(["**Status: these weights are untrained** (seeded random initialisation), so the model loses to every "
             "baseline below; the tables are the pipeline's check, not a result.", ""]
            if "untrained" in str(summary.get("weights")) else []),
+         *([a.note, ""] if a.note else []),
          "## Model", "",
          f"- Input {summary['height']}×{summary['width']} (H×W) RGB + projected dToF; output dense depth in metres.",
          f"- Parameters: {summary['params_deployed']:,} deployed (prior {summary['params_prior']:,}); "
