@@ -120,7 +120,10 @@ pub fn depth_frame<C: RgbCamera, S: DtofSensor, const N: usize>(
         .ok_or(FrameError::Buffer("sparse depth buffer"))?;
     let projection =
         project_to_sparse(cal, &buffers.zones.view(), sparse).map_err(FrameError::Projection)?;
-    let rgb = &buffers.rgb[..pixels * 3];
+    let rgb = buffers
+        .rgb
+        .get(..pixels.saturating_mul(3))
+        .ok_or(FrameError::Buffer("RGB buffer"))?;
     let run = engine.run_into(rgb, DepthIn::Metres(sparse), out)?;
     Ok(FrameReport { projection, run })
 }
