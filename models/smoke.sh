@@ -11,7 +11,7 @@ want="$(sha256sum "$here/requirements.txt" | cut -d' ' -f1)"
 if [[ ! -x "$venv/bin/python" || ! -f "$stamp" || "$(cat "$stamp")" != "$want" ]]; then
   echo "models/smoke.sh: installing $venv (torch wheel is large; a few minutes)"
   python3 -m venv "$venv"
-  "$venv/bin/pip" install --quiet -r "$here/requirements.txt"
+  "$venv/bin/pip" install --quiet --no-cache-dir -r "$here/requirements.txt"
   echo "$want" > "$stamp"
 fi
 cd "$here"
