@@ -1,7 +1,11 @@
 //! The shipped int8 models against their model cards: each card's `regression` entry names a
 //! small fixed synthetic set (preset, seed, scenes) and the int8 RMSE measured on it by
 //! `depthor eval`; this test rebuilds that set with `depthor sim`, evaluates the shipped blob with
-//! `depthor eval --no-float`, and fails if the RMSE is more than 5 % worse than the card's.
+//! `depthor eval` (int8 core and float tract), and fails if the int8 RMSE is more than 5 % worse
+//! than the card's, or if int8 is worse than float by more than the model cards' tolerance (RMSE
+//! 1 % relative, δ1 0.005, both against the reference depth). One-sided: on a dozen frames int8
+//! lands on either side of float by about that much by chance (seen: RMSE −1.04 %, δ1 +0.0076
+//! for the trained mcu); the two-sided figures over 500 held-out frames are in the model card.
 //! Update the card (models/<variant>/card.json) in the same commit as the model.
 
 mod common;
@@ -49,7 +53,6 @@ fn check(variant: &str) {
         s(&rec),
         "--out",
         s(&out),
-        "--no-float",
         "--mosaics",
         "0",
     ]);
@@ -61,6 +64,24 @@ fn check(variant: &str) {
         got <= want * 1.05,
         "{variant}: int8 RMSE {got:.4} m regressed more than 5 % from the card's {want:.4} m"
     );
+    let vs = &summary["int8_vs_float"];
+    let (rmse_rel, d1) = (
+        vs["rmse_rel_diff"]
+            .as_f64()
+            .expect("int8_vs_float.rmse_rel_diff"),
+        vs["delta1_diff"]
+            .as_f64()
+            .expect("int8_vs_float.delta1_diff"),
+    );
+    println!(
+        "{variant}: int8 vs float: RMSE {:+.2} %, δ1 {d1:+.4}",
+        rmse_rel * 100.0
+    );
+    assert!(
+        rmse_rel <= 0.01,
+        "{variant}: int8 RMSE {rmse_rel:+.4} relative to float"
+    );
+    assert!(d1 >= -0.005, "{variant}: int8 δ1 {d1:+.4} from float");
 }
 
 #[test]

@@ -4,12 +4,12 @@
 
 use anyhow::{Context, Result};
 use depthor_core::engine::required_arena_bytes;
-use depthor_host::quantize::calibrate::simulated_frames;
+use depthor_host::quantize::calibrate::{simulated_frames, RangeRule};
 use depthor_host::quantize::check::{compare, golden_diff};
 use depthor_host::quantize::fold::fold;
 use depthor_host::quantize::golden::read_golden;
 use depthor_host::quantize::graph::Graph;
-use depthor_host::quantize::quantize;
+use depthor_host::quantize::quantize_with;
 use std::path::PathBuf;
 
 /// DESIGN.md budgets of the `mcu` variant (bytes).
@@ -35,6 +35,9 @@ pub struct Args {
     /// Seed of the first calibration scene (scene k uses seed + k).
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Activation ranges: `mse` (clip where it lowers the expected int8 error) or `minmax`.
+    #[arg(long, default_value = "mse")]
+    ranges: RangeRule,
     /// dToF simulator preset (default: the graph's variant).
     #[arg(long)]
     preset: Option<String>,
@@ -52,7 +55,7 @@ pub fn handle(args: Args) -> Result<()> {
     let net = fold(&graph).with_context(|| format!("{}", args.graph.display()))?;
     let preset = args.preset.clone().unwrap_or_else(|| graph.variant.clone());
     let frames = simulated_frames(&preset, net.height, net.width, args.frames, args.seed)?;
-    let q = quantize(&net, &frames)?;
+    let q = quantize_with(&net, &frames, args.ranges)?;
     std::fs::write(&args.out, &q.blob)
         .with_context(|| format!("writing {}", args.out.display()))?;
     let arena = required_arena_bytes(&q.blob, net.height, net.width)
@@ -68,10 +71,14 @@ pub fn handle(args: Args) -> Result<()> {
         q.blob.len()
     );
     println!(
-        "calibration: {} frames (preset {preset}, seeds {}..{}), activation ranges = min/max",
+        "calibration: {} frames (preset {preset}, seeds {}..{}), activation ranges = {}",
         frames.len(),
         args.seed,
-        args.seed + frames.len() as u64
+        args.seed + frames.len() as u64,
+        match args.ranges {
+            RangeRule::MinMax => "min/max",
+            RangeRule::Mse => "MSE-clipped",
+        }
     );
     let wb = net.weight_count();
     println!("int8 weight bytes {wb} ({:.1} KiB)", wb as f64 / 1024.0);
@@ -107,9 +114,10 @@ pub fn handle(args: Args) -> Result<()> {
     let (cm, clo) = c.centred_mean_min();
     let worst = c.depth_max_abs_m.iter().copied().fold(0f32, f32::max);
     println!(
-        "int8 vs f32 on {} frames (seeds {eval_seed}..): depth SQNR mean {m:.1} dB, min {lo:.1} dB; \
+        "int8 vs f32 on {} frames (seeds {eval_seed}..): depth SQNR pooled {:.1} dB, per frame mean {m:.1} dB, min {lo:.1} dB; \
          depth − mean: mean {cm:.1} dB, min {clo:.1} dB; max |err| {worst:.3} m",
-        eval.len()
+        eval.len(),
+        c.depth_pooled_db()
     );
     println!("per-op SQNR (dequantised int8 vs f32, all frames):");
     for l in &c.layers {

@@ -1,8 +1,11 @@
 //! Calibration: simulated input frames (scene generator → dToF simulator → projection), the
 //! activation range of every value over those frames, and the int8 parameters chosen from them.
 //!
-//! Ranges are the plain **minimum / maximum** over all calibration frames (no percentile
-//! clipping), always widened to include 0 so zero padding and ReLU zeros are exact. Values whose
+//! Ranges come from a [`RangeRule`]: the plain **minimum / maximum** over all calibration
+//! frames, or (the default) the range that minimises the expected int8 error over a histogram of
+//! the calibration values (**MSE clipping**: a few outliers no longer stretch the step of every
+//! other value). Either way ranges are widened to include 0 so zero padding and ReLU zeros are
+//! exact. Values whose
 //! range the op fixes ignore calibration: `rgb`, `minmax_norm` and `sigmoid` outputs span [0, 1];
 //! `sparse` spans [0, the bins head's `max_depth_m`]; `upsample_bilinear` and `pixel_shuffle`
 //! keep their input's parameters (the engine requires it).
@@ -146,6 +149,128 @@ impl Ranges {
     }
 }
 
+/// How activation ranges are chosen from the calibration values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum RangeRule {
+    /// Minimum and maximum over all frames: nothing is ever clipped.
+    MinMax,
+    /// The `[lo, hi]` (within min/max) minimising clipping error plus rounding error
+    /// (`step²/12` per value) over the calibration histogram.
+    #[default]
+    Mse,
+}
+
+impl std::str::FromStr for RangeRule {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "minmax" => Ok(RangeRule::MinMax),
+            "mse" => Ok(RangeRule::Mse),
+            _ => Err(format!("unknown range rule {s:?} (minmax, mse)")),
+        }
+    }
+}
+
+/// Bins of each value's calibration histogram.
+pub const HISTOGRAM_BINS: usize = 2048;
+
+/// Candidate clip points tried per side by [`Histograms::mse_ranges`] (fractions of the side's
+/// full extent, from 1 down to 1/4).
+const CLIP_CANDIDATES: usize = 64;
+
+/// Per-value histograms over fixed `[min, max]` ranges (from a first, min/max pass).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Histograms {
+    lo: Vec<f32>,
+    hi: Vec<f32>,
+    counts: Vec<Vec<u64>>,
+}
+
+impl Histograms {
+    /// Empty histograms spanning `ranges` widened to include 0.
+    pub fn new(ranges: &Ranges) -> Histograms {
+        let widen = |x: f32, f: fn(f32, f32) -> f32| if x.is_finite() { f(x, 0.0) } else { 0.0 };
+        let lo: Vec<f32> = ranges.min.iter().map(|&x| widen(x, f32::min)).collect();
+        let hi: Vec<f32> = ranges.max.iter().map(|&x| widen(x, f32::max)).collect();
+        let counts = vec![vec![0; HISTOGRAM_BINS]; lo.len()];
+        Histograms { lo, hi, counts }
+    }
+
+    /// Counts one float run's values (outside the span: clamped to the end bins).
+    pub fn observe(&mut self, values: &[Vec<f32>]) {
+        for (i, v) in values.iter().enumerate().take(self.counts.len()) {
+            let (lo, hi) = (self.lo[i], self.hi[i]);
+            let per = HISTOGRAM_BINS as f32 / (hi - lo).max(MIN_RANGE);
+            let bins = &mut self.counts[i];
+            for &x in v.iter().filter(|x| x.is_finite()) {
+                let b = ((x - lo) * per).clamp(0.0, (HISTOGRAM_BINS - 1) as f32) as usize;
+                bins[b] += 1;
+            }
+        }
+    }
+
+    /// The MSE-optimal range of every value (see [`RangeRule::Mse`]).
+    pub fn mse_ranges(&self) -> Ranges {
+        let (min, max) = (0..self.counts.len()).map(|i| self.mse_range(i)).unzip();
+        Ranges { min, max }
+    }
+
+    /// Grid search over clip points on bin edges; O(1) per candidate with prefix sums of
+    /// `c`, `c·x`, `c·x²` (x = bin centre).
+    fn mse_range(&self, i: usize) -> (f32, f32) {
+        let (lo, hi) = (self.lo[i] as f64, self.hi[i] as f64);
+        let width = (hi - lo) / HISTOGRAM_BINS as f64;
+        if width <= 0.0 {
+            return (lo as f32, hi as f32);
+        }
+        let mut c = vec![0f64; HISTOGRAM_BINS + 1];
+        let mut cx = c.clone();
+        let mut cxx = c.clone();
+        for (b, &n) in self.counts[i].iter().enumerate() {
+            let (n, x) = (n as f64, lo + (b as f64 + 0.5) * width);
+            c[b + 1] = c[b] + n;
+            cx[b + 1] = cx[b] + n * x;
+            cxx[b + 1] = cxx[b] + n * x * x;
+        }
+        let edge = |e: usize| lo + e as f64 * width;
+        // Σ over bins [from, to) of n·(x − t)².
+        let sq = |from: usize, to: usize, t: f64| {
+            let (n, s, ss) = (c[to] - c[from], cx[to] - cx[from], cxx[to] - cxx[from]);
+            ss - 2.0 * t * s + t * t * n
+        };
+        let zero = ((-lo / width).round() as usize).min(HISTOGRAM_BINS);
+        let candidates = |from: usize, to: usize| -> Vec<usize> {
+            // Edges from `to` (full extent) towards `from`, down to a quarter of the extent.
+            let mut v: Vec<usize> = (0..CLIP_CANDIDATES)
+                .map(|k| {
+                    let f = 1.0 - 0.75 * k as f64 / (CLIP_CANDIDATES - 1) as f64;
+                    (from as f64 + (to as f64 - from as f64) * f).round() as usize
+                })
+                .collect();
+            v.dedup();
+            v
+        };
+        let highs = candidates(zero, HISTOGRAM_BINS);
+        let lows: Vec<usize> = candidates(HISTOGRAM_BINS - zero, HISTOGRAM_BINS)
+            .into_iter()
+            .map(|e| HISTOGRAM_BINS - e)
+            .collect();
+        let mut best = (f64::INFINITY, lo, hi);
+        for &a in &lows {
+            for &b in highs.iter().filter(|&&b| b >= a) {
+                let (ta, tb) = (edge(a), edge(b));
+                let step = (tb - ta).max(MIN_RANGE as f64) / 255.0;
+                let inside = c[b] - c[a];
+                let err = inside * step * step / 12.0 + sq(0, a, ta) + sq(b, HISTOGRAM_BINS, tb);
+                if err < best.0 {
+                    best = (err, ta, tb);
+                }
+            }
+        }
+        (best.1 as f32, best.2 as f32)
+    }
+}
+
 /// Asymmetric int8 parameters covering `[lo, hi]` widened to include 0:
 /// `scale = (hi − lo)/255`, `zero_point = round(−128 − lo/scale)`.
 pub fn affine_params(lo: f32, hi: f32) -> QParams {
@@ -208,6 +333,43 @@ mod tests {
         // A positive-only range still includes 0; a constant zero range keeps a positive scale.
         assert_eq!(affine_params(1.0, 2.55).zero_point, -128);
         assert!(affine_params(0.0, 0.0).scale > 0.0);
+    }
+
+    #[test]
+    fn mse_clips_a_lone_outlier_and_keeps_a_uniform_spread() {
+        // 10 000 values uniform on [0, 1] and one at 100: min/max would make the step 0.39,
+        // coarser than the whole bulk; MSE keeps about [0, 1].
+        let mut v: Vec<f32> = (0..10_000).map(|k| k as f32 / 9_999.0).collect();
+        v.push(100.0);
+        let mut r = Ranges::new(1);
+        r.observe(std::slice::from_ref(&v));
+        let mut h = Histograms::new(&r);
+        h.observe(std::slice::from_ref(&v));
+        let m = h.mse_ranges();
+        assert_eq!(m.min[0], 0.0);
+        assert!(m.max[0] > 0.9 && m.max[0] < 30.0, "{}", m.max[0]);
+        // Uniform data with no outlier: clipping only hurts, the range stays (nearly) full.
+        let u: Vec<f32> = (0..10_000)
+            .map(|k| -1.0 + 2.0 * k as f32 / 9_999.0)
+            .collect();
+        let mut r = Ranges::new(1);
+        r.observe(std::slice::from_ref(&u));
+        let mut h = Histograms::new(&r);
+        h.observe(std::slice::from_ref(&u));
+        let m = h.mse_ranges();
+        assert!(
+            m.min[0] < -0.95 && m.max[0] > 0.95,
+            "{} {}",
+            m.min[0],
+            m.max[0]
+        );
+    }
+
+    #[test]
+    fn range_rule_parses() {
+        assert_eq!("mse".parse::<RangeRule>(), Ok(RangeRule::Mse));
+        assert_eq!("minmax".parse::<RangeRule>(), Ok(RangeRule::MinMax));
+        assert!("p99".parse::<RangeRule>().is_err());
     }
 
     #[test]

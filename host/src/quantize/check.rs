@@ -14,6 +14,16 @@ pub fn sqnr_db(reference: &[f32], test: &[f32]) -> f64 {
     ratio_db(s, n)
 }
 
+/// SQNR pooled over frames: `10·log10(Σ_frames Σ signal² / Σ_frames Σ (signal − test)²)`,
+/// `pairs` being `(reference, test)` depth maps.
+pub fn pooled_sqnr_db<'a>(pairs: impl IntoIterator<Item = (&'a [f32], &'a [f32])>) -> f64 {
+    let (s, n) = pairs
+        .into_iter()
+        .map(|(r, t)| power(r, t, 0.0))
+        .fold((0.0, 0.0), |(s, n), (a, b)| (s + a, n + b));
+    ratio_db(s, n)
+}
+
 fn ratio_db(s: f64, n: f64) -> f64 {
     if n == 0.0 {
         f64::INFINITY
@@ -53,6 +63,8 @@ pub struct Comparison {
     pub depth_db: Vec<f64>,
     /// Per frame: SQNR of the depth minus its (float) mean, i.e. of the depth's variation.
     pub depth_centred_db: Vec<f64>,
+    /// Per frame: (Σ f32 depth², Σ (int8 − f32)²), for the pooled SQNR.
+    pub depth_power: Vec<(f64, f64)>,
     /// Per frame: largest |int8 − f32| depth error, metres.
     pub depth_max_abs_m: Vec<f32>,
     /// Per op, in op order.
@@ -71,6 +83,15 @@ impl Comparison {
     /// Mean and minimum of the per-frame depth SQNR.
     pub fn depth_mean_min(&self) -> (f64, f64) {
         (mean(&self.depth_db), min(&self.depth_db))
+    }
+
+    /// Depth SQNR over all frames together (signal and noise energy summed over frames).
+    pub fn depth_pooled_db(&self) -> f64 {
+        let (s, n) = self
+            .depth_power
+            .iter()
+            .fold((0.0, 0.0), |(s, n), (a, b)| (s + a, n + b));
+        ratio_db(s, n)
     }
 
     /// Mean and minimum of the per-frame centred-depth SQNR.
@@ -124,6 +145,7 @@ pub fn compare(blob: &[u8], net: &Net, frames: &[Frame]) -> Result<Comparison, C
     let mut cmp = Comparison {
         depth_db: Vec::new(),
         depth_centred_db: Vec::new(),
+        depth_power: Vec::new(),
         depth_max_abs_m: Vec::new(),
         layers: Vec::new(),
     };
@@ -151,6 +173,7 @@ pub fn compare(blob: &[u8], net: &Net, frames: &[Frame]) -> Result<Comparison, C
         let (s, n) = power(d, &out, 0.0);
         let (sc, _) = power(d, &out, m);
         cmp.depth_db.push(ratio_db(s, n));
+        cmp.depth_power.push((s, n));
         cmp.depth_centred_db.push(ratio_db(sc, n));
         cmp.depth_max_abs_m.push(
             d.iter()

@@ -4,7 +4,8 @@
 //!    onto the blob's ops ([`net::Net`]), which [`net::Net::run_f32`] executes with the core's
 //!    f32 reference kernels.
 //! 2. [`calibrate`] renders simulated frames (scene generator → dToF simulator → projection),
-//!    records every value's min/max over them and chooses int8 asymmetric per-tensor parameters.
+//!    records every value's min/max (and, for MSE clipping, a histogram) over them and chooses
+//!    int8 asymmetric per-tensor parameters.
 //! 3. [`blob_writer`] quantises weights (symmetric int8 per output channel, int32 bias), bakes
 //!    the LUTs and writes blob format v1; the engine derives its Q31 multipliers from the stored
 //!    f32 scales when it prepares the blob.
@@ -27,7 +28,7 @@ pub mod golden;
 pub mod graph;
 pub mod net;
 
-use calibrate::{choose_qparams, Frame, Ranges};
+use calibrate::{choose_qparams, Frame, Histograms, RangeRule, Ranges};
 use depthor_core::kernels::requant::QParams;
 use net::{Net, RunError};
 
@@ -65,12 +66,39 @@ pub fn calibrate_ranges(net: &Net, frames: &[Frame]) -> Result<Ranges, RunError>
     Ok(r)
 }
 
-/// Calibrates `net` on `frames` and writes its blob.
+/// The range of every value of `net` over `frames` under `rule`: min/max, or MSE-clipped from
+/// a histogram filled by a second pass over the frames.
+pub fn calibrate_ranges_with(
+    net: &Net,
+    frames: &[Frame],
+    rule: RangeRule,
+) -> Result<Ranges, RunError> {
+    let full = calibrate_ranges(net, frames)?;
+    if rule == RangeRule::MinMax {
+        return Ok(full);
+    }
+    let mut h = Histograms::new(&full);
+    for f in frames {
+        h.observe(&net.run_f32(&f.rgb_planar(), &f.sparse_m)?);
+    }
+    Ok(h.mse_ranges())
+}
+
+/// Calibrates `net` on `frames` with the default [`RangeRule`] and writes its blob.
 pub fn quantize(net: &Net, frames: &[Frame]) -> Result<Quantized, QuantizeError> {
+    quantize_with(net, frames, RangeRule::default())
+}
+
+/// Calibrates `net` on `frames` with `rule` and writes its blob.
+pub fn quantize_with(
+    net: &Net,
+    frames: &[Frame],
+    rule: RangeRule,
+) -> Result<Quantized, QuantizeError> {
     if frames.is_empty() {
         return Err(QuantizeError::NoFrames);
     }
-    let ranges = calibrate_ranges(net, frames)?;
+    let ranges = calibrate_ranges_with(net, frames, rule)?;
     let qparams = choose_qparams(net, &ranges);
     let blob = blob_writer::write_blob(net, &qparams)?;
     Ok(Quantized {
