@@ -335,34 +335,46 @@ mod tests {
         assert!(affine_params(0.0, 0.0).scale > 0.0);
     }
 
-    #[test]
-    fn mse_clips_a_lone_outlier_and_keeps_a_uniform_spread() {
-        // 10 000 values uniform on [0, 1] and one at 100: min/max would make the step 0.39,
-        // coarser than the whole bulk; MSE keeps about [0, 1].
-        let mut v: Vec<f32> = (0..10_000).map(|k| k as f32 / 9_999.0).collect();
-        v.push(100.0);
+    /// Σ (x − dequantise(quantise(x)))² under the parameters of `[lo, hi]`.
+    fn int8_error(v: &[f32], lo: f32, hi: f32) -> f64 {
+        let q = affine_params(lo, hi);
+        v.iter()
+            .map(|&x| (x as f64 - q.dequantize(q.quantize(x)) as f64).powi(2))
+            .sum()
+    }
+
+    fn mse_range_of(v: &[f32]) -> (f32, f32) {
         let mut r = Ranges::new(1);
-        r.observe(std::slice::from_ref(&v));
+        r.observe(std::slice::from_ref(&v.to_vec()));
         let mut h = Histograms::new(&r);
-        h.observe(std::slice::from_ref(&v));
+        h.observe(std::slice::from_ref(&v.to_vec()));
         let m = h.mse_ranges();
-        assert_eq!(m.min[0], 0.0);
-        assert!(m.max[0] > 0.9 && m.max[0] < 30.0, "{}", m.max[0]);
-        // Uniform data with no outlier: clipping only hurts, the range stays (nearly) full.
+        (m.min[0], m.max[0])
+    }
+
+    #[test]
+    fn mse_clips_a_heavy_tail_and_keeps_a_uniform_spread() {
+        // 100 000 exponential values (max ≈ 11.5): the tail is worth clipping, and the clipped
+        // range really quantises them with less error than min/max.
+        let n = 100_000;
+        let e: Vec<f32> = (0..n)
+            .map(|k| -((k as f32 + 0.5) / n as f32).ln())
+            .collect();
+        let max = e.iter().copied().fold(0.0, f32::max);
+        let (lo, hi) = mse_range_of(&e);
+        assert_eq!(lo, 0.0);
+        assert!(hi < 0.9 * max, "{hi} of {max}");
+        assert!(int8_error(&e, lo, hi) < int8_error(&e, 0.0, max));
+        // One outlier among 10 000 uniform values costs more clipped than kept: kept.
+        let mut o: Vec<f32> = (0..10_000).map(|k| k as f32 / 9_999.0).collect();
+        o.push(100.0);
+        assert!(mse_range_of(&o).1 > 90.0);
+        // Uniform data: clipping only hurts, the range stays (nearly) full.
         let u: Vec<f32> = (0..10_000)
             .map(|k| -1.0 + 2.0 * k as f32 / 9_999.0)
             .collect();
-        let mut r = Ranges::new(1);
-        r.observe(std::slice::from_ref(&u));
-        let mut h = Histograms::new(&r);
-        h.observe(std::slice::from_ref(&u));
-        let m = h.mse_ranges();
-        assert!(
-            m.min[0] < -0.95 && m.max[0] > 0.95,
-            "{} {}",
-            m.min[0],
-            m.max[0]
-        );
+        let (lo, hi) = mse_range_of(&u);
+        assert!(lo < -0.95 && hi > 0.95, "{lo} {hi}");
     }
 
     #[test]
