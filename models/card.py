@@ -51,17 +51,25 @@ def verdict(s: dict) -> list[str]:
     return out
 
 
-def real_section(s: dict) -> list[str]:
+def losses(name: str, m: dict) -> list[str]:
+    """The sentence naming the baselines that beat int8 on RMSE or Rel (empty if none)."""
+    beaten_by = [k for k in m if k not in ("int8", "float")
+                 and (m[k]["rmse"] < m["int8"]["rmse"] or m[k]["abs_rel"] < m["int8"]["abs_rel"])]
+    if not beaten_by:
+        return []
+    return [f"On {name} the int8 model does not beat: {', '.join(beaten_by)} (RMSE or Rel).", ""]
+
+
+def real_section(s: dict, discussion: str = "") -> list[str]:
     lines = []
     for r in s.get("recordings", []):
         name = Path(r["recording"]).name
         lines += [f"**{name}** ({r['frames']} frames)", ""] + table(r["methods"]) + [""] + verdict(r) + [""]
-        m = r["methods"]
-        losses = [k for k in m if k not in ("int8", "float")
-                  and (m[k]["rmse"] < m["int8"]["rmse"] or m[k]["abs_rel"] < m["int8"]["abs_rel"])]
-        if losses:
-            lines += [f"On {name} the int8 model does not beat: {', '.join(losses)} (RMSE or Rel).", ""]
+        lines += losses(name, r["methods"])
     lines += [f"**Union of the real sets** ({s['frames']} frames)", ""] + table(s["methods"]) + [""] + verdict(s)
+    lines += [""] + losses("the union", s["methods"])
+    if discussion:
+        lines += [discussion, ""]
     return lines
 
 
@@ -97,6 +105,8 @@ def main() -> None:
     ap.add_argument("--real-command", default="", help="the command that made --real")
     ap.add_argument("--run", type=Path, help="training run folder")
     ap.add_argument("--regression", type=Path, help="depthor eval summary.json on the card's regression set")
+    ap.add_argument("--discussion", default="",
+                    help="a paragraph after the real sets: why the model loses where it does")
     ap.add_argument("--note", default="", help="a paragraph placed under the status line (e.g. where trained weights are)")
     a = ap.parse_args()
 
@@ -137,7 +147,7 @@ def main() -> None:
     if a.real:
         s = json.loads(a.real.read_text())
         L += ["## Real RGB-D sets (dToF simulated on their reference depth with this variant's preset)", "",
-              f"Command: `{a.real_command}`", ""] + real_section(s) + [""]
+              f"Command: `{a.real_command}`", ""] + real_section(s, a.discussion) + [""]
     r = card["regression"]
     L += ["## Regression check", "",
           f"`host/tests/model_card.rs` rebuilds {r['scenes']} scenes (preset {r['preset']}, seed {r['seed']}) and fails "
