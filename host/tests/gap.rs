@@ -8,8 +8,10 @@ use std::path::Path;
 use std::process::Command;
 use std::sync::OnceLock;
 
-use depthor_host::gap::bench::{make_real, render_scenes, run_case, sized, Case, SceneSet};
-use depthor_host::gap::{GapData, GapOptions};
+use depthor_host::gap::bench::{
+    confounder_cases, make_real, render_scenes, run_case, sized, Case, SceneSet,
+};
+use depthor_host::gap::{GapData, GapOptions, Report};
 use depthor_host::recording::{
     CameraMeta, DistanceMeta, DtofFrame, DtofMeta, Frame, FrameMeta, RecordingMeta, RecordingWriter,
 };
@@ -91,6 +93,37 @@ fn null_names_nothing() {
         r.named,
         a.selection.log.join("\n")
     );
+}
+
+/// A radial-distance error whose mean a range-scale calibration absorbed: neither effect alone
+/// explains the zero-mean radial pattern; the joint pair is fitted, named and reported as such.
+#[test]
+fn absorbed_offset_is_named_as_a_joint_pair() {
+    let case = confounder_cases()
+        .into_iter()
+        .find(|c| c.label.starts_with("absorbed:"))
+        .unwrap();
+    let base = preset("mcu").unwrap();
+    let (r, a) = run_case(scenes(), &base, &case, &GapOptions::default(), 11).unwrap();
+    let log = a.selection.log.join("\n");
+    assert!(r.detected(), "{:?}\n{log}", r.named);
+    assert_eq!(r.false_positives(), 0, "{:?}\n{log}", r.named);
+    let err = r.param_error().unwrap();
+    assert!(
+        err <= 0.25,
+        "fitted {:?} vs {:?}",
+        r.fitted,
+        case.hidden[0].1
+    );
+    assert_eq!(a.selection.joints.len(), 1, "{log}");
+    let report = Report::of(&a);
+    for f in &report.findings {
+        assert_eq!(f.joint_with.len(), 1, "{f:?}");
+        assert!(f.evidence.contains("jointly"), "{}", f.evidence);
+    }
+    for g in &r.finding_gains {
+        assert!(*g > 0.0, "{g}");
+    }
 }
 
 /// Writes `data` (the first `n` frames) as a recording at `dir`; `depth` false drops depth.png.

@@ -4,9 +4,11 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use depthor_host::gap::bench::{
-    dark_far, real_cases, real_scenes, render_scenes, run_case, standard_cases, table, SceneSet,
+    case_seed, dark_far, real_cases, real_scenes, render_scenes, run_case, standard_cases, table,
+    SceneSet,
 };
-use depthor_host::gap::GapOptions;
+use depthor_host::gap::units::{calibrate, CalibrateOptions, UnitTable};
+use depthor_host::gap::{effects, GapOptions};
 use depthor_host::sim::preset;
 
 /// Arguments of `depthor gap-bench`.
@@ -25,14 +27,14 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', default_values_t = vec![1.0, 2.0, 4.0])]
     sizes: Vec<f64>,
     /// Null cases (no hidden effect) on rendered scenes.
-    #[arg(long, default_value_t = 20)]
+    #[arg(long, default_value_t = 50)]
     nulls: usize,
     /// The real RGB-D sets (`data/real`, see its README); cases on them are skipped when the
     /// folder is missing.
     #[arg(long, default_value = "../shared/data/real")]
     real_data: PathBuf,
     /// Null cases on the real RGB-D frames.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 50)]
     real_nulls: usize,
     /// Leave out the cases on the real RGB-D frames.
     #[arg(long)]
@@ -49,21 +51,33 @@ pub struct Args {
     /// Print each case's selection log.
     #[arg(long)]
     verbose: bool,
-    /// Write the Markdown table here too.
+    /// Write the Markdown table here too (with `--calibrate-units`: the unit table, JSON).
     #[arg(long)]
     out: Option<PathBuf>,
-}
-
-/// The seed of a case: `seed` mixed with its label (FNV-1a), so `--only` reproduces a case of
-/// the full run.
-fn case_seed(seed: u64, label: &str) -> u64 {
-    label.bytes().fold(seed ^ 0xCBF2_9CE4_8422_2325, |h, b| {
-        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01B3)
-    })
+    /// Measure each effect's unit ("1×") size instead of running the benchmark: the smallest
+    /// size at which the tool names it in ≥ half of `--trials` recordings of `--frames` rendered
+    /// frames, scene seeds from `--calibrate-seed` (disjoint from the benchmark's).
+    #[arg(long)]
+    calibrate_units: bool,
+    /// Trials per rung of the calibration ladder (each on its own scenes).
+    #[arg(long, default_value_t = 4)]
+    trials: usize,
+    /// First scene seed of the calibration.
+    #[arg(long, default_value_t = 500_000)]
+    calibrate_seed: u64,
+    /// Geometric ratio between calibration rungs.
+    #[arg(long, default_value_t = std::f64::consts::SQRT_2)]
+    step: f64,
+    /// Log-bisection steps inside the calibration bracket.
+    #[arg(long, default_value_t = 1)]
+    refine: usize,
 }
 
 /// Runs `depthor gap-bench`.
 pub fn handle(args: Args) -> anyhow::Result<()> {
+    if args.calibrate_units {
+        return calibrate_units(&args);
+    }
     let t0 = Instant::now();
     let base = preset("mcu")?;
     let scenes = render_scenes(args.frames, args.width, args.height, args.seed);
@@ -148,6 +162,71 @@ pub fn handle(args: Args) -> anyhow::Result<()> {
     println!("{t}");
     if let Some(p) = args.out {
         std::fs::write(p, &t)?;
+    }
+    Ok(())
+}
+
+/// `depthor gap-bench --calibrate-units`: measures every effect's unit size (only the effects
+/// whose name contains `--only`) and writes the unit table.
+fn calibrate_units(args: &Args) -> anyhow::Result<()> {
+    let t0 = Instant::now();
+    let (n, k) = (args.frames as u64, args.trials.max(1) as u64);
+    let (bench0, bench1) = (args.seed, args.seed + n);
+    let (cal0, cal1) = (args.calibrate_seed, args.calibrate_seed + k * n);
+    anyhow::ensure!(
+        cal1 <= bench0 || cal0 >= bench1,
+        "calibration scene seeds {cal0}..{cal1} overlap the benchmark's {bench0}..{bench1}"
+    );
+    let base = preset("mcu")?;
+    let sets: Vec<_> = (0..k)
+        .map(|t| render_scenes(args.frames, args.width, args.height, cal0 + t * n))
+        .collect();
+    let names: Vec<&'static str> = effects::LIBRARY
+        .iter()
+        .map(|c| c.name)
+        .filter(|n| args.only.as_ref().is_none_or(|o| n.contains(o.as_str())))
+        .collect();
+    let bar = super::progress(names.len() as u64, "effects");
+    let opts = CalibrateOptions {
+        threshold: 0.5,
+        step: args.step,
+        refine: args.refine,
+        gap: GapOptions {
+            draws: args.draws,
+            ..GapOptions::default()
+        },
+        seed: args.seed,
+    };
+    let mut units = std::collections::BTreeMap::new();
+    for name in names {
+        bar.set_message(name);
+        units.extend(calibrate(&base, &sets, &[name], &opts, |m| {
+            bar.suspend(|| eprintln!("{m}"))
+        })?);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let table = UnitTable {
+        command: std::iter::once("depthor".to_string())
+            .chain(std::env::args().skip(1))
+            .collect::<Vec<_>>()
+            .join(" "),
+        frames: args.frames,
+        trials: k as usize,
+        seed: cal0,
+        width: args.width,
+        height: args.height,
+        draws: args.draws,
+        threshold: opts.threshold,
+        step: opts.step,
+        refine: opts.refine,
+        wall_s: t0.elapsed().as_secs_f64(),
+        units,
+    };
+    let json = serde_json::to_string_pretty(&table)?;
+    println!("{json}");
+    if let Some(p) = &args.out {
+        std::fs::write(p, json + "\n")?;
     }
     Ok(())
 }

@@ -1,8 +1,8 @@
 //! The concealed-effect benchmark (`depthor gap-bench`): "real" recordings built from simulated
 //! scenes and from the imported real RGB-D sets (`../shared/data/real`) with hidden effects switched
-//! on (each library effect at 1×, 2× and 4× a unit size, two effects at once, confounders, an
-//! effect outside the library, and null cases), analysed against the plain simulator
-//! configuration. Reports detection by size, top-1 attribution, false positives on nulls,
+//! on (each library effect at 1×, 2× and 4× its measured minimum detectable size, `units.rs`; two
+//! effects at once, confounders, an effect outside the library, and null cases), analysed
+//! against the plain simulator configuration. Reports detection by size, top-1 attribution, false positives on nulls,
 //! parameter error and held-out gain.
 
 use std::path::Path;
@@ -10,6 +10,7 @@ use std::path::Path;
 use rayon::prelude::*;
 
 use super::data::{GapData, GapFrame};
+use super::stats::clopper_pearson_upper;
 use super::{analyze, effects, Analysis, GapError, GapOptions};
 use crate::import::{self, ImportKind};
 use crate::rng::Rng;
@@ -20,41 +21,20 @@ use crate::sim::{simulate, SimConfig};
 /// A change applied to a "real" frame's zones after the simulator (an effect outside the library).
 pub type PostEffect = dyn Fn(&mut GapFrame, &mut Rng) + Sync;
 
-/// Unit ("1×") size of each effect's parameters: our estimate of its minimum detectable size with
-/// ~20 held-out 8×8 frames (the first parameter is the one whose recovery is scored).
-pub fn unit_size(name: &str) -> Option<Vec<f64>> {
-    Some(match name {
-        "range_dropout" => vec![0.01],
-        "dark_dropout" => vec![0.15],
-        "border_dropout" => vec![0.2],
-        "calibration_shift" => vec![1.0, 0.25],
-        "radial_distance" => vec![0.25],
-        "range_bias" => vec![0.01, 0.0],
-        "range_noise" => vec![0.005],
-        "multipath" => vec![0.1],
-        "edge_mixing" => vec![0.05],
-        "zone_crosstalk" => vec![0.05],
-        "bin_wiggle" => vec![0.005],
-        _ => return None,
-    })
+pub use super::units::unit_size;
+
+/// Parameters of `name` at `size` × its unit ([`unit_size`]; integer parameters stay at their
+/// unit).
+pub fn sized(name: &str, size: f64) -> Option<Vec<f64>> {
+    super::units::scale(name, &unit_size(name)?, size)
 }
 
-/// Parameters of `name` at `size` × its unit (integer parameters stay at their unit).
-pub fn sized(name: &str, size: f64) -> Option<Vec<f64>> {
-    let c = effects::candidate(name)?;
-    let u = unit_size(name)?;
-    Some(
-        u.iter()
-            .zip(c.params)
-            .map(|(v, s)| {
-                if s.integer {
-                    *v
-                } else {
-                    (v * size).clamp(s.lo, s.hi)
-                }
-            })
-            .collect(),
-    )
+/// The measurement seed of a case: `seed` mixed with its label (FNV-1a), so a single case
+/// reproduces its value in a full run.
+pub fn case_seed(seed: u64, label: &str) -> u64 {
+    label.bytes().fold(seed ^ 0xCBF2_9CE4_8422_2325, |h, b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01B3)
+    })
 }
 
 /// Renders `n` scenes of `width × height` (scene seeds `seed..seed + n`), in parallel.
@@ -618,21 +598,31 @@ pub fn table(results: &[CaseResult]) -> String {
         }
     }
     s.push('\n');
+    let is_null = |r: &&CaseResult| r.case.hidden.is_empty() && !r.case.outside;
+    let fp_line = |what: &str, nulls: &[&CaseResult]| {
+        let fp = nulls.iter().filter(|r| r.false_positives() > 0).count();
+        format!(
+            "Nulls ({what}): {} cases, {fp} with a false positive ({:.1} %; one-sided 95 % Clopper–Pearson upper bound {:.1} %).\n",
+            nulls.len(),
+            100.0 * fp as f64 / nulls.len() as f64,
+            100.0 * clopper_pearson_upper(fp, nulls.len(), 0.05)
+        )
+    };
+    let mut sets = 0;
     for set in [SceneSet::Sim, SceneSet::Real, SceneSet::DarkFar] {
         let nulls: Vec<&CaseResult> = results
             .iter()
-            .filter(|r| r.case.hidden.is_empty() && !r.case.outside && r.case.scenes == set)
+            .filter(is_null)
+            .filter(|r| r.case.scenes == set)
             .collect();
         if !nulls.is_empty() {
-            let fp = nulls.iter().filter(|r| r.false_positives() > 0).count();
-            s.push_str(&format!(
-                "Nulls ({}): {} cases, {} with a false positive ({:.0} %).\n",
-                set.name(),
-                nulls.len(),
-                fp,
-                100.0 * fp as f64 / nulls.len() as f64
-            ));
+            sets += 1;
+            s.push_str(&fp_line(set.name(), &nulls));
         }
+    }
+    if sets > 1 {
+        let nulls: Vec<&CaseResult> = results.iter().filter(is_null).collect();
+        s.push_str(&fp_line("all", &nulls));
     }
     let gains: Vec<f64> = results
         .iter()

@@ -169,6 +169,15 @@ pub const LIBRARY: [Candidate; 11] = [
     },
 ];
 
+/// Pairs of effects that a calibration can hide from one-at-a-time search: the data show only
+/// their joint pattern, which neither explains alone, so selection also fits each pair jointly
+/// (first, second, why).
+pub const JOINT_PAIRS: [(&str, &str, &str); 1] = [(
+    "radial_distance",
+    "range_bias",
+    "a range-scale calibration absorbs the mean radial lengthening, leaving only its zero-mean pattern across the grid",
+)];
+
 /// The library entry named `name`.
 pub fn candidate(name: &str) -> Option<&'static Candidate> {
     LIBRARY.iter().find(|c| c.name == name)

@@ -19,6 +19,7 @@ pub mod plot;
 pub mod report;
 pub mod select;
 pub mod stats;
+pub mod units;
 
 pub use data::{load_recording, GapData, GapError, GapFrame};
 pub use report::Report;

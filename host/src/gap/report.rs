@@ -27,6 +27,10 @@ pub struct FindingJson {
     pub zones_affected: f64,
     /// Why, in words.
     pub evidence: String,
+    /// Effects accepted jointly with this one (neither explains the residual alone); absent
+    /// when none.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub joint_with: Vec<String>,
 }
 
 /// `report.json`.
@@ -63,7 +67,23 @@ impl Report {
                         c.separate_with
                     );
                 }
+                for j in a
+                    .selection
+                    .joints
+                    .iter()
+                    .filter(|j| j.effects.contains(&f.effect))
+                {
+                    let _ = write!(
+                        evidence,
+                        "; fitted jointly with {} (confounded: {}): the pair beats every single effect in its place by {:.4} nats/zone (p = {:.4})",
+                        j.effects.iter().filter(|e| **e != f.effect).cloned().collect::<Vec<_>>().join(", "),
+                        j.why,
+                        j.gain_over_single,
+                        j.p_value
+                    );
+                }
                 FindingJson {
+                    joint_with: f.joint_with.clone(),
                     effect: f.effect.clone(),
                     params: f.params.clone(),
                     ci: f.ci.clone(),

@@ -1,10 +1,11 @@
 //! Selection: fit each candidate effect on the training frames, accept it only if its held-out
 //! gain is significantly positive (paired sign-flip test over held-out frames, Holm across the
-//! candidates of a round), refit the accepted effects jointly, prune, and flag confounded pairs.
+//! candidates of a round; pairs that a calibration can hide from one-at-a-time search are also
+//! fitted jointly), refit the accepted effects jointly, prune, and flag confounded pairs.
 
 use std::collections::BTreeMap;
 
-use super::effects::{self, Candidate, LIBRARY};
+use super::effects::{self, Candidate, JOINT_PAIRS, LIBRARY};
 use super::likelihood::Density;
 use super::model::{eval_frame, frame_nlls, Prepared};
 use super::stats::{fixed_sequence, grid_golden_min, holm, sign_flip_p};
@@ -25,13 +26,16 @@ pub struct SelectOptions {
     pub iters: usize,
     /// Grid points scanned per parameter before the golden-section refinement.
     pub grid: usize,
+    /// Training NLL gain (nats) one effect of a [`JOINT_PAIRS`] pair must reach alone before the
+    /// pair is fitted jointly (≈ a likelihood-ratio p of 0.01 for one parameter).
+    pub joint_trigger: f64,
     /// Predictive density constants.
     pub density: Density,
 }
 
 impl Default for SelectOptions {
     /// α = 0.05, gain ≥ 0.002 nats/zone, 1999 sign patterns, ≤ 4 effects, a 16-point grid then
-    /// 12 golden-section steps.
+    /// 12 golden-section steps, joint pairs tried from a 3-nat training gain.
     fn default() -> Self {
         SelectOptions {
             alpha: 0.05,
@@ -40,6 +44,7 @@ impl Default for SelectOptions {
             max_effects: 4,
             iters: 12,
             grid: 16,
+            joint_trigger: 3.0,
             density: Density::default(),
         }
     }
@@ -62,6 +67,8 @@ pub struct Finding {
     pub zones_affected: f64,
     /// Effects that explain the same residual.
     pub confounded_with: Vec<String>,
+    /// Effects accepted jointly with this one (a [`Joint`] pair).
+    pub joint_with: Vec<String>,
 }
 
 /// A confounded pair.
@@ -77,6 +84,21 @@ pub struct Confound {
     pub separate_with: String,
 }
 
+/// A pair accepted jointly: neither effect alone explains the residual (a calibration absorbed
+/// part of one into the other), the pair fitted together does.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Joint {
+    /// The two effects ([`JOINT_PAIRS`] order).
+    pub effects: [String; 2],
+    /// Held-out gain of the pair over the best single effect (or component) in its place, nats
+    /// per zone.
+    pub gain_over_single: f64,
+    /// p-value of that gain (sign-flip over held-out frames).
+    pub p_value: f64,
+    /// Why the pair hides from single-effect search.
+    pub why: String,
+}
+
 /// The result of selection.
 #[derive(Clone, Debug)]
 pub struct Selection {
@@ -86,6 +108,8 @@ pub struct Selection {
     pub findings: Vec<Finding>,
     /// Confounded pairs.
     pub confounds: Vec<Confound>,
+    /// Pairs accepted jointly.
+    pub joints: Vec<Joint>,
     /// Round-by-round log: candidate, gain, p.
     pub log: Vec<String>,
 }
@@ -213,6 +237,75 @@ impl Ctx<'_> {
         m
     }
 
+    /// Fits the effects `names` of `model` jointly when their parameters trade off against each
+    /// other (a valley that coordinate descent crosses slowly): two coordinate sweeps, a
+    /// pattern move (Hooke–Jeeves) along the change of the second sweep, which in a quadratic
+    /// valley of two parameters points at the minimum, then a last sweep.
+    pub fn fit_joint(
+        &self,
+        model: &SimConfig,
+        names: &[&'static str],
+        opts: &SelectOptions,
+    ) -> SimConfig {
+        let cands: Vec<&'static Candidate> =
+            names.iter().filter_map(|n| effects::candidate(n)).collect();
+        let sweep = |m: &SimConfig| {
+            cands
+                .iter()
+                .fold(m.clone(), |m, c| self.fit_one(&m, c, opts))
+        };
+        let params = |m: &SimConfig| -> Vec<f64> {
+            cands.iter().flat_map(|c| effects::get(m, c.name)).collect()
+        };
+        let put = |m: &mut SimConfig, v: &[f64]| {
+            let mut k = 0;
+            for c in &cands {
+                let n = c.params.len();
+                let w: Vec<f64> = c
+                    .params
+                    .iter()
+                    .zip(&v[k..k + n])
+                    .map(|(s, x)| x.clamp(s.lo, s.hi))
+                    .collect();
+                effects::set(m, c.name, Some(&w));
+                k += n;
+            }
+        };
+        let m1 = sweep(model);
+        let m2 = sweep(&m1);
+        let (v1, v2) = (params(&m1), params(&m2));
+        let integer: Vec<bool> = cands
+            .iter()
+            .flat_map(|c| c.params.iter().map(|s| s.integer))
+            .collect();
+        let dir: Vec<f64> = v1
+            .iter()
+            .zip(&v2)
+            .zip(&integer)
+            .map(|((a, b), &int)| if int { 0.0 } else { b - a })
+            .collect();
+        if dir.iter().all(|d| d.abs() < 1e-9) {
+            return m2;
+        }
+        let mut m = m2.clone();
+        let at = |t: f64| -> Vec<f64> { v2.iter().zip(&dir).map(|(x, d)| x + t * d).collect() };
+        let (t, f) = grid_golden_min(
+            |t| {
+                put(&mut m, &at(t));
+                self.train_nll(&m)
+            },
+            0.0,
+            16.0,
+            opts.grid,
+            opts.iters,
+        );
+        if f >= self.train_nll(&m2) {
+            return m2;
+        }
+        put(&mut m, &at(t));
+        sweep(&m)
+    }
+
     /// Held-out gain per zone and its p-value, from per-frame NLLs before and after.
     pub fn gain(&self, before: &[f64], after: &[f64], perms: usize, seed: u64) -> (f64, f64) {
         let g: Vec<f64> = before.iter().zip(after).map(|(b, a)| b - a).collect();
@@ -223,10 +316,29 @@ impl Ctx<'_> {
     }
 }
 
-/// Runs forward selection, joint refits, pruning and the confounding check.
+/// One candidate of a selection round: a single effect or a joint pair fitted on top of the
+/// current model.
+struct Trial {
+    /// Effect(s) fitted.
+    names: Vec<&'static str>,
+    /// The current model with them fitted.
+    model: SimConfig,
+    /// Per-frame held-out NLL.
+    after: Vec<f64>,
+    /// Held-out gain over the current model, nats per zone.
+    gain: f64,
+    /// Its sign-flip p-value.
+    p: f64,
+    /// Training NLL gain, nats.
+    train_gain: f64,
+}
+
+/// Runs forward selection (single effects and the [`JOINT_PAIRS`]), joint refits, pruning and
+/// the confounding check.
 pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str)) -> Selection {
     let mut model = ctx.base.clone();
     let mut accepted: Vec<&'static str> = Vec::new();
+    let mut joints: Vec<Joint> = Vec::new();
     let mut log = Vec::new();
     let mut cur = ctx.test_nlls(&model);
     let pool: Vec<&'static Candidate> = LIBRARY
@@ -243,33 +355,57 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
         if cands.is_empty() {
             break;
         }
-        let mut res = Vec::new();
-        let mut train_gain = Vec::new();
+        let seed = 17 + round as u64;
         let train_cur = ctx.train_nll(&model);
+        let trial = |names: Vec<&'static str>, m: SimConfig| {
+            let train_gain = train_cur - ctx.train_nll(&m);
+            let after = ctx.test_nlls(&m);
+            let (gain, p) = ctx.gain(&cur, &after, opts.permutations, seed);
+            Trial {
+                names,
+                model: m,
+                after,
+                gain,
+                p,
+                train_gain,
+            }
+        };
+        let mut trials = Vec::new();
         for c in &cands {
             progress(&format!("round {} · fitting {}", round + 1, c.name));
-            let m = ctx.fit_one(&model, c, opts);
-            let tg = train_cur - ctx.train_nll(&m);
-            let after = ctx.test_nlls(&m);
-            let (g, p) = ctx.gain(&cur, &after, opts.permutations, 17 + round as u64);
+            trials.push(trial(vec![c.name], ctx.fit_one(&model, c, opts)));
+        }
+        // Joint pairs, fitted only when one of their effects alone shows training evidence (the
+        // pair's joint pattern leaves a structured residual the single fit half explains).
+        for (a, b, _) in JOINT_PAIRS {
+            let single = |n: &str| trials.iter().find(|t| t.names == [n]);
+            let (Some(ta), Some(tb)) = (single(a), single(b)) else {
+                continue;
+            };
+            if ta.train_gain.max(tb.train_gain) < opts.joint_trigger {
+                continue;
+            }
+            progress(&format!("round {} · fitting {a}+{b} jointly", round + 1));
+            let pair = [a, b];
+            trials.push(trial(pair.to_vec(), ctx.fit_joint(&model, &pair, opts)));
+        }
+        for t in &trials {
             log.push(format!(
                 "round {} {:<18} gain {:+.4} nats/zone  p {:.4}  (training gain {:+.1} nats)",
                 round + 1,
-                c.name,
-                g,
-                p,
-                tg
+                t.names.join("+"),
+                t.gain,
+                t.p,
+                t.train_gain
             ));
-            res.push((c.name, m, g, p));
-            train_gain.push(tg);
         }
-        let ps: Vec<f64> = res.iter().map(|r| r.3).collect();
+        let ps: Vec<f64> = trials.iter().map(|t| t.p).collect();
         // The gate: Holm at α/2 (no candidate favoured) or fixed-sequence at α/2 in the order of
         // training gain (set on the training frames, before any held-out p is seen: powerful for
         // an effect confined to a few frames, whose p cannot reach Holm's α/m). Bonferroni over
-        // the two keeps the family-wise error ≤ α.
-        let mut order: Vec<usize> = (0..res.len()).collect();
-        order.sort_by(|&a, &b| train_gain[b].total_cmp(&train_gain[a]));
+        // the two keeps the family-wise error ≤ α. Joint pairs are members of the family.
+        let mut order: Vec<usize> = (0..trials.len()).collect();
+        order.sort_by(|&a, &b| trials[b].train_gain.total_cmp(&trials[a].train_gain));
         let fixed = fixed_sequence(&ps, &order, opts.alpha / 2.0);
         let sig: Vec<bool> = holm(&ps, opts.alpha / 2.0)
             .into_iter()
@@ -277,27 +413,69 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
             .map(|(a, b)| a || b)
             .collect();
         if round == 0 {
-            for (r, &s) in res.iter().zip(&sig) {
-                solo.insert(r.0, (r.2, s && r.2 >= opts.min_gain));
+            for (t, &s) in trials.iter().zip(&sig) {
+                if let [n] = t.names[..] {
+                    solo.insert(n, (t.gain, s && t.gain >= opts.min_gain));
+                }
             }
         }
         // Gatekeeping: the gate decides whether anything is missing (family-wise error ≤ α); the
         // effect accepted is then the one with the largest held-out gain among those significant
         // on their own, so a weaker look-alike with a smaller p-value does not win attribution.
-        if !res
+        if !trials
             .iter()
             .zip(&sig)
-            .any(|(r, &s)| s && r.2 >= opts.min_gain)
+            .any(|(t, &s)| s && t.gain >= opts.min_gain)
         {
             break;
         }
-        let best = res
+        let best = trials
             .iter()
-            .filter(|r| r.3 <= opts.alpha && r.2 >= opts.min_gain)
-            .max_by(|a, b| a.2.total_cmp(&b.2));
-        let Some(b) = best else { break };
-        accepted.push(b.0);
-        model = ctx.refit(&b.1, &accepted, opts);
+            .filter(|t| t.names.len() == 1 && t.p <= opts.alpha && t.gain >= opts.min_gain)
+            .max_by(|a, b| a.gain.total_cmp(&b.gain));
+        // A joint pair passed by the gate wins when it also beats, by the same test at α/2, the
+        // best single effect and each of its own effects alone.
+        let joint = trials
+            .iter()
+            .zip(&sig)
+            .filter(|(t, &s)| t.names.len() == 2 && s && t.gain >= opts.min_gain)
+            .filter_map(|(t, _)| {
+                let rivals = trials.iter().filter(|r| {
+                    r.names.len() == 1
+                        && (t.names.contains(&r.names[0])
+                            || best.is_some_and(|b| b.names == r.names))
+                });
+                let (g, p) = rivals
+                    .map(|r| ctx.gain(&r.after, &t.after, opts.permutations, seed + 1000))
+                    .fold((f64::INFINITY, 0.0f64), |(g, p), (gr, pr)| {
+                        (g.min(gr), p.max(pr))
+                    });
+                (g >= opts.min_gain && p <= opts.alpha / 2.0).then_some((t, g, p))
+            })
+            .max_by(|a, b| a.0.gain.total_cmp(&b.0.gain));
+        let chosen = if let Some((t, g, p)) = joint {
+            let why = JOINT_PAIRS
+                .iter()
+                .find(|j| t.names == [j.0, j.1])
+                .map_or("", |j| j.2);
+            log.push(format!(
+                "round {} joint {} beats every single effect in its place by {g:+.4} nats/zone (p {p:.4})",
+                round + 1,
+                t.names.join("+")
+            ));
+            joints.push(Joint {
+                effects: [t.names[0].to_string(), t.names[1].to_string()],
+                gain_over_single: g,
+                p_value: p,
+                why: why.to_string(),
+            });
+            t
+        } else {
+            let Some(b) = best else { break };
+            b
+        };
+        accepted.extend(&chosen.names);
+        model = ctx.refit(&chosen.model, &accepted, opts);
         cur = ctx.test_nlls(&model);
     }
     // Prune: drop effects whose conditional held-out gain is no longer significant.
@@ -332,6 +510,8 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
         cond.insert(name, (g, p, without));
         k += 1;
     }
+    // A joint pair stands only while pruning kept both of its effects.
+    joints.retain(|j| j.effects.iter().all(|e| accepted.contains(&e.as_str())));
     // Confounding: a look-alike that, in the accepted effect's place, reaches ≥ half its gain.
     let mut confounds = Vec::new();
     for &a in &accepted {
@@ -364,7 +544,9 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
         .filter_map(|&a| {
             let (g, p, without) = cond.get(a)?;
             let c = effects::candidate(a)?;
-            Some(finding(ctx, opts, &model, without, c, *g, *p, &confounds))
+            Some(finding(
+                ctx, &joints, &model, without, c, *g, *p, &confounds,
+            ))
         })
         .collect();
     findings.sort_by(|a, b| b.heldout_gain.total_cmp(&a.heldout_gain));
@@ -372,6 +554,7 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
         model,
         findings,
         confounds,
+        joints,
         log,
     }
 }
@@ -379,7 +562,7 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
 #[allow(clippy::too_many_arguments)]
 fn finding(
     ctx: &Ctx<'_>,
-    opts: &SelectOptions,
+    joints: &[Joint],
     model: &SimConfig,
     without: &SimConfig,
     c: &Candidate,
@@ -421,7 +604,6 @@ fn finding(
         };
         ci.insert(s.field.to_string(), [bound(s.lo), bound(s.hi)]);
     }
-    let _ = opts;
     let (mut changed, mut total) = (0usize, 0usize);
     for &f in &ctx.test {
         let a = eval_frame(&ctx.density, model, ctx.base, &ctx.frames[f], true);
@@ -442,6 +624,11 @@ fn finding(
             .iter()
             .filter(|k| k.kept == c.name)
             .map(|k| k.other.clone())
+            .collect(),
+        joint_with: joints
+            .iter()
+            .filter(|j| j.effects.iter().any(|e| e == c.name))
+            .flat_map(|j| j.effects.iter().filter(|e| *e != c.name).cloned())
             .collect(),
     }
 }

@@ -53,6 +53,38 @@ pub fn fixed_sequence(p: &[f64], order: &[usize], alpha: f64) -> Vec<bool> {
     out
 }
 
+/// One-sided Clopper–Pearson upper confidence bound on a binomial rate: the `p` at which
+/// observing ≤ `x` successes in `n` trials has probability `alpha` (exact, by bisection on the
+/// binomial tail). 1 when `n` is 0 or `x ≥ n`.
+pub fn clopper_pearson_upper(x: usize, n: usize, alpha: f64) -> f64 {
+    if n == 0 || x >= n {
+        return 1.0;
+    }
+    // P(X ≤ x) for X ~ Binomial(n, p), terms in log space.
+    let cdf = |p: f64| {
+        let (lp, lq) = (p.ln(), (1.0 - p).ln());
+        let mut ln_choose = 0.0;
+        let mut acc = 0.0;
+        for k in 0..=x {
+            if k > 0 {
+                ln_choose += ((n - k + 1) as f64).ln() - (k as f64).ln();
+            }
+            acc += (ln_choose + k as f64 * lp + (n - k) as f64 * lq).exp();
+        }
+        acc
+    };
+    let (mut lo, mut hi) = (x as f64 / n as f64, 1.0);
+    for _ in 0..60 {
+        let mid = (lo + hi) / 2.0;
+        if cdf(mid) > alpha {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    (lo + hi) / 2.0
+}
+
 /// Benjamini–Hochberg: which of the `p` values are discoveries at false-discovery rate `q`.
 pub fn benjamini_hochberg(p: &[f64], q: f64) -> Vec<bool> {
     let m = p.len();
@@ -155,6 +187,21 @@ pub fn golden_min(mut f: impl FnMut(f64) -> f64, lo: f64, hi: f64, iters: usize)
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn clopper_pearson_matches_closed_forms() {
+        // x = 0: 1 − α^(1/n) (the "rule of three" ≈ 3/n).
+        for n in [20, 50, 100] {
+            let u = clopper_pearson_upper(0, n, 0.05);
+            assert!(
+                (u - (1.0 - 0.05f64.powf(1.0 / n as f64))).abs() < 1e-9,
+                "{n}: {u}"
+            );
+        }
+        // x = 1, n = 10: (1 − p)^10 + 10 p (1 − p)^9 = 0.05 at p ≈ 0.3942.
+        assert!((clopper_pearson_upper(1, 10, 0.05) - 0.3942).abs() < 1e-3);
+        assert_eq!(clopper_pearson_upper(3, 3, 0.05), 1.0);
+    }
 
     #[test]
     fn fixed_sequence_stops_at_the_first_acceptance() {
