@@ -127,6 +127,29 @@ def load_recording(path: str | Path, cache: bool = True) -> Recording:
     return Recording(rgb, depth, zone_m, status, zone_px, grid, ids)
 
 
+def load_recordings(paths: str | Path | list, cache: bool = True) -> Recording:
+    """Several recordings of the same camera and zone layout as one (frames in order; ids
+    prefixed with the folder name when more than one). `paths`: a list, or one string with
+    comma-separated folders. Raises ValueError when sizes, grids or zone pixels differ."""
+    if isinstance(paths, (str, Path)):
+        paths = [p for p in str(paths).split(",") if p]
+    recs = [load_recording(p, cache) for p in paths]
+    if not recs:
+        raise ValueError("no recording given")
+    if len(recs) == 1:
+        return recs[0]
+    first = recs[0]
+    for p, r in zip(paths[1:], recs[1:]):
+        if (r.height, r.width, r.grid) != (first.height, first.width, first.grid) or \
+                not np.array_equal(r.zone_px, first.zone_px):
+            raise ValueError(f"{p}: frame size, zone grid or zone rectangles differ from {paths[0]}")
+    ids = [f"{Path(p).name}/{i}" for p, r in zip(paths, recs) for i in r.ids]
+    return Recording(np.concatenate([r.rgb for r in recs]),
+                     np.concatenate([r.depth_mm for r in recs]),
+                     np.concatenate([r.zone_m for r in recs]),
+                     np.concatenate([r.status for r in recs]), first.zone_px, first.grid, ids)
+
+
 def sparse_maps(rec: Recording, idx: np.ndarray,
                 valid_status: tuple[int, ...] = (5,)) -> np.ndarray:
     """Sparse depth maps float32 [len(idx), H, W] (metres) of the frames `idx`."""

@@ -212,6 +212,31 @@ def batch_plan(seed: int, step: int, batch_size: int, n: int) -> tuple[np.ndarra
     return idx, flips
 
 
+def crop_plan(seed: int, step: int, height: int, width: int,
+              crop: tuple[int, int] | None) -> tuple[int, int, int, int]:
+    """(y0, x0, h, w) of training step `step`'s random crop (the same window for the whole
+    batch), drawn from the (seed, step) stream; the full frame when `crop` is None or not
+    smaller than the frame."""
+    if crop is None:
+        return 0, 0, height, width
+    ch, cw = min(crop[0], height), min(crop[1], width)
+    rng = np.random.default_rng([seed, 2_000_000, step])
+    return int(rng.integers(0, height - ch + 1)), int(rng.integers(0, width - cw + 1)), ch, cw
+
+
+def parse_crop(text: str | None) -> tuple[int, int] | None:
+    """`HxW` (both multiples of 32, the network's total stride) → (H, W); None for no crop."""
+    if not text:
+        return None
+    try:
+        h, w = (int(v) for v in text.lower().split("x"))
+    except ValueError as e:
+        raise ValueError(f"--crop {text!r}: expected HxW, e.g. 224x192") from e
+    if h <= 0 or w <= 0 or h % 32 or w % 32:
+        raise ValueError(f"--crop {text!r}: H and W must be positive multiples of 32")
+    return h, w
+
+
 def make_model(variant: str, seed: int) -> Depthor:
     """A fresh trainable network: default PyTorch init (no random BN calibration), train mode."""
     net = build(variant, seed=seed, calibrate_bn=False)
@@ -309,7 +334,7 @@ def train(args: argparse.Namespace) -> dict:
         step, wall = int(ck["step"]), float(ck["wall_s"])
         torch.set_rng_state(ck["rng"]["torch"])
         saved = {"schedule_s": 0.0, **ck["args"]}  # checkpoints from before --schedule-s
-        for k in ("variant", "seed", "batch", "steps", "max_lr", "train", "schedule_s"):
+        for k in ("variant", "seed", "batch", "steps", "max_lr", "train", "schedule_s", "crop"):
             if saved.get(k) != getattr(args, k):
                 print(f"resume: using the checkpoint's {k}={saved.get(k)!r} "
                       f"(command line said {getattr(args, k)!r})")
@@ -324,8 +349,9 @@ def train(args: argparse.Namespace) -> dict:
     _rewrite_csv(out / "eval.csv", EVAL_FIELDS, step + 1)
     (out / "args.json").write_text(json.dumps(vars(args), indent=1) + "\n")
 
+    crop = parse_crop(getattr(args, "crop", None))
     t0 = time.perf_counter()
-    train_rec = data.load_recording(args.train)
+    train_rec = data.load_recordings(args.train)
     test_rec = data.load_recording(args.test)
     evaluator = Evaluator(test_rec, args.eval_frames)
     print(f"data: {len(train_rec)} train / {len(evaluator.idx)} test frames "
@@ -361,6 +387,8 @@ def train(args: argparse.Namespace) -> dict:
         ts = time.perf_counter()
         idx, flips = batch_plan(args.seed, step, args.batch, len(train_rec))
         rgb, sp, gt = data.batch(train_rec, idx, flips)
+        y0, x0, ch, cw = crop_plan(args.seed, step, rgb.shape[2], rgb.shape[3], crop)
+        rgb, sp, gt = (t[:, :, y0:y0 + ch, x0:x0 + cw] for t in (rgb, sp, gt))
         pred = net(rgb, sp)
         l_main = silog_loss(pred, gt)
         l_prior = ssi_inverse_loss(captured["d_inv"], gt)
@@ -472,7 +500,8 @@ def main(argv: list[str] | None = None) -> int:
     """CLI entry point (see module doc)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--variant", default="mcu", choices=["mcu", "phone"])
-    ap.add_argument("--train", help="training recording folder (required to train)")
+    ap.add_argument("--train", help="training recording folder(s), comma-separated "
+                    "(required to train)")
     ap.add_argument("--test", help="held-out recording folder (required to train or evaluate)")
     ap.add_argument("--out", default="runs/mcu", help="run folder (checkpoint, logs, plot)")
     ap.add_argument("--steps", type=int, default=2000, help="OneCycle length (total steps)")
@@ -493,6 +522,9 @@ def main(argv: list[str] | None = None) -> int:
                          "in advance (0 = by steps)")
     ap.add_argument("--stop-after", type=int, default=0,
                     help="leave after this many steps in this invocation (0 = run to the end)")
+    ap.add_argument("--crop", default=None, metavar="HxW",
+                    help="train on a random HxW window of each batch (multiples of 32; "
+                         "evaluation stays on whole frames)")
     ap.add_argument("--resume", action="store_true", help="continue from <out>/ckpt.pt")
     ap.add_argument("--init", default=None, help="start from these weights with a fresh schedule")
     ap.add_argument("--plot-only", action="store_true", help="only redraw <out>/loss.png")

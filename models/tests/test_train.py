@@ -218,3 +218,29 @@ def test_export_loads_trained_weights(tmp_path):
         assert not got.training
         for k, v in net.state_dict().items():
             assert torch.equal(got.state_dict()[k], v), k
+
+
+def test_crop_plan_is_seeded_inside_and_optional():
+    assert T.crop_plan(0, 5, 320, 240, None) == (0, 0, 320, 240)
+    assert T.crop_plan(0, 5, 64, 64, (224, 192)) == (0, 0, 64, 64)
+    a = [T.crop_plan(3, s, 320, 240, (224, 192)) for s in range(50)]
+    assert a == [T.crop_plan(3, s, 320, 240, (224, 192)) for s in range(50)]
+    assert all(0 <= y <= 96 and 0 <= x <= 48 and (h, w) == (224, 192) for y, x, h, w in a)
+    assert len({(y, x) for y, x, _, _ in a}) > 10
+    assert T.parse_crop("224x192") == (224, 192) and T.parse_crop(None) is None
+    for bad in ("224", "200x192", "0x32", "axb"):
+        with pytest.raises(ValueError):
+            T.parse_crop(bad)
+
+
+def test_load_recordings_concatenates_and_rejects_other_layouts(tmp_path):
+    a = write_recording(tmp_path / "a", n=2, seed=1)
+    b = write_recording(tmp_path / "b", n=3, seed=2)
+    both = data.load_recordings(f"{a},{b}")
+    assert len(both) == 5 and both.ids[0] == "a/000000" and both.ids[-1] == "b/000002"
+    assert np.array_equal(both.rgb[2:], data.load_recording(b).rgb)
+    meta = json.loads((b / "recording.json").read_text())
+    meta["dtof"]["zone_rects_px"][0] = [0.0, 0.0, 2.0, 2.0]
+    (b / "recording.json").write_text(json.dumps(meta))
+    with pytest.raises(ValueError, match="differ"):
+        data.load_recordings([a, b])
