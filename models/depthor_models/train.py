@@ -334,7 +334,13 @@ def train(args: argparse.Namespace) -> dict:
         step, wall = int(ck["step"]), float(ck["wall_s"])
         torch.set_rng_state(ck["rng"]["torch"])
         saved = {"schedule_s": 0.0, **ck["args"]}  # checkpoints from before --schedule-s
-        for k in ("variant", "seed", "batch", "steps", "max_lr", "train", "schedule_s", "crop"):
+        forced = ("variant", "seed", "batch", "steps", "max_lr", "train", "schedule_s", "crop")
+        for k in forced:
+            if k == "train" and args.switch_train:
+                if saved.get(k) != args.train:
+                    print(f"resume: training set switched from {saved.get(k)!r} to {args.train!r} "
+                          f"(batches from step {step} on are drawn from the new set)")
+                continue
             if saved.get(k) != getattr(args, k):
                 print(f"resume: using the checkpoint's {k}={saved.get(k)!r} "
                       f"(command line said {getattr(args, k)!r})")
@@ -526,6 +532,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="train on a random HxW window of each batch (multiples of 32; "
                          "evaluation stays on whole frames)")
     ap.add_argument("--resume", action="store_true", help="continue from <out>/ckpt.pt")
+    ap.add_argument("--switch-train", action="store_true",
+                    help="with --resume: keep the schedule but draw the remaining batches from "
+                         "--train instead of the checkpoint's training set (e.g. once more "
+                         "generated frames are ready)")
     ap.add_argument("--init", default=None, help="start from these weights with a fresh schedule")
     ap.add_argument("--plot-only", action="store_true", help="only redraw <out>/loss.png")
     ap.add_argument("--eval-only", default=None, metavar="WEIGHTS",

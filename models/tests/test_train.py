@@ -244,3 +244,17 @@ def test_load_recordings_concatenates_and_rejects_other_layouts(tmp_path):
     (b / "recording.json").write_text(json.dumps(meta))
     with pytest.raises(ValueError, match="differ"):
         data.load_recordings([a, b])
+
+
+def test_resume_switch_train_keeps_schedule_and_uses_new_set(tmp_path, capsys):
+    a = write_recording(tmp_path / "a", n=3, seed=1)
+    b = write_recording(tmp_path / "b", n=4, seed=2)
+    T.main(_args(a, tmp_path / "run", "--stop-after", "2"))
+    T.main(_args(f"{a},{b}", tmp_path / "run", "--resume", "--test", str(a)))  # without the flag: checkpoint's set
+    assert "using the checkpoint's train" in capsys.readouterr().out
+    T.main(_args(a, tmp_path / "run2", "--stop-after", "2"))
+    T.main(_args(f"{a},{b}", tmp_path / "run2", "--resume", "--switch-train", "--test", str(a)))
+    out = capsys.readouterr().out
+    assert "training set switched" in out and "data: 7 train" in out
+    ck = torch.load(tmp_path / "run2" / "ckpt.pt", weights_only=False)
+    assert ck["step"] == 3 and ck["args"]["train"] == f"{a},{b}"
