@@ -359,7 +359,7 @@ pub fn run_case(
         .hidden
         .first()
         .filter(|(n, _)| named.iter().any(|m| m == n))
-        .map(|(n, _)| effects::get(&a.selection.model, n));
+        .map(|(n, _)| effects::get(&a.selection.estimate, n));
     Ok((
         CaseResult {
             case: case.clone(),

@@ -97,7 +97,7 @@ impl Report {
             findings,
             fit_before: a.fit_before,
             fit_after: a.fit_after,
-            sim_config: serde_json::to_value(&a.selection.model).unwrap_or_default(),
+            sim_config: serde_json::to_value(&a.selection.estimate).unwrap_or_default(),
         }
     }
 }
@@ -137,7 +137,7 @@ pub fn write(a: &Analysis, out: &Path) -> anyhow::Result<()> {
         out.join("report.json"),
         serde_json::to_string_pretty(&report)?,
     )?;
-    std::fs::write(out.join("sim_config.json"), a.selection.model.to_json())?;
+    std::fs::write(out.join("sim_config.json"), a.selection.estimate.to_json())?;
     // Plots: per covariate, dropout excess before (red) / after (blue), PIT shift before (orange)
     // / after (green).
     for cov in Covariate::ALL {
