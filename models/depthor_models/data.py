@@ -80,10 +80,18 @@ def _meta_key(meta_text: str) -> str:
     return hashlib.sha256(f"{CACHE_VERSION}:{meta_text}".encode()).hexdigest()
 
 
-def load_recording(path: str | Path, cache: bool = True) -> Recording:
-    """Loads every frame of a recording (see module doc). Raises ValueError for a recording
-    without `zone_rects_px`, without reference depth, or with frames of another size."""
+def load_recording(path: str | Path, cache: bool = True,
+                   size: tuple[int, int] | None = None) -> Recording:
+    """Loads every frame of a recording (see module doc). With `size` = (H, W) different from
+    the recording's, the frames are resampled to it as `depthor eval` does (`resample`), and
+    the resampled arrays get their own cache. Raises ValueError for a recording without
+    `zone_rects_px`, without reference depth, or with frames of another size."""
     root = Path(path)
+    if size is not None:
+        meta = json.loads((root / "recording.json").read_text())
+        native = (int(meta["camera"]["height"]), int(meta["camera"]["width"]))
+        if tuple(size) != native:
+            return _load_resampled(root, cache, (int(size[0]), int(size[1])), native, meta)
     meta_text = (root / "recording.json").read_text()
     meta = json.loads(meta_text)
     if meta.get("format") != "depthor-recording/1":
@@ -127,13 +135,82 @@ def load_recording(path: str | Path, cache: bool = True) -> Recording:
     return Recording(rgb, depth, zone_m, status, zone_px, grid, ids)
 
 
-def load_recordings(paths: str | Path | list, cache: bool = True) -> Recording:
+def _load_resampled(root: Path, cache: bool, size: tuple[int, int], native: tuple[int, int],
+                    meta: dict) -> Recording:
+    h, w = size
+    cache_path = root / f".depthor-train-cache-{h}x{w}.npz"
+    key = _meta_key(f"{h}x{w}:" + (root / "recording.json").read_text())
+    rects = resampled_rects(meta["dtof"]["zone_rects_px"], native, size)
+    zone_px = zone_pixels(rects, h, w)
+    grid = (int(meta["dtof"]["rows"]), int(meta["dtof"]["cols"]))
+    ids = [str(f["id"]) for f in meta["frames"]]
+    if cache and cache_path.exists():
+        with np.load(cache_path, allow_pickle=False) as z:
+            if str(z["key"]) == key:
+                return Recording(z["rgb"], z["depth_mm"], z["zone_m"], z["status"], zone_px,
+                                 grid, ids)
+    full = load_recording(root, cache=False)
+    rgb, depth = resample(full.rgb, full.depth_mm, size)
+    del full.rgb, full.depth_mm
+    if cache:
+        tmp = root / (cache_path.name + ".tmp.npz")
+        np.savez(tmp, key=np.array(key), rgb=rgb, depth_mm=depth, zone_m=full.zone_m,
+                 status=full.status)
+        tmp.replace(cache_path)
+    return Recording(rgb, depth, full.zone_m, full.status, zone_px, grid, ids)
+
+
+def _centre_crop(sh: int, sw: int, h: int, w: int) -> tuple[int, int, int, int]:
+    """(y0, x0, ch, cw): the centred crop of an sh×sw image to the aspect ratio of h×w, as
+    `depthor eval`'s resampling (host dataset::resample_frame) takes it."""
+    target = w / h
+    if sw / sh > target:
+        cw, ch = min(max(round(sh * target), 1), sw), sh
+    else:
+        cw, ch = sw, min(max(round(sw / target), 1), sh)
+    return (sh - ch) // 2, (sw - cw) // 2, ch, cw
+
+
+def resample(rgb: np.ndarray, depth_mm: np.ndarray,
+             size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Frames [N,sh,sw,3] / [N,sh,sw] → size (H, W) the way `depthor eval` resamples a recording
+    for a model: centred crop to the aspect ratio, RGB by a triangle (bilinear, antialiased)
+    filter, depth by the nearest source pixel (x0 + ((2x + 1)·cw) // (2W))."""
+    from PIL import Image
+
+    h, w = size
+    n, sh, sw = depth_mm.shape
+    y0, x0, ch, cw = _centre_crop(sh, sw, h, w)
+    ys = np.minimum(y0 + ((2 * np.arange(h) + 1) * ch) // (2 * h), sh - 1)
+    xs = np.minimum(x0 + ((2 * np.arange(w) + 1) * cw) // (2 * w), sw - 1)
+    out_rgb = np.empty((n, h, w, 3), np.uint8)
+    for i in range(n):
+        im = Image.fromarray(rgb[i, y0:y0 + ch, x0:x0 + cw])
+        out_rgb[i] = np.asarray(im.resize((w, h), Image.BILINEAR))
+    return out_rgb, np.ascontiguousarray(depth_mm[:, ys][:, :, xs])
+
+
+def resampled_rects(rects: list, native: tuple[int, int], size: tuple[int, int]) -> list:
+    """Zone rectangles `[y0, x0, y1, x1]` mapped like eval maps projected points:
+    v' = (v − y0c + 0.5)·s − 0.5 (pixel centres at integers) for the crop origin y0c."""
+    (sh, sw), (h, w) = native, size
+    cy0, cx0, ch, cw = _centre_crop(sh, sw, h, w)
+    sy, sx = h / ch, w / cw
+    r = np.asarray(rects, dtype=np.float64).reshape(-1, 4)
+    out = np.empty_like(r)
+    out[:, [0, 2]] = (r[:, [0, 2]] - cy0 + 0.5) * sy - 0.5
+    out[:, [1, 3]] = (r[:, [1, 3]] - cx0 + 0.5) * sx - 0.5
+    return out.tolist()
+
+
+def load_recordings(paths: str | Path | list, cache: bool = True,
+                    size: tuple[int, int] | None = None) -> Recording:
     """Several recordings of the same camera and zone layout as one (frames in order; ids
     prefixed with the folder name when more than one). `paths`: a list, or one string with
     comma-separated folders. Raises ValueError when sizes, grids or zone pixels differ."""
     if isinstance(paths, (str, Path)):
         paths = [p for p in str(paths).split(",") if p]
-    recs = [load_recording(p, cache) for p in paths]
+    recs = [load_recording(p, cache, size) for p in paths]
     if not recs:
         raise ValueError("no recording given")
     if len(recs) == 1:

@@ -163,7 +163,7 @@ def zone_baselines(rec: data.Recording, idx: np.ndarray,
 
 
 @torch.no_grad()
-def predict(net: Depthor, rec: data.Recording, idx: np.ndarray, batch_size: int = 16,
+def predict(net: Depthor, rec: data.Recording, idx: np.ndarray, batch_size: int = 2,
             valid_status: tuple[int, ...] = (5,)) -> np.ndarray:
     """The network's depth [N, H, W] for frames `idx` (eval mode; restores the previous mode)."""
     was_training = net.training
@@ -357,8 +357,9 @@ def train(args: argparse.Namespace) -> dict:
 
     crop = parse_crop(getattr(args, "crop", None))
     t0 = time.perf_counter()
-    train_rec = data.load_recordings(args.train)
-    test_rec = data.load_recording(args.test)
+    size = (net.cfg.height, net.cfg.width)  # frames resampled to the model's input, as in eval
+    train_rec = data.load_recordings(args.train, size=size)
+    test_rec = data.load_recording(args.test, size=size)
     evaluator = Evaluator(test_rec, args.eval_frames)
     print(f"data: {len(train_rec)} train / {len(evaluator.idx)} test frames "
           f"({time.perf_counter() - t0:.1f} s); baselines {json.dumps(evaluator.base)}")
@@ -550,7 +551,8 @@ def main(argv: list[str] | None = None) -> int:
         torch.set_num_threads(a.threads)
         net = make_model(a.variant, a.seed)
         net.load_state_dict(load_weights(a.eval_only))
-        print(json.dumps(Evaluator(data.load_recording(a.test), a.eval_frames)(net)))
+        size = (net.cfg.height, net.cfg.width)
+        print(json.dumps(Evaluator(data.load_recording(a.test, size=size), a.eval_frames)(net)))
         return 0
     print(json.dumps(train(a)))
     return 0

@@ -258,3 +258,21 @@ def test_resume_switch_train_keeps_schedule_and_uses_new_set(tmp_path, capsys):
     assert "training set switched" in out and "data: 7 train" in out
     ck = torch.load(tmp_path / "run2" / "ckpt.pt", weights_only=False)
     assert ck["step"] == 3 and ck["args"]["train"] == f"{a},{b}"
+
+
+def test_resample_matches_eval_mapping(tmp_path):
+    """Resampling to half size: nearest depth x0 + ((2x + 1)·cw) // (2W), zone centres mapped
+    with pixel centres at integers, and a separate cache per size."""
+    root = write_recording(tmp_path / "rec", n=2)
+    full = data.load_recording(root)
+    half = data.load_recording(root, size=(H // 2, W // 2))
+    assert half.rgb.shape == (2, H // 2, W // 2, 3) and half.depth_mm.shape == (2, H // 2, W // 2)
+    assert np.array_equal(half.depth_mm, full.depth_mm[:, 1::2][:, :, 1::2])
+    # centre (6, 9) → (6.5·0.5 − 0.5, 9.5·0.5 − 0.5) = (2.75, 4.25) → pixel (3, 4)
+    assert tuple(half.zone_px[0]) == (3, 4)
+    assert (root / f".depthor-train-cache-{H // 2}x{W // 2}.npz").exists()
+    again = data.load_recording(root, size=(H // 2, W // 2))
+    assert np.array_equal(again.rgb, half.rgb)
+    assert data.load_recording(root, size=(H, W)).rgb.shape == full.rgb.shape
+    # another aspect ratio: centred crop
+    assert data._centre_crop(40, 60, 20, 20) == (0, 10, 40, 40)
