@@ -87,11 +87,6 @@ def load_recording(path: str | Path, cache: bool = True,
     the resampled arrays get their own cache. Raises ValueError for a recording without
     `zone_rects_px`, without reference depth, or with frames of another size."""
     root = Path(path)
-    if size is not None:
-        meta = json.loads((root / "recording.json").read_text())
-        native = (int(meta["camera"]["height"]), int(meta["camera"]["width"]))
-        if tuple(size) != native:
-            return _load_resampled(root, cache, (int(size[0]), int(size[1])), native, meta)
     meta_text = (root / "recording.json").read_text()
     meta = json.loads(meta_text)
     if meta.get("format") != "depthor-recording/1":
@@ -104,6 +99,8 @@ def load_recording(path: str | Path, cache: bool = True,
     grid = (int(dtof["rows"]), int(dtof["cols"]))
     if len(rects) != grid[0] * grid[1]:
         raise ValueError(f"{root}: {len(rects)} zone rectangles for a {grid} grid")
+    if size is not None and tuple(size) != (h, w):
+        return _load_resampled(root, cache, (int(size[0]), int(size[1])), (h, w), meta)
     zone_px = zone_pixels(rects, h, w)
     ids = [str(f["id"]) for f in meta["frames"]]
     key = _meta_key(meta_text)

@@ -355,7 +355,7 @@ def train(args: argparse.Namespace) -> dict:
     _rewrite_csv(out / "eval.csv", EVAL_FIELDS, step + 1)
     (out / "args.json").write_text(json.dumps(vars(args), indent=1) + "\n")
 
-    crop = parse_crop(getattr(args, "crop", None))
+    crop = parse_crop(args.crop)
     t0 = time.perf_counter()
     size = (net.cfg.height, net.cfg.width)  # frames resampled to the model's input, as in eval
     train_rec = data.load_recordings(args.train, size=size)
