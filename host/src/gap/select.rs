@@ -162,6 +162,20 @@ impl Ctx<'_> {
         }
     }
 
+    /// The same frames and split under a predictive density with kernel floor `kernel_m`.
+    pub fn with_kernel(&self, kernel_m: f64) -> Ctx<'_> {
+        Ctx {
+            density: Density {
+                kernel_m,
+                ..self.density
+            },
+            base: self.base,
+            frames: self.frames,
+            train: self.train.clone(),
+            test: self.test.clone(),
+        }
+    }
+
     /// Sum of training NLL.
     pub fn train_nll(&self, m: &SimConfig) -> f64 {
         frame_nlls(&self.density, m, self.base, self.frames, &self.train)
@@ -276,19 +290,7 @@ impl Ctx<'_> {
     pub fn fit_kernel(&self, model: &SimConfig, opts: &SelectOptions) -> f64 {
         let (lo, hi) = (KERNEL_RANGE_M[0].ln(), KERNEL_RANGE_M[1].ln());
         let (x, _) = grid_golden_min(
-            |x| {
-                let c = Ctx {
-                    density: Density {
-                        kernel_m: x.exp(),
-                        ..self.density
-                    },
-                    base: self.base,
-                    frames: self.frames,
-                    train: self.train.clone(),
-                    test: Vec::new(),
-                };
-                c.train_nll(model)
-            },
+            |x| self.with_kernel(x.exp()).train_nll(model),
             lo,
             hi,
             opts.grid,
@@ -316,17 +318,7 @@ impl Ctx<'_> {
         let mut kernel = self.density.kernel_m;
         for _ in 0..2 {
             kernel = self.fit_kernel(&m, opts);
-            let c = Ctx {
-                density: Density {
-                    kernel_m: kernel,
-                    ..self.density
-                },
-                base: self.base,
-                frames: self.frames,
-                train: self.train.clone(),
-                test: self.test.clone(),
-            };
-            m = c.refit(&m, names, opts);
+            m = self.with_kernel(kernel).refit(&m, names, opts);
         }
         (m, kernel)
     }
