@@ -138,3 +138,47 @@ fn bad_configs_are_one_clear_error_and_write_nothing() {
         assert!(!out.exists());
     }
 }
+
+#[test]
+fn scene_config_changes_the_scenes_and_bad_ones_name_the_field() {
+    let tmp = tempfile::tempdir().unwrap();
+    let close = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/scenes/close_range.json");
+    let run = |cfg: Option<&Path>, out: &Path| {
+        let mut args = vec!["sim", "--preset", "mcu", "--scenes", "4", "--seed", "11"];
+        args.extend(["--out", out.to_str().unwrap()]);
+        if let Some(c) = cfg {
+            args.extend(["--scene-config", c.to_str().unwrap()]);
+        }
+        depthor(&args)
+    };
+    let (plain, near) = (tmp.path().join("plain"), tmp.path().join("near"));
+    assert_eq!(run(None, &plain).0, 0);
+    let (code, err) = run(Some(&close), &near);
+    assert_eq!(code, 0, "{err}");
+    // close_range.json caps the room at 4.5 m deep: the far wall comes nearer on every frame.
+    let far = |dir: &Path| -> Vec<u16> {
+        (0..4)
+            .map(|i| {
+                let png = dir.join(format!("frames/{i:06}/depth.png"));
+                let img = image::open(&png).unwrap().into_luma16();
+                let mut v: Vec<u16> = img.pixels().map(|p| p.0[0]).filter(|&d| d > 0).collect();
+                v.sort_unstable();
+                v[v.len() * 9 / 10]
+            })
+            .collect()
+    };
+    let (fp, fnear) = (far(&plain), far(&near));
+    assert!(fnear.iter().all(|&d| d < 5000), "{fnear:?}");
+    let sum = |v: &[u16]| v.iter().map(|&d| u32::from(d)).sum::<u32>();
+    assert!(sum(&fnear) < sum(&fp), "{fnear:?} vs {fp:?}");
+    let bad = tmp.path().join("bad.json");
+    std::fs::write(&bad, r#"{"room_depth_m": [5.0, 2.0]}"#).unwrap();
+    let out = tmp.path().join("bad_out");
+    let (code, err) = run(Some(&bad), &out);
+    assert_ne!(code, 0);
+    assert!(
+        err.contains("bad.json") && err.contains("room_depth_m"),
+        "{err}"
+    );
+    assert!(!out.exists());
+}

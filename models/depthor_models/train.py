@@ -5,10 +5,14 @@
 
 Recipe: scaled SILog loss (α = 10, λ = 0.85) on pixels whose reference depth is inside the
 sensor's theoretical range (0.1, 10) m; AdamW (weight decay 0.1); gradient l2-norm clipping at 0.1;
-OneCycle (initial lr = max/25, final lr = max/100). The monocular prior is trained jointly with an
-auxiliary scale-and-shift-invariant loss on its inverse depth D_inv (MiDaS style, weight
-`--prior-weight`); it also receives the main loss's gradients through the depth encoder input and
-F_mde.
+OneCycle (initial lr = max/25, final lr = max/100).
+
+Two stages (`--stage`), run in this order:
+- `prior`: the monocular prior alone (`net.prior`; every other weight frozen and not run), with
+  the scale-and-shift-invariant loss on its inverse depth D_inv (MiDaS style) as the only loss.
+- `depthor` (default): the whole network, `--init` from the prior stage's weights. The prior keeps
+  the same affine-invariant loss as an auxiliary term (weight `--prior-weight`) and also receives
+  the main loss's gradients through the depth encoder input and F_mde.
 
 The run folder holds `ckpt.pt` (model, optimizer, scheduler, step, RNG states, arguments; written
 atomically every `--ckpt-every-s` seconds, on SIGTERM/SIGINT and at the end), `train.csv` (one row
@@ -43,7 +47,8 @@ from .net import Depthor, build
 MIN_DEPTH_M = 0.1
 MAX_DEPTH_M = 10.0
 TRAIN_FIELDS = ["step", "wall_s", "lr", "loss", "silog", "prior", "grad_norm"]
-EVAL_FIELDS = ["step", "wall_s", "frames", "model_rmse", "model_delta1", "model_rel",
+STAGES = ("depthor", "prior")
+EVAL_FIELDS = ["step", "wall_s", "frames", "prior_ssi", "model_rmse", "model_delta1", "model_rel",
                "bilinear_rmse", "bilinear_delta1", "bilinear_rel",
                "nearest_rmse", "nearest_delta1", "nearest_rel"]
 
@@ -176,6 +181,22 @@ def predict(net: Depthor, rec: data.Recording, idx: np.ndarray, batch_size: int 
     return np.concatenate(out)
 
 
+@torch.no_grad()
+def prior_ssi(net: Depthor, rec: data.Recording, idx: np.ndarray, batch_size: int = 4) -> float:
+    """The prior's affine-invariant loss (`ssi_inverse_loss`) on frames `idx`, averaged per frame
+    (eval mode; restores the previous mode)."""
+    was_training = net.training
+    net.eval()
+    total, n = 0.0, 0
+    for s in range(0, len(idx), batch_size):
+        rgb, _, gt = data.batch(rec, idx[s:s + batch_size], None)
+        d_inv, _ = net.prior(rgb)
+        total += float(ssi_inverse_loss(d_inv, gt)) * len(rgb)
+        n += len(rgb)
+    net.train(was_training)
+    return total / max(n, 1)
+
+
 class Evaluator:
     """Held-out evaluation: the zone baselines are computed once, the model at every call."""
 
@@ -189,7 +210,7 @@ class Evaluator:
 
     def __call__(self, net: Depthor) -> dict[str, float]:
         m = metrics(predict(net, self.rec, self.idx, valid_status=self.valid_status), self.gt)
-        row = {"frames": len(self.idx)}
+        row = {"frames": len(self.idx), "prior_ssi": prior_ssi(net, self.rec, self.idx)}
         for name, res in [("model", m), *self.base.items()]:
             for k, v in res.items():
                 row[f"{name}_{k}"] = v
@@ -324,7 +345,13 @@ def train(args: argparse.Namespace) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     ckpt_path = out / "ckpt.pt"
     net = make_model(args.variant, args.seed)
-    opt, sched = make_optim(net, args.max_lr, args.steps, args.weight_decay)
+    prior_only = args.stage == "prior"
+    trained = net.prior if prior_only else net
+    for p in net.parameters():
+        p.requires_grad_(not prior_only)
+    for p in trained.parameters():
+        p.requires_grad_(True)
+    opt, sched = make_optim(trained, args.max_lr, args.steps, args.weight_decay)
     step, wall = 0, 0.0
     if args.resume and ckpt_path.exists():
         ck = torch.load(ckpt_path, map_location="cpu", weights_only=False)
@@ -334,7 +361,9 @@ def train(args: argparse.Namespace) -> dict:
         step, wall = int(ck["step"]), float(ck["wall_s"])
         torch.set_rng_state(ck["rng"]["torch"])
         saved = {"schedule_s": 0.0, **ck["args"]}  # checkpoints from before --schedule-s
-        forced = ("variant", "seed", "batch", "steps", "max_lr", "train", "schedule_s", "crop")
+        saved.setdefault("stage", "depthor")  # checkpoints from before --stage
+        forced = ("variant", "seed", "batch", "steps", "max_lr", "train", "schedule_s", "crop",
+                  "stage")
         for k in forced:
             if k == "train" and args.switch_train:
                 if saved.get(k) != args.train:
@@ -396,13 +425,17 @@ def train(args: argparse.Namespace) -> dict:
         rgb, sp, gt = data.batch(train_rec, idx, flips)
         y0, x0, ch, cw = crop_plan(args.seed, step, rgb.shape[2], rgb.shape[3], crop)
         rgb, sp, gt = (t[:, :, y0:y0 + ch, x0:x0 + cw] for t in (rgb, sp, gt))
-        pred = net(rgb, sp)
-        l_main = silog_loss(pred, gt)
-        l_prior = ssi_inverse_loss(captured["d_inv"], gt)
-        loss = l_main + args.prior_weight * l_prior
+        if prior_only:
+            l_prior = ssi_inverse_loss(net.prior(rgb)[0], gt)
+            l_main, loss = None, l_prior
+        else:
+            pred = net(rgb, sp)
+            l_main = silog_loss(pred, gt)
+            l_prior = ssi_inverse_loss(captured["d_inv"], gt)
+            loss = l_main + args.prior_weight * l_prior
         opt.zero_grad(set_to_none=True)
         loss.backward()
-        gn = torch.nn.utils.clip_grad_norm_(net.parameters(), args.clip)
+        gn = torch.nn.utils.clip_grad_norm_(trained.parameters(), args.clip)
         if by_time:  # OneCycle over training seconds instead of steps
             lr, beta1 = onecycle_at(wall / args.schedule_s, args.max_lr)
             for grp in opt.param_groups:
@@ -416,10 +449,11 @@ def train(args: argparse.Namespace) -> dict:
         wall += time.perf_counter() - ts
         _append(out / "train.csv", TRAIN_FIELDS, {
             "step": step, "wall_s": round(wall, 2), "lr": f"{lr:.3e}", "loss": f"{loss.item():.5f}",
-            "silog": f"{l_main.item():.5f}", "prior": f"{l_prior.item():.5f}",
-            "grad_norm": f"{float(gn):.4f}"})
+            "silog": "" if l_main is None else f"{l_main.item():.5f}",
+            "prior": f"{l_prior.item():.5f}", "grad_norm": f"{float(gn):.4f}"})
         if step % 10 == 0:
-            print(f"step {step} loss {loss.item():.4f} silog {l_main.item():.4f} "
+            silog = "-" if l_main is None else f"{l_main.item():.4f}"
+            print(f"step {step} loss {loss.item():.4f} silog {silog} "
                   f"prior {l_prior.item():.4f} lr {lr:.2e} ({wall:.0f} s)", flush=True)
         if time.perf_counter() - last_ckpt >= args.ckpt_every_s:
             last_row = checkpoint(evaluate=True) or last_row
@@ -486,7 +520,8 @@ def plot(run_dir: str | Path, width: int = 900, height: int = 600) -> Path | Non
     k = max(1, min(50, len(ll) // 10))
     smooth = np.convolve(ll, np.ones(k) / k, mode="valid")
     lo, hi = float(np.percentile(ll, 1)) - 0.05, float(np.percentile(ll, 99.5)) + 0.05
-    axes(panels[0], "train loss (SILog + prior aux), log10; grey = per step, blue = moving avg",
+    what = "SILog + prior aux" if any(r.get("silog") for r in tr) else "prior affine-invariant"
+    axes(panels[0], f"train loss ({what}), log10; grey = per step, blue = moving avg",
          lo, hi, True)
     line(panels[0], steps, ll, lo, hi, (170, 170, 170))
     line(panels[0], steps[k - 1:], smooth, lo, hi, (20, 60, 220), 2)
@@ -511,6 +546,9 @@ def main(argv: list[str] | None = None) -> int:
                     "(required to train)")
     ap.add_argument("--test", help="held-out recording folder (required to train or evaluate)")
     ap.add_argument("--out", default="runs/mcu", help="run folder (checkpoint, logs, plot)")
+    ap.add_argument("--stage", default="depthor", choices=STAGES,
+                    help="prior: the monocular prior alone on its affine-invariant loss (run "
+                         "first); depthor: the whole network (--init from the prior stage)")
     ap.add_argument("--steps", type=int, default=2000, help="OneCycle length (total steps)")
     ap.add_argument("--batch", type=int, default=8)
     ap.add_argument("--max-lr", type=float, default=3e-4, help="OneCycle peak (paper: 3e-4)")

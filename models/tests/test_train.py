@@ -276,3 +276,25 @@ def test_resample_matches_eval_mapping(tmp_path):
     assert data.load_recording(root, size=(H, W)).rgb.shape == full.rgb.shape
     # another aspect ratio: centred crop
     assert data._centre_crop(40, 60, 20, 20) == (0, 10, 40, 40)
+
+
+def test_prior_stage_trains_only_the_prior_then_depthor_starts_from_it(tmp_path):
+    """`--stage prior` moves the prior's weights (and its BN statistics) and nothing else, logs
+    the affine-invariant loss alone, and the `depthor` stage can `--init` from its weights."""
+    rec_dir = write_recording(tmp_path / "rec", n=5)
+    T.main(_args(rec_dir, tmp_path / "init", "--steps", "1", "--max-lr", "1e-9"))
+    start = torch.load(tmp_path / "init" / "model_final.pt")
+    T.main(_args(rec_dir, tmp_path / "prior", "--stage", "prior",
+                 "--init", str(tmp_path / "init" / "model_final.pt")))
+    after = torch.load(tmp_path / "prior" / "model_final.pt")
+    moved = {k for k in start if not torch.equal(start[k], after[k])}
+    assert moved and all(k.startswith("prior.") for k in moved), sorted(moved)[:5]
+    assert any(k.endswith(".weight") for k in moved)
+    with (tmp_path / "prior" / "train.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert rows and all(r["silog"] == "" and float(r["loss"]) == float(r["prior"]) for r in rows)
+    with (tmp_path / "prior" / "eval.csv").open() as f:
+        assert float(list(csv.DictReader(f))[-1]["prior_ssi"]) > 0.0
+    T.main(_args(rec_dir, tmp_path / "main", "--init", str(tmp_path / "prior" / "model_final.pt")))
+    final = torch.load(tmp_path / "main" / "model_final.pt")
+    assert any(not torch.equal(after[k], final[k]) for k in after if not k.startswith("prior."))

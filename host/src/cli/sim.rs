@@ -3,6 +3,7 @@
 //!
 //! ```text
 //! depthor sim --preset l5 --scenes N --seed S --out DIR [--width W --height H] [--preview]
+//!             [--scene-config scenes.json]
 //! depthor sim --config cfg.json --from RECORDING --out DIR [--preview]
 //! ```
 
@@ -34,6 +35,10 @@ pub struct Args {
     /// Number of synthetic scenes to render and simulate.
     #[arg(long, conflicts_with = "from")]
     scenes: Option<u64>,
+    /// Scene generator JSON with --scenes: the fields it names replace the preset's scene
+    /// ranges (e.g. models/scenes/close_range.json; see `depthor_host::scene::SceneConfig`).
+    #[arg(long, conflicts_with = "from")]
+    scene_config: Option<PathBuf>,
     /// Simulate the sensor for this recording's reference depth instead of rendering scenes.
     #[arg(long)]
     from: Option<PathBuf>,
@@ -121,7 +126,14 @@ fn synthetic(
     w: u32,
     h: u32,
 ) -> Result<PathBuf> {
-    let scene_cfg = scene_config_for(preset_name);
+    let mut scene_cfg = scene_config_for(preset_name);
+    if let Some(path) = &args.scene_config {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("{}: cannot read", path.display()))?;
+        scene_cfg = scene_cfg
+            .with_overrides(&text)
+            .with_context(|| format!("{}", path.display()))?;
+    }
     // The header carries the nominal camera; every frame carries its own intrinsics.
     let nominal = depthor_host::scene::camera_for(&scene_cfg, args.seed, w, h);
     let meta = recording_meta(cfg, &nominal);

@@ -80,3 +80,147 @@ impl Default for SceneConfig {
         }
     }
 }
+
+/// Why a scene configuration file was rejected; every variant names the field.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneConfigError {
+    /// Not a JSON object, or a field of the wrong type.
+    #[error("scene config: {0}")]
+    Json(#[from] serde_json::Error),
+    /// A field the generator does not have.
+    #[error("scene config: unknown field `{0}`")]
+    UnknownField(String),
+    /// A field whose value the generator cannot draw from.
+    #[error("scene config: field `{field}`: {why}")]
+    Invalid {
+        /// The field's name.
+        field: &'static str,
+        /// What is wrong with it.
+        why: String,
+    },
+}
+
+impl SceneConfig {
+    /// `base` with the fields of the JSON object `text` replaced (a file only names what it
+    /// changes), then validated: ranges finite with `lo ≤ hi`, sizes positive, probabilities
+    /// in [0, 1].
+    pub fn with_overrides(&self, text: &str) -> Result<SceneConfig, SceneConfigError> {
+        let patch: serde_json::Map<String, serde_json::Value> = serde_json::from_str(text)?;
+        let mut merged = match serde_json::to_value(self)? {
+            serde_json::Value::Object(m) => m,
+            _ => unreachable!("SceneConfig serialises to an object"),
+        };
+        for (k, v) in patch {
+            if !merged.contains_key(&k) {
+                return Err(SceneConfigError::UnknownField(k));
+            }
+            merged.insert(k, v);
+        }
+        let cfg: SceneConfig = serde_json::from_value(serde_json::Value::Object(merged))?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    /// Checks that every range can be drawn from (see [`SceneConfig::with_overrides`]).
+    pub fn validate(&self) -> Result<(), SceneConfigError> {
+        let invalid = |field: &'static str, why: String| SceneConfigError::Invalid { field, why };
+        let metres = [
+            ("room_width_m", self.room_width_m),
+            ("room_depth_m", self.room_depth_m),
+            ("room_height_m", self.room_height_m),
+            ("corridor_width_m", self.corridor_width_m),
+            ("camera_height_m", self.camera_height_m),
+            ("hfov_deg", self.hfov_deg),
+        ];
+        for (field, [lo, hi]) in metres {
+            if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo <= hi) {
+                return Err(invalid(field, format!("[{lo}, {hi}] is not 0 < lo ≤ hi")));
+            }
+        }
+        if self.hfov_deg[1] >= 170.0 {
+            return Err(invalid("hfov_deg", "must stay below 170°".into()));
+        }
+        let angles = [
+            ("camera_pitch_deg", self.camera_pitch_deg),
+            ("camera_roll_deg", self.camera_roll_deg),
+            ("camera_yaw_deg", self.camera_yaw_deg),
+        ];
+        for (field, [lo, hi]) in angles {
+            if !(lo.is_finite() && hi.is_finite() && lo <= hi && lo >= -89.0 && hi <= 89.0) {
+                return Err(invalid(
+                    field,
+                    format!("[{lo}, {hi}] is not -89 ≤ lo ≤ hi ≤ 89"),
+                ));
+            }
+        }
+        let counts = [
+            ("objects", self.objects),
+            ("thin_structures", self.thin_structures),
+            ("slanted_planes", self.slanted_planes),
+            ("wall_items", self.wall_items),
+            ("lights", self.lights),
+        ];
+        for (field, [lo, hi]) in counts {
+            if lo > hi || hi > 64 {
+                return Err(invalid(field, format!("[{lo}, {hi}] is not lo ≤ hi ≤ 64")));
+            }
+        }
+        if self.lights[0] == 0 {
+            return Err(invalid("lights", "at least one lamp is needed".into()));
+        }
+        if self.soft_shadow_samples == 0 || self.soft_shadow_samples > 64 {
+            return Err(invalid("soft_shadow_samples", "must be 1..=64".into()));
+        }
+        let probabilities = [
+            ("corridor_prob", self.corridor_prob),
+            ("glass_prob", self.glass_prob),
+            ("mirror_prob", self.mirror_prob),
+            ("dark_prob", self.dark_prob),
+            ("opening_prob", self.opening_prob),
+            ("photo_texture_prob", self.photo_texture_prob),
+            ("soft_shadow_prob", self.soft_shadow_prob),
+        ];
+        for (field, p) in probabilities {
+            if !(0.0..=1.0).contains(&p) {
+                return Err(invalid(field, format!("{p} is not in [0, 1]")));
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn overrides_replace_named_fields_and_keep_the_rest() {
+        let base = SceneConfig {
+            hfov_deg: [48.0, 54.0],
+            ..SceneConfig::default()
+        };
+        let cfg = base
+            .with_overrides(r#"{"room_depth_m": [1.5, 4.0], "objects": [6, 12]}"#)
+            .unwrap();
+        assert_eq!(cfg.room_depth_m, [1.5, 4.0]);
+        assert_eq!(cfg.objects, [6, 12]);
+        assert_eq!(cfg.hfov_deg, [48.0, 54.0]);
+        assert_eq!(cfg.glass_prob, base.glass_prob);
+        SceneConfig::default().validate().unwrap();
+    }
+
+    #[test]
+    fn bad_files_name_the_field() {
+        let base = SceneConfig::default();
+        let err = |t: &str| base.with_overrides(t).unwrap_err().to_string();
+        assert!(err(r#"{"room_depht_m": [1, 2]}"#).contains("room_depht_m"));
+        assert!(err(r#"{"room_depth_m": [4, 2]}"#).contains("room_depth_m"));
+        assert!(err(r#"{"glass_prob": 1.5}"#).contains("glass_prob"));
+        assert!(err(r#"{"objects": [3, 1]}"#).contains("objects"));
+        assert!(err(r#"{"lights": [0, 0]}"#).contains("lights"));
+        assert!(err(r#"{"camera_pitch_deg": [-95, 0]}"#).contains("camera_pitch_deg"));
+        assert!(err(r#"{"objects": "many"}"#).contains("scene config"));
+        assert!(err("[1, 2]").contains("scene config"));
+        assert!(err("{").contains("scene config"));
+    }
+}

@@ -24,7 +24,7 @@ mod render;
 mod shapes;
 mod texture;
 
-pub use config::SceneConfig;
+pub use config::{SceneConfig, SceneConfigError};
 pub use material::Class;
 pub use texture::PHOTOS;
 
