@@ -78,8 +78,10 @@ def training_section(run: Path) -> list[str]:
     args = json.loads((run / "args.json").read_text())
     steps = list(csv.DictReader((run / "train.csv").open()))
     evals = list(csv.DictReader((run / "eval.csv").open())) if (run / "eval.csv").exists() else []
+    n = int(args.get("threads", 2))
+    threads = f"{n} thread" + ("s" if n != 1 else "")
     lines.append(f"Run folder `{run.relative_to(HERE.parent) if run.is_relative_to(HERE.parent) else run}`: "
-                 f"{len(steps)} steps of batch {args['batch']} on CPU (2 threads), "
+                 f"{len(steps)} steps of batch {args['batch']} on CPU ({threads}), "
                  f"{float(steps[-1]['wall_s']) / 60:.0f} min wall; initialised from `{args.get('init')}`; "
                  f"train set `{args['train']}`, in-run check set `{args['test']}`; AdamW (weight decay "
                  f"{args['weight_decay']}), clip {args['clip']}, OneCycle max lr {args['max_lr']}, SILog α 10 λ 0.85.")
@@ -101,6 +103,10 @@ def main() -> None:
     ap.add_argument("variant")
     ap.add_argument("--synthetic", type=Path, help="depthor eval summary.json on the held-out synthetic set")
     ap.add_argument("--synthetic-command", default="", help="the command that made --synthetic")
+    ap.add_argument("--extra-synthetic", nargs=3, action="append", default=[],
+                    metavar=("TITLE", "SUMMARY", "COMMAND"),
+                    help="another held-out synthetic set (e.g. other scene ranges): its title, "
+                         "depthor eval summary.json and the command that made it; repeatable")
     ap.add_argument("--real", type=Path, help="depthor eval summary.json over the real sets")
     ap.add_argument("--real-command", default="", help="the command that made --real")
     ap.add_argument("--run", type=Path, help="training run folder")
@@ -145,6 +151,10 @@ def main() -> None:
         s = json.loads(a.synthetic.read_text())
         L += ["## Held-out synthetic test set", "",
               f"{s['frames']} frames; command: `{a.synthetic_command}`", ""] + table(s["methods"]) + [""] + verdict(s) + [""]
+    for title, path, command in a.extra_synthetic:
+        s = json.loads(Path(path).read_text())
+        L += [f"## Held-out synthetic test set: {title}", "",
+              f"{s['frames']} frames; command: `{command}`", ""] + table(s["methods"]) + [""] + verdict(s) + [""]
     if a.real:
         s = json.loads(a.real.read_text())
         L += ["## Real RGB-D sets (dToF simulated on their reference depth with this variant's preset)", "",

@@ -54,3 +54,27 @@ proptest! {
         }
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// Mutated `--scene-config` files are either one error naming what is wrong or a config
+    /// that renders a (small) scene without panicking.
+    #[test]
+    fn mutated_scene_config(pos in 0usize..10_000, len in 1usize..4, fill in any::<u8>(), seed in 0u64..1000) {
+        use depthor_host::scene::{camera_for, render_scene, SceneConfig};
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../models/scenes/close_range.json");
+        let mut bytes = std::fs::read(path).unwrap();
+        let at = pos % bytes.len();
+        let end = (at + len).min(bytes.len());
+        bytes[at..end].fill(fill);
+        let text = String::from_utf8_lossy(&bytes);
+        match SceneConfig::default().with_overrides(&text) {
+            Err(e) => prop_assert!(e.to_string().starts_with("scene config")),
+            Ok(cfg) => {
+                let frame = render_scene(&cfg, seed, camera_for(&cfg, seed, 24, 18));
+                prop_assert_eq!(frame.depth_m.len(), 24 * 18);
+            }
+        }
+    }
+}

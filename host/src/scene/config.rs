@@ -124,21 +124,22 @@ impl SceneConfig {
     /// Checks that every range can be drawn from (see [`SceneConfig::with_overrides`]).
     pub fn validate(&self) -> Result<(), SceneConfigError> {
         let invalid = |field: &'static str, why: String| SceneConfigError::Invalid { field, why };
-        let metres = [
-            ("room_width_m", self.room_width_m),
-            ("room_depth_m", self.room_depth_m),
-            ("room_height_m", self.room_height_m),
-            ("corridor_width_m", self.corridor_width_m),
-            ("camera_height_m", self.camera_height_m),
-            ("hfov_deg", self.hfov_deg),
+        // (field, range, smallest and largest value the generator is built for)
+        let sizes = [
+            ("room_width_m", self.room_width_m, 1.0, 100.0),
+            ("room_depth_m", self.room_depth_m, 1.0, 100.0),
+            ("room_height_m", self.room_height_m, 1.5, 30.0),
+            ("corridor_width_m", self.corridor_width_m, 0.8, 100.0),
+            ("camera_height_m", self.camera_height_m, 0.1, 30.0),
+            ("hfov_deg", self.hfov_deg, 10.0, 150.0),
         ];
-        for (field, [lo, hi]) in metres {
-            if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo <= hi) {
-                return Err(invalid(field, format!("[{lo}, {hi}] is not 0 < lo ≤ hi")));
+        for (field, [lo, hi], min, max) in sizes {
+            if !(lo >= min && lo <= hi && hi <= max) {
+                return Err(invalid(
+                    field,
+                    format!("[{lo}, {hi}] is not {min} ≤ lo ≤ hi ≤ {max}"),
+                ));
             }
-        }
-        if self.hfov_deg[1] >= 170.0 {
-            return Err(invalid("hfov_deg", "must stay below 170°".into()));
         }
         let angles = [
             ("camera_pitch_deg", self.camera_pitch_deg),
