@@ -124,6 +124,7 @@ def main() -> None:
         card["regression"]["int8_rmse"] = round(s["methods"]["int8"]["rmse"], 4)
         card["regression"]["int8_delta1"] = round(s["methods"]["int8"]["delta1"], 4)
         card["regression"]["int8_vs_float_rmse_rel"] = round(s["int8_vs_float"]["rmse_rel_diff"], 4)
+        card["regression"]["int8_vs_float_delta1"] = round(s["int8_vs_float"]["delta1_diff"], 4)
     card["weights"] = summary.get("weights")
     (d / "card.json").write_text(json.dumps(card, indent=1, ensure_ascii=False) + "\n")
 
@@ -165,6 +166,8 @@ def main() -> None:
           f"if the int8 RMSE exceeds 1.05 × {r['int8_rmse']} m (δ1 here {r['int8_delta1']})"
           + (f", or if int8 falls behind float by more than {100 * r['int8_vs_float_rmse_rel']:+.2f} % + 0.5 % in RMSE "
              f"(int8 vs float on this set when the card was written)" if "int8_vs_float_rmse_rel" in r else "")
+          + (f" or by more than {min(r['int8_vs_float_delta1'], 0.0):+.4f} − 0.005 in δ1"
+             if "int8_vs_float_delta1" in r else "")
           + f". Command: `{r['command']}`.", ""]
     (d / "MODEL_CARD.md").write_text("\n".join(L))
     print(f"wrote {d / 'MODEL_CARD.md'} and {d / 'card.json'}")
