@@ -183,8 +183,8 @@ def predict(net: Depthor, rec: data.Recording, idx: np.ndarray, batch_size: int 
 
 @torch.no_grad()
 def prior_ssi(net: Depthor, rec: data.Recording, idx: np.ndarray, batch_size: int = 4) -> float:
-    """The prior's affine-invariant loss (`ssi_inverse_loss`) on frames `idx`, averaged per frame
-    (eval mode; restores the previous mode)."""
+    """The prior's affine-invariant loss (`ssi_inverse_loss`) on frames `idx`: the batches' losses
+    weighted by batch size (eval mode; restores the previous mode)."""
     was_training = net.training
     net.eval()
     total, n = 0.0, 0
@@ -347,10 +347,8 @@ def train(args: argparse.Namespace) -> dict:
     net = make_model(args.variant, args.seed)
     prior_only = args.stage == "prior"
     trained = net.prior if prior_only else net
-    for p in net.parameters():
-        p.requires_grad_(not prior_only)
-    for p in trained.parameters():
-        p.requires_grad_(True)
+    net.requires_grad_(not prior_only)
+    trained.requires_grad_(True)
     opt, sched = make_optim(trained, args.max_lr, args.steps, args.weight_decay)
     step, wall = 0, 0.0
     if args.resume and ckpt_path.exists():

@@ -102,8 +102,8 @@ pub enum SceneConfigError {
 
 impl SceneConfig {
     /// `base` with the fields of the JSON object `text` replaced (a file only names what it
-    /// changes), then validated: ranges finite with `lo ≤ hi`, sizes positive, probabilities
-    /// in [0, 1].
+    /// changes), then validated: every range `lo ≤ hi` within the bounds the generator is
+    /// built for, counts at most 64 with at least one lamp, probabilities in [0, 1].
     pub fn with_overrides(&self, text: &str) -> Result<SceneConfig, SceneConfigError> {
         let patch: serde_json::Map<String, serde_json::Value> = serde_json::from_str(text)?;
         let mut merged = match serde_json::to_value(self)? {
@@ -124,33 +124,23 @@ impl SceneConfig {
     /// Checks that every range can be drawn from (see [`SceneConfig::with_overrides`]).
     pub fn validate(&self) -> Result<(), SceneConfigError> {
         let invalid = |field: &'static str, why: String| SceneConfigError::Invalid { field, why };
-        // (field, range, smallest and largest value the generator is built for)
-        let sizes = [
+        // (field, range, smallest and largest value the generator is built for); NaN fails
+        let ranges = [
             ("room_width_m", self.room_width_m, 1.0, 100.0),
             ("room_depth_m", self.room_depth_m, 1.0, 100.0),
             ("room_height_m", self.room_height_m, 1.5, 30.0),
             ("corridor_width_m", self.corridor_width_m, 0.8, 100.0),
             ("camera_height_m", self.camera_height_m, 0.1, 30.0),
             ("hfov_deg", self.hfov_deg, 10.0, 150.0),
+            ("camera_pitch_deg", self.camera_pitch_deg, -89.0, 89.0),
+            ("camera_roll_deg", self.camera_roll_deg, -89.0, 89.0),
+            ("camera_yaw_deg", self.camera_yaw_deg, -89.0, 89.0),
         ];
-        for (field, [lo, hi], min, max) in sizes {
+        for (field, [lo, hi], min, max) in ranges {
             if !(lo >= min && lo <= hi && hi <= max) {
                 return Err(invalid(
                     field,
                     format!("[{lo}, {hi}] is not {min} ≤ lo ≤ hi ≤ {max}"),
-                ));
-            }
-        }
-        let angles = [
-            ("camera_pitch_deg", self.camera_pitch_deg),
-            ("camera_roll_deg", self.camera_roll_deg),
-            ("camera_yaw_deg", self.camera_yaw_deg),
-        ];
-        for (field, [lo, hi]) in angles {
-            if !(lo.is_finite() && hi.is_finite() && lo <= hi && lo >= -89.0 && hi <= 89.0) {
-                return Err(invalid(
-                    field,
-                    format!("[{lo}, {hi}] is not -89 ≤ lo ≤ hi ≤ 89"),
                 ));
             }
         }
