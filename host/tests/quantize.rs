@@ -5,7 +5,7 @@
 
 use depthor_core::engine::{required_arena_bytes, Engine};
 use depthor_host::quantize::calibrate::simulated_frames;
-use depthor_host::quantize::check::{compare, golden_diff};
+use depthor_host::quantize::check::{compare, golden_diff, op_fidelity};
 use depthor_host::quantize::fold::fold;
 use depthor_host::quantize::golden::read_golden;
 use depthor_host::quantize::graph::Graph;
@@ -63,6 +63,35 @@ fn int8_engine_tracks_float_graph() {
         .layers
         .iter()
         .all(|l| l.sqnr_db.is_finite() || l.max_abs_err == 0.0));
+}
+
+/// Every int8 op of the committed blob against its own model (the f32 op on the engine's
+/// inputs, rounded to the output's parameters): only weight rounding and ties may separate them.
+/// A kernel that rounds twice (the element-wise rescale did, up to a code per element, until
+/// `Requant::apply_rounded`) reads as tenths of a code here.
+#[test]
+fn every_int8_op_follows_its_model() {
+    let net = mcu();
+    let blob = std::fs::read(models().join("mcu/depthor.dblob")).unwrap();
+    let frames = simulated_frames("mcu", net.height, net.width, 2, 2000).unwrap();
+    let fidelity = op_fidelity(&blob, &net, &frames).unwrap();
+    assert!(fidelity.len() > 50, "int8 ops checked: {}", fidelity.len());
+    for f in &fidelity {
+        println!(
+            "op {:3} {:36} mean {:.4} codes, max {}",
+            f.op, f.name, f.mean_abs_codes, f.max_abs_codes
+        );
+    }
+    for f in &fidelity {
+        assert!(
+            f.mean_abs_codes <= 0.03 && f.max_abs_codes <= 1,
+            "op {} {}: mean {:.3} codes, max {}",
+            f.op,
+            f.name,
+            f.mean_abs_codes,
+            f.max_abs_codes
+        );
+    }
 }
 
 #[test]

@@ -63,7 +63,7 @@ impl Rescale {
     pub fn apply(&self, q: i8) -> i8 {
         clamp_i8(
             self.m
-                .apply(q as i32 - self.zp_in)
+                .apply_rounded(q as i32 - self.zp_in)
                 .saturating_add(self.zp_out),
             -128,
             127,
@@ -160,7 +160,11 @@ impl MulQuant {
     #[inline]
     fn apply(&self, a: i8, b: i8) -> i8 {
         let p = (a as i32 - self.zp[0]) * (b as i32 - self.zp[1]);
-        clamp_i8(self.m.apply(p).saturating_add(self.zp[2]), -128, 127)
+        clamp_i8(
+            self.m.apply_rounded(p).saturating_add(self.zp[2]),
+            -128,
+            127,
+        )
     }
 }
 

@@ -34,7 +34,11 @@ impl MeanQuant {
 
     #[inline]
     fn finish(&self, sum: i32) -> i8 {
-        clamp_i8(self.m.apply(sum).saturating_add(self.zp_out), -128, 127)
+        clamp_i8(
+            self.m.apply_rounded(sum).saturating_add(self.zp_out),
+            -128,
+            127,
+        )
     }
 }
 

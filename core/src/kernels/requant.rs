@@ -1,10 +1,13 @@
-//! Integer requantisation, bit-exact with TFLite / gemmlowp / CMSIS-NN.
+//! Integer requantisation; the conv path is bit-exact with TFLite / gemmlowp / CMSIS-NN.
 //!
 //! A real multiplier `M > 0` is stored as a Q31 `multiplier` in `[2^30, 2^31)` and a power-of-two
 //! `shift` so that `M = multiplier · 2^(shift − 31)`. Applying it to an `i32` accumulator is
 //! `RoundingDivideByPOT(SaturatingRoundingDoublingHighMul(x · 2^max(shift,0), multiplier), max(−shift,0))`
 //! exactly as `MultiplyByQuantizedMultiplier` in TFLite's `common.h`, so host and Cortex-M give the
-//! same bits. The only floating point here is [`Requant::from_real`], run once at prepare time.
+//! same bits. Element-wise kernels, whose operands are small code differences, use
+//! [`Requant::apply_rounded`] instead: the same multiplier with one rounding of the exact 64-bit
+//! product (the two-step form would cost them up to a code per element). The only floating
+//! point here is [`Requant::from_real`], run once at prepare time.
 
 /// Per-tensor affine quantisation of int8 activations: `real = scale · (q − zero_point)`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -113,6 +116,27 @@ impl Requant {
             saturating_rounding_doubling_high_mul(shifted, self.multiplier),
             right,
         )
+    }
+
+    /// Applies the multiplier with a single rounding (half away from zero) of the exact 64-bit
+    /// product `x · multiplier · 2^(shift − 31)`.
+    ///
+    /// [`Requant::apply`] rounds twice (after the high multiply, then after the right shift), which
+    /// is harmless on conv accumulators but costs up to one code when `x` is a small int8
+    /// difference and the multiplier is near 1 (rescaling one tensor's codes to another's,
+    /// means, products). The element-wise kernels use this form; saturates to `i32`.
+    #[inline]
+    pub fn apply_rounded(&self, x: i32) -> i32 {
+        if self.multiplier == 0 {
+            return 0;
+        }
+        // |x · multiplier| < 2^62; `right` is in 1..=62 because shift is in −31..=30.
+        let product = x as i64 * self.multiplier as i64;
+        let right = (31 - self.shift).clamp(1, 62);
+        let half = 1i64 << (right - 1);
+        let magnitude = (product.unsigned_abs() as i64 + half) >> right;
+        let rounded = if product < 0 { -magnitude } else { magnitude };
+        rounded.clamp(i32::MIN as i64, i32::MAX as i64) as i32
     }
 
     /// The real value this multiplier encodes (for tests and reports).
@@ -239,6 +263,20 @@ mod tests {
     }
 
     #[test]
+    fn apply_rounded_rounds_once() {
+        // 0.454 = 0.908 · 2^-1: the two-step form rounds 1 · 0.908 up to 1, then 0.5 up to 1.
+        let r = Requant::from_real(0.454);
+        assert_eq!(r.apply(1), 1);
+        assert_eq!(r.apply_rounded(1), 0);
+        assert_eq!(r.apply_rounded(-1), 0);
+        assert_eq!(r.apply_rounded(3), 1); // 1.362
+        assert_eq!(r.apply_rounded(-5), -2); // −2.27
+        assert_eq!(Requant::from_real(0.5).apply_rounded(-3), -2); // −1.5 → −2
+        assert_eq!(Requant::default().apply_rounded(12345), 0);
+        assert_eq!(Requant::from_real(1e9).apply_rounded(i32::MAX), i32::MAX);
+    }
+
+    #[test]
     fn quantize_round_trips() {
         let q = QParams {
             scale: 0.1,
@@ -258,6 +296,10 @@ mod tests {
             let r = Requant::from_real(m);
             let want = x as f64 * m;
             proptest::prop_assert!((r.apply(x) as f64 - want).abs() <= 1.0);
+            // One rounding of the encoded multiplier: within half a unit, plus the encoding's
+            // relative error of 2^-31.
+            let exact = x as f64 * r.to_real();
+            proptest::prop_assert!((r.apply_rounded(x) as f64 - exact).abs() <= 0.5 + 1e-6);
         }
     }
 }

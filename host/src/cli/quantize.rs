@@ -5,7 +5,7 @@
 use anyhow::{Context, Result};
 use depthor_core::engine::required_arena_bytes;
 use depthor_host::quantize::calibrate::{simulated_frames, RangeRule};
-use depthor_host::quantize::check::{compare, golden_diff};
+use depthor_host::quantize::check::{compare, golden_diff, op_fidelity};
 use depthor_host::quantize::fold::fold;
 use depthor_host::quantize::golden::read_golden;
 use depthor_host::quantize::graph::Graph;
@@ -129,6 +129,17 @@ pub fn handle(args: Args) -> Result<()> {
     println!("worst ops:");
     for l in c.worst_layers(8) {
         println!("  {:3} {:40} {:7.1} dB", l.op, l.name, l.sqnr_db);
+    }
+    let mut fidelity = op_fidelity(&q.blob, &net, &eval[..eval.len().min(2)])?;
+    fidelity.sort_by(|a, b| b.mean_abs_codes.total_cmp(&a.mean_abs_codes));
+    println!(
+        "ops furthest from their int8 model (f32 op on the engine's inputs, rounded), 2 frames:"
+    );
+    for f in fidelity.iter().take(5) {
+        println!(
+            "  {:3} {:40} mean {:.3} codes, max {}",
+            f.op, f.name, f.mean_abs_codes, f.max_abs_codes
+        );
     }
     Ok(())
 }

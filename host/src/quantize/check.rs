@@ -2,10 +2,12 @@
 //! depth per frame, and of every op's output (the engine's int8 tensor dequantised, seen through
 //! [`Engine::run_observed`], against the f32 value) accumulated over frames.
 
+use super::blob_writer::quantize_channels;
 use super::calibrate::Frame;
 use super::golden::GoldenTensor;
-use super::net::Net;
+use super::net::{Net, OpKind};
 use depthor_core::engine::{required_arena_bytes, Engine, Error as EngineError, Observed};
+use depthor_core::kernels::requant::QParams;
 use std::collections::HashMap;
 
 /// `10·log10(Σ signal² / Σ (signal − test)²)` in dB (`+∞` when they are equal).
@@ -190,6 +192,117 @@ pub fn compare(blob: &[u8], net: &Net, frames: &[Frame]) -> Result<Comparison, C
         })
         .collect();
     Ok(cmp)
+}
+
+/// How closely one int8 op follows its own model: the f32 op run on the engine's dequantised
+/// inputs, rounded to the op's output parameters.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OpFidelity {
+    /// Op index (= blob op index).
+    pub op: usize,
+    /// Output value name.
+    pub name: String,
+    /// Mean |engine code − model code| over all elements and frames.
+    pub mean_abs_codes: f64,
+    /// Largest |engine code − model code|.
+    pub max_abs_codes: i32,
+}
+
+/// For every int8 op of `blob`: how far the engine's codes are from the f32 op applied to the
+/// codes the engine fed it (the rgb and sparse inputs quantised as the engine quantises them).
+/// Weight rounding and accumulation order leave a few hundredths of a code; a kernel that
+/// rounds twice or drifts from its float definition shows up as tenths.
+pub fn op_fidelity(
+    blob: &[u8],
+    net: &Net,
+    frames: &[Frame],
+) -> Result<Vec<OpFidelity>, CheckError> {
+    let need = required_arena_bytes(blob, net.height, net.width)?;
+    let mut arena = vec![0u8; need + 64];
+    let mut engine = Engine::new(blob, &mut arena)?;
+    let n_ops = engine.graph().ops.len();
+    if n_ops != net.ops.len() {
+        return Err(CheckError::OpCount {
+            blob: n_ops,
+            net: net.ops.len(),
+        });
+    }
+    let tensors = &engine.graph().tensors;
+    let sparse_q = tensors[engine.graph().sparse as usize].q;
+    let scale_of = |v: usize| tensors.get(v).map_or(1.0, |t| t.q.scale);
+    let model_net = with_blob_weights(net, scale_of);
+    let net = &model_net;
+    let mut sum = vec![0f64; n_ops];
+    let mut count = vec![0u64; n_ops];
+    let mut max = vec![0i32; n_ops];
+    let mut depth = vec![0f32; net.height * net.width];
+    for f in frames {
+        let sparse: Vec<f32> = f
+            .sparse_m
+            .iter()
+            .map(|&v| sparse_q.dequantize(sparse_q.quantize(v)))
+            .collect();
+        let mut vals: Vec<Vec<f32>> = vec![f.rgb_planar(), sparse];
+        let mut codes: Vec<Option<(Vec<i8>, QParams)>> = vec![None, None];
+        engine.run_observed(&f.rgb, &f.sparse_m, &mut depth, &mut |_, o| match o {
+            Observed::I8(q, p) => {
+                vals.push(q.iter().map(|&c| p.dequantize(c)).collect());
+                codes.push(Some((q.to_vec(), p)));
+            }
+            Observed::F32(v) => {
+                vals.push(v.to_vec());
+                codes.push(None);
+            }
+        })?;
+        for (k, op) in net.ops.iter().enumerate() {
+            let Some((q, p)) = &codes[op.output] else {
+                continue;
+            };
+            let model = net
+                .eval(op, &vals)
+                .map_err(|error| super::net::RunError::Kernel {
+                    op: k,
+                    name: net.values[op.output].name.clone(),
+                    error,
+                })?;
+            for (&m, &c) in model.iter().zip(q) {
+                let d = (p.quantize(m) as i32 - c as i32).abs();
+                sum[k] += d as f64;
+                count[k] += 1;
+                max[k] = max[k].max(d);
+            }
+        }
+    }
+    Ok((0..n_ops)
+        .filter(|&k| count[k] > 0)
+        .map(|k| OpFidelity {
+            op: k,
+            name: net.values[net.ops[k].output].name.clone(),
+            mean_abs_codes: sum[k] / count[k] as f64,
+            max_abs_codes: max[k],
+        })
+        .collect())
+}
+
+/// `net` with every conv's weights and bias replaced by the values the blob stores (weights
+/// rounded per output channel, bias in units of input × weight scale; `input_scale(value)` gives
+/// a value's activation scale).
+fn with_blob_weights(net: &Net, input_scale: impl Fn(usize) -> f32) -> Net {
+    let mut out = net.clone();
+    for op in out.ops.iter_mut() {
+        let s_in = input_scale(op.inputs[0]);
+        if let OpKind::Conv { weight, bias, .. } = &mut op.kind {
+            let (wq, bq, sc) = quantize_channels(weight, bias, bias.len(), s_in);
+            let per = weight.len() / bias.len().max(1);
+            for (i, w) in weight.iter_mut().enumerate() {
+                *w = wq[i] as f32 * sc[i / per.max(1)];
+            }
+            for (o, b) in bias.iter_mut().enumerate() {
+                *b = (bq[o] as f64 * s_in as f64 * sc[o] as f64) as f32;
+            }
+        }
+    }
+    out
 }
 
 /// Max |f32 run − golden| for every golden tensor the folded network still has (inputs taken

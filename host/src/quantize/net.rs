@@ -195,7 +195,8 @@ impl Net {
         Ok(vals)
     }
 
-    fn eval(&self, op: &Op, vals: &[Vec<f32>]) -> Result<Vec<f32>, KernelError> {
+    /// Runs one op in f32 on `vals` (every earlier value, indexed by value).
+    pub(crate) fn eval(&self, op: &Op, vals: &[Vec<f32>]) -> Result<Vec<f32>, KernelError> {
         let x = vals.get(op.inputs[0]).ok_or(KernelError::Shape)?;
         let xs = self.values[op.inputs[0]].shape;
         let os = self.values[op.output].shape;
