@@ -123,8 +123,8 @@ def main() -> None:
         s = json.loads(a.regression.read_text())
         card["regression"]["int8_rmse"] = round(s["methods"]["int8"]["rmse"], 4)
         card["regression"]["int8_delta1"] = round(s["methods"]["int8"]["delta1"], 4)
-        card["regression"]["int8_vs_float_rmse_rel"] = round(s["int8_vs_float"]["rmse_rel_diff"], 4)
-        card["regression"]["int8_vs_float_delta1"] = round(s["int8_vs_float"]["delta1_diff"], 4)
+        card["regression"].pop("int8_vs_float_rmse_rel", None)
+        card["regression"].pop("int8_vs_float_delta1", None)
     card["weights"] = summary.get("weights")
     (d / "card.json").write_text(json.dumps(card, indent=1, ensure_ascii=False) + "\n")
 
@@ -164,10 +164,7 @@ def main() -> None:
     L += ["## Regression check", "",
           f"`host/tests/model_card.rs` rebuilds {r['scenes']} scenes (preset {r['preset']}, seed {r['seed']}) and fails "
           f"if the int8 RMSE exceeds 1.05 × {r['int8_rmse']} m (δ1 here {r['int8_delta1']})"
-          + (f", or if int8 falls behind float by more than {100 * r['int8_vs_float_rmse_rel']:+.2f} % + 0.5 % in RMSE "
-             f"(int8 vs float on this set when the card was written)" if "int8_vs_float_rmse_rel" in r else "")
-          + (f" or by more than {min(r['int8_vs_float_delta1'], 0.0):+.4f} − 0.005 in δ1"
-             if "int8_vs_float_delta1" in r else "")
+          + ", or if int8 falls behind float by more than 1 % in RMSE or 0.005 in δ1"
           + f". Command: `{r['command']}`.", ""]
     (d / "MODEL_CARD.md").write_text("\n".join(L))
     print(f"wrote {d / 'MODEL_CARD.md'} and {d / 'card.json'}")

@@ -4,12 +4,13 @@
 
 use anyhow::{Context, Result};
 use depthor_core::engine::required_arena_bytes;
-use depthor_host::quantize::calibrate::{simulated_frames, RangeRule};
+use depthor_host::quantize::calibrate::{simulated_frames, simulated_frames_in, RangeRule};
 use depthor_host::quantize::check::{compare, golden_diff, op_fidelity};
 use depthor_host::quantize::fold::fold;
 use depthor_host::quantize::golden::read_golden;
 use depthor_host::quantize::graph::Graph;
 use depthor_host::quantize::quantize_with;
+use depthor_host::scene::SceneConfig;
 use std::path::PathBuf;
 
 /// DESIGN.md budgets of the `mcu` variant (bytes).
@@ -38,6 +39,14 @@ pub struct Args {
     /// Activation ranges: `mse` (clip where it lowers the expected int8 error) or `minmax`.
     #[arg(long, default_value = "mse")]
     ranges: RangeRule,
+    /// A scene configuration (JSON, as for `depthor sim --scene-config`) for
+    /// `--scene-config-frames` more calibration frames, e.g. the close-range scenes a model also
+    /// serves.
+    #[arg(long, requires = "scene_config_frames")]
+    scene_config: Option<PathBuf>,
+    /// Calibration frames drawn from `--scene-config`, seeds after the default ones.
+    #[arg(long, default_value_t = 0)]
+    scene_config_frames: usize,
     /// dToF simulator preset (default: the graph's variant).
     #[arg(long)]
     preset: Option<String>,
@@ -54,7 +63,23 @@ pub fn handle(args: Args) -> Result<()> {
     let graph = Graph::load(&args.graph, args.weights.as_deref())?;
     let net = fold(&graph).with_context(|| format!("{}", args.graph.display()))?;
     let preset = args.preset.clone().unwrap_or_else(|| graph.variant.clone());
-    let frames = simulated_frames(&preset, net.height, net.width, args.frames, args.seed)?;
+    let mut frames = simulated_frames(&preset, net.height, net.width, args.frames, args.seed)?;
+    if let Some(path) = &args.scene_config {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("{}: cannot read", path.display()))?;
+        let cfg = SceneConfig::default()
+            .with_overrides(&text)
+            .with_context(|| format!("{}", path.display()))?;
+        let seed = args.seed + args.frames as u64;
+        frames.extend(simulated_frames_in(
+            &cfg,
+            &preset,
+            net.height,
+            net.width,
+            args.scene_config_frames,
+            seed,
+        )?);
+    }
     let q = quantize_with(&net, &frames, args.ranges)?;
     std::fs::write(&args.out, &q.blob)
         .with_context(|| format!("writing {}", args.out.display()))?;
@@ -70,8 +95,16 @@ pub fn handle(args: Args) -> Result<()> {
         net.values.len(),
         q.blob.len()
     );
+    let extra = match &args.scene_config {
+        Some(p) => format!(
+            " ({} of them from {})",
+            args.scene_config_frames,
+            p.display()
+        ),
+        None => String::new(),
+    };
     println!(
-        "calibration: {} frames (preset {preset}, seeds {}..{}), activation ranges = {}",
+        "calibration: {} frames{extra} (preset {preset}, seeds {}..{}), activation ranges = {}",
         frames.len(),
         args.seed,
         args.seed + frames.len() as u64,
@@ -107,7 +140,7 @@ pub fn handle(args: Args) -> Result<()> {
             println!("golden: f32 graph vs Python {name}: max |diff| {d:.3e}");
         }
     }
-    let eval_seed = args.seed + args.frames as u64;
+    let eval_seed = args.seed + frames.len() as u64;
     let eval = simulated_frames(&preset, net.height, net.width, args.eval_frames, eval_seed)?;
     let c = compare(&q.blob, &net, &eval)?;
     let (m, lo) = c.depth_mean_min();

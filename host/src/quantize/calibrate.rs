@@ -70,14 +70,32 @@ pub fn simulated_frames(
     count: usize,
     seed: u64,
 ) -> Result<Vec<Frame>, FrameError> {
+    simulated_frames_in(
+        &SceneConfig::default(),
+        preset_name,
+        height,
+        width,
+        count,
+        seed,
+    )
+}
+
+/// [`simulated_frames`] of scenes drawn from `cfg` (e.g. a close-range scene configuration).
+pub fn simulated_frames_in(
+    cfg: &SceneConfig,
+    preset_name: &str,
+    height: usize,
+    width: usize,
+    count: usize,
+    seed: u64,
+) -> Result<Vec<Frame>, FrameError> {
     let sim = preset(preset_name)?;
-    let cfg = SceneConfig::default();
     let (w, h) = (width as u32, height as u32);
     (0..count as u64)
         .map(|k| {
             let s = seed.wrapping_add(k);
-            let cam = camera_for(&cfg, s, w, h);
-            let scene = render_scene(&cfg, s, cam);
+            let cam = camera_for(cfg, s, w, h);
+            let scene = render_scene(cfg, s, cam);
             let input = SimInput {
                 width: w,
                 height: h,

@@ -1,0 +1,70 @@
+//! `depthor quantize` on the committed `mcu` export: calibration frames from a scene
+//! configuration are counted and drawn, the blob is written, and a bad scene configuration is one
+//! clean error naming its file.
+
+mod common;
+
+use common::{arg, depthor, depthor_ok};
+use std::path::PathBuf;
+
+fn models() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../models")
+}
+
+#[test]
+fn scene_config_frames_join_the_calibration() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("m.dblob");
+    let graph = models().join("mcu/graph.json");
+    let close = models().join("scenes/close_range.json");
+    let stdout = depthor_ok(&[
+        "quantize",
+        "--graph",
+        arg(&graph),
+        "--out",
+        arg(&out),
+        "--frames",
+        "2",
+        "--scene-config",
+        arg(&close),
+        "--scene-config-frames",
+        "2",
+    ]);
+    assert!(
+        stdout.contains("calibration: 4 frames (2 of them from"),
+        "{stdout}"
+    );
+    let blob = std::fs::read(&out).unwrap();
+    assert_eq!(
+        blob.len(),
+        std::fs::metadata(models().join("mcu/depthor.dblob"))
+            .unwrap()
+            .len() as usize
+    );
+}
+
+#[test]
+fn bad_scene_config_names_its_file_and_writes_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = tmp.path().join("bad_scenes.json");
+    std::fs::write(&cfg, r#"{"room_depth_m": [4.0, 1.0]}"#).unwrap();
+    let out = tmp.path().join("m.dblob");
+    let o = depthor(&[
+        "quantize",
+        "--graph",
+        arg(&models().join("mcu/graph.json")),
+        "--out",
+        arg(&out),
+        "--frames",
+        "1",
+        "--scene-config",
+        arg(&cfg),
+        "--scene-config-frames",
+        "1",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(err.contains("bad_scenes.json"), "{err}");
+    assert!(err.contains("room_depth_m"), "{err}");
+    assert!(!out.exists());
+}
