@@ -1,7 +1,8 @@
 //! Elementwise int8 ops: 256-entry lookup tables (relu, leaky_relu, sigmoid, reciprocal — the
 //! blob stores the table, so the core does no transcendental math for them), add and mul with
-//! requantisation (TFLite int8 `ADD` / `MUL` arithmetic), concat with per-input requantisation,
-//! pixel_shuffle and minmax_norm.
+//! requantisation (TFLite int8 `ADD` arithmetic; `MUL`, concat and max-pool rescales with one
+//! rounding of the exact product, [`Requant::apply_rounded`], not TFLite's two), concat with
+//! per-input requantisation, pixel_shuffle and minmax_norm.
 
 use super::float::{broadcast_index, broadcast_len, Broadcast};
 use super::requant::{clamp_i8, QParams, Requant};
