@@ -85,3 +85,20 @@ pub fn progress(len: u64, what: &str) -> ProgressBar {
     bar.set_message(what.to_string());
     bar
 }
+
+/// The scene configuration a preset's scenes are drawn from (`dataset::scene_config_for`), with
+/// the ranges named in the JSON file `overrides` replaced; errors name the file (and the field).
+pub fn scene_config(
+    preset: &str,
+    overrides: Option<&std::path::Path>,
+) -> anyhow::Result<depthor_host::scene::SceneConfig> {
+    use anyhow::Context;
+    let cfg = depthor_host::dataset::scene_config_for(preset);
+    let Some(path) = overrides else {
+        return Ok(cfg);
+    };
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read", path.display()))?;
+    cfg.with_overrides(&text)
+        .with_context(|| format!("{}", path.display()))
+}

@@ -10,7 +10,6 @@ use depthor_host::quantize::fold::fold;
 use depthor_host::quantize::golden::read_golden;
 use depthor_host::quantize::graph::Graph;
 use depthor_host::quantize::quantize_with;
-use depthor_host::scene::SceneConfig;
 use std::path::PathBuf;
 
 /// DESIGN.md budgets of the `mcu` variant (bytes).
@@ -39,7 +38,8 @@ pub struct Args {
     /// Activation ranges: `mse` (clip where it lowers the expected int8 error) or `minmax`.
     #[arg(long, default_value = "mse")]
     ranges: RangeRule,
-    /// A scene configuration (JSON, as for `depthor sim --scene-config`) for
+    /// A scene configuration (JSON, as for `depthor sim --scene-config`: the preset's scenes
+    /// with the named ranges replaced) for
     /// `--scene-config-frames` more calibration frames, e.g. the close-range scenes a model also
     /// serves.
     #[arg(long, requires = "scene_config_frames")]
@@ -65,11 +65,7 @@ pub fn handle(args: Args) -> Result<()> {
     let preset = args.preset.clone().unwrap_or_else(|| graph.variant.clone());
     let mut frames = simulated_frames(&preset, net.height, net.width, args.frames, args.seed)?;
     if let Some(path) = &args.scene_config {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("{}: cannot read", path.display()))?;
-        let cfg = SceneConfig::default()
-            .with_overrides(&text)
-            .with_context(|| format!("{}", path.display()))?;
+        let cfg = super::scene_config(&preset, Some(path))?;
         let seed = args.seed + args.frames as u64;
         frames.extend(simulated_frames_in(
             &cfg,

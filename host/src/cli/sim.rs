@@ -11,8 +11,8 @@ use anyhow::{bail, Context, Result};
 use depthor_core::calibration::CameraIntrinsics;
 use depthor_core::projection::for_each_point;
 use depthor_host::dataset::{
-    dtof_frame, preset_size, recording_meta, scene_config_for, simulate_recording_frame,
-    synth_frame, to_recording_frame, SynthFrame,
+    dtof_frame, preset_size, recording_meta, simulate_recording_frame, synth_frame,
+    to_recording_frame, SynthFrame,
 };
 use depthor_host::recording::{
     CameraMeta, Frame, FrameMeta, Recording, RecordingWriter, WriteOptions,
@@ -126,14 +126,7 @@ fn synthetic(
     w: u32,
     h: u32,
 ) -> Result<PathBuf> {
-    let mut scene_cfg = scene_config_for(preset_name);
-    if let Some(path) = &args.scene_config {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("{}: cannot read", path.display()))?;
-        scene_cfg = scene_cfg
-            .with_overrides(&text)
-            .with_context(|| format!("{}", path.display()))?;
-    }
+    let scene_cfg = super::scene_config(preset_name, args.scene_config.as_deref())?;
     // The header carries the nominal camera; every frame carries its own intrinsics.
     let nominal = depthor_host::scene::camera_for(&scene_cfg, args.seed, w, h);
     let meta = recording_meta(cfg, &nominal);

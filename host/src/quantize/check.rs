@@ -129,11 +129,14 @@ pub enum CheckError {
     },
 }
 
-/// Runs `blob` in the core engine and `net` in f32 on every frame and compares them.
-pub fn compare(blob: &[u8], net: &Net, frames: &[Frame]) -> Result<Comparison, CheckError> {
+/// A zeroed arena large enough for `blob` at `net`'s native size.
+fn arena_for(blob: &[u8], net: &Net) -> Result<Vec<u8>, CheckError> {
     let need = required_arena_bytes(blob, net.height, net.width)?;
-    let mut arena = vec![0u8; need + 64];
-    let mut engine = Engine::new(blob, &mut arena)?;
+    Ok(vec![0u8; need + 64])
+}
+
+/// The op count, after checking that the blob's ops line up one to one with `net`'s.
+fn ops_line_up(engine: &Engine<'_>, net: &Net) -> Result<usize, CheckError> {
     let n_ops = engine.graph().ops.len();
     if n_ops != net.ops.len() {
         return Err(CheckError::OpCount {
@@ -141,6 +144,14 @@ pub fn compare(blob: &[u8], net: &Net, frames: &[Frame]) -> Result<Comparison, C
             net: net.ops.len(),
         });
     }
+    Ok(n_ops)
+}
+
+/// Runs `blob` in the core engine and `net` in f32 on every frame and compares them.
+pub fn compare(blob: &[u8], net: &Net, frames: &[Frame]) -> Result<Comparison, CheckError> {
+    let mut arena = arena_for(blob, net)?;
+    let mut engine = Engine::new(blob, &mut arena)?;
+    let n_ops = ops_line_up(&engine, net)?;
     let mut sig = vec![0f64; n_ops];
     let mut noise = vec![0f64; n_ops];
     let mut max_err = vec![0f32; n_ops];
@@ -217,16 +228,9 @@ pub fn op_fidelity(
     net: &Net,
     frames: &[Frame],
 ) -> Result<Vec<OpFidelity>, CheckError> {
-    let need = required_arena_bytes(blob, net.height, net.width)?;
-    let mut arena = vec![0u8; need + 64];
+    let mut arena = arena_for(blob, net)?;
     let mut engine = Engine::new(blob, &mut arena)?;
-    let n_ops = engine.graph().ops.len();
-    if n_ops != net.ops.len() {
-        return Err(CheckError::OpCount {
-            blob: n_ops,
-            net: net.ops.len(),
-        });
-    }
+    let n_ops = ops_line_up(&engine, net)?;
     let tensors = &engine.graph().tensors;
     let sparse_q = tensors[engine.graph().sparse as usize].q;
     let scale_of = |v: usize| tensors.get(v).map_or(1.0, |t| t.q.scale);
