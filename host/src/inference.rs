@@ -94,6 +94,16 @@ impl Int8Model {
         Engine::with_size(&self.blob, &mut self.arena, self.height, self.width)
     }
 
+    /// Prepares the engine once and hands it to `f`, which may run many frames on it (what a
+    /// device does; [`Int8Model::run`] prepares per call).
+    pub fn with_engine<R>(
+        &mut self,
+        f: impl FnOnce(&mut Engine<'_>) -> R,
+    ) -> Result<R, InferenceError> {
+        let mut engine = self.engine()?;
+        Ok(f(&mut engine))
+    }
+
     /// Runs one frame: RGB888 (H·W·3) and sparse depth in metres (H·W) → dense depth (H·W, m).
     pub fn run(
         &mut self,

@@ -6,10 +6,11 @@ use super::plan::{plan, Plan, ALIGN};
 use crate::blob::format::{opcode, MAX_INPUTS};
 use crate::blob::parse::{f32_at, i32_at, parse, Attrs, DType, Graph, OpInfo};
 use crate::kernels::bins::{bin_centres, bins_head_i8, BinChannel, MAX_BINS};
-use crate::kernels::conv::{conv2d, ChannelQuant, Conv2d, ConvQuant};
+use crate::kernels::conv::{conv2d_with, ChannelQuant, Conv2d, ConvQuant};
 use crate::kernels::elementwise::{self, AddQuant, MulQuant, Rescale};
+use crate::kernels::isa::Isa;
 use crate::kernels::pool::{self, MeanQuant};
-use crate::kernels::refine::{refine, I8Map, KERNELS};
+use crate::kernels::refine::{refine_with, I8Map, KERNELS};
 use crate::kernels::requant::QParams;
 use crate::kernels::resize;
 use crate::kernels::KernelError;
@@ -98,6 +99,7 @@ pub struct Engine<'a> {
     plan: Plan,
     arena: &'a mut [u8],
     rgb_lut: [i8; 256],
+    isa: Isa,
 }
 
 /// Arena bytes `blob` needs at `height × width` (parses and plans; nothing runs).
@@ -215,7 +217,26 @@ impl<'a> Engine<'a> {
             plan,
             arena,
             rgb_lut,
+            isa: Isa::best(),
         })
+    }
+
+    /// The kernel set the convolutions run with (the fastest this CPU has, unless set).
+    pub fn kernels(&self) -> Isa {
+        self.isa
+    }
+
+    /// Runs the convolutions with kernel set `isa` (every set gives the same bits; this is for
+    /// benchmarks and tests). `Err` if this CPU cannot run it.
+    pub fn set_kernels(&mut self, isa: Isa) -> Result<(), Error> {
+        if !isa.available() {
+            return Err(Error::Kernel {
+                op: 0,
+                error: KernelError::Isa,
+            });
+        }
+        self.isa = isa;
+        Ok(())
     }
 
     /// Input size `(height, width)` this engine runs at.
@@ -421,7 +442,7 @@ impl<'a> Engine<'a> {
         let persistent = self.plan.persistent_bytes();
         let (consts, act) = self.arena.split_at_mut(persistent);
         for (i, op) in self.graph.ops.iter().enumerate() {
-            exec(&self.graph, &self.plan, i, op, consts, act)?;
+            exec(&self.graph, &self.plan, i, op, consts, act, self.isa)?;
             if let Some(f) = observer.as_deref_mut() {
                 observe(&self.graph, &self.plan, i, op, act, f)?;
             }
@@ -570,6 +591,7 @@ fn exec(
     op: &OpInfo,
     consts: &[u8],
     act: &mut [u8],
+    isa: Isa,
 ) -> Result<(), Error> {
     let e = kerr(i);
     let bad = Error::Kernel {
@@ -611,7 +633,8 @@ fn exec(
                 weights: typed(g.bytes(*weights), i)?,
                 channels: typed(cb, i)?,
             };
-            conv2d(
+            conv2d_with(
+                isa,
                 &conv,
                 typed(ins[0], i)?,
                 x_shape,
@@ -751,6 +774,7 @@ fn exec(
             bin_centres(&logits[..nb], attrs, &mut centres).map_err(e)?;
             let fz = tq(op.inputs[0])?.zero_point;
             bins_head_i8(
+                isa,
                 typed(ins[0], i)?,
                 x_shape,
                 fz,
@@ -772,7 +796,8 @@ fn exec(
                 m(3, KERNELS[2] * KERNELS[2] - 1)?,
             ];
             let (km, tm) = (m(4, 3)?, m(5, 3)?);
-            refine(
+            refine_with(
+                isa,
                 typed(ins[0], i)?,
                 x_shape.h,
                 x_shape.w,

@@ -110,6 +110,15 @@ impl Plan {
     pub fn macs(&self) -> u64 {
         self.macs
     }
+    /// Multiply-accumulates of op `op` of the planned `graph` (0 for ops without a reduction,
+    /// or past the last op); recomputed, so the plan stays small.
+    pub fn op_macs(&self, graph: &Graph, op: usize) -> u64 {
+        graph
+            .ops
+            .get(op)
+            .and_then(|o| plan_op(op, o, graph, &self.shapes).ok())
+            .map_or(0, |p| p.macs)
+    }
     /// Shape of tensor `id`.
     pub fn shape(&self, id: u16) -> Option<Shape> {
         self.shapes.get(id as usize).copied()
@@ -235,7 +244,7 @@ fn plan_op(i: usize, op: &OpInfo, g: &Graph, shapes: &[Shape]) -> Result<OpPlan,
             p.out = geometry
                 .output_shape(x, out_c)
                 .ok_or(err("conv: no output for this input size"))?;
-            p.scratch = Conv2d::scratch_len(x, p.out)
+            p.scratch = Conv2d::scratch_len(&geometry, x, p.out)
                 .checked_mul(4)
                 .ok_or(PlanError::TooLarge)?;
             p.consts = out_c * size_of::<ChannelQuant>();

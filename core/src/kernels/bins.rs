@@ -12,6 +12,7 @@
 //! (Rust never contracts `a*b+c`), so host and MCU give the same bits. The output map is f32 metres.
 
 use super::float::exp;
+use super::isa::Isa;
 use super::{need, KernelError, Shape};
 
 /// Most bins supported (stack arrays of this size hold logits and centres).
@@ -82,8 +83,11 @@ pub fn expected_depth(logits: &[f32], centres: &[f32]) -> f32 {
 }
 
 /// int8 head: `features` `[C,h,w]` with zero point `zp`, weights `[N, C]` int8, one
-/// [`BinChannel`] per bin, `centres` from [`bin_centres`]; writes `h·w` metres.
+/// [`BinChannel`] per bin, `centres` from [`bin_centres`]; writes `h·w` metres. `isa`: the
+/// kernel set (all give the same bits).
+#[allow(clippy::too_many_arguments)]
 pub fn bins_head_i8(
+    isa: Isa,
     features: &[i8],
     shape: Shape,
     zp: i32,
@@ -107,9 +111,19 @@ pub fn bins_head_i8(
     if centres.len() < n || out.len() < p {
         return Err(KernelError::Shape);
     }
+    let lanes = match isa {
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2 | Isa::Avx512Vnni if Isa::Avx2.available() => {
+            // SAFETY: AVX2 is available; the lengths were checked above.
+            unsafe {
+                super::x86_64::bins::head(features, p, c, zp, weights, channels, centres, out)
+            }
+        }
+        _ => 0,
+    };
     let mut col = [0i32; MAX_BIN_FEATURES];
     let mut logits = [0f32; MAX_BINS];
-    for (i, o) in out[..p].iter_mut().enumerate() {
+    for (i, o) in out[..p].iter_mut().enumerate().skip(lanes) {
         for (k, v) in col[..c].iter_mut().enumerate() {
             *v = features[k * p + i] as i32 - zp;
         }
@@ -229,6 +243,7 @@ mod tests {
             .collect();
         let mut y = std::vec![0f32; h * w];
         bins_head_i8(
+            Isa::Portable,
             &feats,
             shape,
             fq.zero_point,
@@ -238,6 +253,14 @@ mod tests {
             &mut y,
         )
         .unwrap();
+        // Every kernel set gives the portable path's bits.
+        for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+            let mut z = std::vec![0f32; h * w];
+            let (f, ch, ce) = (&feats, &chans, &centres[..n]);
+            bins_head_i8(isa, f, shape, fq.zero_point, &wq, ch, ce, &mut z).unwrap();
+            let same = z.iter().zip(&y).all(|(a, b)| a.to_bits() == b.to_bits());
+            assert!(same, "{} differs from the portable head", isa.name());
+        }
         let ff: Vec<f32> = feats.iter().map(|&q| fq.dequantize(q)).collect();
         let wf: Vec<f32> = wq
             .iter()

@@ -7,6 +7,9 @@
 //! `acc ≥ 0` and `M_neg = α·M` for `acc < 0` (LeakyReLU; `M_neg = M` otherwise), clamped to the
 //! activation range (`[zp_out, 127]` for ReLU). Weights are `[O, I/groups, kh, kw]` row-major.
 
+use super::dot::{self, Acc, Task};
+use super::isa::Isa;
+use super::pack::{self, Layout, Pairs, Quads, NB, PB};
 use super::requant::{clamp_i8, Requant};
 use super::{need, KernelError, Shape};
 
@@ -188,13 +191,66 @@ impl Conv2d<'_> {
         Ok(out)
     }
 
-    /// i32 scratch elements the fast path needs: one output row per output channel plus one
-    /// input row.
-    pub fn scratch_len(in_shape: Shape, out_shape: Shape) -> usize {
-        out_shape
-            .c
-            .saturating_mul(out_shape.w)
-            .saturating_add(in_shape.w)
+    /// i32 scratch elements [`conv2d`] needs, for every kernel set: the packed input rows of
+    /// one output row, the packed weights of one group, `Σw` per output channel and the tap
+    /// offsets ([`super::pack`]), sized for 16-bit elements and channels rounded up to 4.
+    pub fn scratch_len(geometry: &ConvGeometry, in_shape: Shape, out_shape: Shape) -> usize {
+        let g = geometry;
+        let Some(icg) = in_shape.c.checked_div(g.groups) else {
+            return 0;
+        };
+        let ocg = out_shape.c / g.groups.max(1);
+        let c4 = icg.div_ceil(4).saturating_mul(4);
+        let k = g.kernel[0].saturating_mul(g.kernel[1]);
+        let rows = c4
+            .saturating_mul(g.kernel[0])
+            .saturating_mul(g.stride[1])
+            .saturating_mul(pack::row_width(g, out_shape.w));
+        let weights = ocg
+            .div_ceil(NB)
+            .saturating_mul(NB)
+            .saturating_mul(c4)
+            .saturating_mul(k);
+        // 2-byte elements, in i32 units; then Σw per channel and one u32 per tap.
+        (rows.div_ceil(2))
+            .saturating_add(weights.div_ceil(2))
+            .saturating_add(ocg)
+            .saturating_add(k)
+    }
+
+    /// [`Conv2d::finish`] of `base + acc[p]` for a row of sums, vectorised where the set has
+    /// vectors (same integer function, so the same bits).
+    #[inline]
+    fn finish_row(&self, isa: Isa, o: usize, base: i32, acc: &[i32], out: &mut [i8]) {
+        let cq = &self.channels[o];
+        let simple = cq.pos.shift <= 0
+            && cq.neg.shift <= 0
+            && cq.pos.multiplier >= 0
+            && cq.neg.multiplier >= 0;
+        if !simple {
+            for (d, &v) in out.iter_mut().zip(acc) {
+                *d = self.finish(o, base.wrapping_add(v));
+            }
+            return;
+        }
+        let k = RowQuant {
+            base,
+            pos_m: cq.pos.multiplier as i64,
+            neg_m: cq.neg.multiplier as i64,
+            pos_r: (-cq.pos.shift).min(31),
+            neg_r: (-cq.neg.shift).min(31),
+            zp: self.quant.output_zero_point,
+            min: self.quant.act_min.max(-128),
+            max: self.quant.act_max.min(127),
+        };
+        match isa {
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 | Isa::Avx512Vnni if isa.available() => {
+                // SAFETY: AVX2 is available (checked).
+                unsafe { requant_row_avx2(&k, acc, out) }
+            }
+            _ => requant_row(&k, acc, out),
+        }
     }
 
     #[inline]
@@ -213,15 +269,46 @@ impl Conv2d<'_> {
     }
 }
 
-/// Whether the target has wide integer SIMD, where 16-bit products vectorise twice as wide. On
-/// a Cortex-M the 32-bit multiply-accumulate is one `MLA` and the 16-bit form costs an extra
-/// sign extension (measured: 3.49 → 3.70 G instructions per `mcu` frame in QEMU), so it keeps
-/// the 32-bit form. Both give the same bits.
-const WIDE_SIMD: bool = cfg!(any(
-    target_arch = "x86",
-    target_arch = "x86_64",
-    target_arch = "aarch64"
-));
+/// Constants of [`requant_row`] for one channel whose multipliers shift right only.
+struct RowQuant {
+    base: i32,
+    pos_m: i64,
+    neg_m: i64,
+    pos_r: i32,
+    neg_r: i32,
+    zp: i32,
+    min: i32,
+    max: i32,
+}
+
+/// `clamp(zp + MultiplyByQuantizedMultiplier(base + acc, M±))` per element, written without
+/// branches so that it vectorises: [`Requant::apply`] for `shift ≤ 0` and a non-negative
+/// multiplier (then no left shift and no saturating case), bit for bit.
+#[inline(always)]
+fn requant_row(k: &RowQuant, acc: &[i32], out: &mut [i8]) {
+    for (d, &v) in out.iter_mut().zip(acc) {
+        let x = k.base.wrapping_add(v);
+        let neg = x < 0;
+        let m = if neg { k.neg_m } else { k.pos_m };
+        let e = if neg { k.neg_r } else { k.pos_r };
+        // SaturatingRoundingDoublingHighMul (a·b never saturates: b ≥ 0).
+        let ab = x as i64 * m;
+        let t = ab + if ab >= 0 { 1 << 30 } else { 1 - (1 << 30) };
+        let q = ((t >> 31) + i64::from(t < 0 && (t & 0x7FFF_FFFF) != 0)) as i32;
+        // RoundingDivideByPOT.
+        let mask = ((1i64 << e) - 1) as i32;
+        let rem = q & mask;
+        let threshold = (mask >> 1) + i32::from(q < 0);
+        let r = (q >> e) + i32::from(rem > threshold);
+        *d = r.saturating_add(k.zp).clamp(k.min, k.max) as i8;
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn requant_row_avx2(k: &RowQuant, acc: &[i32], out: &mut [i8]) {
+    requant_row(k, acc, out)
+}
 
 /// Reference convolution: plain loops over every output element and tap (the spec).
 pub fn conv2d_ref(
@@ -275,28 +362,26 @@ pub fn conv2d_ref(
     Ok(out)
 }
 
-/// Range of output columns `ox` whose input column `ox·s + off` lies in `0..n`.
-#[inline]
-fn valid_cols(off: isize, s: usize, n: usize, out_w: usize) -> Option<(usize, usize)> {
-    let s = s as isize;
-    let lo = if off < 0 { (-off + s - 1) / s } else { 0 };
-    let last_in = n as isize - 1 - off;
-    if last_in < 0 {
-        return None;
-    }
-    let hi = (last_in / s).min(out_w as isize - 1);
-    if lo > hi {
-        return None;
-    }
-    Some((lo as usize, hi as usize))
+/// Fast convolution with the fastest kernel set of this CPU ([`Isa::best`]): same contract
+/// and bits as [`conv2d_ref`]. `scratch` holds ≥ [`Conv2d::scratch_len`] i32.
+pub fn conv2d(
+    op: &Conv2d,
+    input: &[i8],
+    in_shape: Shape,
+    output: &mut [i8],
+    scratch: &mut [i32],
+) -> Result<Shape, KernelError> {
+    conv2d_with(Isa::best(), op, input, in_shape, output, scratch)
 }
 
-/// Fast convolution: same contract and bits as [`conv2d_ref`]. For each output row it walks
-/// the input rows once, subtracts the zero point into a row buffer, and accumulates that row
-/// into the rows of *all* output channels of the group (taps outside, columns inside, so the
-/// inner loop is a contiguous i32 multiply-accumulate the compiler vectorises). `scratch` holds
-/// ≥ [`Conv2d::scratch_len`] i32: `out.c × out.w` accumulators plus one input row.
-pub fn conv2d(
+/// As [`conv2d`] with the kernel set `isa` (`Err(Isa)` if this CPU cannot run it).
+///
+/// Per group, the weights are packed once ([`pack::pack_weights`]); per output row, the input
+/// rows it reads are packed with channels innermost ([`pack::pack_rows`]); then for each
+/// [`PB`]-pixel block and [`NB`]-channel block one micro-kernel ([`super::dot`]) computes the
+/// sums in registers before requantisation.
+pub fn conv2d_with(
+    isa: Isa,
     op: &Conv2d,
     input: &[i8],
     in_shape: Shape,
@@ -306,77 +391,127 @@ pub fn conv2d(
     let out = op.check(in_shape)?;
     need(input, in_shape)?;
     need(output, out)?;
-    if scratch.len() < Conv2d::scratch_len(in_shape, out) {
+    if !isa.available() {
+        return Err(KernelError::Isa);
+    }
+    let len = Conv2d::scratch_len(&op.geometry, in_shape, out);
+    if scratch.len() < len {
         return Err(KernelError::Scratch);
     }
+    match isa {
+        Isa::Avx512Vnni => run::<Quads>(isa, op, input, in_shape, out, output, &mut scratch[..len]),
+        _ => run::<Pairs>(isa, op, input, in_shape, out, output, &mut scratch[..len]),
+    }
+    Ok(out)
+}
+
+/// Splits 4-aligned scratch into `n` elements of `T` (a 1-, 2- or 4-byte integer, rounded up
+/// to whole i32) and the rest.
+fn take<T: Copy>(s: &mut [i32], n: usize) -> (&mut [T], &mut [i32]) {
+    let words = (n * size_of::<T>()).div_ceil(4);
+    let (head, rest) = s.split_at_mut(words);
+    // SAFETY: `T` is a plain integer with alignment ≤ 4 (every bit pattern valid), so the whole
+    // of the i32 slice is the aligned middle.
+    let (_, mid, _) = unsafe { head.align_to_mut::<T>() };
+    (&mut mid[..n], rest)
+}
+
+/// The micro-kernel of layout `F` for kernel set `isa` (the portable one where `isa` has none
+/// for this layout).
+trait Micro: Layout + Sized {
+    fn kernel(isa: Isa, t: &Task<Self::Elem, Self::W>, acc: &mut Acc);
+}
+
+impl Micro for Pairs {
+    #[inline]
+    fn kernel(isa: Isa, t: &Task<i16, i16>, acc: &mut Acc) {
+        let done = match isa {
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 => super::x86_64::avx2::pairs(t, acc),
+            #[cfg(all(target_arch = "arm", target_feature = "dsp"))]
+            Isa::ArmDsp => super::arm::dsp::pairs(t, acc),
+            _ => false,
+        };
+        if !done {
+            dot::portable::<i16, i16, 2>(t, acc);
+        }
+    }
+}
+
+impl Micro for Quads {
+    #[inline]
+    fn kernel(isa: Isa, t: &Task<u8, i8>, acc: &mut Acc) {
+        let done = match isa {
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512Vnni => super::x86_64::avx512_vnni::quads(t, acc),
+            _ => false,
+        };
+        if !done {
+            dot::portable::<u8, i8, 4>(t, acc);
+        }
+    }
+}
+
+fn run<F: Micro>(
+    isa: Isa,
+    op: &Conv2d,
+    input: &[i8],
+    in_shape: Shape,
+    out: Shape,
+    output: &mut [i8],
+    scratch: &mut [i32],
+) {
     let g = &op.geometry;
     let (kh, kw) = (g.kernel[0], g.kernel[1]);
     let icg = in_shape.c / g.groups;
     let ocg = out.c / g.groups;
-    let zp = op.quant.input_zero_point;
-    let plane = in_shape.h * in_shape.w;
-    let (acc, rest) = scratch.split_at_mut(out.c * out.w);
-    let xrow = &mut rest[..in_shape.w];
-    let taps = icg * kh * kw;
-    for oy in 0..out.h {
-        for (o, a) in acc.chunks_exact_mut(out.w).enumerate() {
-            a.fill(op.channels[o].bias);
+    let dims = pack::Dims::new(g, icg, ocg, out.w, F::L);
+    let (rows, rest) = take::<F::Elem>(scratch, dims.rows_len());
+    let (weights, rest) = take::<F::W>(rest, dims.n_blocks * dims.block_len);
+    let (sums, rest) = take::<i32>(rest, ocg);
+    let (taps, _) = take::<u32>(rest, kh * kw);
+    for ky in 0..kh {
+        for kx in 0..kw {
+            taps[ky * kw + kx] = pack::tap_offset(g, out.w, F::L, ky, kx) as u32;
         }
-        for grp in 0..g.groups {
-            for i in 0..icg {
-                let chan = &input[(grp * icg + i) * plane..(grp * icg + i + 1) * plane];
-                for ky in 0..kh {
-                    let iy =
-                        (oy * g.stride[0] + ky * g.dilation[0]) as isize - g.padding[0] as isize;
-                    if iy < 0 || iy >= in_shape.h as isize {
-                        continue;
-                    }
-                    let row = &chan[iy as usize * in_shape.w..(iy as usize + 1) * in_shape.w];
-                    for (d, &x) in xrow.iter_mut().zip(row) {
-                        *d = x as i32 - zp;
-                    }
-                    for kx in 0..kw {
-                        let off = (kx * g.dilation[1]) as isize - g.padding[1] as isize;
-                        let Some((lo, hi)) = valid_cols(off, g.stride[1], in_shape.w, out.w) else {
-                            continue;
-                        };
-                        let start = (lo as isize * g.stride[1] as isize + off) as usize;
-                        let src = &xrow[start..];
-                        for o in grp * ocg..(grp + 1) * ocg {
-                            let w = op.weights[o * taps + (i * kh + ky) * kw + kx] as i32;
-                            if w == 0 {
-                                continue;
-                            }
-                            let dst = &mut acc[o * out.w + lo..=o * out.w + hi];
-                            if g.stride[1] == 1 && WIDE_SIMD {
-                                // |w| ≤ 128 and |x − zp| ≤ 255, so the product fits i16 exactly:
-                                // a 16-bit multiply vectorises twice as wide, same bits.
-                                let w16 = w as i16;
-                                for (a, &x) in dst.iter_mut().zip(src) {
-                                    *a = a.wrapping_add(i32::from(w16.wrapping_mul(x as i16)));
-                                }
-                            } else if g.stride[1] == 1 {
-                                for (a, &x) in dst.iter_mut().zip(src) {
-                                    *a = a.wrapping_add(w * x);
-                                }
-                            } else {
-                                for (a, &x) in dst.iter_mut().zip(src.iter().step_by(g.stride[1])) {
-                                    *a = a.wrapping_add(w * x);
-                                }
-                            }
-                        }
+    }
+    let plane_in = in_shape.h * in_shape.w;
+    let plane_out = out.h * out.w;
+    let zp = op.quant.input_zero_point;
+    let group_shape = Shape::new(icg, in_shape.h, in_shape.w);
+    let mut acc: Acc = [0; NB * PB];
+    for grp in 0..g.groups {
+        let x = &input[grp * icg * plane_in..(grp + 1) * icg * plane_in];
+        let o_first = grp * ocg;
+        let w = &op.weights[o_first * icg * kh * kw..(o_first + ocg) * icg * kh * kw];
+        pack::pack_weights::<F>(g, w, icg, ocg, &dims, weights, sums);
+        for oy in 0..out.h {
+            pack::pack_rows::<F>(g, x, group_shape, out.w, oy, zp, &dims, rows);
+            for ox0 in (0..out.w).step_by(PB) {
+                let n = PB.min(out.w - ox0);
+                for b in 0..dims.n_blocks {
+                    let task = Task {
+                        rows,
+                        weights: &weights[b * dims.block_len..(b + 1) * dims.block_len],
+                        taps,
+                        n_cg: dims.n_cg,
+                        cg_stride: dims.cg_stride,
+                        ox0,
+                    };
+                    F::kernel(isa, &task, &mut acc);
+                    let nb = NB.min(ocg - b * NB);
+                    for (j, a) in acc.chunks_exact(PB).take(nb).enumerate() {
+                        let o = o_first + b * NB + j;
+                        let base = op.channels[o]
+                            .bias
+                            .wrapping_sub(F::bias_term(zp, sums[b * NB + j]));
+                        let at = o * plane_out + oy * out.w + ox0;
+                        op.finish_row(isa, o, base, &a[..n], &mut output[at..at + n]);
                     }
                 }
             }
         }
-        for (o, a) in acc.chunks_exact(out.w).enumerate() {
-            let dst = &mut output[(o * out.h + oy) * out.w..(o * out.h + oy + 1) * out.w];
-            for (d, &v) in dst.iter_mut().zip(a) {
-                *d = op.finish(o, v);
-            }
-        }
     }
-    Ok(out)
 }
 
 #[cfg(test)]
@@ -426,7 +561,7 @@ pub(crate) mod tests {
         };
         let out = op.check(c.in_shape).unwrap();
         let mut y = std::vec![0i8; out.len().unwrap()];
-        let mut scratch = std::vec![0i32; Conv2d::scratch_len(c.in_shape, out)];
+        let mut scratch = std::vec![0i32; Conv2d::scratch_len(&c.geometry, c.in_shape, out)];
         assert_eq!(
             f(&op, &c.input, c.in_shape, &mut y, &mut scratch).unwrap(),
             out
@@ -601,6 +736,117 @@ pub(crate) mod tests {
 
     kernel_tests!(suite, ref: conv2d_ref, fast: conv2d, golden: golden, arb: arb_valid(), check: check);
 
+    /// Runs kernel set `isa` when this CPU has it; otherwise the reference (so the suite still
+    /// checks the case) and a note.
+    fn with_isa(
+        isa: Isa,
+        op: &Conv2d,
+        input: &[i8],
+        in_shape: Shape,
+        output: &mut [i8],
+        scratch: &mut [i32],
+    ) -> Result<Shape, KernelError> {
+        if isa.available() {
+            conv2d_with(isa, op, input, in_shape, output, scratch)
+        } else {
+            std::eprintln!("kernel set {} not on this CPU: not tested here", isa.name());
+            conv2d_ref(op, input, in_shape, output, scratch)
+        }
+    }
+    fn portable(
+        op: &Conv2d,
+        x: &[i8],
+        s: Shape,
+        y: &mut [i8],
+        t: &mut [i32],
+    ) -> Result<Shape, KernelError> {
+        with_isa(Isa::Portable, op, x, s, y, t)
+    }
+    fn arm_dsp(
+        op: &Conv2d,
+        x: &[i8],
+        s: Shape,
+        y: &mut [i8],
+        t: &mut [i32],
+    ) -> Result<Shape, KernelError> {
+        with_isa(Isa::ArmDsp, op, x, s, y, t)
+    }
+    fn avx2(
+        op: &Conv2d,
+        x: &[i8],
+        s: Shape,
+        y: &mut [i8],
+        t: &mut [i32],
+    ) -> Result<Shape, KernelError> {
+        with_isa(Isa::Avx2, op, x, s, y, t)
+    }
+    fn avx512_vnni(
+        op: &Conv2d,
+        x: &[i8],
+        s: Shape,
+        y: &mut [i8],
+        t: &mut [i32],
+    ) -> Result<Shape, KernelError> {
+        with_isa(Isa::Avx512Vnni, op, x, s, y, t)
+    }
+    kernel_tests!(suite_portable, ref: conv2d_ref, fast: portable, golden: golden, arb: arb_valid(), check: check);
+    kernel_tests!(suite_arm_dsp, ref: conv2d_ref, fast: arm_dsp, golden: golden, arb: arb_valid(), check: check);
+    kernel_tests!(suite_avx2, ref: conv2d_ref, fast: avx2, golden: golden, arb: arb_valid(), check: check);
+    kernel_tests!(suite_avx512_vnni, ref: conv2d_ref, fast: avx512_vnni, golden: golden, arb: arb_valid(), check: check);
+
+    /// Extremes that could saturate a 16-bit pair sum or the biased byte path: all inputs at
+    /// −128 / 127 against zero points at the other end, weights at ±127/−128, many taps.
+    #[test]
+    fn extremes_match_reference_on_every_set() {
+        for (x, zp, wv) in [
+            (-128i8, 127i32, -128i8),
+            (127, -128, 127),
+            (127, -128, -128),
+            (-128, 127, 127),
+        ] {
+            let geometry = ConvGeometry {
+                kernel: [3, 3],
+                padding: [1, 1],
+                ..ConvGeometry::POINTWISE
+            };
+            let in_shape = Shape::new(37, 5, 7);
+            let out_c = 6;
+            let c = Case {
+                name: "extreme",
+                geometry,
+                in_shape,
+                out_c,
+                input: std::vec![x; in_shape.len().unwrap()],
+                in_q: QParams {
+                    scale: 0.02,
+                    zero_point: zp,
+                },
+                weights: std::vec![wv; geometry.weight_len(in_shape.c, out_c).unwrap()],
+                w_scales: std::vec![1e-6; out_c],
+                bias: std::vec![7; out_c],
+                out_q: QParams {
+                    scale: 0.05,
+                    zero_point: 3,
+                },
+                act: Activation::None,
+                expect: None,
+            };
+            let (_, yr) = run(&c, conv2d_ref);
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                let (_, y) = run(
+                    &c,
+                    match isa {
+                        Isa::Portable => portable,
+                        Isa::ArmDsp => arm_dsp,
+                        Isa::Avx2 => avx2,
+                        Isa::Avx512Vnni => avx512_vnni,
+                    },
+                );
+                assert_eq!(y, yr, "{} x={x} zp={zp} w={wv}", isa.name());
+            }
+        }
+    }
+
     /// Speed of the fast path against the reference on a 3×3 16→16 conv at 60×80 (a typical
     /// `mcu` half-resolution layer). Run: `cargo test --release -p depthor-core --lib
     /// conv_speed -- --ignored --nocapture`.
@@ -629,11 +875,13 @@ pub(crate) mod tests {
         let s = Shape::new(ic, h, w);
         let out = op.check(s).unwrap();
         let mut y = std::vec![0i8; out.len().unwrap()];
-        let mut scratch = std::vec![0i32; Conv2d::scratch_len(s, out)];
+        let mut scratch = std::vec![0i32; Conv2d::scratch_len(&g, s, out)];
         let macs = (out.len().unwrap() * ic * 9) as f64;
         for (name, f) in [
             ("conv2d_ref", conv2d_ref as Impl),
-            ("conv2d", conv2d as Impl),
+            ("portable", portable as Impl),
+            ("avx2", avx2 as Impl),
+            ("avx512-vnni", avx512_vnni as Impl),
         ] {
             let t = std::time::Instant::now();
             let reps = 20;

@@ -6,14 +6,21 @@
 //! Tensors are planar CHW (the graph's NCHW with N = 1), row-major, in caller-provided slices.
 //! Kernels check every length up front and return [`KernelError`] instead of panicking.
 
+#[cfg(target_arch = "arm")]
+pub mod arm;
 pub mod bins;
 pub mod conv;
+pub mod dot;
 pub mod elementwise;
 pub mod float;
+pub mod isa;
+pub mod pack;
 pub mod pool;
 pub mod refine;
 pub mod requant;
 pub mod resize;
+#[cfg(target_arch = "x86_64")]
+pub mod x86_64;
 
 /// Shape of one CHW tensor (batch 1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -57,6 +64,8 @@ pub enum KernelError {
     Attr,
     /// The scratch buffer is too small.
     Scratch,
+    /// The requested kernel set does not run on this CPU.
+    Isa,
 }
 
 impl core::fmt::Display for KernelError {
@@ -65,6 +74,7 @@ impl core::fmt::Display for KernelError {
             KernelError::Shape => "tensor shapes or slice lengths do not match",
             KernelError::Attr => "op attribute out of range",
             KernelError::Scratch => "scratch buffer too small",
+            KernelError::Isa => "kernel set not available on this CPU",
         })
     }
 }

@@ -17,6 +17,7 @@
 //! the accumulator.
 
 use super::float::{exp, relu};
+use super::isa::Isa;
 use super::requant::QParams;
 use super::KernelError;
 
@@ -40,6 +41,15 @@ pub trait Map {
     fn channels(&self) -> usize;
     /// Value of channel `c` at flat pixel index `i` (`c < channels()`, `i < plane`).
     fn value(&self, c: usize, i: usize) -> f32;
+    /// The map as int8 codes, where it is one (for the vector paths).
+    fn as_i8(&self) -> Option<&I8Map<'_>> {
+        None
+    }
+    /// Values of channel `c` at pixels `i..i + L` (the same values as [`Map::value`]).
+    #[inline(always)]
+    fn values<const L: usize>(&self, c: usize, i: usize) -> [f32; L] {
+        core::array::from_fn(|l| self.value(c, i + l))
+    }
 }
 
 /// An f32 CHW map.
@@ -72,6 +82,12 @@ impl Map for F32Map<'_> {
     fn value(&self, c: usize, i: usize) -> f32 {
         self.data[c * self.plane + i]
     }
+    #[inline(always)]
+    fn values<const L: usize>(&self, c: usize, i: usize) -> [f32; L] {
+        let at = c * self.plane + i;
+        let s: &[f32; L] = self.data[at..at + L].try_into().unwrap_or(&[0.0; L]);
+        *s
+    }
 }
 
 /// An int8 CHW map with its quantisation.
@@ -103,13 +119,37 @@ impl<'a> I8Map<'a> {
     }
 }
 
+impl I8Map<'_> {
+    /// The codes.
+    pub fn data(&self) -> &[i8] {
+        self.data
+    }
+    /// Their quantisation.
+    pub fn q(&self) -> QParams {
+        self.q
+    }
+    /// Pixels per channel.
+    pub fn plane(&self) -> usize {
+        self.plane
+    }
+}
+
 impl Map for I8Map<'_> {
     fn channels(&self) -> usize {
         self.channels
     }
+    fn as_i8(&self) -> Option<&I8Map<'_>> {
+        Some(self)
+    }
     #[inline]
     fn value(&self, c: usize, i: usize) -> f32 {
         self.q.dequantize(self.data[c * self.plane + i])
+    }
+    #[inline(always)]
+    fn values<const L: usize>(&self, c: usize, i: usize) -> [f32; L] {
+        let at = c * self.plane + i;
+        let s: &[i8; L] = self.data[at..at + L].try_into().unwrap_or(&[0; L]);
+        s.map(|q| self.q.dequantize(q))
     }
 }
 
@@ -138,10 +178,29 @@ fn offsets(s: usize, out: &mut [(isize, isize); 48]) -> usize {
     n
 }
 
-/// Runs the propagation (module doc). `d0`, `out`: `h·w` f32; `aff[k]`: `s_k² − 1` channels;
-/// `kmix`, `tmix`: 3 channels; `scratch`: ≥ `2·h·w` f32.
+/// Runs the propagation (module doc) with the fastest kernel set of this CPU. `d0`, `out`:
+/// `h·w` f32; `aff[k]`: `s_k² − 1` channels; `kmix`, `tmix`: 3 channels; `scratch`: ≥
+/// `2·h·w` f32.
 #[allow(clippy::too_many_arguments)]
 pub fn refine<A: Map, B: Map>(
+    d0: &[f32],
+    h: usize,
+    w: usize,
+    aff: [&A; 3],
+    kmix: &B,
+    tmix: &B,
+    attrs: &RefineAttrs,
+    out: &mut [f32],
+    scratch: &mut [f32],
+) -> Result<(), KernelError> {
+    refine_with(Isa::best(), d0, h, w, aff, kmix, tmix, attrs, out, scratch)
+}
+
+/// As [`refine`] with kernel set `isa`: the x86 sets run `L` pixels per vector lane group
+/// (every pixel's own operations in the module doc's order, so the bits do not change).
+#[allow(clippy::too_many_arguments)]
+pub fn refine_with<A: Map, B: Map>(
+    isa: Isa,
     d0: &[f32],
     h: usize,
     w: usize,
@@ -188,15 +247,12 @@ pub fn refine<A: Map, B: Map>(
         cur.copy_from_slice(&d0[..p]);
         for t in 0..=t_max {
             if t > 0 {
-                step(a, &off[..nn], &g[..nn], h, w, cur, nxt);
+                step(isa, a, &off[..nn], &g[..nn], h, w, cur, nxt);
                 core::mem::swap(&mut cur, &mut nxt);
             }
             for (ti, &tt) in times.iter().enumerate() {
                 if tt == t {
-                    for (i, o) in out.iter_mut().enumerate() {
-                        let coef = softmax3(tmix, i)[ti] * softmax3(kmix, i)[k];
-                        *o += coef * cur[i];
-                    }
+                    accumulate(isa, out, cur, tmix, kmix, ti, k);
                 }
             }
         }
@@ -204,10 +260,109 @@ pub fn refine<A: Map, B: Map>(
     Ok(())
 }
 
-/// One propagation step of one kernel: `nxt` from `cur`. Pixels whose whole window lies inside
-/// the image take a path without per-neighbour bounds tests; both paths add the same terms in
-/// the same order, so the bits do not depend on which one ran.
+/// `out[i] += (softmax3(tmix)[ti] · softmax3(kmix)[k]) · cur[i]` for every pixel.
+fn accumulate<B: Map>(
+    isa: Isa,
+    out: &mut [f32],
+    cur: &[f32],
+    tmix: &B,
+    kmix: &B,
+    ti: usize,
+    k: usize,
+) {
+    match isa {
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2 | Isa::Avx512Vnni if Isa::Avx2.available() => {
+            let p = out.len().min(cur.len());
+            if let (Some(t), Some(m)) = (tmix.as_i8(), kmix.as_i8()) {
+                if t.channels >= 3 && m.channels >= 3 && t.plane >= p && m.plane >= p {
+                    // SAFETY: AVX2 is available; both maps hold 3 channels of ≥ p pixels.
+                    let done = unsafe { super::x86_64::refine::accumulate(out, cur, t, m, ti, k) };
+                    accumulate_lanes::<B, 1>(
+                        &mut out[done..p],
+                        &cur[done..p],
+                        tmix,
+                        kmix,
+                        ti,
+                        k,
+                        done,
+                    );
+                    return;
+                }
+            }
+            // SAFETY: AVX2 is available (checked).
+            unsafe { accumulate_avx2(out, cur, tmix, kmix, ti, k) }
+        }
+        _ => accumulate_lanes::<B, 4>(out, cur, tmix, kmix, ti, k, 0),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn accumulate_avx2<B: Map>(
+    out: &mut [f32],
+    cur: &[f32],
+    tmix: &B,
+    kmix: &B,
+    ti: usize,
+    k: usize,
+) {
+    accumulate_lanes::<B, 8>(out, cur, tmix, kmix, ti, k, 0)
+}
+
+/// [`accumulate`] for `out`, `cur` covering map pixels `first..`, `L` pixels at a time.
+#[inline(always)]
+fn accumulate_lanes<B: Map, const L: usize>(
+    out: &mut [f32],
+    cur: &[f32],
+    tmix: &B,
+    kmix: &B,
+    ti: usize,
+    k: usize,
+    first: usize,
+) {
+    let p = out.len().min(cur.len());
+    let mut i = 0;
+    while i + L <= p {
+        let t = softmax3_lanes::<B, L>(tmix, first + i);
+        let m = softmax3_lanes::<B, L>(kmix, first + i);
+        for l in 0..L {
+            out[i + l] += (t[ti][l] * m[k][l]) * cur[i + l];
+        }
+        i += L;
+    }
+    for i in i..p {
+        let coef = softmax3(tmix, first + i)[ti] * softmax3(kmix, first + i)[k];
+        out[i] += coef * cur[i];
+    }
+}
+
+/// [`softmax3`] of pixels `i..i + L`, channel-major.
+#[inline(always)]
+fn softmax3_lanes<M: Map, const L: usize>(m: &M, i: usize) -> [[f32; L]; 3] {
+    let v = [
+        m.values::<L>(0, i),
+        m.values::<L>(1, i),
+        m.values::<L>(2, i),
+    ];
+    let mut r = [[0f32; L]; 3];
+    for l in 0..L {
+        let mx = v[0][l].max(v[1][l]).max(v[2][l]);
+        let e = [exp(v[0][l] - mx), exp(v[1][l] - mx), exp(v[2][l] - mx)];
+        let s = e[0] + e[1] + e[2];
+        r[0][l] = e[0] / s;
+        r[1][l] = e[1] / s;
+        r[2][l] = e[2] / s;
+    }
+    r
+}
+
+/// One propagation step of one kernel: `nxt` from `cur`. Runs of `L` pixels whose windows lie
+/// inside the image take a lane path without bounds tests, the others a per-pixel path; both
+/// add the same terms in the same order per pixel, so the bits do not depend on which ran.
+#[allow(clippy::too_many_arguments)]
 fn step<A: Map>(
+    isa: Isa,
     a: &A,
     off: &[(isize, isize)],
     g: &[f32],
@@ -216,55 +371,178 @@ fn step<A: Map>(
     cur: &[f32],
     nxt: &mut [f32],
 ) {
-    let n = off.len();
+    match isa {
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2 | Isa::Avx512Vnni if Isa::Avx2.available() => match a.as_i8() {
+            Some(m) if m.channels >= off.len() && m.plane >= h * w && cur.len() >= h * w => {
+                step_i8_avx2(m, off, g, h, w, cur, nxt)
+            }
+            // SAFETY: AVX2 is available (checked).
+            _ => unsafe { step_avx2(a, off, g, h, w, cur, nxt) },
+        },
+        _ => step_lanes::<A, 4>(a, off, g, h, w, cur, nxt),
+    }
+}
+
+/// [`step`] on an int8 map with the AVX2 run kernel for each row's interior pixels.
+#[cfg(target_arch = "x86_64")]
+fn step_i8_avx2(
+    a: &I8Map,
+    off: &[(isize, isize)],
+    g: &[f32],
+    h: usize,
+    w: usize,
+    cur: &[f32],
+    nxt: &mut [f32],
+) {
+    let n = off.len().min(48).min(g.len());
     let rad = off
         .iter()
         .map(|&(dy, dx)| dy.unsigned_abs().max(dx.unsigned_abs()))
         .max()
         .unwrap_or(0);
-    let mut r = [0f32; 48];
-    let mut idx = [0usize; 48];
     let mut delta = [0isize; 48];
     for (d, &(dy, dx)) in delta.iter_mut().zip(off) {
         *d = dy * w as isize + dx;
     }
     for y in 0..h {
-        let inner_row = y >= rad && y + rad < h;
-        for x in 0..w {
-            let i = y * w + x;
-            let mut s = 0.0f32;
-            if inner_row && x >= rad && x + rad < w {
-                for j in 0..n {
-                    r[j] = relu(a.value(j, i)) * g[j];
-                    idx[j] = (i as isize + delta[j]) as usize;
-                    s += r[j];
-                }
-            } else {
-                for (j, &(dy, dx)) in off.iter().enumerate() {
-                    let (ny, nx) = (y as isize + dy, x as isize + dx);
-                    if ny < 0 || nx < 0 || ny >= h as isize || nx >= w as isize {
-                        r[j] = 0.0;
-                        idx[j] = i;
-                    } else {
-                        r[j] = relu(a.value(j, i)) * g[j];
-                        idx[j] = ny as usize * w + nx as usize;
-                    }
-                    s += r[j];
-                }
-            }
-            let q = 1.0 / (1.0 + s);
-            let mut wsum = 0.0f32;
-            for rj in r[..n].iter_mut() {
-                *rj *= q;
-                wsum += *rj;
-            }
-            let mut d = (1.0 - wsum) * cur[i];
-            for (&wj, &k) in r[..n].iter().zip(&idx[..n]) {
-                d += wj * cur[k];
-            }
-            nxt[i] = d;
+        let (mut x0, mut x1) = (0, 0);
+        if y >= rad && y + rad < h && w > 2 * rad {
+            x0 = rad;
+            x1 = rad + (w - 2 * rad) / 8 * 8;
+            // SAFETY: AVX2 is available (the caller's match); `a` has ≥ n channels over ≥ h·w
+            // pixels and every window of x0..x1 in row y lies inside the image, so every
+            // `i + delta` is a pixel of `cur`.
+            unsafe { super::x86_64::refine::step_run(a, &delta[..n], g, y * w, x0, x1, cur, nxt) };
+        }
+        for x in (0..x0).chain(x1..w) {
+            nxt[y * w + x] = step_pixel(a, off, g, h, w, cur, y, x);
         }
     }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn step_avx2<A: Map>(
+    a: &A,
+    off: &[(isize, isize)],
+    g: &[f32],
+    h: usize,
+    w: usize,
+    cur: &[f32],
+    nxt: &mut [f32],
+) {
+    step_lanes::<A, 8>(a, off, g, h, w, cur, nxt)
+}
+
+#[inline(always)]
+fn step_lanes<A: Map, const L: usize>(
+    a: &A,
+    off: &[(isize, isize)],
+    g: &[f32],
+    h: usize,
+    w: usize,
+    cur: &[f32],
+    nxt: &mut [f32],
+) {
+    let n = off.len().min(48);
+    let rad = off
+        .iter()
+        .map(|&(dy, dx)| dy.unsigned_abs().max(dx.unsigned_abs()))
+        .max()
+        .unwrap_or(0);
+    let mut delta = [0isize; 48];
+    for (d, &(dy, dx)) in delta.iter_mut().zip(off) {
+        *d = dy * w as isize + dx;
+    }
+    let mut r = [[0f32; L]; 48];
+    for y in 0..h {
+        let inner_row = y >= rad && y + rad < h;
+        let mut x = 0;
+        while x < w {
+            let i = y * w + x;
+            if inner_row && x >= rad && x + L - 1 + rad < w {
+                let mut s = [0f32; L];
+                for j in 0..n {
+                    let v = a.values::<L>(j, i);
+                    for l in 0..L {
+                        r[j][l] = relu(v[l]) * g[j];
+                        s[l] += r[j][l];
+                    }
+                }
+                let mut q = [0f32; L];
+                for l in 0..L {
+                    q[l] = 1.0 / (1.0 + s[l]);
+                }
+                let mut wsum = [0f32; L];
+                for rj in r[..n].iter_mut() {
+                    for l in 0..L {
+                        rj[l] *= q[l];
+                        wsum[l] += rj[l];
+                    }
+                }
+                let c: &[f32; L] = cur[i..i + L].try_into().unwrap_or(&[0.0; L]);
+                let mut d = [0f32; L];
+                for l in 0..L {
+                    d[l] = (1.0 - wsum[l]) * c[l];
+                }
+                for (rj, &dj) in r[..n].iter().zip(&delta) {
+                    let k = (i as isize + dj) as usize;
+                    let cn: &[f32; L] = cur[k..k + L].try_into().unwrap_or(&[0.0; L]);
+                    for l in 0..L {
+                        d[l] += rj[l] * cn[l];
+                    }
+                }
+                nxt[i..i + L].copy_from_slice(&d);
+                x += L;
+            } else {
+                nxt[i] = step_pixel(a, off, g, h, w, cur, y, x);
+                x += 1;
+            }
+        }
+    }
+}
+
+/// One pixel of [`step`] with per-neighbour bounds tests (neighbours outside get weight 0).
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn step_pixel<A: Map>(
+    a: &A,
+    off: &[(isize, isize)],
+    g: &[f32],
+    h: usize,
+    w: usize,
+    cur: &[f32],
+    y: usize,
+    x: usize,
+) -> f32 {
+    let i = y * w + x;
+    let mut r = [0f32; 48];
+    let mut idx = [0usize; 48];
+    let mut s = 0.0f32;
+    for (j, &(dy, dx)) in off.iter().enumerate().take(48) {
+        let (ny, nx) = (y as isize + dy, x as isize + dx);
+        if ny < 0 || nx < 0 || ny >= h as isize || nx >= w as isize {
+            r[j] = 0.0;
+            idx[j] = i;
+        } else {
+            r[j] = relu(a.value(j, i)) * g[j];
+            idx[j] = ny as usize * w + nx as usize;
+        }
+        s += r[j];
+    }
+    let n = off.len().min(48);
+    let q = 1.0 / (1.0 + s);
+    let mut wsum = 0.0f32;
+    for rj in r[..n].iter_mut() {
+        *rj *= q;
+        wsum += *rj;
+    }
+    let mut d = (1.0 - wsum) * cur[i];
+    for (&wj, &k) in r[..n].iter().zip(&idx[..n]) {
+        d += wj * cur[k];
+    }
+    d
 }
 
 #[cfg(test)]
@@ -341,6 +619,112 @@ mod tests {
         let mixed = run(&[2.0, 4.0], 1, 2, &aff3, [0.0; 3], [0.0; 3], 2);
         let want = (2.0 + 3.0 + 3.5) / 9.0 + 2.0 * 2.0 / 3.0;
         assert!((mixed[0] - want).abs() < 1e-4, "{mixed:?} vs {want}");
+    }
+
+    /// The driver of [`refine_with`] with every pixel through [`step_pixel`] and the scalar
+    /// [`softmax3`]: the per-pixel order the module doc specifies.
+    fn refine_per_pixel<A: Map, B: Map>(
+        d0: &[f32],
+        h: usize,
+        w: usize,
+        aff: [&A; 3],
+        kmix: &B,
+        tmix: &B,
+        attrs: &RefineAttrs,
+    ) -> Vec<f32> {
+        let p = h * w;
+        let t_max = attrs.iterations;
+        let times = [0, t_max / 2, t_max];
+        let mut out = std::vec![0f32; p];
+        for (k, (&a, &s)) in aff.iter().zip(&KERNELS).enumerate() {
+            let mut off = [(0isize, 0isize); 48];
+            let nn = offsets(s, &mut off);
+            let two_s2 = 2.0 * attrs.sigma[k] * attrs.sigma[k];
+            let g: Vec<f32> = off[..nn]
+                .iter()
+                .map(|&(dy, dx)| exp(-((dx * dx + dy * dy) as f32) / two_s2))
+                .collect();
+            let mut cur = d0.to_vec();
+            for t in 0..=t_max {
+                if t > 0 {
+                    cur = (0..p)
+                        .map(|i| step_pixel(a, &off[..nn], &g, h, w, &cur, i / w, i % w))
+                        .collect();
+                }
+                for (ti, &tt) in times.iter().enumerate() {
+                    if tt == t {
+                        for i in 0..p {
+                            out[i] += (softmax3(tmix, i)[ti] * softmax3(kmix, i)[k]) * cur[i];
+                        }
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn every_kernel_set_gives_the_per_pixel_bits() {
+        let mut seed = 12345u64;
+        let mut next = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 33) as u32
+        };
+        for (h, w) in [(9usize, 23usize), (16, 40), (3, 5)] {
+            let p = h * w;
+            let codes = |n: usize, next: &mut dyn FnMut() -> u32| -> Vec<i8> {
+                (0..n).map(|_| next() as i8).collect()
+            };
+            let a3 = codes(8 * p, &mut next);
+            let a5 = codes(24 * p, &mut next);
+            let a7 = codes(48 * p, &mut next);
+            let km = codes(3 * p, &mut next);
+            let tm = codes(3 * p, &mut next);
+            let d0: Vec<f32> = (0..p)
+                .map(|_| 0.5 + (next() % 1000) as f32 * 0.007)
+                .collect();
+            fn m(d: &[i8], c: usize) -> I8Map<'_> {
+                let q = QParams {
+                    scale: 0.03,
+                    zero_point: -20,
+                };
+                I8Map::new(d, q, c, d.len() / c).unwrap()
+            }
+            let (m3, m5, m7, kmx, tmx) = (m(&a3, 8), m(&a5, 24), m(&a7, 48), m(&km, 3), m(&tm, 3));
+            let attrs = RefineAttrs {
+                iterations: 4,
+                sigma: [1.0, 1.5, 2.0],
+            };
+            let want = refine_per_pixel(&d0, h, w, [&m3, &m5, &m7], &kmx, &tmx, &attrs);
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                let mut out = std::vec![0f32; p];
+                let mut scratch = std::vec![0f32; 2 * p];
+                refine_with(
+                    isa,
+                    &d0,
+                    h,
+                    w,
+                    [&m3, &m5, &m7],
+                    &kmx,
+                    &tmx,
+                    &attrs,
+                    &mut out,
+                    &mut scratch,
+                )
+                .unwrap();
+                let same = out
+                    .iter()
+                    .zip(&want)
+                    .all(|(a, b)| a.to_bits() == b.to_bits());
+                assert!(
+                    same,
+                    "{} at {h}x{w}: lanes differ from the per-pixel order",
+                    isa.name()
+                );
+            }
+        }
     }
 
     #[test]

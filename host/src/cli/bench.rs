@@ -3,13 +3,19 @@
 //! - `depthor bench sim [--frames N] [--preset P]`: frames per second of scene rendering plus
 //!   dToF simulation at 240×320 and 480×640 (H×W), on all cores (rayon), and the split between
 //!   the renderer and the simulator on one core.
-//! - `depthor bench engine [--model M] [--height H --width W] [--runs N]`: one thread, median
-//!   time per frame of the core's int8 engine and of tract's f32 run of the exported NNEF on the
-//!   same model, size and simulated input; their ratio, MACs per frame, int8 weight bytes, blob
-//!   bytes, arena bytes, and the depth SQNR of int8 against float on that input. Without
-//!   `--model` it measures every shipped variant at its native size.
+//! - `depthor bench engine [--model M] [--height H --width W] [--runs N] [--per-op]
+//!   [--kernels best|all|SET]`: one thread, median time per frame of the core's int8 engine
+//!   (prepared once, as on a device) and of tract's f32 run of the exported NNEF on the same
+//!   model, size and simulated input; their ratio, MACs per frame, int8 weight bytes, blob
+//!   bytes, arena bytes, and the depth SQNR of int8 against float on that input; with
+//!   `--per-op`, ms, MACs and GMAC/s per op and per op kind, and the convs' share of the
+//!   assumed int8 peak. Without `--model` it measures every shipped variant at its native
+//!   size.
 
 use anyhow::{Context, Result};
+use depthor_core::blob::format::op_name;
+use depthor_core::engine::Engine;
+use depthor_core::kernels::isa::Isa;
 use depthor_host::dataset::{frame_seed, scene_config_for};
 use depthor_host::inference::Int8Model;
 use depthor_host::models::{ModelFiles, VARIANTS};
@@ -54,6 +60,13 @@ enum What {
         /// Timed runs per runtime (after one warm-up run); the median is printed.
         #[arg(long, default_value_t = 10)]
         runs: usize,
+        /// Also print time, MACs and GMAC/s per op (median over the runs).
+        #[arg(long)]
+        per_op: bool,
+        /// Kernel set of the core: `best` (default), `all` (every set this CPU runs, side by
+        /// side), or one of `portable`, `avx2`, `avx512-vnni`.
+        #[arg(long, default_value = "best")]
+        kernels: String,
     },
 }
 
@@ -66,12 +79,21 @@ pub fn handle(args: Args) -> Result<()> {
             height,
             width,
             runs,
+            per_op,
+            kernels,
         } => {
             let size = height.zip(width);
+            let sets = kernel_sets(&kernels)?;
+            let opts = EngineBench {
+                size,
+                runs,
+                per_op,
+                sets: &sets,
+            };
             match model {
-                Some(m) => bench_engine(&ModelFiles::resolve(&m)?, size, runs),
+                Some(m) => bench_engine(&ModelFiles::resolve(&m)?, &opts),
                 None => VARIANTS.iter().try_for_each(|v| {
-                    bench_engine(&ModelFiles::resolve(v)?, size, runs)?;
+                    bench_engine(&ModelFiles::resolve(v)?, &opts)?;
                     println!();
                     Ok(())
                 }),
@@ -159,49 +181,219 @@ fn median_ms(runs: usize, mut f: impl FnMut() -> Result<()>) -> Result<f64> {
     Ok(t[t.len() / 2])
 }
 
-fn bench_engine(files: &ModelFiles, size: Option<(usize, usize)>, runs: usize) -> Result<()> {
-    let mut int8 = Int8Model::from_file(&files.blob(), size)?;
+/// The kernel sets `--kernels` names.
+fn kernel_sets(name: &str) -> Result<Vec<Isa>> {
+    Ok(match name {
+        "best" => vec![Isa::best()],
+        "all" => Isa::ALL.into_iter().filter(|i| i.available()).collect(),
+        n => {
+            let isa = Isa::from_name(n).with_context(|| {
+                format!("--kernels: unknown kernel set {n:?} (allowed: best, all, portable, arm-dsp, avx2, avx512-vnni)")
+            })?;
+            anyhow::ensure!(isa.available(), "--kernels: {n} does not run on this CPU");
+            vec![isa]
+        }
+    })
+}
+
+/// Options of `depthor bench engine`.
+struct EngineBench<'a> {
+    size: Option<(usize, usize)>,
+    runs: usize,
+    per_op: bool,
+    sets: &'a [Isa],
+}
+
+/// One timed op of the per-op profile.
+struct OpTime {
+    name: &'static str,
+    shape: String,
+    macs: u64,
+    ms: Vec<f64>,
+}
+
+/// The int8 multiply-accumulate peak of one core this bench assumes, with its derivation.
+fn int8_peak(isa: Isa) -> (f64, String) {
+    let mhz = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|t| {
+            t.lines()
+                .find(|l| l.starts_with("cpu MHz"))
+                .and_then(|l| l.split(':').nth(1))
+                .and_then(|v| v.trim().parse::<f64>().ok())
+        })
+        .unwrap_or(2500.0);
+    let (per_cycle, how) = match isa {
+        Isa::Avx512Vnni => (64.0, "one 512-bit vpdpbusd (64 int8 MACs) per cycle"),
+        Isa::Avx2 => (32.0, "two 256-bit vpmaddwd (16 MACs each) per cycle"),
+        _ => (4.0, "scalar: ~4 MACs per cycle"),
+    };
+    let peak = per_cycle * mhz * 1e6;
+    (
+        peak,
+        format!(
+            "{:.0} GMAC/s = {how} x {mhz:.0} MHz (/proc/cpuinfo); an estimate, not measured",
+            peak / 1e9
+        ),
+    )
+}
+
+fn bench_engine(files: &ModelFiles, o: &EngineBench) -> Result<()> {
+    let runs = o.runs.max(1);
+    let mut int8 = Int8Model::from_file(&files.blob(), o.size)?;
     let (h, w) = int8.input_shape();
     let float = FloatReference::load(&files.nnef(), h as u32, w as u32)?;
     let frame = simulated_frames(files.preset(), h, w, 1, 424_242)?
         .pop()
         .context("no simulated frame")?;
-    let mut stats = None;
-    let mut int8_depth = Vec::new();
-    let core_ms = median_ms(runs, || {
-        let (d, s) = int8.run(&frame.rgb, &frame.sparse_m)?;
-        int8_depth = d;
-        stats = Some(s);
-        Ok(())
-    })?;
-    let float_depth = float.run(&frame.rgb, &frame.sparse_m)?;
-    let tract_ms = float.time_per_frame(runs)?.as_secs_f64() * 1e3;
-    let macs = stats.map_or(0, |s| s.macs);
     println!(
         "engine bench: {} ({}) at {h}×{w}, one thread, median of {runs} runs on a simulated {} frame",
         files.variant,
         files.dir.display(),
         files.preset()
     );
+    let float_depth = float.run(&frame.rgb, &frame.sparse_m)?;
+    let tract_ms = float.time_per_frame(runs)?.as_secs_f64() * 1e3;
+    let mut int8_depth = vec![0f32; h * w];
+    let mut macs = 0u64;
+    let mut rows = Vec::new();
+    for &isa in o.sets {
+        let (core_ms, profile) = int8.with_engine(|e| -> Result<(f64, Vec<OpTime>)> {
+            e.set_kernels(isa)?;
+            let ms = median_ms(runs, || {
+                macs = e.run(&frame.rgb, &frame.sparse_m, &mut int8_depth)?.macs;
+                Ok(())
+            })?;
+            let profile = if o.per_op {
+                profile_ops(e, &frame.rgb, &frame.sparse_m, runs)?
+            } else {
+                Vec::new()
+            };
+            Ok((ms, profile))
+        })??;
+        rows.push((isa, core_ms, sqnr_db(&float_depth, &int8_depth), profile));
+    }
     println!("  MACs per frame          {:.3} G", macs as f64 / 1e9);
     println!("  int8 weight bytes       {}", int8.int8_weight_bytes());
     println!("  blob bytes              {}", int8.blob_bytes());
     println!("  arena bytes (core)      {}", int8.arena_bytes());
     println!(
-        "  core int8               {core_ms:.1} ms/frame  ({:.2} GMAC/s)",
-        macs as f64 / core_ms / 1e6
-    );
-    println!(
         "  tract f32               {tract_ms:.1} ms/frame  ({:.2} GMAC/s)",
         macs as f64 / tract_ms / 1e6
     );
-    println!(
-        "  ratio tract / core      {:.2} (above 1: the core is faster)",
-        tract_ms / core_ms
-    );
-    println!(
-        "  depth SQNR int8 vs f32  {:.1} dB on this frame",
-        sqnr_db(&float_depth, &int8_depth)
-    );
+    for (isa, core_ms, sqnr, _) in &rows {
+        println!(
+            "  core int8 {:<13} {core_ms:.1} ms/frame  ({:.2} GMAC/s), tract / core {:.2} (above 1: the core is faster), depth SQNR vs f32 {sqnr:.1} dB",
+            isa.name(),
+            macs as f64 / core_ms / 1e6,
+            tract_ms / core_ms,
+        );
+    }
+    for (isa, _, _, profile) in rows.iter().filter(|r| !r.3.is_empty()) {
+        print_profile(*isa, profile);
+    }
     Ok(())
+}
+
+/// Times every op of `runs` frames through the observer (called right after each op).
+fn profile_ops(
+    e: &mut Engine<'_>,
+    rgb: &[u8],
+    sparse_m: &[f32],
+    runs: usize,
+) -> Result<Vec<OpTime>> {
+    let plan = e.plan();
+    let graph = e.graph();
+    let mut ops: Vec<OpTime> = graph
+        .ops
+        .iter()
+        .enumerate()
+        .map(|(i, op)| OpTime {
+            name: op_name(op.code).unwrap_or("?"),
+            shape: plan
+                .shape(op.output)
+                .map_or(String::new(), |s| format!("{}x{}x{}", s.c, s.h, s.w)),
+            macs: plan.op_macs(graph, i),
+            ms: Vec::with_capacity(runs),
+        })
+        .collect();
+    let mut out = vec![0f32; rgb.len() / 3];
+    for _ in 0..runs {
+        let mut last = Instant::now();
+        let mut times = vec![0f64; ops.len()];
+        e.run_observed(rgb, sparse_m, &mut out, &mut |i, _| {
+            let now = Instant::now();
+            if let Some(t) = times.get_mut(i) {
+                *t = (now - last).as_secs_f64() * 1e3;
+            }
+            last = Instant::now();
+        })?;
+        for (op, t) in ops.iter_mut().zip(times) {
+            op.ms.push(t);
+        }
+    }
+    Ok(ops)
+}
+
+fn median(v: &[f64]) -> f64 {
+    let mut v = v.to_vec();
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(0.0)
+}
+
+fn print_profile(isa: Isa, ops: &[OpTime]) {
+    let total: f64 = ops.iter().map(|o| median(&o.ms)).sum();
+    println!(
+        "\n  per-op profile, kernel set {} (sum of medians {total:.2} ms)",
+        isa.name()
+    );
+    println!(
+        "  {:>3}  {:<18} {:>14} {:>10} {:>8} {:>8} {:>6}",
+        "op", "kind", "output CxHxW", "MMAC", "ms", "GMAC/s", "%"
+    );
+    for (i, o) in ops.iter().enumerate() {
+        let ms = median(&o.ms);
+        let gmacs = if o.macs > 0 && ms > 0.0 {
+            format!("{:.1}", o.macs as f64 / ms / 1e6)
+        } else {
+            "-".into()
+        };
+        println!(
+            "  {i:>3}  {:<18} {:>14} {:>10.2} {ms:>8.3} {gmacs:>8} {:>6.1}",
+            o.name,
+            o.shape,
+            o.macs as f64 / 1e6,
+            100.0 * ms / total.max(1e-9)
+        );
+    }
+    let mut kinds: Vec<(&str, f64, u64)> = Vec::new();
+    for o in ops {
+        match kinds.iter_mut().find(|k| k.0 == o.name) {
+            Some(k) => {
+                k.1 += median(&o.ms);
+                k.2 += o.macs;
+            }
+            None => kinds.push((o.name, median(&o.ms), o.macs)),
+        }
+    }
+    kinds.sort_by(|a, b| b.1.total_cmp(&a.1));
+    println!("  by kind:");
+    for (name, ms, macs) in &kinds {
+        println!(
+            "    {name:<18} {ms:>8.2} ms {:>6.1} %  {:>8.1} MMAC",
+            100.0 * ms / total.max(1e-9),
+            *macs as f64 / 1e6
+        );
+    }
+    let (conv_ms, conv_macs) = ops
+        .iter()
+        .filter(|o| o.name == "conv2d" || o.name == "linear")
+        .fold((0.0, 0u64), |(t, m), o| (t + median(&o.ms), m + o.macs));
+    let (peak, how) = int8_peak(isa);
+    let rate = conv_macs as f64 / (conv_ms / 1e3).max(1e-12);
+    println!(
+        "  convs: {:.2} GMAC/s = {:.1} % of the assumed int8 peak of one core, {how}",
+        rate / 1e9,
+        100.0 * rate / peak
+    );
 }

@@ -1,0 +1,227 @@
+//! Packed operands of the convolution: the reduction laid out innermost for dot instructions.
+//!
+//! **Rows.** For one output row `oy`, the `kh` input rows it reads (`iy = oy·sh + ky·dh − ph`)
+//! are packed per group of `L` input channels ("channel group" `cg`) as
+//! `rows[cg][ky][phase][xq][l]`: input channel `cg·L + l` at padded column
+//! `xq·sw + phase` (column `ix = xq·sw + phase − pw`). Tap `(ky, kx)` of output pixel `ox` is
+//! then at `[cg][ky][(kx·dw) mod sw][ox + ⌊kx·dw / sw⌋]`: consecutive pixels are consecutive
+//! `L`-element words for every stride and dilation. Padding (rows, columns, channels past the
+//! group's last) holds the padding element. Each row is [`row_width`] words wide so that a
+//! pixel block of [`PB`] may run past the last output column.
+//!
+//! **Weights.** Channel block `b` (output channels `b·NB ..`, zero past the last) as
+//! `w[b][cg][ky][kx][j][l]` = weight of output `b·NB + j`, input channel `cg·L + l`, tap
+//! `(ky, kx)` (zero past the last input channel).
+//!
+//! **Layouts.** [`Pairs`]: `L = 2`, 16-bit `x − zp` (pad 0) for `vpmaddwd` / `SMLAD`.
+//! [`Quads`]: `L = 4`, bytes `x + 128` (pad `zp + 128`) for `vpdpbusd`; the sums then carry
+//! `(zp + 128)·Σw` per channel, which the caller subtracts.
+
+use super::conv::ConvGeometry;
+use super::Shape;
+
+/// Output pixels per micro-kernel call.
+pub const PB: usize = 32;
+/// Output channels per weight block.
+pub const NB: usize = 4;
+
+/// How input channels are grouped per word.
+pub trait Layout {
+    /// Element type of the packed rows.
+    type Elem: Copy + Default;
+    /// Weight element type.
+    type W: Copy + Default;
+    /// Channels per word.
+    const L: usize;
+    /// The packed element of input code `x` with input zero point `zp`.
+    fn elem(x: i8, zp: i32) -> Self::Elem;
+    /// The packed element of padding.
+    fn pad(zp: i32) -> Self::Elem;
+    /// The packed weight.
+    fn weight(w: i8) -> Self::W;
+    /// What the packing adds to channel `o`'s sum, given `zp` and `Σw` of that channel.
+    fn bias_term(zp: i32, sum_w: i32) -> i32;
+}
+
+/// 16-bit `x − zp`, two channels per word.
+pub struct Pairs;
+impl Layout for Pairs {
+    type Elem = i16;
+    type W = i16;
+    const L: usize = 2;
+    #[inline(always)]
+    fn elem(x: i8, zp: i32) -> i16 {
+        (x as i32 - zp) as i16
+    }
+    #[inline(always)]
+    fn pad(_zp: i32) -> i16 {
+        0
+    }
+    #[inline(always)]
+    fn weight(w: i8) -> i16 {
+        w as i16
+    }
+    #[inline(always)]
+    fn bias_term(_zp: i32, _sum_w: i32) -> i32 {
+        0
+    }
+}
+
+/// Bytes `x + 128`, four channels per word (padding `zp + 128`).
+pub struct Quads;
+impl Layout for Quads {
+    type Elem = u8;
+    type W = i8;
+    const L: usize = 4;
+    #[inline(always)]
+    fn elem(x: i8, _zp: i32) -> u8 {
+        (x as u8) ^ 0x80
+    }
+    #[inline(always)]
+    fn pad(zp: i32) -> u8 {
+        (zp + 128) as u8
+    }
+    #[inline(always)]
+    fn weight(w: i8) -> i8 {
+        w
+    }
+    #[inline(always)]
+    fn bias_term(zp: i32, sum_w: i32) -> i32 {
+        (zp + 128).wrapping_mul(sum_w)
+    }
+}
+
+/// Words per packed row and phase: the output columns rounded up to [`PB`] plus the widest
+/// tap reach `⌊(kw − 1)·dw / sw⌋`.
+pub fn row_width(g: &ConvGeometry, out_w: usize) -> usize {
+    out_w.div_ceil(PB) * PB + (g.kernel[1] - 1) * g.dilation[1] / g.stride[1] + 1
+}
+
+/// Sizes of the packed operands of one conv (in elements).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Dims {
+    /// Channel groups per conv group (`⌈icg / L⌉`).
+    pub n_cg: usize,
+    /// Elements of one channel group's `kh` rows (`kh · sw · row_width · L`).
+    pub cg_stride: usize,
+    /// Elements of one output channel block's weights (`n_cg · kh · kw · NB · L`).
+    pub block_len: usize,
+    /// Weight blocks per conv group (`⌈ocg / NB⌉`).
+    pub n_blocks: usize,
+}
+
+impl Dims {
+    /// Sizes for input channels per group `icg`, outputs per group `ocg`, layout `l`.
+    pub fn new(g: &ConvGeometry, icg: usize, ocg: usize, out_w: usize, l: usize) -> Dims {
+        let n_cg = icg.div_ceil(l);
+        let cg_stride = g.kernel[0] * g.stride[1] * row_width(g, out_w) * l;
+        Dims {
+            n_cg,
+            cg_stride,
+            block_len: n_cg * g.kernel[0] * g.kernel[1] * NB * l,
+            n_blocks: ocg.div_ceil(NB),
+        }
+    }
+    /// Elements of all packed rows.
+    pub fn rows_len(&self) -> usize {
+        self.n_cg * self.cg_stride
+    }
+}
+
+/// Element offset of tap `(ky, kx)` inside one channel group's packed rows, plus the offset of
+/// pixel `ox` (`ox · L`).
+pub fn tap_offset(g: &ConvGeometry, out_w: usize, l: usize, ky: usize, kx: usize) -> usize {
+    let rw = row_width(g, out_w);
+    let reach = kx * g.dilation[1];
+    ((ky * g.stride[1] + reach % g.stride[1]) * rw + reach / g.stride[1]) * l
+}
+
+/// Packs the rows output row `oy` reads from the group's `in_shape.c` channels `input` (CHW).
+#[allow(clippy::too_many_arguments)]
+pub fn pack_rows<F: Layout>(
+    g: &ConvGeometry,
+    input: &[i8],
+    in_shape: Shape,
+    out_w: usize,
+    oy: usize,
+    zp: i32,
+    dims: &Dims,
+    rows: &mut [F::Elem],
+) {
+    let (ih, iw) = (in_shape.h, in_shape.w);
+    let plane = ih * iw;
+    let sw = g.stride[1];
+    let rw = row_width(g, out_w);
+    let pad = F::pad(zp);
+    let (pw, l) = (g.padding[1], F::L);
+    // Padded columns xq·sw + phase that hold input column ix = · − pw (per phase: [lo, hi)).
+    let span = |phase: usize| -> (usize, usize) {
+        let lo = pw.saturating_sub(phase).div_ceil(sw);
+        let hi = (iw + pw).saturating_sub(phase).div_ceil(sw).min(rw);
+        (lo.min(hi), hi)
+    };
+    for cg in 0..dims.n_cg {
+        for ky in 0..g.kernel[0] {
+            let iy = (oy * g.stride[0] + ky * g.dilation[0]) as isize - g.padding[0] as isize;
+            let row_ok = iy >= 0 && (iy as usize) < ih;
+            for phase in 0..sw {
+                let base = cg * dims.cg_stride + (ky * sw + phase) * rw * l;
+                let dst = &mut rows[base..base + rw * l];
+                if !row_ok {
+                    dst.fill(pad);
+                    continue;
+                }
+                let (lo, hi) = span(phase);
+                dst[..lo * l].fill(pad);
+                dst[hi.max(lo) * l..].fill(pad);
+                for li in 0..l {
+                    let c = cg * l + li;
+                    let words = dst[lo * l..hi.max(lo) * l].iter_mut().skip(li).step_by(l);
+                    if c >= in_shape.c {
+                        for d in words {
+                            *d = pad;
+                        }
+                        continue;
+                    }
+                    let at = c * plane + iy as usize * iw;
+                    let src = &input[at..at + iw];
+                    let ix0 = lo * sw + phase - pw;
+                    for (d, &x) in words.zip(src[ix0.min(iw)..].iter().step_by(sw)) {
+                        *d = F::elem(x, zp);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Packs the weights of the group's `ocg` output channels (`[ocg][icg][kh][kw]`, row-major) into
+/// `dims.n_blocks` blocks; `sums[o]` receives `Σw` of output `o`.
+pub fn pack_weights<F: Layout>(
+    g: &ConvGeometry,
+    weights: &[i8],
+    icg: usize,
+    ocg: usize,
+    dims: &Dims,
+    out: &mut [F::W],
+    sums: &mut [i32],
+) {
+    let (kh, kw) = (g.kernel[0], g.kernel[1]);
+    let taps = icg * kh * kw;
+    let l = F::L;
+    out[..dims.n_blocks * dims.block_len].fill(F::W::default());
+    for o in 0..ocg {
+        let (b, j) = (o / NB, o % NB);
+        let row = &weights[o * taps..(o + 1) * taps];
+        let mut s = 0i32;
+        for c in 0..icg {
+            let (cg, li) = (c / l, c % l);
+            for t in 0..kh * kw {
+                let w = row[c * kh * kw + t];
+                s += w as i32;
+                out[b * dims.block_len + ((cg * kh * kw + t) * NB + j) * l + li] = F::weight(w);
+            }
+        }
+        sums[o] = s;
+    }
+}

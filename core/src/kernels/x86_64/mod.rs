@@ -1,0 +1,8 @@
+//! x86-64 micro-kernels (`core::arch` intrinsics behind `#[target_feature]`); callers check
+//! [`super::isa::Isa::available`] first.
+
+pub mod avx2;
+pub mod avx512_vnni;
+pub mod bins;
+pub mod refine;
+pub mod vmath;

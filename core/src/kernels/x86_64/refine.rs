@@ -1,0 +1,111 @@
+//! AVX2 refinement on int8 maps, 8 pixels per vector: [`crate::kernels::refine`]'s step and
+//! output accumulation with every pixel's operations in the module doc's order (IEEE
+//! multiply, add, divide, max; no FMA), so the bits equal the per-pixel path's.
+
+use super::vmath::exp_ps;
+use crate::kernels::refine::I8Map;
+use core::arch::x86_64::*;
+
+/// Dequantised codes `i..i + 8` of channel `c`: `scale · (q − zp)`.
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn load8(m: &I8Map, c: usize, i: usize) -> __m256 {
+    let p = m.data().as_ptr().add(c * m.plane() + i);
+    let q = _mm256_cvtepi8_epi32(_mm_loadl_epi64(p as *const __m128i));
+    let d = _mm256_sub_epi32(q, _mm256_set1_epi32(m.q().zero_point));
+    _mm256_mul_ps(_mm256_set1_ps(m.q().scale), _mm256_cvtepi32_ps(d))
+}
+
+/// The interior pixels `x0..x1` of row `y` (every window inside, `x1 − x0` a multiple of 8) of
+/// one propagation step. Callers check `a` has `delta.len()` channels over `h·w` pixels, and
+/// that every `i + delta` lies in `cur`.
+///
+/// # Safety
+/// The CPU must have AVX2 and the conditions above must hold.
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+pub unsafe fn step_run(
+    a: &I8Map,
+    delta: &[isize],
+    g: &[f32],
+    row_start: usize,
+    x0: usize,
+    x1: usize,
+    cur: &[f32],
+    nxt: &mut [f32],
+) {
+    let n = delta.len().min(48);
+    let zero = _mm256_setzero_ps();
+    let one = _mm256_set1_ps(1.0);
+    let mut r = [zero; 48];
+    let mut x = x0;
+    while x + 8 <= x1 {
+        let i = row_start + x;
+        let mut s = zero;
+        for (j, (rj, &gj)) in r[..n].iter_mut().zip(g).enumerate() {
+            let v = _mm256_max_ps(load8(a, j, i), zero);
+            *rj = _mm256_mul_ps(v, _mm256_set1_ps(gj));
+            s = _mm256_add_ps(s, *rj);
+        }
+        let q = _mm256_div_ps(one, _mm256_add_ps(one, s));
+        let mut wsum = zero;
+        for rj in r[..n].iter_mut() {
+            *rj = _mm256_mul_ps(*rj, q);
+            wsum = _mm256_add_ps(wsum, *rj);
+        }
+        let c = cur.as_ptr();
+        let mut d = _mm256_mul_ps(_mm256_sub_ps(one, wsum), _mm256_loadu_ps(c.add(i)));
+        for (rj, &dj) in r[..n].iter().zip(delta) {
+            let cn = _mm256_loadu_ps(c.offset(i as isize + dj));
+            d = _mm256_add_ps(d, _mm256_mul_ps(*rj, cn));
+        }
+        _mm256_storeu_ps(nxt.as_mut_ptr().add(i), d);
+        x += 8;
+    }
+}
+
+/// `softmax3` of pixels `i..i + 8` of a 3-channel map.
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn softmax3(m: &I8Map, i: usize) -> [__m256; 3] {
+    let v = [load8(m, 0, i), load8(m, 1, i), load8(m, 2, i)];
+    let mx = _mm256_max_ps(_mm256_max_ps(v[0], v[1]), v[2]);
+    let e = [
+        exp_ps(_mm256_sub_ps(v[0], mx)),
+        exp_ps(_mm256_sub_ps(v[1], mx)),
+        exp_ps(_mm256_sub_ps(v[2], mx)),
+    ];
+    let s = _mm256_add_ps(_mm256_add_ps(e[0], e[1]), e[2]);
+    [
+        _mm256_div_ps(e[0], s),
+        _mm256_div_ps(e[1], s),
+        _mm256_div_ps(e[2], s),
+    ]
+}
+
+/// `out[i] += (softmax3(tmix)[ti] · softmax3(kmix)[k]) · cur[i]` for the first `⌊p/8⌋·8`
+/// pixels; returns how many.
+///
+/// # Safety
+/// The CPU must have AVX2 and both maps 3 channels over ≥ `p` pixels.
+#[target_feature(enable = "avx2")]
+pub unsafe fn accumulate(
+    out: &mut [f32],
+    cur: &[f32],
+    tmix: &I8Map,
+    kmix: &I8Map,
+    ti: usize,
+    k: usize,
+) -> usize {
+    let p = out.len().min(cur.len());
+    let mut i = 0;
+    while i + 8 <= p {
+        let t = softmax3(tmix, i)[ti.min(2)];
+        let m = softmax3(kmix, i)[k.min(2)];
+        let o = out.as_mut_ptr().add(i);
+        let add = _mm256_mul_ps(_mm256_mul_ps(t, m), _mm256_loadu_ps(cur.as_ptr().add(i)));
+        _mm256_storeu_ps(o, _mm256_add_ps(_mm256_loadu_ps(o), add));
+        i += 8;
+    }
+    i
+}
