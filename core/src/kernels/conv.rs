@@ -245,9 +245,20 @@ impl Conv2d<'_> {
         };
         match isa {
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx2 | Isa::Avx512Vnni if isa.available() => {
+            Isa::Avx2 | Isa::Avx512Vnni if Isa::Avx2.available() => {
+                let c = super::x86_64::requant::RowConsts {
+                    base,
+                    pos_m: cq.pos.multiplier,
+                    neg_m: cq.neg.multiplier,
+                    pos_r: k.pos_r,
+                    neg_r: k.neg_r,
+                    zp: k.zp,
+                    min: k.min,
+                    max: k.max,
+                };
                 // SAFETY: AVX2 is available (checked).
-                unsafe { requant_row_avx2(&k, acc, out) }
+                let done = unsafe { super::x86_64::requant::row(&c, acc, out) };
+                requant_row(&k, &acc[done..], &mut out[done..]);
             }
             _ => requant_row(&k, acc, out),
         }
@@ -302,12 +313,6 @@ fn requant_row(k: &RowQuant, acc: &[i32], out: &mut [i8]) {
         let r = (q >> e) + i32::from(rem > threshold);
         *d = r.saturating_add(k.zp).clamp(k.min, k.max) as i8;
     }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn requant_row_avx2(k: &RowQuant, acc: &[i32], out: &mut [i8]) {
-    requant_row(k, acc, out)
 }
 
 /// Reference convolution: plain loops over every output element and tap (the spec).

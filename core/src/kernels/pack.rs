@@ -174,6 +174,17 @@ pub fn pack_rows<F: Layout>(
                 let (lo, hi) = span(phase);
                 dst[..lo * l].fill(pad);
                 dst[hi.max(lo) * l..].fill(pad);
+                let at = iy as usize * iw + (lo * sw + phase).saturating_sub(pw);
+                let len = hi.saturating_sub(lo);
+                if sw == 1 && (cg + 1) * l <= in_shape.c && at + len <= plane {
+                    let src = |li: usize| &input[(cg * l + li) * plane + at..][..len];
+                    let out = &mut dst[lo * l..hi * l];
+                    match l {
+                        4 => interleave4::<F>([src(0), src(1), src(2), src(3)], zp, out),
+                        _ => interleave2::<F>([src(0), src(1)], zp, out),
+                    }
+                    continue;
+                }
                 for li in 0..l {
                     let c = cg * l + li;
                     let words = dst[lo * l..hi.max(lo) * l].iter_mut().skip(li).step_by(l);
@@ -192,6 +203,27 @@ pub fn pack_rows<F: Layout>(
                 }
             }
         }
+    }
+}
+
+/// `out[x·4 + l] = elem(src[l][x])`: four contiguous channel rows into words.
+#[inline]
+fn interleave4<F: Layout>(src: [&[i8]; 4], zp: i32, out: &mut [F::Elem]) {
+    let it = src[0].iter().zip(src[1]).zip(src[2]).zip(src[3]);
+    for (d, (((&a, &b), &c), &e)) in out.chunks_exact_mut(4).zip(it) {
+        d[0] = F::elem(a, zp);
+        d[1] = F::elem(b, zp);
+        d[2] = F::elem(c, zp);
+        d[3] = F::elem(e, zp);
+    }
+}
+
+/// `out[x·2 + l] = elem(src[l][x])`: two contiguous channel rows into words.
+#[inline]
+fn interleave2<F: Layout>(src: [&[i8]; 2], zp: i32, out: &mut [F::Elem]) {
+    for (d, (&a, &b)) in out.chunks_exact_mut(2).zip(src[0].iter().zip(src[1])) {
+        d[0] = F::elem(a, zp);
+        d[1] = F::elem(b, zp);
     }
 }
 

@@ -5,4 +5,5 @@ pub mod avx2;
 pub mod avx512_vnni;
 pub mod bins;
 pub mod refine;
+pub mod requant;
 pub mod vmath;
