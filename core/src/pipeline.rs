@@ -58,6 +58,13 @@ pub enum FrameError {
     Projection(ProjectionError),
     /// The engine refused the inputs (e.g. prepared for another size) or failed.
     Engine(engine::Error),
+    /// No zone of the frame could be used (no target, an invalid status or a bad distance on
+    /// every zone, e.g. a covered sensor): there is no metric depth to complete, so the model
+    /// is not run and the output is untouched.
+    NoValidZones {
+        /// Zones the sensor reported.
+        zones: u32,
+    },
 }
 
 impl core::fmt::Display for FrameError {
@@ -68,6 +75,9 @@ impl core::fmt::Display for FrameError {
             FrameError::Buffer(what) => write!(f, "{what} is too small for the frame"),
             FrameError::Projection(e) => write!(f, "projection: {e:?}"),
             FrameError::Engine(e) => write!(f, "model: {e:?}"),
+            FrameError::NoValidZones { zones } => {
+                write!(f, "dToF sensor: none of the {zones} zones is valid")
+            }
         }
     }
 }
@@ -88,6 +98,12 @@ pub struct FrameReport {
 }
 
 /// Captures RGB, reads the zones, projects them and runs the model into `out` (`H×W`).
+///
+/// Faults are per frame: a camera of another resolution than the calibration's is
+/// [`FrameError::Camera`]`(`[`ErrorKind::BufferShape`]`)` before it captures; a driver error is
+/// [`FrameError::Camera`] or [`FrameError::Sensor`] with its kind (bus, timeout, …); a frame
+/// without one usable zone is [`FrameError::NoValidZones`]. In every case `out` is untouched
+/// and the next call starts afresh.
 pub fn depth_frame<C: RgbCamera, S: DtofSensor, const N: usize>(
     camera: &mut C,
     sensor: &mut S,
@@ -104,6 +120,10 @@ pub fn depth_frame<C: RgbCamera, S: DtofSensor, const N: usize>(
         .rgb
         .get_mut(..pixels.saturating_mul(3))
         .ok_or(FrameError::Buffer("RGB buffer"))?;
+    if camera.resolution() != (w, h) {
+        // A short (or long) frame would leave stale rows or overrun the calibration's size.
+        return Err(FrameError::Camera(ErrorKind::BufferShape));
+    }
     camera
         .capture(&mut RgbFrame {
             width: w,
@@ -120,6 +140,11 @@ pub fn depth_frame<C: RgbCamera, S: DtofSensor, const N: usize>(
         .ok_or(FrameError::Buffer("sparse depth buffer"))?;
     let projection =
         project_to_sparse(cal, &buffers.zones.view(), sparse).map_err(FrameError::Projection)?;
+    if projection.projected == 0 {
+        return Err(FrameError::NoValidZones {
+            zones: projection.zones,
+        });
+    }
     let rgb = buffers
         .rgb
         .get(..pixels.saturating_mul(3))

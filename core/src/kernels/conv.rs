@@ -193,7 +193,8 @@ impl Conv2d<'_> {
 
     /// i32 scratch elements [`conv2d`] needs, for every kernel set: the packed input rows of
     /// one output row, the packed weights of one group, `Σw` per output channel and the tap
-    /// offsets ([`super::pack`]), sized for 16-bit elements and channels rounded up to 4.
+    /// offsets of the reduction steps ([`super::pack`]), sized for 16-bit elements and channels
+    /// rounded up to 4.
     pub fn scratch_len(geometry: &ConvGeometry, in_shape: Shape, out_shape: Shape) -> usize {
         let g = geometry;
         let Some(icg) = in_shape.c.checked_div(g.groups) else {
@@ -211,11 +212,12 @@ impl Conv2d<'_> {
             .saturating_mul(NB)
             .saturating_mul(c4)
             .saturating_mul(k);
-        // 2-byte elements, in i32 units; then Σw per channel and one u32 per tap.
+        // 2-byte elements, in i32 units; then Σw per channel and one u32 per reduction step
+        // (tap, channel pair).
         (rows.div_ceil(2))
             .saturating_add(weights.div_ceil(2))
             .saturating_add(ocg)
-            .saturating_add(k)
+            .saturating_add(k.saturating_mul(icg.div_ceil(2)))
     }
 
     /// [`Conv2d::finish`] of `base + acc[p]` for a row of sums, vectorised where the set has
@@ -433,7 +435,7 @@ impl Micro for Pairs {
         let done = match isa {
             #[cfg(target_arch = "x86_64")]
             Isa::Avx2 => super::x86_64::avx2::pairs(t, acc),
-            #[cfg(all(target_arch = "arm", target_feature = "dsp"))]
+            #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
             Isa::ArmDsp => super::arm::dsp::pairs(t, acc),
             _ => false,
         };
@@ -474,10 +476,13 @@ fn run<F: Micro>(
     let (rows, rest) = take::<F::Elem>(scratch, dims.rows_len());
     let (weights, rest) = take::<F::W>(rest, dims.n_blocks * dims.block_len);
     let (sums, rest) = take::<i32>(rest, ocg);
-    let (taps, _) = take::<u32>(rest, kh * kw);
+    let (steps, _) = take::<u32>(rest, kh * kw * dims.n_cg);
     for ky in 0..kh {
         for kx in 0..kw {
-            taps[ky * kw + kx] = pack::tap_offset(g, out.w, F::L, ky, kx) as u32;
+            let tap = pack::tap_offset(g, out.w, F::L, ky, kx);
+            for cg in 0..dims.n_cg {
+                steps[(ky * kw + kx) * dims.n_cg + cg] = (tap + cg * dims.cg_stride) as u32;
+            }
         }
     }
     let plane_in = in_shape.h * in_shape.w;
@@ -498,9 +503,7 @@ fn run<F: Micro>(
                     let task = Task {
                         rows,
                         weights: &weights[b * dims.block_len..(b + 1) * dims.block_len],
-                        taps,
-                        n_cg: dims.n_cg,
-                        cg_stride: dims.cg_stride,
+                        steps,
                         ox0,
                     };
                     F::kernel(isa, &task, &mut acc);

@@ -2,8 +2,8 @@
 //!
 //! On x86-64 core reads CPUID and XCR0 itself (no std needed): AVX2 needs the CPU bit and the
 //! OS saving YMM state; AVX-512 VNNI needs F, BW, VNNI and the OS saving ZMM/opmask state. On
-//! Arm the DSP extension is a build-time fact of the target (`thumbv7em` has it), so
-//! `cfg(target_feature = "dsp")` selects it. Every set gives the same bits as
+//! Arm the DSP extension is a property of the core that stable Rust does not expose as a cfg, so
+//! the build states it with core's `arm-dsp` feature (the firmware enables it for its M4F). Every set gives the same bits as
 //! [`Isa::Portable`] (integer sums are associative and nothing saturates).
 
 use core::sync::atomic::{AtomicU8, Ordering};
@@ -45,7 +45,7 @@ impl Isa {
     pub fn available(self) -> bool {
         match self {
             Isa::Portable => true,
-            Isa::ArmDsp => cfg!(all(target_arch = "arm", target_feature = "dsp")),
+            Isa::ArmDsp => cfg!(all(target_arch = "arm", feature = "arm-dsp")),
             Isa::Avx2 | Isa::Avx512Vnni => x86_level() >= self as u8,
         }
     }

@@ -6,7 +6,7 @@
 //! Tensors are planar CHW (the graph's NCHW with N = 1), row-major, in caller-provided slices.
 //! Kernels check every length up front and return [`KernelError`] instead of panicking.
 
-#[cfg(target_arch = "arm")]
+#[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
 pub mod arm;
 pub mod bins;
 pub mod conv;

@@ -10,8 +10,9 @@
 //! pixel block of [`PB`] may run past the last output column.
 //!
 //! **Weights.** Channel block `b` (output channels `b·NB ..`, zero past the last) as
-//! `w[b][cg][ky][kx][j][l]` = weight of output `b·NB + j`, input channel `cg·L + l`, tap
-//! `(ky, kx)` (zero past the last input channel).
+//! `w[b][ky][kx][cg][j][l]` = weight of output `b·NB + j`, input channel `cg·L + l`, tap
+//! `(ky, kx)` (zero past the last input channel): tap-major, so a micro-kernel's inner loop over
+//! the channel groups of one tap walks the weights contiguously.
 //!
 //! **Layouts.** [`Pairs`]: `L = 2`, 16-bit `x − zp` (pad 0) for `vpmaddwd` / `SMLAD`.
 //! [`Quads`]: `L = 4`, bytes `x + 128` (pad `zp + 128`) for `vpdpbusd`; the sums then carry
@@ -251,7 +252,7 @@ pub fn pack_weights<F: Layout>(
             for t in 0..kh * kw {
                 let w = row[c * kh * kw + t];
                 s += w as i32;
-                out[b * dims.block_len + ((cg * kh * kw + t) * NB + j) * l + li] = F::weight(w);
+                out[b * dims.block_len + ((t * dims.n_cg + cg) * NB + j) * l + li] = F::weight(w);
             }
         }
         sums[o] = s;

@@ -260,6 +260,14 @@ pub fn refine_with<A: Map, B: Map>(
     Ok(())
 }
 
+/// Pixels per lane group of the portable path: 4 where the baseline has 4-wide vectors (SSE2,
+/// NEON), 1 on scalar FPUs (Cortex-M), where lane arrays only cost loads and stores.
+const PORTABLE_LANES: usize = if cfg!(any(target_arch = "x86_64", target_arch = "aarch64")) {
+    4
+} else {
+    1
+};
+
 /// `out[i] += (softmax3(tmix)[ti] · softmax3(kmix)[k]) · cur[i]` for every pixel.
 fn accumulate<B: Map>(
     isa: Isa,
@@ -293,7 +301,7 @@ fn accumulate<B: Map>(
             // SAFETY: AVX2 is available (checked).
             unsafe { accumulate_avx2(out, cur, tmix, kmix, ti, k) }
         }
-        _ => accumulate_lanes::<B, 4>(out, cur, tmix, kmix, ti, k, 0),
+        _ => accumulate_lanes::<B, PORTABLE_LANES>(out, cur, tmix, kmix, ti, k, 0),
     }
 }
 
@@ -380,7 +388,7 @@ fn step<A: Map>(
             // SAFETY: AVX2 is available (checked).
             _ => unsafe { step_avx2(a, off, g, h, w, cur, nxt) },
         },
-        _ => step_lanes::<A, 4>(a, off, g, h, w, cur, nxt),
+        _ => step_lanes::<A, PORTABLE_LANES>(a, off, g, h, w, cur, nxt),
     }
 }
 

@@ -6,6 +6,8 @@
 #![no_main]
 
 use cortex_m_rt::entry;
+use depthor_core::blob::format::op_name;
+use depthor_core::engine::Engine;
 use depthor_core::hal::ZoneFrame;
 use depthor_firmware_sim::{console, cycles, memory, println};
 use depthor_replay::format::Image;
@@ -61,6 +63,69 @@ struct SpinDelay;
 impl embedded_hal::delay::DelayNs for SpinDelay {
     fn delay_ns(&mut self, ns: u32) {
         cortex_m::asm::delay(ns.div_ceil(1_000_000_000 / cycles::SYSCLK_HZ));
+    }
+}
+
+/// Most op kinds the per-kind summary holds.
+const KINDS: usize = 24;
+
+/// Runs the last frame's inputs once more through [`Engine::run_observed`], reading SysTick after
+/// every op, and prints the instructions of each op and of each op kind.
+fn profile_ops<const N: usize>(engine: &mut Engine<'_>, ws: &Workspace<'_, N>) {
+    let ops = engine.graph().ops.len();
+    let mut per_op = [0u64; depthor_core::blob::format::MAX_OPS];
+    let mut last = cycles::ticks();
+    let mut scratch_depth = DepthScratch::take();
+    let result = engine.run_observed(ws.rgb, ws.sparse_m, scratch_depth.0, &mut |i, _| {
+        let now = cycles::ticks();
+        if let Some(t) = per_op.get_mut(i) {
+            *t = now - last;
+        }
+        last = cycles::ticks();
+    });
+    if let Err(e) = result {
+        println!("op profile: engine error {e}");
+        return;
+    }
+    let mut kinds: [(&str, u64, u64); KINDS] = [("", 0, 0); KINDS];
+    let mut total = 0u64;
+    for (i, op) in engine.graph().ops.iter().enumerate().take(ops) {
+        let name = op_name(op.code).unwrap_or("?");
+        let n = cycles::instructions(per_op[i]);
+        let macs = engine.plan().op_macs(engine.graph(), i);
+        total += n;
+        println!("op {i} {name} macs={macs} instructions={n}");
+        if let Some(k) = kinds.iter_mut().find(|k| k.0 == name || k.0.is_empty()) {
+            k.0 = name;
+            k.1 += n;
+            k.2 += macs;
+        }
+    }
+    for (name, n, macs) in kinds.iter().filter(|k| !k.0.is_empty()) {
+        let per_mac = if *macs > 0 {
+            (*n * 100 / *macs) as u32
+        } else {
+            0
+        };
+        println!(
+            "op kind {name}: instructions={n} ({}.{}% of {total}) macs={macs} instructions/MAC={}.{:02}",
+            n * 100 / total.max(1),
+            (n * 1000 / total.max(1)) % 10,
+            per_mac / 100,
+            per_mac % 100
+        );
+    }
+}
+
+/// The output buffer of the profiling run (the loop's own depth buffer is borrowed by `ws`).
+struct DepthScratch(&'static mut [f32]);
+
+impl DepthScratch {
+    fn take() -> Self {
+        static mut PROFILE_DEPTH: [f32; PIXELS] = [0.0; PIXELS];
+        // SAFETY: called once, from `main` after the loop, single-threaded; nothing else
+        // refers to PROFILE_DEPTH.
+        DepthScratch(unsafe { &mut *core::ptr::addr_of_mut!(PROFILE_DEPTH) })
     }
 }
 
@@ -156,6 +221,10 @@ fn main() -> ! {
                 console::exit(e.exit_code());
             }
         }
+    }
+
+    if frames > 0 {
+        profile_ops(&mut engine, &ws);
     }
 
     let stack = memory::stack_high_water();

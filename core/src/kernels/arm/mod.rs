@@ -1,3 +1,3 @@
-//! Cortex-M micro-kernels (stable `asm!` under `target_feature = "dsp"`).
+//! Cortex-M micro-kernels (stable `asm!`, built with core's `arm-dsp` feature).
 
 pub mod dsp;

@@ -23,13 +23,10 @@ unsafe fn pairs_avx2(t: &Task<i16, i16>, acc: &mut Acc) {
     for half in 0..PB / 16 {
         let mut c = [_mm256_setzero_si256(); 8];
         let mut wq = t.weights.as_ptr() as *const i32;
-        for cg in 0..t.n_cg {
-            let row = t
-                .rows
-                .as_ptr()
-                .add(cg * t.cg_stride + 2 * (t.ox0 + 16 * half));
-            for &tap in t.taps {
-                let pr = row.add(tap as usize);
+        let row = t.rows.as_ptr().add(2 * (t.ox0 + 16 * half));
+        for &step in t.steps {
+            {
+                let pr = row.add(step as usize);
                 let x0 = _mm256_loadu_si256(pr as *const __m256i);
                 let x1 = _mm256_loadu_si256(pr.add(16) as *const __m256i);
                 for j in 0..NB {

@@ -23,10 +23,10 @@ unsafe fn quads_vnni(t: &Task<u8, i8>, acc: &mut Acc) {
     const _: () = assert!(NB == 4 && PB == 32);
     let mut c = [_mm512_setzero_si512(); 8];
     let mut wq = t.weights.as_ptr() as *const i32;
-    for cg in 0..t.n_cg {
-        let row = t.rows.as_ptr().add(cg * t.cg_stride + 4 * t.ox0);
-        for &tap in t.taps {
-            let pr = row.add(tap as usize);
+    let row = t.rows.as_ptr().add(4 * t.ox0);
+    for &step in t.steps {
+        {
+            let pr = row.add(step as usize);
             let x0 = _mm512_loadu_si512(pr as *const __m512i);
             let x1 = _mm512_loadu_si512(pr.add(64) as *const __m512i);
             for j in 0..NB {
