@@ -75,7 +75,7 @@ fn profile_ops<const N: usize>(engine: &mut Engine<'_>, ws: &Workspace<'_, N>) {
     let ops = engine.graph().ops.len();
     let mut per_op = [0u64; depthor_core::blob::format::MAX_OPS];
     let mut last = cycles::ticks();
-    let mut scratch_depth = DepthScratch::take();
+    let scratch_depth = DepthScratch::take();
     let result = engine.run_observed(ws.rgb, ws.sparse_m, scratch_depth.0, &mut |i, _| {
         let now = cycles::ticks();
         if let Some(t) = per_op.get_mut(i) {
@@ -102,11 +102,7 @@ fn profile_ops<const N: usize>(engine: &mut Engine<'_>, ws: &Workspace<'_, N>) {
         }
     }
     for (name, n, macs) in kinds.iter().filter(|k| !k.0.is_empty()) {
-        let per_mac = if *macs > 0 {
-            (*n * 100 / *macs) as u32
-        } else {
-            0
-        };
+        let per_mac = (*n * 100).checked_div(*macs).unwrap_or(0) as u32;
         println!(
             "op kind {name}: instructions={n} ({}.{}% of {total}) macs={macs} instructions/MAC={}.{:02}",
             n * 100 / total.max(1),
