@@ -388,7 +388,70 @@ fn step<A: Map>(
             // SAFETY: AVX2 is available (checked).
             _ => unsafe { step_avx2(a, off, g, h, w, cur, nxt) },
         },
-        _ => step_lanes::<A, PORTABLE_LANES>(a, off, g, h, w, cur, nxt),
+        _ => match a.as_i8() {
+            Some(m) if PORTABLE_LANES == 1 && m.channels >= off.len() && m.plane >= h * w => {
+                step_i8_scalar(m, off, g, h, w, cur, nxt)
+            }
+            _ => step_lanes::<A, PORTABLE_LANES>(a, off, g, h, w, cur, nxt),
+        },
+    }
+}
+
+/// [`step`] on an int8 map for scalar FPUs: `relu(dequantise(q))` read from a 256-entry table
+/// (the same f32 values), interior pixels without bounds tests, borders through [`step_pixel`].
+fn step_i8_scalar(
+    a: &I8Map,
+    off: &[(isize, isize)],
+    g: &[f32],
+    h: usize,
+    w: usize,
+    cur: &[f32],
+    nxt: &mut [f32],
+) {
+    let n = off.len().min(48).min(g.len());
+    let mut lut = [0f32; 256];
+    for (code, v) in lut.iter_mut().enumerate() {
+        *v = relu(a.q.dequantize(code as u8 as i8));
+    }
+    let rad = off
+        .iter()
+        .map(|&(dy, dx)| dy.unsigned_abs().max(dx.unsigned_abs()))
+        .max()
+        .unwrap_or(0);
+    let mut delta = [0isize; 48];
+    for (d, &(dy, dx)) in delta.iter_mut().zip(off) {
+        *d = dy * w as isize + dx;
+    }
+    let mut r = [0f32; 48];
+    let data = a.data;
+    let plane = a.plane;
+    for y in 0..h {
+        let inner_row = y >= rad && y + rad < h;
+        for x in 0..w {
+            let i = y * w + x;
+            if !(inner_row && x >= rad && x + rad < w) {
+                nxt[i] = step_pixel(a, off, g, h, w, cur, y, x);
+                continue;
+            }
+            let mut s = 0.0f32;
+            for (j, (rj, &gj)) in r[..n].iter_mut().zip(g).enumerate() {
+                // In bounds: the map holds ≥ n channels of ≥ h·w pixels (the caller's match).
+                let code = data[j * plane + i] as u8;
+                *rj = lut[code as usize] * gj;
+                s += *rj;
+            }
+            let q = 1.0 / (1.0 + s);
+            let mut wsum = 0.0f32;
+            for rj in r[..n].iter_mut() {
+                *rj *= q;
+                wsum += *rj;
+            }
+            let mut d = (1.0 - wsum) * cur[i];
+            for (&wj, &dj) in r[..n].iter().zip(&delta) {
+                d += wj * cur[(i as isize + dj) as usize];
+            }
+            nxt[i] = d;
+        }
     }
 }
 
