@@ -220,49 +220,66 @@ impl Conv2d<'_> {
             .saturating_add(k.saturating_mul(icg.div_ceil(2)))
     }
 
-    /// [`Conv2d::finish`] of `base + acc[p]` for a row of sums, vectorised where the set has
-    /// vectors (same integer function, so the same bits).
-    #[inline]
-    fn finish_row(&self, isa: Isa, o: usize, base: i32, acc: &[i32], out: &mut [i8]) {
+    /// The requantisation constants of channel `o` for sums offset by `base` (`simple` false
+    /// where a multiplier shifts left: then [`Conv2d::finish`] runs per element).
+    fn row_quant(&self, o: usize, base: i32) -> RowQuant {
         let cq = &self.channels[o];
-        let simple = cq.pos.shift <= 0
-            && cq.neg.shift <= 0
-            && cq.pos.multiplier >= 0
-            && cq.neg.multiplier >= 0;
-        if !simple {
-            for (d, &v) in out.iter_mut().zip(acc) {
-                *d = self.finish(o, base.wrapping_add(v));
-            }
-            return;
-        }
-        let k = RowQuant {
+        RowQuant {
+            simple: cq.pos.shift <= 0
+                && cq.neg.shift <= 0
+                && cq.pos.multiplier >= 0
+                && cq.neg.multiplier >= 0,
             base,
-            pos_m: cq.pos.multiplier as i64,
-            neg_m: cq.neg.multiplier as i64,
+            pos_m: cq.pos.multiplier,
+            neg_m: cq.neg.multiplier,
             pos_r: (-cq.pos.shift).min(31),
             neg_r: (-cq.neg.shift).min(31),
             zp: self.quant.output_zero_point,
             min: self.quant.act_min.max(-128),
             max: self.quant.act_max.min(127),
-        };
-        match isa {
-            #[cfg(target_arch = "x86_64")]
-            Isa::Avx2 | Isa::Avx512Vnni if Isa::Avx2.available() => {
-                let c = super::x86_64::requant::RowConsts {
-                    base,
-                    pos_m: cq.pos.multiplier,
-                    neg_m: cq.neg.multiplier,
-                    pos_r: k.pos_r,
-                    neg_r: k.neg_r,
-                    zp: k.zp,
-                    min: k.min,
-                    max: k.max,
+        }
+    }
+
+    /// Requantises the first `nb` rows (`n` sums each) of `acc` for output channels
+    /// `o0 ..` into `output` at `at` (channel stride `plane`), vectorised where the set has
+    /// vectors (the same integer function, so the same bits).
+    #[allow(clippy::too_many_arguments)]
+    fn finish_block(
+        &self,
+        isa: Isa,
+        rq: &[RowQuant],
+        o0: usize,
+        acc: &Acc,
+        n: usize,
+        output: &mut [i8],
+        at: usize,
+        plane: usize,
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if matches!(isa, Isa::Avx2 | Isa::Avx512Vnni) && Isa::Avx2.available() {
+            if rq.iter().all(|r| r.simple) {
+                // SAFETY: AVX2 is available; `acc` holds nb ≤ NB rows of PB ≥ n and the
+                // caller's output rows `at + j·plane .. + n` exist.
+                unsafe {
+                    super::x86_64::requant::block(rq, acc, PB, n, output, at, plane, |k, v| {
+                        requant_one(k, v)
+                    })
                 };
-                // SAFETY: AVX2 is available (checked).
-                let done = unsafe { super::x86_64::requant::row(&c, acc, out) };
-                requant_row(&k, &acc[done..], &mut out[done..]);
+                return;
             }
-            _ => requant_row(&k, acc, out),
+        }
+        let _ = isa;
+        for (j, (r, a)) in rq.iter().zip(acc.chunks_exact(PB)).enumerate() {
+            let dst = &mut output[at + j * plane..at + j * plane + n];
+            if r.simple {
+                for (d, &v) in dst.iter_mut().zip(a) {
+                    *d = requant_one(r, v);
+                }
+            } else {
+                for (d, &v) in dst.iter_mut().zip(a) {
+                    *d = self.finish(o0 + j, r.base.wrapping_add(v));
+                }
+            }
         }
     }
 
@@ -282,39 +299,49 @@ impl Conv2d<'_> {
     }
 }
 
-/// Constants of [`requant_row`] for one channel whose multipliers shift right only.
-struct RowQuant {
-    base: i32,
-    pos_m: i64,
-    neg_m: i64,
-    pos_r: i32,
-    neg_r: i32,
-    zp: i32,
-    min: i32,
-    max: i32,
+/// Requantisation constants of one output channel (`simple`: multipliers ≥ 0 shifting right
+/// only, the case [`requant_one`] and the vector paths handle).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RowQuant {
+    /// Whether [`requant_one`] applies.
+    pub simple: bool,
+    /// Added to every accumulator first (bias and packing terms).
+    pub base: i32,
+    /// Q31 multiplier for sums ≥ 0.
+    pub pos_m: i32,
+    /// Q31 multiplier for sums < 0.
+    pub neg_m: i32,
+    /// Right shift for sums ≥ 0 (`0..=31`).
+    pub pos_r: i32,
+    /// Right shift for sums < 0.
+    pub neg_r: i32,
+    /// Output zero point.
+    pub zp: i32,
+    /// Lowest output code.
+    pub min: i32,
+    /// Highest output code.
+    pub max: i32,
 }
 
-/// `clamp(zp + MultiplyByQuantizedMultiplier(base + acc, M±))` per element, written without
-/// branches so that it vectorises: [`Requant::apply`] for `shift ≤ 0` and a non-negative
-/// multiplier (then no left shift and no saturating case), bit for bit.
+/// `clamp(zp + MultiplyByQuantizedMultiplier(base + acc, M±))`, written without branches:
+/// [`Requant::apply`] for `shift ≤ 0` and a non-negative multiplier (then no left shift and no
+/// saturating case), bit for bit.
 #[inline(always)]
-fn requant_row(k: &RowQuant, acc: &[i32], out: &mut [i8]) {
-    for (d, &v) in out.iter_mut().zip(acc) {
-        let x = k.base.wrapping_add(v);
-        let neg = x < 0;
-        let m = if neg { k.neg_m } else { k.pos_m };
-        let e = if neg { k.neg_r } else { k.pos_r };
-        // SaturatingRoundingDoublingHighMul (a·b never saturates: b ≥ 0).
-        let ab = x as i64 * m;
-        let t = ab + if ab >= 0 { 1 << 30 } else { 1 - (1 << 30) };
-        let q = ((t >> 31) + i64::from(t < 0 && (t & 0x7FFF_FFFF) != 0)) as i32;
-        // RoundingDivideByPOT.
-        let mask = ((1i64 << e) - 1) as i32;
-        let rem = q & mask;
-        let threshold = (mask >> 1) + i32::from(q < 0);
-        let r = (q >> e) + i32::from(rem > threshold);
-        *d = r.saturating_add(k.zp).clamp(k.min, k.max) as i8;
-    }
+fn requant_one(k: &RowQuant, v: i32) -> i8 {
+    let x = k.base.wrapping_add(v);
+    let neg = x < 0;
+    let m = if neg { k.neg_m } else { k.pos_m } as i64;
+    let e = if neg { k.neg_r } else { k.pos_r };
+    // SaturatingRoundingDoublingHighMul (a·b never saturates: b ≥ 0).
+    let ab = x as i64 * m;
+    let t = ab + if ab >= 0 { 1 << 30 } else { 1 - (1 << 30) };
+    let q = ((t >> 31) + i64::from(t < 0 && (t & 0x7FFF_FFFF) != 0)) as i32;
+    // RoundingDivideByPOT.
+    let mask = ((1i64 << e) - 1) as i32;
+    let rem = q & mask;
+    let threshold = (mask >> 1) + i32::from(q < 0);
+    let r = (q >> e) + i32::from(rem > threshold);
+    r.saturating_add(k.zp).clamp(k.min, k.max) as i8
 }
 
 /// Reference convolution: plain loops over every output element and tap (the spec).
@@ -495,6 +522,7 @@ fn run<F: Micro>(
         let o_first = grp * ocg;
         let w = &op.weights[o_first * icg * kh * kw..(o_first + ocg) * icg * kh * kw];
         pack::pack_weights::<F>(g, w, icg, ocg, &dims, weights, sums);
+
         for oy in 0..out.h {
             pack::pack_rows::<F>(g, x, group_shape, out.w, oy, zp, &dims, rows);
             for ox0 in (0..out.w).step_by(PB) {
@@ -507,15 +535,17 @@ fn run<F: Micro>(
                         ox0,
                     };
                     F::kernel(isa, &task, &mut acc);
+                    let o0 = o_first + b * NB;
+                    let at = o0 * plane_out + oy * out.w + ox0;
                     let nb = NB.min(ocg - b * NB);
-                    for (j, a) in acc.chunks_exact(PB).take(nb).enumerate() {
-                        let o = o_first + b * NB + j;
-                        let base = op.channels[o]
+                    let mut rq = [RowQuant::default(); NB];
+                    for (j, q) in rq.iter_mut().enumerate().take(nb) {
+                        let base = op.channels[o0 + j]
                             .bias
                             .wrapping_sub(F::bias_term(zp, sums[b * NB + j]));
-                        let at = o * plane_out + oy * out.w + ox0;
-                        op.finish_row(isa, o, base, &a[..n], &mut output[at..at + n]);
+                        *q = op.row_quant(o0 + j, base);
                     }
+                    op.finish_block(isa, &rq[..nb], o0, &acc, n, output, at, plane_out);
                 }
             }
         }

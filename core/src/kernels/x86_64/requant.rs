@@ -4,26 +4,7 @@
 
 use core::arch::x86_64::*;
 
-/// Constants of one channel (multipliers ≥ 0, right shifts `0..=31`).
-#[derive(Clone, Copy, Debug)]
-pub struct RowConsts {
-    /// Added to every accumulator first (bias and packing terms).
-    pub base: i32,
-    /// Q31 multiplier for sums ≥ 0.
-    pub pos_m: i32,
-    /// Q31 multiplier for sums < 0.
-    pub neg_m: i32,
-    /// Right shift for sums ≥ 0.
-    pub pos_r: i32,
-    /// Right shift for sums < 0.
-    pub neg_r: i32,
-    /// Output zero point.
-    pub zp: i32,
-    /// Lowest output code.
-    pub min: i32,
-    /// Highest output code.
-    pub max: i32,
-}
+pub use crate::kernels::conv::RowQuant as RowConsts;
 
 /// `trunc((a·b + nudge) / 2³¹)` of the even 32-bit lanes (`b ≥ 0`), in the low half of each
 /// 64-bit lane.
@@ -44,12 +25,41 @@ unsafe fn srdhm_even(a: __m256i, b: __m256i) -> __m256i {
     _mm256_sub_epi64(_mm256_xor_si256(q, sign), sign)
 }
 
+/// [`row`] for each of `consts.len()` channels: `acc` row `j` (stride `acc_stride`) into `out`
+/// at `at + j·out_stride`, `n` elements each; the last `n mod 8` of each row through `tail`.
+///
+/// # Safety
+/// The CPU must have AVX2; `acc` must hold `consts.len()` rows of `n`, and `out` every
+/// `at + j·out_stride .. + n`.
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+pub unsafe fn block(
+    consts: &[RowConsts],
+    acc: &[i32],
+    acc_stride: usize,
+    n: usize,
+    out: &mut [i8],
+    at: usize,
+    out_stride: usize,
+    tail: impl Fn(&RowConsts, i32) -> i8,
+) {
+    for (j, k) in consts.iter().enumerate() {
+        let a = &acc[j * acc_stride..j * acc_stride + n];
+        let o = &mut out[at + j * out_stride..at + j * out_stride + n];
+        let done = row(k, a, o);
+        for (d, &v) in o[done..].iter_mut().zip(&a[done..]) {
+            *d = tail(k, v);
+        }
+    }
+}
+
 /// Requantises `acc` (`base` added) into `out`; `acc.len() ≥ out.len()`. Returns how many
 /// leading elements it did (a multiple of 8); the caller finishes the rest.
 ///
 /// # Safety
 /// The CPU must have AVX2.
 #[target_feature(enable = "avx2")]
+#[inline]
 pub unsafe fn row(k: &RowConsts, acc: &[i32], out: &mut [i8]) -> usize {
     let n = out.len().min(acc.len()) / 8 * 8;
     let base = _mm256_set1_epi32(k.base);
@@ -133,6 +143,7 @@ mod tests {
                 },
             };
             let k = RowConsts {
+                simple: true,
                 base: next() as i32 >> (next() % 32),
                 pos_m: pos.multiplier,
                 neg_m: neg.multiplier,
