@@ -256,17 +256,18 @@ impl Conv2d<'_> {
         plane: usize,
     ) {
         #[cfg(target_arch = "x86_64")]
-        if matches!(isa, Isa::Avx2 | Isa::Avx512Vnni) && Isa::Avx2.available() {
-            if rq.iter().all(|r| r.simple) {
-                // SAFETY: AVX2 is available; `acc` holds nb ≤ NB rows of PB ≥ n and the
-                // caller's output rows `at + j·plane .. + n` exist.
-                unsafe {
-                    super::x86_64::requant::block(rq, acc, PB, n, output, at, plane, |k, v| {
-                        requant_one(k, v)
-                    })
-                };
-                return;
-            }
+        if matches!(isa, Isa::Avx2 | Isa::Avx512Vnni)
+            && Isa::Avx2.available()
+            && rq.iter().all(|r| r.simple)
+        {
+            // SAFETY: AVX2 is available; `acc` holds nb ≤ NB rows of PB ≥ n and the caller's
+            // output rows `at + j·plane .. + n` exist.
+            unsafe {
+                super::x86_64::requant::block(rq, acc, PB, n, output, at, plane, |k, v| {
+                    requant_one(k, v)
+                })
+            };
+            return;
         }
         let _ = isa;
         for (j, (r, a)) in rq.iter().zip(acc.chunks_exact(PB)).enumerate() {
