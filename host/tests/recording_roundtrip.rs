@@ -128,7 +128,7 @@ fn dropped_or_failed_writer_leaves_nothing() {
             .unwrap();
         // A partial directory exists while writing …
         assert_eq!(common::entries(tmp.path()).len(), 1);
-        assert!(common::entries(tmp.path())[0].starts_with(".rec.partial-"));
+        assert!(common::entries(tmp.path())[0].starts_with("rec.partial-"));
     }
     // … and is gone after the drop, with no destination.
     assert!(common::entries(tmp.path()).is_empty());

@@ -7,13 +7,14 @@
 
 use anyhow::{Context, Result};
 use depthor_core::metrics::MetricsAccumulator;
+use depthor_host::atomic::{AtomicDir, Existing};
 use depthor_host::evaluation::{
     comparison_mosaic, metrics_table, rendered_frame, EvalFrame, Evaluator, Method, RecordingFrames,
 };
 use depthor_host::inference::Int8Model;
 use depthor_host::recording::depth_m_to_mm;
 use image::{ImageBuffer, Luma};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `depthor demo`.
 #[derive(Debug, clap::Args)]
@@ -53,8 +54,8 @@ pub fn handle(args: Args) -> Result<()> {
                 .collect::<Result<_>>()?
         }
     };
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("{}: cannot create", args.out.display()))?;
+    // Everything goes into `<out>.partial-<pid>`; an error anywhere leaves `<out>` untouched.
+    let staging = AtomicDir::create(&args.out, Existing::Merge)?;
     let methods = eval.methods();
     let mut acc: Vec<MetricsAccumulator> = methods
         .iter()
@@ -69,8 +70,9 @@ pub fn handle(args: Args) -> Result<()> {
         let pick = |m: Method| preds.iter().find(|p| p.method == m).map(|p| &p.depth_m[..]);
         let pred = pick(Method::Int8).context("no int8 prediction")?;
         model_time += preds[0].seconds;
-        write_outputs(&args, f, pred, pick(Method::JointBilateral))?;
+        write_outputs(staging.path(), f, pred, pick(Method::JointBilateral))?;
     }
+    let out = staging.commit()?;
     println!(
         "depthor demo: {} frame(s) at {h}×{w}, embedded mcu model ({} KiB blob, {} KiB arena)",
         frames.len(),
@@ -87,21 +89,21 @@ pub fn handle(args: Args) -> Result<()> {
         "int8 model time per frame (this machine, one thread): {:.1} ms",
         1e3 * model_time / frames.len().max(1) as f64
     );
-    println!("wrote {}", args.out.display());
+    println!("wrote {}", out.display());
     Ok(())
 }
 
 /// depth_<id>.png (16-bit mm) and mosaic_<id>.png.
-fn write_outputs(args: &Args, f: &EvalFrame, pred: &[f32], jbu: Option<&[f32]>) -> Result<()> {
+fn write_outputs(out: &Path, f: &EvalFrame, pred: &[f32], jbu: Option<&[f32]>) -> Result<()> {
     let (w, h) = (f.width(), f.height());
     let mm: Vec<u16> = pred.iter().map(|&d| depth_m_to_mm(d)).collect();
     let depth_png: ImageBuffer<Luma<u16>, Vec<u16>> =
         ImageBuffer::from_raw(w, h, mm).context("depth size")?;
-    let path = args.out.join(format!("depth_{}.png", f.id));
+    let path = out.join(format!("depth_{}.png", f.id));
     depth_png
         .save(&path)
         .with_context(|| format!("{}: cannot write", path.display()))?;
-    let path = args.out.join(format!("mosaic_{}.png", f.id));
+    let path = out.join(format!("mosaic_{}.png", f.id));
     comparison_mosaic(f, pred, jbu)
         .save(&path)
         .with_context(|| format!("{}: cannot write", path.display()))

@@ -7,6 +7,7 @@
 
 use anyhow::{bail, Context, Result};
 use depthor_core::metrics::{Metrics, MetricsAccumulator};
+use depthor_host::atomic::{AtomicDir, Existing};
 use depthor_host::evaluation::{
     comparison_mosaic, metrics_table, Evaluator, Method, RecordingFrames,
 };
@@ -106,10 +107,12 @@ pub fn handle(args: Args) -> Result<()> {
         .collect::<Result<Vec<_>>>()?;
     let mut eval = Evaluator::load(&files, !args.no_float, (0.1, args.max_depth))?;
     let (h, w) = eval.int8().input_shape();
-    let out = args.out.clone().unwrap_or_else(|| {
+    let out_dir = args.out.clone().unwrap_or_else(|| {
         PathBuf::from("eval").join(format!("{}_{}", files.variant, name_of(&args.recording[0])))
     });
-    std::fs::create_dir_all(&out).with_context(|| format!("{}: cannot create", out.display()))?;
+    // Everything goes into `<out>.partial-<pid>`; an error anywhere leaves `<out>` untouched.
+    let staging = AtomicDir::create(&out_dir, Existing::Merge)?;
+    let out = staging.path().to_path_buf();
     let methods = eval.methods();
     let mut csv = vec![CSV_HEADER.to_string()];
     let mut union = Totals::new(methods.len(), args.max_depth);
@@ -191,6 +194,7 @@ pub fn handle(args: Args) -> Result<()> {
         &out.join("summary.json"),
         &(serde_json::to_string_pretty(&summary)? + "\n"),
     )?;
+    let out = staging.commit()?;
 
     println!(
         "depthor eval: {} at {h}×{w}, reference ≤ {} m",

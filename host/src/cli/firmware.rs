@@ -54,8 +54,9 @@ pub struct ReplayArgs {
 /// Writes the image and says what it holds.
 pub fn handle_image(args: ImageArgs) -> Result<()> {
     let bytes = image_from_recording(&args.recording, args.frames, args.height, args.width)?;
-    std::fs::write(&args.out, &bytes).with_context(|| format!("{}", args.out.display()))?;
-    let image = Image::parse(&bytes).context("the written image does not parse")?;
+    // Parsed before writing, so an image the replay would refuse is never left at --out.
+    let image = Image::parse(&bytes).context("the image does not parse")?;
+    depthor_host::atomic::write_file(&args.out, &bytes)?;
     let (h, w) = image.size();
     let (rows, cols) = image.zone_grid();
     println!(

@@ -6,6 +6,7 @@ use std::sync::Mutex;
 
 use anyhow::Context;
 
+use depthor_host::atomic::{AtomicDir, Existing};
 use depthor_host::gap::{analyze, load_recording, report, GapOptions};
 use depthor_host::sim::{preset, SimConfig};
 
@@ -39,9 +40,9 @@ pub fn handle(args: Args) -> anyhow::Result<()> {
     bar.finish_and_clear();
     let base: SimConfig = match &args.sim_config {
         Some(p) => SimConfig::from_json(
-            &std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?,
+            &std::fs::read_to_string(p).with_context(|| format!("{}: cannot read", p.display()))?,
         )
-        .with_context(|| format!("parsing {}", p.display()))?,
+        .with_context(|| p.display().to_string())?,
         None => match data.grid {
             (8, 8) => preset("l5")?,
             (40, 30) => preset("phone")?,
@@ -65,7 +66,10 @@ pub fn handle(args: Args) -> anyhow::Result<()> {
         }
     })?;
     bar.finish_and_clear();
-    report::write(&a, &args.out)?;
+    // The report goes into `<out>.partial-<pid>` and moves into place only when complete.
+    let staging = AtomicDir::create(&args.out, Existing::Merge)?;
+    report::write(&a, staging.path())?;
+    staging.commit()?;
     println!(
         "{} finding(s); held-out NLL/zone {:.4} → {:.4}; report in {}",
         a.selection.findings.len(),

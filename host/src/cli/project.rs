@@ -75,24 +75,12 @@ fn print_stats(s: &ProjectionStats) {
     );
 }
 
-/// Writes the PNG next to `out` under a hidden name, then renames it, so a failure leaves nothing.
+/// Encodes the PNG in memory and writes it with [`depthor_host::atomic::write_file`], so a
+/// failure leaves nothing.
 fn save_atomically(img: &image::RgbImage, out: &Path) -> Result<()> {
-    let name = out
-        .file_name()
-        .with_context(|| format!("{}: --out must name a file", out.display()))?;
-    let tmp = out.with_file_name(format!(
-        ".{}.partial-{}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let written = img
-        .save_with_format(&tmp, image::ImageFormat::Png)
-        .with_context(|| format!("{}: write", out.display()))
-        .and_then(|()| {
-            std::fs::rename(&tmp, out).with_context(|| format!("{}: rename", out.display()))
-        });
-    if written.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    written
+    let mut png = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut png, image::ImageFormat::Png)
+        .with_context(|| format!("{}: encode", out.display()))?;
+    depthor_host::atomic::write_file(out, png.get_ref())?;
+    Ok(())
 }

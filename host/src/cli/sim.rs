@@ -10,6 +10,7 @@
 use anyhow::{bail, Context, Result};
 use depthor_core::calibration::CameraIntrinsics;
 use depthor_core::projection::for_each_point;
+use depthor_host::atomic::AtomicDir;
 use depthor_host::dataset::{
     dtof_frame, preset_size, recording_meta, simulate_recording_frame, synth_frame,
     to_recording_frame, SynthFrame,
@@ -77,22 +78,40 @@ pub fn handle(args: Args) -> Result<()> {
         (None, None) => bail!("sim: give --preset l5|phone|mcu or --config cfg.json"),
     };
     let preset_name = args.preset.as_deref().unwrap_or("");
+    // Where the configuration came from, in front of its errors.
+    let source = match (&args.config, &args.preset) {
+        (Some(path), _) => path.display().to_string(),
+        (None, name) => format!("--preset {}", name.as_deref().unwrap_or("")),
+    };
     let out = match (&args.scenes, &args.from) {
         (Some(n), None) => {
             let (h, w) = size(&args, preset_name, None)?;
+            check_memory(&cfg, w, h, CHUNK.min(*n), &source)?;
             synthetic(&args, &cfg, preset_name, *n, w, h)?
         }
         (None, Some(src)) => {
             let rec = Recording::open(src)?;
             let (h, w) = size(&args, preset_name, Some(&rec))?;
+            check_memory(&cfg, w, h, rec.len() as u64, &source)?;
             from_recording(&args, &cfg, &rec, w, h)?
         }
         _ => bail!("sim: give either --scenes N or --from RECORDING"),
     };
+    // The recording is complete in its temporary folder; previews join it before it moves.
     if args.preview {
-        write_previews(&out)?;
+        write_previews(out.path())?;
     }
+    let out = out.commit()?;
     println!("wrote {}", out.display());
+    Ok(())
+}
+
+/// Refuses a run whose memory estimate (rayon's workers simulating, `held` frames kept) is over
+/// [`depthor_host::sim::memory_limit_bytes`], before anything is allocated or written.
+fn check_memory(cfg: &SimConfig, w: u32, h: u32, held: u64, source: &str) -> Result<()> {
+    let workers = rayon::current_num_threads() as u64;
+    cfg.check_memory(w, h, workers, held, depthor_host::sim::memory_limit_bytes())
+        .with_context(|| source.to_string())?;
     Ok(())
 }
 
@@ -111,7 +130,7 @@ fn size(args: &Args, preset_name: &str, src: Option<&Recording>) -> Result<(u32,
     }
     .and_then(|(h, w)| {
         if h == 0 || w == 0 || h > 8192 || w > 8192 {
-            bail!("sim: --width/--height: {w}×{h} is not a usable image size")
+            bail!("--width/--height: {w}×{h} is out of range (allowed 1 to 8192 pixels each)")
         }
         Ok((h, w))
     })
@@ -125,7 +144,7 @@ fn synthetic(
     n: u64,
     w: u32,
     h: u32,
-) -> Result<PathBuf> {
+) -> Result<AtomicDir> {
     let scene_cfg = super::scene_config(preset_name, args.scene_config.as_deref())?;
     // The header carries the nominal camera; every frame carries its own intrinsics.
     let nominal = depthor_host::scene::camera_for(&scene_cfg, args.seed, w, h);
@@ -155,7 +174,7 @@ fn synthetic(
         start = end;
     }
     bar.finish_and_clear();
-    Ok(writer.finish()?)
+    Ok(writer.seal()?)
 }
 
 /// Simulates the sensor for every frame of `rec` at `w × h`.
@@ -165,7 +184,7 @@ fn from_recording(
     rec: &Recording,
     w: u32,
     h: u32,
-) -> Result<PathBuf> {
+) -> Result<AtomicDir> {
     if rec.is_empty() {
         bail!(
             "{}: frames: the recording has no frames",
@@ -207,10 +226,10 @@ fn from_recording(
         };
         writer.add_frame(fm, &frame)?;
     }
-    Ok(writer.finish()?)
+    Ok(writer.seal()?)
 }
 
-/// Writes `<out>/preview/<id>.png` for every frame: RGB | depth | labels | projected points.
+/// Writes `<out>/preview/<id>.png` for every frame of the recording at `out`: RGB | depth | labels | projected points.
 pub fn write_previews(out: &Path) -> Result<()> {
     let rec = Recording::open(out)?;
     let dir = out.join("preview");

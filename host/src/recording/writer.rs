@@ -1,11 +1,12 @@
-//! Writing a recording atomically: everything goes into a hidden sibling directory
-//! `.<name>.partial-<pid>` that is renamed onto the destination only by
+//! Writing a recording atomically ([`crate::atomic`]): everything goes into a sibling directory
+//! `<name>.partial-<pid>` that is renamed onto the destination only by
 //! [`RecordingWriter::finish`]; a writer dropped before that removes it.
 
 use super::error::{Invalid, RecordingError};
 use super::files;
 use super::meta::{FrameMeta, RecordingMeta};
 use super::reader::{check_labels, check_size, Frame};
+use crate::atomic::{AtomicDir, Existing, OutputError};
 use depthor_core::calibration::CameraIntrinsics;
 use image::{GrayImage, ImageBuffer, ImageFormat, Luma};
 use std::path::{Path, PathBuf};
@@ -22,9 +23,14 @@ pub struct WriteOptions {
 pub struct RecordingWriter {
     out_dir: PathBuf,
     tmp_dir: PathBuf,
+    dir: AtomicDir,
     meta: RecordingMeta,
-    options: WriteOptions,
-    finished: bool,
+}
+
+impl From<OutputError> for RecordingError {
+    fn from(e: OutputError) -> Self {
+        RecordingError::new(e.path, e.what, e.message)
+    }
 }
 
 /// Depth in metres → the 16-bit millimetres of `depth.png`: rounded, clamped to 65535;
@@ -34,40 +40,6 @@ pub fn depth_m_to_mm(d: f32) -> u16 {
         (d as f64 * 1000.0).round().min(u16::MAX as f64) as u16
     } else {
         0
-    }
-}
-
-fn sibling(out_dir: &Path, tag: &str) -> Result<PathBuf, RecordingError> {
-    let name = out_dir.file_name().ok_or_else(|| {
-        RecordingError::new(out_dir, "output", "must name a directory (not `/` or `..`)")
-    })?;
-    let parent = match out_dir.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    Ok(parent.join(format!(
-        ".{}.{tag}-{}",
-        name.to_string_lossy(),
-        std::process::id()
-    )))
-}
-
-/// Fails when `out_dir` holds something and `overwrite` is not set.
-fn check_destination(out_dir: &Path, options: WriteOptions) -> Result<(), RecordingError> {
-    if options.overwrite || !out_dir.exists() {
-        return Ok(());
-    }
-    let empty_dir = std::fs::read_dir(out_dir)
-        .map(|mut it| it.next().is_none())
-        .unwrap_or(false);
-    if empty_dir {
-        Ok(())
-    } else {
-        Err(RecordingError::new(
-            out_dir,
-            "output",
-            "exists and is not empty (set overwrite to replace it)",
-        ))
     }
 }
 
@@ -105,20 +77,20 @@ impl RecordingWriter {
         }
         meta.validate()
             .map_err(|e| RecordingError::at(&header, e))?;
-        check_destination(&out_dir, options)?;
-        let tmp_dir = sibling(&out_dir, "partial")?;
-        if tmp_dir.exists() {
-            std::fs::remove_dir_all(&tmp_dir)
-                .map_err(|e| RecordingError::io(&tmp_dir, "remove stale", e))?;
-        }
+        let existing = if options.overwrite {
+            Existing::Replace
+        } else {
+            Existing::Refuse
+        };
+        let dir = AtomicDir::create(&out_dir, existing)?;
+        let tmp_dir = dir.path().to_path_buf();
         std::fs::create_dir_all(tmp_dir.join(files::FRAMES))
             .map_err(|e| RecordingError::io(&tmp_dir, "create", e))?;
         Ok(RecordingWriter {
             out_dir,
             tmp_dir,
+            dir,
             meta,
-            options,
-            finished: false,
         })
     }
 
@@ -227,39 +199,18 @@ impl RecordingWriter {
     }
 
     /// Writes `recording.json` and moves the recording onto the destination; returns its path.
-    pub fn finish(mut self) -> Result<PathBuf, RecordingError> {
+    pub fn finish(self) -> Result<PathBuf, RecordingError> {
+        Ok(self.seal()?.commit()?)
+    }
+
+    /// Writes `recording.json` into the temporary folder and hands it back uncommitted, so a
+    /// caller can add files (previews) to the complete recording before
+    /// [`AtomicDir::commit`] moves it into place; dropping it removes everything.
+    pub fn seal(self) -> Result<AtomicDir, RecordingError> {
         let path = self.tmp_dir.join(files::RECORDING_JSON);
         let text = serde_json::to_vec_pretty(&self.meta)
             .map_err(|e| RecordingError::new(&path, "encode", e))?;
         std::fs::write(&path, text).map_err(|e| RecordingError::io(&path, "write", e))?;
-        check_destination(&self.out_dir, self.options)?;
-        let out = &self.out_dir;
-        if out.is_dir() {
-            if self.options.overwrite {
-                let old = sibling(out, "old")?;
-                std::fs::rename(out, &old).map_err(|e| RecordingError::io(out, "move aside", e))?;
-                std::fs::rename(&self.tmp_dir, out)
-                    .map_err(|e| RecordingError::io(out, "rename onto", e))?;
-                // The new recording is in place; failing to delete the old one loses nothing.
-                let _ = std::fs::remove_dir_all(&old);
-                self.finished = true;
-                return Ok(self.out_dir.clone());
-            }
-            std::fs::remove_dir(out).map_err(|e| RecordingError::io(out, "replace empty", e))?;
-        } else if out.exists() {
-            std::fs::remove_file(out).map_err(|e| RecordingError::io(out, "replace", e))?;
-        }
-        std::fs::rename(&self.tmp_dir, out)
-            .map_err(|e| RecordingError::io(out, "rename onto", e))?;
-        self.finished = true;
-        Ok(self.out_dir.clone())
-    }
-}
-
-impl Drop for RecordingWriter {
-    fn drop(&mut self) {
-        if !self.finished {
-            let _ = std::fs::remove_dir_all(&self.tmp_dir);
-        }
+        Ok(self.dir)
     }
 }

@@ -81,23 +81,39 @@ impl Default for SceneConfig {
     }
 }
 
-/// Why a scene configuration file was rejected; every variant names the field.
+/// Why a scene configuration file was rejected; displays as one line `field: what is wrong
+/// (allowed …)` (the command line puts the file in front).
 #[derive(Debug, thiserror::Error)]
 pub enum SceneConfigError {
-    /// Not a JSON object, or a field of the wrong type.
-    #[error("scene config: {0}")]
-    Json(#[from] serde_json::Error),
+    /// Not JSON, not an object, or a field of the wrong type; `field` is the field's name where
+    /// one is to blame, else `JSON syntax` or `JSON`.
+    #[error("{field}: {message}")]
+    Json {
+        /// The field (`objects`, `hfov_deg[1]`), or `JSON syntax` / `JSON`.
+        field: String,
+        /// serde's message, one line.
+        message: String,
+    },
     /// A field the generator does not have.
-    #[error("scene config: unknown field `{0}`")]
+    #[error("{0}: unknown field (allowed: the fields of SceneConfig, e.g. room_depth_m)")]
     UnknownField(String),
     /// A field whose value the generator cannot draw from.
-    #[error("scene config: field `{field}`: {why}")]
+    #[error("{field}: {why}")]
     Invalid {
         /// The field's name.
-        field: &'static str,
-        /// What is wrong with it.
+        field: String,
+        /// What is wrong with it, with the allowed range.
         why: String,
     },
+}
+
+impl SceneConfigError {
+    fn json(field: &str, e: serde_json::Error) -> Self {
+        SceneConfigError::Json {
+            field: field.into(),
+            message: e.to_string(),
+        }
+    }
 }
 
 impl SceneConfig {
@@ -105,42 +121,60 @@ impl SceneConfig {
     /// changes), then validated: every range `lo ≤ hi` within the bounds the generator is
     /// built for, counts at most 64 with at least one lamp, probabilities in [0, 1].
     pub fn with_overrides(&self, text: &str) -> Result<SceneConfig, SceneConfigError> {
-        let patch: serde_json::Map<String, serde_json::Value> = serde_json::from_str(text)?;
-        let mut merged = match serde_json::to_value(self)? {
-            serde_json::Value::Object(m) => m,
+        let doc: serde_json::Value =
+            serde_json::from_str(text).map_err(|e| SceneConfigError::json("JSON syntax", e))?;
+        let serde_json::Value::Object(patch) = &doc else {
+            return Err(SceneConfigError::Json {
+                field: "(root)".into(),
+                message: "expected a JSON object of fields to replace".into(),
+            });
+        };
+        let base = serde_json::to_value(self).map_err(|e| SceneConfigError::json("JSON", e))?;
+        let mut merged = match &base {
+            serde_json::Value::Object(m) => m.clone(),
             _ => unreachable!("SceneConfig serialises to an object"),
         };
         for (k, v) in patch {
-            if !merged.contains_key(&k) {
-                return Err(SceneConfigError::UnknownField(k));
+            if !merged.contains_key(k) {
+                return Err(SceneConfigError::UnknownField(k.clone()));
             }
-            merged.insert(k, v);
+            merged.insert(k.clone(), v.clone());
         }
-        let cfg: SceneConfig = serde_json::from_value(serde_json::Value::Object(merged))?;
+        let cfg: SceneConfig =
+            serde_json::from_value(serde_json::Value::Object(merged)).map_err(|e| {
+                let field = crate::json_field::locate::<SceneConfig>(&base, &doc, &e.to_string())
+                    .unwrap_or_else(|| "JSON".into());
+                SceneConfigError::json(&field, e)
+            })?;
         cfg.validate()?;
         Ok(cfg)
     }
 
     /// Checks that every range can be drawn from (see [`SceneConfig::with_overrides`]).
     pub fn validate(&self) -> Result<(), SceneConfigError> {
-        let invalid = |field: &'static str, why: String| SceneConfigError::Invalid { field, why };
-        // (field, range, smallest and largest value the generator is built for); NaN fails
+        let invalid = |field: &str, why: String| SceneConfigError::Invalid {
+            field: field.into(),
+            why,
+        };
+        // (field, range, smallest and largest value the generator is built for, unit); NaN fails
         let ranges = [
-            ("room_width_m", self.room_width_m, 1.0, 100.0),
-            ("room_depth_m", self.room_depth_m, 1.0, 100.0),
-            ("room_height_m", self.room_height_m, 1.5, 30.0),
-            ("corridor_width_m", self.corridor_width_m, 0.8, 100.0),
-            ("camera_height_m", self.camera_height_m, 0.1, 30.0),
-            ("hfov_deg", self.hfov_deg, 10.0, 150.0),
-            ("camera_pitch_deg", self.camera_pitch_deg, -89.0, 89.0),
-            ("camera_roll_deg", self.camera_roll_deg, -89.0, 89.0),
-            ("camera_yaw_deg", self.camera_yaw_deg, -89.0, 89.0),
+            ("room_width_m", self.room_width_m, 1.0, 100.0, " m"),
+            ("room_depth_m", self.room_depth_m, 1.0, 100.0, " m"),
+            ("room_height_m", self.room_height_m, 1.5, 30.0, " m"),
+            ("corridor_width_m", self.corridor_width_m, 0.8, 100.0, " m"),
+            ("camera_height_m", self.camera_height_m, 0.1, 30.0, " m"),
+            ("hfov_deg", self.hfov_deg, 10.0, 150.0, "°"),
+            ("camera_pitch_deg", self.camera_pitch_deg, -89.0, 89.0, "°"),
+            ("camera_roll_deg", self.camera_roll_deg, -89.0, 89.0, "°"),
+            ("camera_yaw_deg", self.camera_yaw_deg, -89.0, 89.0, "°"),
         ];
-        for (field, [lo, hi], min, max) in ranges {
+        for (field, [lo, hi], min, max, unit) in ranges {
             if !(lo >= min && lo <= hi && hi <= max) {
                 return Err(invalid(
                     field,
-                    format!("[{lo}, {hi}] is not {min} ≤ lo ≤ hi ≤ {max}"),
+                    format!(
+                        "[{lo}, {hi}] is not an ordered range (allowed {min} ≤ lo ≤ hi ≤ {max}{unit})"
+                    ),
                 ));
             }
         }
@@ -153,14 +187,26 @@ impl SceneConfig {
         ];
         for (field, [lo, hi]) in counts {
             if lo > hi || hi > 64 {
-                return Err(invalid(field, format!("[{lo}, {hi}] is not lo ≤ hi ≤ 64")));
+                return Err(invalid(
+                    field,
+                    format!("[{lo}, {hi}] is not an ordered range (allowed 0 ≤ lo ≤ hi ≤ 64)"),
+                ));
             }
         }
         if self.lights[0] == 0 {
-            return Err(invalid("lights", "at least one lamp is needed".into()));
+            return Err(invalid(
+                "lights[0]",
+                "0 is out of range (allowed 1 to 64 lamps)".into(),
+            ));
         }
         if self.soft_shadow_samples == 0 || self.soft_shadow_samples > 64 {
-            return Err(invalid("soft_shadow_samples", "must be 1..=64".into()));
+            return Err(invalid(
+                "soft_shadow_samples",
+                format!(
+                    "{} is out of range (allowed 1 to 64)",
+                    self.soft_shadow_samples
+                ),
+            ));
         }
         let probabilities = [
             ("corridor_prob", self.corridor_prob),
@@ -173,7 +219,10 @@ impl SceneConfig {
         ];
         for (field, p) in probabilities {
             if !(0.0..=1.0).contains(&p) {
-                return Err(invalid(field, format!("{p} is not in [0, 1]")));
+                return Err(invalid(
+                    field,
+                    format!("{p} is out of range (allowed 0 to 1)"),
+                ));
             }
         }
         Ok(())
@@ -210,8 +259,11 @@ mod tests {
         assert!(err(r#"{"objects": [3, 1]}"#).contains("objects"));
         assert!(err(r#"{"lights": [0, 0]}"#).contains("lights"));
         assert!(err(r#"{"camera_pitch_deg": [-95, 0]}"#).contains("camera_pitch_deg"));
-        assert!(err(r#"{"objects": "many"}"#).contains("scene config"));
-        assert!(err("[1, 2]").contains("scene config"));
-        assert!(err("{").contains("scene config"));
+        assert!(err(r#"{"objects": "many"}"#).starts_with("objects: "));
+        assert!(err(r#"{"hfov_deg": [50, "wide"]}"#).starts_with("hfov_deg[1]: "));
+        assert!(err(r#"{"soft_shadow_samples": -1}"#).starts_with("soft_shadow_samples: "));
+        assert!(err(r#"{"glass_prob": 1.5}"#).contains("(allowed 0 to 1)"));
+        assert!(err("[1, 2]").starts_with("(root): "));
+        assert!(err("{").starts_with("JSON syntax: "));
     }
 }

@@ -55,17 +55,19 @@ impl ZoneEffect for Anomalies {
             return Err(invalid(
                 self.name(),
                 "blank_fraction",
-                "noise_fraction + blank_fraction must be ≤ 1",
+                format!(
+                    "noise_fraction + blank_fraction = {} (allowed at most 1)",
+                    self.noise_fraction + self.blank_fraction
+                ),
             ));
         }
-        check_ordered(self.name(), "noise_range_m", self.noise_range_m)?;
-        if self.noise_range_m[0] <= 0.0 {
-            return Err(invalid(
-                self.name(),
-                "noise_range_m",
-                "must start above 0 m",
-            ));
-        }
+        check_ordered(
+            self.name(),
+            "noise_range_m",
+            self.noise_range_m,
+            [0.001, 1000.0],
+            " m",
+        )?;
         Ok(())
     }
 

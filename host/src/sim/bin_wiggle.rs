@@ -2,7 +2,7 @@
 //! error. Forward model: `d' = d + amplitude_m · sin(2π d / period_m)`.
 use serde::{Deserialize, Serialize};
 
-use super::error::{check_positive, invalid, SimError};
+use super::error::{check_above, check_in, SimError};
 use super::frame::{Scene, ZoneEffect, ZoneGrid};
 use crate::rng::Rng;
 
@@ -44,10 +44,14 @@ impl ZoneEffect for BinWiggle {
         self.enabled
     }
     fn validate(&self) -> Result<(), SimError> {
-        if !(self.amplitude_m.is_finite() && (0.0..=1.0).contains(&self.amplitude_m)) {
-            return Err(invalid(self.name(), "amplitude_m", "must be in [0, 1] m"));
-        }
-        check_positive(self.name(), "period_m", self.period_m)
+        check_in(
+            self.name(),
+            "amplitude_m",
+            self.amplitude_m,
+            [0.0, 1.0],
+            " m",
+        )?;
+        check_above(self.name(), "period_m", self.period_m, [0.0, 10.0], " m")
     }
     fn apply(&self, _scene: &Scene<'_>, zones: &mut ZoneGrid, _rng: &mut Rng) {
         for zone in &mut zones.zones {

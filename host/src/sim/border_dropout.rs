@@ -4,7 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::covariates::grid_position;
-use super::error::{check_positive, check_prob, SimError};
+use super::error::{check_above, check_prob, SimError};
 use super::frame::{Scene, ZoneEffect, ZoneGrid};
 use super::truth::ZoneEvents;
 use crate::rng::Rng;
@@ -48,7 +48,7 @@ impl ZoneEffect for BorderDropout {
     }
     fn validate(&self) -> Result<(), SimError> {
         check_prob(self.name(), "p_corner", self.p_corner)?;
-        check_positive(self.name(), "exponent", self.exponent)
+        check_above(self.name(), "exponent", self.exponent, [0.0, 64.0], "")
     }
     fn apply(&self, _scene: &Scene<'_>, zones: &mut ZoneGrid, rng: &mut Rng) {
         let (rows, cols) = (zones.rows, zones.cols);

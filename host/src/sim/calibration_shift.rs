@@ -60,12 +60,15 @@ impl ZoneEffect for CalibrationShift {
 
     fn validate(&self) -> Result<(), SimError> {
         check_prob(self.name(), "frame_probability", self.frame_probability)?;
-        check_ordered(self.name(), "percentile", self.percentile)?;
-        if self.percentile[0] < 0.0 || self.percentile[1] > 1.0 {
-            return Err(invalid(self.name(), "percentile", "must lie in [0, 1]"));
-        }
-        if self.max_shift_zones.iter().any(|&m| m > 64) {
-            return Err(invalid(self.name(), "max_shift_zones", "must be ≤ 64"));
+        check_ordered(self.name(), "percentile", self.percentile, [0.0, 1.0], "")?;
+        for (i, &m) in self.max_shift_zones.iter().enumerate() {
+            if m > 64 {
+                return Err(invalid(
+                    self.name(),
+                    &format!("max_shift_zones[{i}]"),
+                    format!("{m} is out of range (allowed 0 to 64 zones)"),
+                ));
+            }
         }
         Ok(())
     }

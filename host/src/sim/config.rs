@@ -29,6 +29,31 @@ use super::signal_loss::SignalLoss;
 use super::surfaces::{Surface, SurfaceAspect};
 use super::zone_crosstalk::ZoneCrosstalk;
 
+/// Default memory limit of a run (see [`SimConfig::check_memory`]): 8 GiB, or
+/// `DEPTHOR_MEMORY_LIMIT_MIB` from the environment.
+pub fn memory_limit_bytes() -> u64 {
+    std::env::var("DEPTHOR_MEMORY_LIMIT_MIB")
+        .ok()
+        .and_then(|s| s.trim().parse::<u64>().ok())
+        .map_or(8 << 30, |mib| mib.saturating_mul(1 << 20))
+}
+
+/// What [`SimConfig::memory_estimate`] counts, in bytes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MemoryEstimate {
+    /// Zone sampling windows (indices and gathered depths) of the frames simulated at once.
+    pub windows_bytes: u64,
+    /// Images (inputs, rendering buffers) of the frames held and simulated.
+    pub images_bytes: u64,
+}
+
+impl MemoryEstimate {
+    /// Windows plus images.
+    pub fn total(&self) -> u64 {
+        self.windows_bytes.saturating_add(self.images_bytes)
+    }
+}
+
 /// Complete simulator configuration (see the module docs of each aspect for its physics and
 /// figures). The paper's Table 4 groups: OD = `overall_distribution`; SR = `transparent`,
 /// `specular`, `dark`, `range` (and l5's `signal_loss`); RA = `anomalies`; calibration errors =
@@ -162,12 +187,93 @@ impl SimConfig {
         Ok(())
     }
 
-    /// Parses and validates a JSON configuration.
+    /// Parses and validates a JSON configuration. A wrong type, unknown or missing field names
+    /// its JSON path (`grid.rows: invalid type: string "8", expected u16`).
     pub fn from_json(text: &str) -> Result<SimConfig, SimError> {
-        let cfg: SimConfig =
-            serde_json::from_str(text).map_err(|e| SimError::Json(e.to_string()))?;
+        let doc: serde_json::Value = serde_json::from_str(text).map_err(|e| SimError::Json {
+            field: "JSON syntax".into(),
+            message: e.to_string(),
+        })?;
+        let cfg: SimConfig = serde_json::from_value(doc.clone()).map_err(|e| {
+            let message = e.to_string();
+            let base = super::presets::preset("l5")
+                .ok()
+                .and_then(|c| serde_json::to_value(c).ok())
+                .unwrap_or_default();
+            SimError::Json {
+                field: crate::json_field::locate::<SimConfig>(&base, &doc, &message)
+                    .unwrap_or_else(|| "JSON".into()),
+                message,
+            }
+        })?;
         cfg.validate()?;
         Ok(cfg)
+    }
+
+    /// Estimated peak memory of simulating frames at `width × height` with `workers` frames
+    /// simulated at once and `frames_held` frames (inputs and outputs) kept in memory.
+    pub fn memory_estimate(
+        &self,
+        width: u32,
+        height: u32,
+        workers: u64,
+        frames_held: u64,
+    ) -> MemoryEstimate {
+        let px = width as u64 * height as u64;
+        let zones = self.grid.rows as u64 * self.grid.cols as u64;
+        // The sampling window of a zone, in pixels (as `Layout::windows` rounds it).
+        let win = |f: f32, n: u32| (f as f64 * n as f64).round().clamp(1.0, 1e12) as u64;
+        let window_px = zones
+            .saturating_mul(win(self.grid.ifov[0], height))
+            .saturating_mul(win(self.grid.ifov[1], width));
+        // Window indices (4 B) plus the depths gathered per window (4 B), per worker.
+        let windows = window_px.saturating_mul(8).saturating_mul(workers.max(1));
+        // RGB, depth, labels, reflectance, second depth and rendering buffers: ≈ 32 B per pixel.
+        let images = px
+            .saturating_mul(32)
+            .saturating_mul(frames_held.max(1) + workers.max(1));
+        MemoryEstimate {
+            windows_bytes: windows,
+            images_bytes: images,
+        }
+    }
+
+    /// Refuses a run whose [`SimConfig::memory_estimate`] exceeds `limit_bytes`, naming the
+    /// setting that drives it.
+    pub fn check_memory(
+        &self,
+        width: u32,
+        height: u32,
+        workers: u64,
+        frames_held: u64,
+        limit_bytes: u64,
+    ) -> Result<MemoryEstimate, SimError> {
+        let m = self.memory_estimate(width, height, workers, frames_held);
+        if m.total() <= limit_bytes {
+            return Ok(m);
+        }
+        let mib = |b: u64| b.div_ceil(1 << 20);
+        let (field, what) = if m.windows_bytes >= m.images_bytes {
+            (
+                "grid.ifov",
+                format!(
+                    "{}×{} zones with an iFoV of {}×{} of a {width}×{height} image; \
+                     reduce grid.ifov or grid.rows/cols",
+                    self.grid.rows, self.grid.cols, self.grid.ifov[0], self.grid.ifov[1]
+                ),
+            )
+        } else {
+            (
+                "width/height",
+                format!("{frames_held} frames of {width}×{height} held; reduce the image size"),
+            )
+        };
+        Err(SimError::TooMuchMemory {
+            field: field.into(),
+            need_mib: mib(m.total()),
+            limit_mib: mib(limit_bytes),
+            what,
+        })
     }
 
     /// Pretty JSON of this configuration.

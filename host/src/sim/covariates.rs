@@ -105,19 +105,6 @@ pub(crate) fn scene_covariates(
         .collect()
 }
 
-/// Checks that `v` is finite and ≥ 0; the error names `aspect.field`.
-pub(crate) fn check_nonneg(aspect: &str, field: &str, v: f32) -> Result<(), super::SimError> {
-    if v.is_finite() && v >= 0.0 {
-        Ok(())
-    } else {
-        Err(super::error::invalid(
-            aspect,
-            field,
-            format!("must be finite and ≥ 0, got {v}"),
-        ))
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -9,7 +9,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::error::{check_prob, invalid, SimError};
+use super::error::{check_in, check_prob, SimError};
 use super::frame::{Scene, ZoneEffect, ZoneGrid};
 use super::truth::ZoneEvents;
 use crate::rng::Rng;
@@ -56,9 +56,13 @@ impl ZoneEffect for DarkAspect {
     }
 
     fn validate(&self) -> Result<(), SimError> {
-        if !(self.v_threshold.is_finite() && (0.0..=256.0).contains(&self.v_threshold)) {
-            return Err(invalid(self.name(), "v_threshold", "must be in [0, 256]"));
-        }
+        check_in(
+            self.name(),
+            "v_threshold",
+            self.v_threshold,
+            [0.0, 256.0],
+            " (HSV V)",
+        )?;
         check_prob(self.name(), "min_fraction", self.min_fraction)?;
         check_prob(self.name(), "p_loss", self.p_loss)
     }

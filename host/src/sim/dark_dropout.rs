@@ -5,7 +5,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::covariates::{scene_covariates, ZoneCovariates};
-use super::error::{check_positive, check_prob, SimError};
+use super::error::{check_above, check_prob, SimError};
 use super::frame::{Scene, ZoneEffect, ZoneGrid};
 use super::truth::ZoneEvents;
 use crate::rng::Rng;
@@ -49,7 +49,7 @@ impl ZoneEffect for DarkDropout {
     }
     fn validate(&self) -> Result<(), SimError> {
         check_prob(self.name(), "p_black", self.p_black)?;
-        check_positive(self.name(), "knee", self.knee)
+        check_above(self.name(), "knee", self.knee, [0.0, 1.0], " (brightness)")
     }
     fn apply(&self, scene: &Scene<'_>, zones: &mut ZoneGrid, rng: &mut Rng) {
         let cov = scene_covariates(scene, zones);

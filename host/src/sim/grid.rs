@@ -6,10 +6,19 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::error::{check_positive, invalid, SimError};
+use super::error::{check_above, check_in, invalid, SimError};
 use super::frame::{Scene, Zone, ZoneGrid};
 use super::truth::{ZoneEvents, ZoneTruth};
 use crate::rng::Rng;
+
+/// Most zones along one axis of the grid (the phone preset has 40; dToF sensors have ≤ 64).
+pub const MAX_ZONES_PER_AXIS: u16 = 128;
+
+/// Allowed range of each FoV bound, in fractions of the image (a FoV may overhang the image).
+pub const FOV_BOUNDS: [f32; 2] = [-1.0, 2.0];
+
+/// Largest iFoV, as a fraction of the image size.
+pub const MAX_IFOV: f32 = 1.0;
 
 /// Sensor geometry in the image: not switchable (every frame has a zone grid).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -29,25 +38,50 @@ pub struct GridConfig {
 impl GridConfig {
     /// Checks the geometry; errors name the field as `grid.<field>`.
     pub fn validate(&self) -> Result<(), SimError> {
-        if self.rows == 0 {
-            return Err(invalid("grid", "rows", "must be ≥ 1"));
+        for (field, n) in [("rows", self.rows), ("cols", self.cols)] {
+            if !(1..=MAX_ZONES_PER_AXIS).contains(&n) {
+                return Err(invalid(
+                    "grid",
+                    field,
+                    format!("{n} is out of range (allowed 1 to {MAX_ZONES_PER_AXIS} zones)"),
+                ));
+            }
         }
-        if self.cols == 0 {
-            return Err(invalid("grid", "cols", "must be ≥ 1"));
+        for (i, name) in ["top", "bottom", "left", "right"].into_iter().enumerate() {
+            let field = format!("fov_bounds[{i}]");
+            check_in(
+                "grid",
+                &field,
+                self.fov_bounds[i],
+                FOV_BOUNDS,
+                &format!(" ({name}, image fractions)"),
+            )?;
         }
         let [t, b, l, r] = self.fov_bounds;
-        if !(t.is_finite() && b.is_finite() && l.is_finite() && r.is_finite()) || t >= b || l >= r {
+        if t >= b || l >= r {
             return Err(invalid(
                 "grid",
                 "fov_bounds",
                 format!(
-                    "must be finite with top < bottom and left < right, got {:?}",
+                    "{:?} is not a rectangle (allowed top < bottom and left < right)",
                     self.fov_bounds
                 ),
             ));
         }
-        check_positive("grid", "ifov[0]", self.ifov[0])?;
-        check_positive("grid", "ifov[1]", self.ifov[1])
+        check_above(
+            "grid",
+            "ifov[0]",
+            self.ifov[0],
+            [0.0, MAX_IFOV],
+            " of the image height",
+        )?;
+        check_above(
+            "grid",
+            "ifov[1]",
+            self.ifov[1],
+            [0.0, MAX_IFOV],
+            " of the image width",
+        )
     }
 
     /// Nominal iFoV rectangle `[y0, x0, y1, x1]` of every zone (row-major) in pixels of a
@@ -203,21 +237,21 @@ pub(crate) const DISTRIBUTION: &str = "overall_distribution";
 impl OverallDistribution {
     /// Checks the parameters; errors name the field as `overall_distribution.<field>`.
     pub fn validate(&self) -> Result<(), SimError> {
-        if !(self.max_translation.is_finite() && self.max_translation >= 0.0) {
-            return Err(invalid(
-                DISTRIBUTION,
-                "max_translation",
-                "must be finite and ≥ 0",
-            ));
-        }
-        if !(self.max_rotation_deg.is_finite() && (0.0..=45.0).contains(&self.max_rotation_deg)) {
-            return Err(invalid(
-                DISTRIBUTION,
-                "max_rotation_deg",
-                "must be in [0, 45]",
-            ));
-        }
-        check_positive(DISTRIBUTION, "bin_m", self.bin_m)
+        check_in(
+            DISTRIBUTION,
+            "max_translation",
+            self.max_translation,
+            [0.0, 10.0],
+            " iFoV half-sizes",
+        )?;
+        check_in(
+            DISTRIBUTION,
+            "max_rotation_deg",
+            self.max_rotation_deg,
+            [0.0, 45.0],
+            "°",
+        )?;
+        check_above(DISTRIBUTION, "bin_m", self.bin_m, [0.0, 10.0], " m")
     }
 
     /// Draws the frame's window motion (identity when off).

@@ -6,7 +6,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::error::{check_positive, check_prob, SimError};
+use super::error::{check_above, check_prob, SimError};
 use super::SimInput;
 
 /// Parameters of the depth halving.
@@ -41,9 +41,15 @@ pub(crate) const HALVING: &str = "depth_halving";
 impl DepthHalving {
     /// Checks the parameters; errors name the field as `depth_halving.<field>`.
     pub fn validate(&self) -> Result<(), SimError> {
-        check_positive(HALVING, "threshold_m", self.threshold_m)?;
+        check_above(
+            HALVING,
+            "threshold_m",
+            self.threshold_m,
+            [0.0, 1000.0],
+            " m",
+        )?;
         check_prob(HALVING, "min_fraction", self.min_fraction)?;
-        check_positive(HALVING, "factor", self.factor)
+        check_above(HALVING, "factor", self.factor, [0.0, 1.0], "")
     }
 
     /// The factor for this frame's depths: `factor` when enabled and at least `min_fraction` of

@@ -54,7 +54,7 @@ pub mod surfaces;
 pub mod truth;
 pub mod zone_crosstalk;
 
-pub use config::SimConfig;
+pub use config::{memory_limit_bytes, MemoryEstimate, SimConfig};
 pub use error::SimError;
 pub use presets::{preset, PRESETS};
 pub use truth::{ZoneEvents, ZoneTruth};
@@ -170,6 +170,8 @@ fn simulate_inner(
 ) -> Result<(SimOutput, Vec<covariates::ZoneCovariates>), SimError> {
     cfg.validate()?;
     input.validate()?;
+    // One frame at a time here; callers running many at once check their own total first.
+    cfg.check_memory(input.width, input.height, 1, 0, memory_limit_bytes())?;
     let depth_scale = cfg.depth_halving.scale(input);
     let layout = cfg.grid.layout(input.width, input.height);
     let dist = &cfg.overall_distribution;

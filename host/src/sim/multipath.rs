@@ -5,8 +5,8 @@
 //! sees it (its photons then dominate the histogram peak's neighbourhood).
 use serde::{Deserialize, Serialize};
 
-use super::covariates::check_nonneg;
 use super::covariates::{scene_covariates, ZoneCovariates};
+use super::error::check_in;
 use super::error::SimError;
 use super::frame::{Scene, ZoneEffect, ZoneGrid};
 use crate::rng::Rng;
@@ -36,7 +36,7 @@ impl ZoneEffect for Multipath {
         self.enabled
     }
     fn validate(&self) -> Result<(), SimError> {
-        check_nonneg(self.name(), "extra", self.extra)
+        check_in(self.name(), "extra", self.extra, [0.0, 10.0], "")
     }
     fn apply(&self, scene: &Scene<'_>, zones: &mut ZoneGrid, _rng: &mut Rng) {
         let cov = scene_covariates(scene, zones);

@@ -7,7 +7,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::covariates::grid_position;
-use super::error::{invalid, SimError};
+use super::error::{check_above, check_in, SimError};
 use super::frame::{Scene, ZoneEffect, ZoneGrid};
 use crate::rng::Rng;
 
@@ -51,19 +51,9 @@ impl ZoneEffect for RadialDistance {
         self.enabled
     }
     fn validate(&self) -> Result<(), SimError> {
-        if !(self.fraction.is_finite() && (-1.0..=2.0).contains(&self.fraction)) {
-            return Err(invalid(self.name(), "fraction", "must be in [-1, 2]"));
-        }
-        if self
-            .fov_deg
-            .iter()
-            .any(|f| !(f.is_finite() && *f > 0.0 && *f < 170.0))
-        {
-            return Err(invalid(
-                self.name(),
-                "fov_deg",
-                "must be in (0, 170) degrees",
-            ));
+        check_in(self.name(), "fraction", self.fraction, [-1.0, 2.0], "")?;
+        for (i, &f) in self.fov_deg.iter().enumerate() {
+            check_above(self.name(), &format!("fov_deg[{i}]"), f, [0.0, 170.0], "°")?;
         }
         Ok(())
     }

@@ -5,7 +5,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::error::{check_positive, invalid, SimError};
+use super::error::{check_above, invalid, SimError};
 use super::frame::{Scene, ZoneEffect, ZoneGrid};
 use super::truth::ZoneEvents;
 use crate::rng::Rng;
@@ -74,10 +74,23 @@ impl ZoneEffect for RangeAspect {
     }
 
     fn validate(&self) -> Result<(), SimError> {
-        check_positive(self.name(), "practical_m", self.practical_m)?;
-        check_positive(self.name(), "limit_m", self.limit_m)?;
+        check_above(
+            self.name(),
+            "practical_m",
+            self.practical_m,
+            [0.0, 1000.0],
+            " m",
+        )?;
+        check_above(self.name(), "limit_m", self.limit_m, [0.0, 1000.0], " m")?;
         if self.limit_m < self.practical_m {
-            return Err(invalid(self.name(), "limit_m", "must be ≥ practical_m"));
+            return Err(invalid(
+                self.name(),
+                "limit_m",
+                format!(
+                    "{} is below practical_m {} (allowed practical_m to 1000 m)",
+                    self.limit_m, self.practical_m
+                ),
+            ));
         }
         Ok(())
     }

@@ -3,7 +3,7 @@
 //! `d' = offset_m + (1 + scale) · d`, kept above 1 mm.
 use serde::{Deserialize, Serialize};
 
-use super::error::{invalid, SimError};
+use super::error::{check_in, SimError};
 use super::frame::{Scene, ZoneEffect, ZoneGrid};
 use crate::rng::Rng;
 
@@ -34,13 +34,8 @@ impl ZoneEffect for RangeBias {
         self.enabled
     }
     fn validate(&self) -> Result<(), SimError> {
-        if !(self.offset_m.is_finite() && self.offset_m.abs() <= 5.0) {
-            return Err(invalid(self.name(), "offset_m", "must be within ±5 m"));
-        }
-        if !(self.scale.is_finite() && self.scale.abs() <= 0.5) {
-            return Err(invalid(self.name(), "scale", "must be within ±0.5"));
-        }
-        Ok(())
+        check_in(self.name(), "offset_m", self.offset_m, [-5.0, 5.0], " m")?;
+        check_in(self.name(), "scale", self.scale, [-0.5, 0.5], "")
     }
     fn apply(&self, _scene: &Scene<'_>, zones: &mut ZoneGrid, _rng: &mut Rng) {
         for zone in &mut zones.zones {

@@ -4,7 +4,7 @@
 //! small, saturating at 1 far away.
 use serde::{Deserialize, Serialize};
 
-use super::covariates::check_nonneg;
+use super::error::check_in;
 use super::error::SimError;
 use super::frame::{Scene, ZoneEffect, ZoneGrid};
 use super::truth::ZoneEvents;
@@ -35,7 +35,13 @@ impl ZoneEffect for RangeDropout {
         self.enabled
     }
     fn validate(&self) -> Result<(), SimError> {
-        check_nonneg(self.name(), "loss_per_m2", self.loss_per_m2)
+        check_in(
+            self.name(),
+            "loss_per_m2",
+            self.loss_per_m2,
+            [0.0, 100.0],
+            " per m²",
+        )
     }
     fn apply(&self, _scene: &Scene<'_>, zones: &mut ZoneGrid, rng: &mut Rng) {
         for zone in &mut zones.zones {

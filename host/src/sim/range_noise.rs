@@ -3,7 +3,7 @@
 //! deviation `sigma_per_m · d` (kept above 1 mm).
 use serde::{Deserialize, Serialize};
 
-use super::covariates::check_nonneg;
+use super::error::check_in;
 use super::error::SimError;
 use super::frame::{Scene, ZoneEffect, ZoneGrid};
 use crate::rng::Rng;
@@ -33,7 +33,13 @@ impl ZoneEffect for RangeNoise {
         self.enabled
     }
     fn validate(&self) -> Result<(), SimError> {
-        check_nonneg(self.name(), "sigma_per_m", self.sigma_per_m)
+        check_in(
+            self.name(),
+            "sigma_per_m",
+            self.sigma_per_m,
+            [0.0, 10.0],
+            "",
+        )
     }
     fn apply(&self, _scene: &Scene<'_>, zones: &mut ZoneGrid, rng: &mut Rng) {
         for zone in &mut zones.zones {

@@ -5,7 +5,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::error::{check_ordered, check_prob, invalid, SimError};
+use super::error::{check_ordered, check_prob, SimError};
 use super::frame::{Scene, ZoneEffect, ZoneGrid};
 use super::grid::{histogram_peak, PeakScratch};
 use super::truth::ZoneEvents;
@@ -55,14 +55,13 @@ impl SurfaceAspect {
     pub(crate) fn check(&self, aspect: &str) -> Result<(), SimError> {
         check_prob(aspect, "min_fraction", self.min_fraction)?;
         check_prob(aspect, "p_loss", self.p_loss)?;
-        check_ordered(aspect, "farther_factor", self.farther_factor)?;
-        if self.farther_factor[0] < 1.0 {
-            return Err(invalid(
-                aspect,
-                "farther_factor",
-                "must be ≥ 1 (a farther return)",
-            ));
-        }
+        check_ordered(
+            aspect,
+            "farther_factor",
+            self.farther_factor,
+            [1.0, 100.0],
+            "",
+        )?;
         Ok(())
     }
 }
