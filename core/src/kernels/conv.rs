@@ -263,9 +263,15 @@ impl Conv2d<'_> {
             // SAFETY: AVX2 is available; `acc` holds nb ≤ NB rows of PB ≥ n and the caller's
             // output rows `at + j·plane .. + n` exist.
             unsafe {
-                super::x86_64::requant::block(rq, acc, PB, n, output, at, plane, |k, v| {
-                    requant_one(k, v)
-                })
+                if Isa::Avx512Vnni.available() && isa == Isa::Avx512Vnni {
+                    super::x86_64::requant::block512(rq, acc, PB, n, output, at, plane, |k, v| {
+                        requant_one(k, v)
+                    })
+                } else {
+                    super::x86_64::requant::block(rq, acc, PB, n, output, at, plane, |k, v| {
+                        requant_one(k, v)
+                    })
+                }
             };
             return;
         }
@@ -886,13 +892,18 @@ pub(crate) mod tests {
         }
     }
 
-    /// Speed of the fast path against the reference on a 3×3 16→16 conv at 60×80 (a typical
-    /// `mcu` half-resolution layer). Run: `cargo test --release -p depthor-core --lib
-    /// conv_speed -- --ignored --nocapture`.
+    /// Speed of every kernel set against the reference on a 3×3 conv, by default 16→16 at
+    /// 60×80 (a typical `mcu` half-resolution layer; `CONV_SPEED_SHAPE=ic,oc,h,w` for another).
+    /// Run: `cargo test --release -p depthor-core --lib conv_speed -- --ignored --nocapture`.
     #[test]
     #[ignore]
     fn conv_speed() {
-        let (ic, oc, h, w) = (16usize, 16usize, 60usize, 80usize);
+        let shape = std::env::var("CONV_SPEED_SHAPE").unwrap_or_default();
+        let v: Vec<usize> = shape.split(',').filter_map(|t| t.parse().ok()).collect();
+        let (ic, oc, h, w) = match v[..] {
+            [ic, oc, h, w] => (ic, oc, h, w),
+            _ => (16usize, 16usize, 60usize, 80usize),
+        };
         let g = ConvGeometry {
             kernel: [3, 3],
             padding: [1, 1],

@@ -161,6 +161,12 @@ mod tests {
             let mut out = [0i8; 64];
             // SAFETY: AVX2 is available (checked above).
             assert_eq!(unsafe { row(&k, &acc, &mut out) }, 64);
+            let mut out512 = [0i8; 64];
+            if crate::kernels::isa::Isa::Avx512Vnni.available() {
+                // SAFETY: AVX-512 F/BW are available (checked).
+                assert_eq!(unsafe { row512(&k, &acc, &mut out512) }, 64);
+                assert_eq!(out512, out, "16-lane requantisation differs from 8-lane");
+            }
             for (o, &a) in out.iter().zip(&acc) {
                 let x = k.base.wrapping_add(a);
                 let r = if x >= 0 { pos.apply(x) } else { neg.apply(x) };
@@ -169,4 +175,103 @@ mod tests {
             }
         }
     }
+}
+
+/// [`block`] with 16 lanes (AVX-512 F+BW): the same integer function, so the same bits.
+///
+/// # Safety
+/// The CPU must have AVX-512 F and BW; the slice conditions of [`block`] hold.
+#[target_feature(enable = "avx512f,avx512bw,avx2")]
+#[allow(clippy::too_many_arguments)]
+pub unsafe fn block512(
+    consts: &[RowConsts],
+    acc: &[i32],
+    acc_stride: usize,
+    n: usize,
+    out: &mut [i8],
+    at: usize,
+    out_stride: usize,
+    tail: impl Fn(&RowConsts, i32) -> i8,
+) {
+    for (j, k) in consts.iter().enumerate() {
+        let a = &acc[j * acc_stride..j * acc_stride + n];
+        let o = &mut out[at + j * out_stride..at + j * out_stride + n];
+        let done = row512(k, a, o);
+        let done = done + row(k, &a[done..], &mut o[done..]);
+        for (d, &v) in o[done..].iter_mut().zip(&a[done..]) {
+            *d = tail(k, v);
+        }
+    }
+}
+
+/// `trunc((a·b + nudge) / 2³¹)` of the even 32-bit lanes (`b ≥ 0`), 64-bit lanes.
+#[target_feature(enable = "avx512f")]
+#[inline]
+unsafe fn srdhm_even512(a: __m512i, b: __m512i) -> __m512i {
+    let ab = _mm512_mul_epi32(a, b);
+    let neg = _mm512_cmplt_epi64_mask(ab, _mm512_setzero_si512());
+    let nudge = _mm512_mask_blend_epi64(
+        neg,
+        _mm512_set1_epi64(1 << 30),
+        _mm512_set1_epi64(1 - (1 << 30)),
+    );
+    let t = _mm512_add_epi64(ab, nudge);
+    // Division by 2^31 toward zero: add 2^31 − 1 to negative values, then shift.
+    let tneg = _mm512_cmplt_epi64_mask(t, _mm512_setzero_si512());
+    let t = _mm512_mask_add_epi64(t, tneg, t, _mm512_set1_epi64((1 << 31) - 1));
+    _mm512_srai_epi64::<31>(t)
+}
+
+/// [`row`] with 16 lanes; returns how many leading elements it did (a multiple of 16).
+#[target_feature(enable = "avx512f,avx512bw")]
+#[inline]
+unsafe fn row512(k: &RowConsts, acc: &[i32], out: &mut [i8]) -> usize {
+    let n = out.len().min(acc.len()) / 16 * 16;
+    let base = _mm512_set1_epi32(k.base);
+    let (pm, nm) = (_mm512_set1_epi32(k.pos_m), _mm512_set1_epi32(k.neg_m));
+    let (pr, nr) = (_mm512_set1_epi32(k.pos_r), _mm512_set1_epi32(k.neg_r));
+    let one = _mm512_set1_epi32(1);
+    let zero = _mm512_setzero_si512();
+    let (zp, lo, hi) = (
+        _mm512_set1_epi32(k.zp),
+        _mm512_set1_epi32(k.min),
+        _mm512_set1_epi32(k.max),
+    );
+    let mut i = 0;
+    while i < n {
+        let x = _mm512_add_epi32(
+            base,
+            _mm512_loadu_si512(acc.as_ptr().add(i) as *const __m512i),
+        );
+        let neg = _mm512_cmplt_epi32_mask(x, zero);
+        let m = _mm512_mask_blend_epi32(neg, pm, nm);
+        let e = _mm512_mask_blend_epi32(neg, pr, nr);
+        let qe = srdhm_even512(x, m);
+        let qo = srdhm_even512(_mm512_srli_epi64::<32>(x), _mm512_srli_epi64::<32>(m));
+        let q = _mm512_mask_blend_epi32(0xAAAA, qe, _mm512_slli_epi64::<32>(qo));
+        let mask = _mm512_sub_epi32(_mm512_sllv_epi32(one, e), one);
+        let rem = _mm512_and_si512(q, mask);
+        let qneg = _mm512_cmplt_epi32_mask(q, zero);
+        let threshold = _mm512_mask_add_epi32(
+            _mm512_srai_epi32::<1>(mask),
+            qneg,
+            _mm512_srai_epi32::<1>(mask),
+            one,
+        );
+        let up = _mm512_cmpgt_epi32_mask(rem, threshold);
+        let r = _mm512_srav_epi32(q, e);
+        let r = _mm512_mask_add_epi32(r, up, r, one);
+        // saturating_add(zp) then clamp: clamping r to ±2^24 first changes nothing.
+        let r = _mm512_min_epi32(
+            _mm512_max_epi32(r, _mm512_set1_epi32(-(1 << 24))),
+            _mm512_set1_epi32(1 << 24),
+        );
+        let r = _mm512_min_epi32(_mm512_max_epi32(_mm512_add_epi32(r, zp), lo), hi);
+        _mm_storeu_si128(
+            out.as_mut_ptr().add(i) as *mut __m128i,
+            _mm512_cvtepi32_epi8(r),
+        );
+        i += 16;
+    }
+    n
 }
