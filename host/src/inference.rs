@@ -8,6 +8,9 @@ use std::path::Path;
 /// The embedded default model: `models/mcu/depthor.dblob` (120×160, 8×8 zones).
 pub static MCU_BLOB: &[u8] = include_bytes!("../../models/mcu/depthor.dblob");
 
+/// Largest input (height × width) a blob may ask for: 16 Mpx.
+pub const MAX_INPUT_PIXELS: usize = 1 << 24;
+
 /// Extra arena bytes so the engine can align its base.
 const ALIGN_SLACK: usize = 64;
 
@@ -31,9 +34,39 @@ pub enum InferenceError {
         /// The I/O error.
         source: std::io::Error,
     },
-    /// The engine rejected the blob or the inputs.
-    #[error("model: {0}")]
-    Engine(#[from] EngineError),
+    /// The engine rejected a blob given as bytes, or the inputs.
+    #[error("model: {}", engine_detail(.0))]
+    Engine(EngineError),
+    /// The engine rejected the blob file at `path`: `<path>: byte <offset>: <what>`.
+    #[error("{}: {}", path.display(), engine_detail(error))]
+    Blob {
+        /// The blob path.
+        path: std::path::PathBuf,
+        /// The engine's reason (its offset is in the message).
+        error: EngineError,
+    },
+}
+
+// No `#[from]`: a source would make `{:#}` print the engine's message a second time.
+impl From<EngineError> for InferenceError {
+    fn from(e: EngineError) -> Self {
+        InferenceError::Engine(e)
+    }
+}
+
+/// One line for an engine error: a blob problem as `byte <offset>: <what>`, the others as the
+/// engine says them.
+pub fn engine_detail(e: &EngineError) -> String {
+    match e {
+        EngineError::BadBlob { offset, what } => format!("byte {offset}: {what}"),
+        EngineError::BadChecksum { stored, computed } => format!(
+            "byte 12: payload CRC-32 {computed:#010x} differs from the header's {stored:#010x}"
+        ),
+        EngineError::UnsupportedVersion { found } => {
+            format!("byte 4: format version {found} is not supported (allowed 1)")
+        }
+        other => other.to_string(),
+    }
 }
 
 impl Int8Model {
@@ -48,7 +81,13 @@ impl Int8Model {
             path: path.to_path_buf(),
             source,
         })?;
-        Self::from_bytes(blob, size)
+        Self::from_bytes(blob, size).map_err(|e| match e {
+            InferenceError::Engine(error) => InferenceError::Blob {
+                path: path.to_path_buf(),
+                error,
+            },
+            other => other,
+        })
     }
 
     /// A model from blob bytes (validated here), at its native size or at `size`.
@@ -57,7 +96,20 @@ impl Int8Model {
             Some(s) => s,
             None => depthor_core::blob::parse(&blob).map(|g| (g.height, g.width))?,
         };
+        // Bounded before planning, so a header claiming a huge input is refused at once.
+        if height == 0 || width == 0 || height.saturating_mul(width) > MAX_INPUT_PIXELS {
+            return Err(InferenceError::Engine(EngineError::BadBlob {
+                offset: 16,
+                what: "input height × width out of range (allowed 1 to 16 Mpx)",
+            }));
+        }
         let need = required_arena_bytes(&blob, height, width)?;
+        if need as u64 > crate::sim::memory_limit_bytes() {
+            return Err(InferenceError::Engine(EngineError::ArenaTooSmall {
+                need,
+                have: crate::sim::memory_limit_bytes() as usize,
+            }));
+        }
         let mut model = Int8Model {
             blob,
             arena: vec![0u8; need + ALIGN_SLACK],

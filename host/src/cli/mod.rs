@@ -73,6 +73,25 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     }
 }
 
+/// The error chain on one line, `outer: inner: …`, each link said once: a link whose text the
+/// previous link already contains (a `thiserror` `"…: {0}"` wrapper with a `#[from]` source)
+/// is dropped, and line breaks are folded.
+pub fn one_line(e: &anyhow::Error) -> String {
+    let mut parts: Vec<String> = Vec::new();
+    for link in e.chain() {
+        let text = link
+            .to_string()
+            .split_whitespace()
+            .collect::<Vec<_>>()
+            .join(" ");
+        if text.is_empty() || parts.last().is_some_and(|p| p.contains(&text)) {
+            continue;
+        }
+        parts.push(text);
+    }
+    parts.join(": ")
+}
+
 /// A progress bar on stderr for `len` steps (drawn only on a terminal, so piped output and
 /// error messages stay clean).
 pub fn progress(len: u64, what: &str) -> ProgressBar {

@@ -77,10 +77,15 @@ pub fn handle(args: Args) -> Result<()> {
         )?);
     }
     let q = quantize_with(&net, &frames, args.ranges)?;
-    std::fs::write(&args.out, &q.blob)
-        .with_context(|| format!("writing {}", args.out.display()))?;
-    let arena = required_arena_bytes(&q.blob, net.height, net.width)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", args.out.display()))?;
+    // Checked before writing, so a blob the engine refuses is never left at --out.
+    let arena = required_arena_bytes(&q.blob, net.height, net.width).map_err(|e| {
+        anyhow::anyhow!(
+            "{}: {}",
+            args.out.display(),
+            depthor_host::inference::engine_detail(&e)
+        )
+    })?;
+    depthor_host::atomic::write_file(&args.out, &q.blob)?;
     println!(
         "{}: variant {} at {}×{} (H×W), {} ops, {} tensors, {} blob bytes",
         args.out.display(),
