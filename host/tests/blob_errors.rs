@@ -58,7 +58,10 @@ fn mutated_blobs_are_refused_quickly_naming_path_and_offset() {
             assert!(!msg.contains('\n') && said_once(&msg), "{msg}");
         }
     }
-    println!("{refused} of {} mutations refused, slowest {slowest:?}", positions.len());
+    println!(
+        "{refused} of {} mutations refused, slowest {slowest:?}",
+        positions.len()
+    );
     assert!(refused > 20, "{refused} of {} refused", positions.len());
     assert!(
         slowest < Duration::from_secs(3),
