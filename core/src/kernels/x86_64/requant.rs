@@ -107,76 +107,6 @@ pub unsafe fn row(k: &RowConsts, acc: &[i32], out: &mut [i8]) -> usize {
     n
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::kernels::requant::Requant;
-
-    #[test]
-    fn equals_requant_apply_over_the_whole_range() {
-        if !crate::kernels::isa::Isa::Avx2.available() {
-            std::eprintln!("no AVX2 on this CPU: AVX2 requantisation not tested here");
-            return;
-        }
-        let mut s = 99u64;
-        let mut next = move || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (s >> 32) as u32
-        };
-        for case in 0..400 {
-            let pos = Requant {
-                multiplier: (1 << 30) + (next() >> 2) as i32,
-                shift: -((next() % 32) as i32),
-            };
-            let neg = Requant {
-                multiplier: if case % 3 == 0 {
-                    pos.multiplier
-                } else {
-                    (1 << 30) + (next() >> 2) as i32
-                },
-                shift: if case % 3 == 0 {
-                    pos.shift
-                } else {
-                    -((next() % 32) as i32)
-                },
-            };
-            let k = RowConsts {
-                simple: true,
-                base: next() as i32 >> (next() % 32),
-                pos_m: pos.multiplier,
-                neg_m: neg.multiplier,
-                pos_r: -pos.shift,
-                neg_r: -neg.shift,
-                zp: (next() % 256) as i32 - 128,
-                min: -128 + (next() % 64) as i32,
-                max: 127,
-            };
-            let mut acc: std::vec::Vec<i32> =
-                (0..64).map(|_| (next() as i32) >> (next() % 32)).collect();
-            acc[0] = i32::MIN.wrapping_sub(k.base);
-            acc[1] = i32::MAX.wrapping_sub(k.base);
-            acc[2] = -k.base;
-            let mut out = [0i8; 64];
-            // SAFETY: AVX2 is available (checked above).
-            assert_eq!(unsafe { row(&k, &acc, &mut out) }, 64);
-            let mut out512 = [0i8; 64];
-            if crate::kernels::isa::Isa::Avx512Vnni.available() {
-                // SAFETY: AVX-512 F/BW are available (checked).
-                assert_eq!(unsafe { row512(&k, &acc, &mut out512) }, 64);
-                assert_eq!(out512, out, "16-lane requantisation differs from 8-lane");
-            }
-            for (o, &a) in out.iter().zip(&acc) {
-                let x = k.base.wrapping_add(a);
-                let r = if x >= 0 { pos.apply(x) } else { neg.apply(x) };
-                let want = r.saturating_add(k.zp).clamp(k.min, k.max) as i8;
-                assert_eq!(*o, want, "x={x} pos={pos:?} neg={neg:?}");
-            }
-        }
-    }
-}
-
 /// [`block`] with 16 lanes (AVX-512 F+BW): the same integer function, so the same bits.
 ///
 /// # Safety
@@ -274,4 +204,74 @@ unsafe fn row512(k: &RowConsts, acc: &[i32], out: &mut [i8]) -> usize {
         i += 16;
     }
     n
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kernels::requant::Requant;
+
+    #[test]
+    fn equals_requant_apply_over_the_whole_range() {
+        if !crate::kernels::isa::Isa::Avx2.available() {
+            std::eprintln!("no AVX2 on this CPU: AVX2 requantisation not tested here");
+            return;
+        }
+        let mut s = 99u64;
+        let mut next = move || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 32) as u32
+        };
+        for case in 0..400 {
+            let pos = Requant {
+                multiplier: (1 << 30) + (next() >> 2) as i32,
+                shift: -((next() % 32) as i32),
+            };
+            let neg = Requant {
+                multiplier: if case % 3 == 0 {
+                    pos.multiplier
+                } else {
+                    (1 << 30) + (next() >> 2) as i32
+                },
+                shift: if case % 3 == 0 {
+                    pos.shift
+                } else {
+                    -((next() % 32) as i32)
+                },
+            };
+            let k = RowConsts {
+                simple: true,
+                base: next() as i32 >> (next() % 32),
+                pos_m: pos.multiplier,
+                neg_m: neg.multiplier,
+                pos_r: -pos.shift,
+                neg_r: -neg.shift,
+                zp: (next() % 256) as i32 - 128,
+                min: -128 + (next() % 64) as i32,
+                max: 127,
+            };
+            let mut acc: std::vec::Vec<i32> =
+                (0..64).map(|_| (next() as i32) >> (next() % 32)).collect();
+            acc[0] = i32::MIN.wrapping_sub(k.base);
+            acc[1] = i32::MAX.wrapping_sub(k.base);
+            acc[2] = -k.base;
+            let mut out = [0i8; 64];
+            // SAFETY: AVX2 is available (checked above).
+            assert_eq!(unsafe { row(&k, &acc, &mut out) }, 64);
+            let mut out512 = [0i8; 64];
+            if crate::kernels::isa::Isa::Avx512Vnni.available() {
+                // SAFETY: AVX-512 F/BW are available (checked).
+                assert_eq!(unsafe { row512(&k, &acc, &mut out512) }, 64);
+                assert_eq!(out512, out, "16-lane requantisation differs from 8-lane");
+            }
+            for (o, &a) in out.iter().zip(&acc) {
+                let x = k.base.wrapping_add(a);
+                let r = if x >= 0 { pos.apply(x) } else { neg.apply(x) };
+                let want = r.saturating_add(k.zp).clamp(k.min, k.max) as i8;
+                assert_eq!(*o, want, "x={x} pos={pos:?} neg={neg:?}");
+            }
+        }
+    }
 }
