@@ -486,8 +486,19 @@ fn step_i8_avx2(
             // `i + delta` is a pixel of `cur`.
             unsafe { super::x86_64::refine::step_run(a, &delta[..n], g, y * w, x0, x1, cur, nxt) };
         }
-        for x in (0..x0).chain(x1..w) {
-            nxt[y * w + x] = step_pixel(a, off, g, h, w, cur, y, x);
+        if w < 8 {
+            for x in (0..x0).chain(x1..w) {
+                nxt[y * w + x] = step_pixel(a, off, g, h, w, cur, y, x);
+            }
+            continue;
+        }
+        // The rest of the row in masked chunks of 8 (a chunk may overlap the interior run or
+        // the previous chunk; it writes the same values, which depend on `cur` only).
+        for xc in (0..x0).step_by(8).chain((x1..w).step_by(8)) {
+            let xc = xc.min(w - 8);
+            // SAFETY: AVX2 is available (the caller's match); `a` has ≥ n channels over ≥ h·w
+            // pixels and xc + 8 ≤ w.
+            unsafe { super::x86_64::refine::step_masked(a, &off[..n], g, h, w, y, xc, cur, nxt) };
         }
     }
 }

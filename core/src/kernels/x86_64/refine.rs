@@ -109,3 +109,70 @@ pub unsafe fn accumulate(
     }
     i
 }
+
+/// Pixels `i0..i0 + 8` of row `y` (`x0 = i0 − y·w`, `x0 + 8 ≤ w`) of one propagation step with
+/// neighbours outside the image masked per lane: weight `+0`, neighbour value the pixel's own,
+/// exactly what the per-pixel path adds for them. Callers check `a` has `off.len()` channels over
+/// `h·w` pixels.
+///
+/// # Safety
+/// The CPU must have AVX2 and the conditions above must hold.
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+pub unsafe fn step_masked(
+    a: &I8Map,
+    off: &[(isize, isize)],
+    g: &[f32],
+    h: usize,
+    w: usize,
+    y: usize,
+    x0: usize,
+    cur: &[f32],
+    nxt: &mut [f32],
+) {
+    let n = off.len().min(48).min(g.len());
+    let zero = _mm256_setzero_ps();
+    let one = _mm256_set1_ps(1.0);
+    let lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    let i = y * w + x0;
+    let c = cur.as_ptr();
+    let own = _mm256_loadu_ps(c.add(i));
+    let mut r = [zero; 48];
+    let mut valid = [_mm256_setzero_si256(); 48];
+    let mut s = zero;
+    for j in 0..n {
+        let (dy, dx) = off[j];
+        let ny = y as isize + dy;
+        let row_ok = ny >= 0 && ny < h as isize;
+        let xs = _mm256_add_epi32(lane, _mm256_set1_epi32((x0 as isize + dx) as i32));
+        let col_ok = _mm256_and_si256(
+            _mm256_cmpgt_epi32(xs, _mm256_set1_epi32(-1)),
+            _mm256_cmpgt_epi32(_mm256_set1_epi32(w as i32), xs),
+        );
+        valid[j] = if row_ok {
+            col_ok
+        } else {
+            _mm256_setzero_si256()
+        };
+        let v = _mm256_max_ps(load8(a, j, i), zero);
+        let rj = _mm256_mul_ps(v, _mm256_set1_ps(g[j]));
+        r[j] = _mm256_and_ps(rj, _mm256_castsi256_ps(valid[j]));
+        s = _mm256_add_ps(s, r[j]);
+    }
+    let q = _mm256_div_ps(one, _mm256_add_ps(one, s));
+    let mut wsum = zero;
+    for rj in r[..n].iter_mut() {
+        *rj = _mm256_mul_ps(*rj, q);
+        wsum = _mm256_add_ps(wsum, *rj);
+    }
+    let mut d = _mm256_mul_ps(_mm256_sub_ps(one, wsum), own);
+    for j in 0..n {
+        let (dy, dx) = off[j];
+        let k = i as isize + dy * w as isize + dx;
+        // Masked-off lanes are not read (maskload does not fault on them).
+        let nb = _mm256_maskload_ps(c.offset(k), valid[j]);
+        let cn = _mm256_blendv_ps(own, nb, _mm256_castsi256_ps(valid[j]));
+        d = _mm256_add_ps(d, _mm256_mul_ps(r[j], cn));
+    }
+    _mm256_storeu_ps(nxt.as_mut_ptr().add(i), d);
+}
