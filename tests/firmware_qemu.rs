@@ -16,8 +16,9 @@ use depthor_replay::host::replay_image;
 use depthor_replay::{synthetic, writer};
 
 const TARGET: &str = "thumbv7em-none-eabihf";
-/// Wall-clock limit for one QEMU run. With the model, a 120×160 frame is ≈ 3.5 G instructions:
-/// 5 frames took 43 s of wall time on a loaded 2-core machine (QEMU 7.2, `-icount shift=0`).
+/// Wall-clock limit for one QEMU run. With the model, a 120×160 frame is ≈ 1.4 G instructions
+/// (DSP kernels): 5 frames plus the per-op profiling frame took ≈ 30 s of wall time on a loaded
+/// 2-core machine (QEMU 10.0, `-icount shift=0`).
 const QEMU_TIMEOUT: Duration = Duration::from_secs(600);
 
 /// One firmware build at a time: the image is baked in at build time and all builds share
