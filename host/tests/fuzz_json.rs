@@ -1,4 +1,5 @@
-//! Random and mutated bytes as `recording.json` / `dtof.json` never panic the reader.
+//! Random and mutated bytes as `recording.json` / `dtof.json` never panic the reader; mutated
+//! scene and simulator configurations are one error naming the field, or they render/simulate.
 
 mod common;
 
@@ -84,6 +85,119 @@ proptest! {
             Ok(cfg) => {
                 let frame = render_scene(&cfg, seed, camera_for(&cfg, seed, 24, 18));
                 prop_assert_eq!(frame.depth_m.len(), 24 * 18);
+            }
+        }
+    }
+}
+
+/// The JSON paths of every value of `v` (`grid.ifov[0]`, `dark`), containers included.
+fn json_paths(v: &serde_json::Value, path: String, out: &mut Vec<String>) {
+    if !path.is_empty() {
+        out.push(path.clone());
+    }
+    match v {
+        serde_json::Value::Object(m) => {
+            for (k, c) in m {
+                let p = if path.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{path}.{k}")
+                };
+                json_paths(c, p, out);
+            }
+        }
+        serde_json::Value::Array(a) => {
+            for (i, c) in a.iter().enumerate() {
+                json_paths(c, format!("{path}[{i}]"), out);
+            }
+        }
+        _ => {}
+    }
+}
+
+/// Simulates a small flat scene with `cfg` (must not panic).
+fn simulate_small(cfg: &depthor_host::sim::SimConfig) {
+    let (w, h) = (40u32, 30u32);
+    let depth = vec![2.0f32; (w * h) as usize];
+    let rgb = vec![90u8; (3 * w * h) as usize];
+    let input = depthor_host::sim::SimInput {
+        width: w,
+        height: h,
+        depth_m: &depth,
+        rgb: &rgb,
+        labels: None,
+        reflectance: None,
+        second_depth_m: None,
+    };
+    // Ok, or a clean error (the memory estimate may refuse a huge grid).
+    let _ = depthor_host::sim::simulate(cfg, &input, 1);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(128))]
+
+    /// Mutated bytes of a preset's JSON: one line naming a path of the document (or `JSON
+    /// syntax` / `JSON`), or a configuration that simulates without panicking.
+    #[test]
+    fn mutated_sim_config_bytes(pos in 0usize..100_000, len in 1usize..4, fill in any::<u8>(), p in 0usize..3) {
+        use depthor_host::sim::{preset, SimConfig, PRESETS};
+        let base = preset(PRESETS[p % PRESETS.len()]).unwrap().to_json();
+        let mut bytes = base.clone().into_bytes();
+        let at = pos % bytes.len();
+        let end = (at + len).min(bytes.len());
+        bytes[at..end].fill(fill);
+        let text = String::from_utf8_lossy(&bytes);
+        match SimConfig::from_json(&text) {
+            Ok(cfg) => simulate_small(&cfg),
+            Err(e) => {
+                let msg = e.to_string();
+                prop_assert!(!msg.contains('\n'), "{}", msg);
+                let field = msg.split(": ").next().unwrap_or("");
+                let mut paths = Vec::new();
+                json_paths(&serde_json::from_str(&base).unwrap(), String::new(), &mut paths);
+                let known = field.starts_with("JSON")
+                    || field == "(root)"
+                    || paths.iter().any(|p| p == field || field.starts_with(&format!("{p}.")))
+                    || serde_json::from_str::<serde_json::Value>(&text).is_ok();
+                prop_assert!(known, "{}", msg);
+            }
+        }
+    }
+
+    /// Any number in any numeric field of a preset: accepted (and it simulates) or refused
+    /// naming that field.
+    #[test]
+    fn any_number_in_any_sim_field(k in 0usize..1000, x in prop_oneof![any::<f64>(), -1e4f64..1e4, 0f64..2.0], p in 0usize..3) {
+        use depthor_host::sim::{preset, SimConfig, PRESETS};
+        let mut doc = serde_json::to_value(preset(PRESETS[p % PRESETS.len()]).unwrap()).unwrap();
+        let mut paths = Vec::new();
+        json_paths(&doc, String::new(), &mut paths);
+        let numeric: Vec<String> = paths
+            .into_iter()
+            .filter(|p| {
+                let ptr = format!("/{}", p.replace(['.', '['], "/").replace(']', ""));
+                doc.pointer(&ptr).is_some_and(|v| v.is_number())
+            })
+            .collect();
+        let path = &numeric[k % numeric.len()];
+        let ptr = format!("/{}", path.replace(['.', '['], "/").replace(']', ""));
+        let Some(num) = serde_json::Number::from_f64(x) else { return Ok(()) };
+        *doc.pointer_mut(&ptr).unwrap() = serde_json::Value::Number(num);
+        match SimConfig::from_json(&doc.to_string()) {
+            Ok(cfg) => simulate_small(&cfg),
+            Err(e) => {
+                let msg = e.to_string();
+                let parent = path.split('[').next().unwrap_or(path);
+                // A cross-field rule (`limit_m ≥ practical_m`) names the other field first and
+                // this one in the message.
+                let leaf = parent.rsplit('.').next().unwrap_or(parent);
+                if msg.contains(&format!(" {leaf}")) {
+                    return Ok(());
+                }
+                prop_assert!(
+                    msg.starts_with(&format!("{path}:")) || msg.starts_with(&format!("{parent}:")),
+                    "{} = {}: {}", path, x, msg
+                );
             }
         }
     }
