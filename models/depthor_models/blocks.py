@@ -25,9 +25,10 @@ class Act(nn.Module):
 class ConvBNAct(nn.Module):
     """conv2d (no bias, no activation) → batch_norm → relu / leaky_relu: the foldable triple."""
 
-    def __init__(self, cin, cout, kernel=3, stride=1, dilation=1, act="relu", alpha=0.1):
+    def __init__(self, cin, cout, kernel=3, stride=1, dilation=1, act="relu", alpha=0.1,
+                 groups=1):
         super().__init__()
-        self.conv = ops.Conv(cin, cout, kernel, stride, dilation, bias=False)
+        self.conv = ops.Conv(cin, cout, kernel, stride, dilation, groups=groups, bias=False)
         self.bn = ops.BatchNorm(cout)
         self.act = Act(act, alpha)
 
@@ -75,3 +76,47 @@ class CBAM(nn.Module):
         x = ops.mul(x, ops.sigmoid(ops.add(a, m)))
         s = ops.concat([ops.channel_mean(x), ops.channel_max(x)])
         return ops.mul(x, self.spatial(s))
+
+
+class SepConv(nn.Module):
+    """Depthwise-separable conv (MobileNetV1 / FastDepth): a k×k depthwise conv-BN-act (carrying
+    the stride) and a 1×1 pointwise conv-BN-act. `order="pw_dw"` runs the pointwise conv first
+    (cheaper where cout < cin: the depthwise conv then works on the narrower tensor)."""
+
+    def __init__(self, cin: int, cout: int, stride: int = 1, kernel: int = 3, act: str = "relu",
+                 alpha: float = 0.1, order: str = "dw_pw"):
+        super().__init__()
+        if order not in ("dw_pw", "pw_dw"):
+            raise ValueError(f"SepConv: unknown order {order!r}")
+        self.order = order
+        if order == "dw_pw":
+            self.dw = ConvBNAct(cin, cin, kernel, stride, act=act, alpha=alpha, groups=cin)
+            self.pw = ConvBNAct(cin, cout, 1, 1, act=act, alpha=alpha)
+        else:
+            self.pw = ConvBNAct(cin, cout, 1, 1, act=act, alpha=alpha)
+            self.dw = ConvBNAct(cout, cout, kernel, stride, act=act, alpha=alpha, groups=cout)
+
+    def forward(self, x: Tensor) -> Tensor:
+        if self.order == "dw_pw":
+            return self.pw(self.dw(x))
+        return self.dw(self.pw(x))
+
+
+class InvertedResidual(nn.Module):
+    """MobileNetV2 inverted residual in the graph.md form: 1×1 expand conv-BN-relu, 3×3
+    depthwise conv-BN-relu, 1×1 projection conv(+bias, no activation: graph.md allows a
+    batch_norm only before an activation, so the linear bottleneck carries a bias instead of a
+    BN, like BasicBlock's second conv), identity add when stride 1 and cin == cout."""
+
+    def __init__(self, cin: int, cout: int, stride: int = 1, expand: int = 3, kernel: int = 3):
+        super().__init__()
+        hidden = cin * expand
+        self.expand = ConvBNAct(cin, hidden, 1, 1) if expand != 1 else None
+        self.dw = ConvBNAct(hidden, hidden, kernel, stride, groups=hidden)
+        self.project = ops.Conv(hidden, cout, 1, padding=0)
+        self.residual = stride == 1 and cin == cout
+
+    def forward(self, x: Tensor) -> Tensor:
+        y = x if self.expand is None else self.expand(x)
+        y = self.project(self.dw(y))
+        return ops.add(y, x) if self.residual else y

@@ -24,7 +24,7 @@ import torch
 from torch import Tensor, nn
 
 from . import golden, graph_export
-from .net import Depthor, build, random_inputs
+from .net import VARIANTS, Depthor, build, random_inputs
 
 TRACT_VERSION = "0.23.9"  # the tract measured in shared/notes/nnef-export.md
 DEFAULT_SEED = 0
@@ -158,7 +158,7 @@ def _describe_weights(weights: str | Path) -> str:
 def main(argv: list[str] | None = None) -> int:
     """CLI entry point (see module doc)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--variant", required=True, choices=["mcu", "phone"])
+    ap.add_argument("--variant", required=True, choices=sorted(VARIANTS))
     ap.add_argument("--out", required=True, help="output folder, e.g. models/mcu")
     ap.add_argument("--seed", type=int, default=DEFAULT_SEED)
     ap.add_argument("--weights", default=None,

@@ -40,6 +40,12 @@ class NetConfig:
     sigmas: tuple[float, float, float] = (1.0, 2.0, 3.0)
     cbam_reduction: int = 4
     leaky_alpha: float = 0.1
+    # "dense": `Depthor` below (the paper's blocks); "lite": `lite.DepthorLite` (depthwise-
+    # separable / inverted-residual blocks, prior shared with the RGB encoder; models/README.md
+    # "mcu_lite"). The fields below are read by the lite architecture only.
+    arch: str = "dense"
+    refine_scale: int = 1  # 1: guidance, affinities and refine at full resolution; 2: at 1/2
+    depth_kernel: int = 5  # depthwise kernel of the depth encoder's separable stages
 
     def __post_init__(self):
         for name in ("rgb_widths", "rgb_blocks", "depth_widths", "dec_widths"):
@@ -68,7 +74,36 @@ VARIANTS: dict[str, NetConfig] = {
         mlp_hidden=96,
         cspn_channels=6,
     ),
+    # issue 16: ≤ 40 M MACs at 120×160 and ≤ 256 KiB int8 weights (models/README.md "mcu_lite").
+    "mcu_lite": NetConfig(
+        variant="mcu_lite",
+        height=120,
+        width=160,
+        arch="lite",
+        prior=PriorConfig(widths=(16, 24, 32, 48), mde_channels=16, kind="lite",
+                          blocks=(0, 1, 1, 2), expand=3),
+        rgb_widths=(16, 24, 32, 48, 64),
+        rgb_blocks=(0, 1, 1, 2, 1),
+        depth_stem=0,
+        depth_widths=(8, 16, 24, 32, 48),
+        dec_widths=(48, 32, 24, 16, 12),
+        mlp_hidden=64,
+        n_bins=64,
+        cspn_channels=8,
+        refine_scale=2,
+    ),
 }
+
+
+def make_net(cfg: NetConfig) -> nn.Module:
+    """The network class of `cfg.arch` built from `cfg` (default PyTorch init, train mode)."""
+    if cfg.arch == "lite":
+        from .lite import DepthorLite
+
+        return DepthorLite(cfg)
+    if cfg.arch != "dense":
+        raise ValueError(f"unknown arch {cfg.arch!r}")
+    return Depthor(cfg)
 
 
 def config(variant: str, **overrides) -> NetConfig:
@@ -191,7 +226,7 @@ def build(variant: str, seed: int = 0, calibrate_bn: bool = True, **overrides) -
     cfg = config(variant, **overrides)
     g = torch.Generator().manual_seed(seed)
     torch.manual_seed(seed)
-    net = Depthor(cfg)
+    net = make_net(cfg)
     if calibrate_bn:
         with torch.no_grad():
             for m in net.modules():

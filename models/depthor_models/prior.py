@@ -18,6 +18,13 @@ class PriorConfig:
 
     widths: tuple[int, ...] = (8, 16, 24, 32)
     mde_channels: int = 16
+    # "dense": `Prior` below; "lite": `lite.LitePrior` (depthwise-separable encoder shared with
+    # the RGB encoder, decoder to 1/4; the `mcu_lite` variant)
+    kind: str = "dense"
+    # lite only: inverted-residual blocks after the stride-2 separable conv of each encoder
+    # stage (1/2 … 1/16; the 1/2 stage is the stem alone) and their expansion factor
+    blocks: tuple[int, ...] = (0, 1, 1, 1)
+    expand: int = 3
 
 
 class PriorStage(nn.Module):

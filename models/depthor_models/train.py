@@ -42,11 +42,11 @@ import torch
 from torch import Tensor
 
 from . import data
-from .net import Depthor, build
+from .net import VARIANTS, Depthor, build
 
 MIN_DEPTH_M = 0.1
 MAX_DEPTH_M = 10.0
-TRAIN_FIELDS = ["step", "wall_s", "lr", "loss", "silog", "prior", "grad_norm"]
+TRAIN_FIELDS = ["step", "wall_s", "lr", "loss", "silog", "prior", "kd", "grad_norm"]
 STAGES = ("depthor", "prior")
 EVAL_FIELDS = ["step", "wall_s", "frames", "prior_ssi", "model_rmse", "model_delta1", "model_rel",
                "bilinear_rmse", "bilinear_delta1", "bilinear_rel",
@@ -215,6 +215,115 @@ class Evaluator:
             for k, v in res.items():
                 row[f"{name}_{k}"] = v
         return row
+
+
+# ------------------------------------------------------- augmentation and distillation
+
+def _gauss_kernel(sigma: float) -> Tensor:
+    r = max(1, int(math.ceil(2.0 * sigma)))
+    x = torch.arange(-r, r + 1, dtype=torch.float32)
+    k = torch.exp(-x * x / (2.0 * sigma * sigma))
+    return k / k.sum()
+
+
+def photometric(rgb: Tensor, seed: int, step: int, p: float = 0.8) -> Tensor:
+    """RGB-only photometric / sensor augmentation against the sim-to-real gap, a pure function
+    of (seed, step): each image of the batch, with probability `p`, gets exposure gain, white
+    balance (per-channel gain), contrast, saturation, gamma, then with their own probabilities
+    vignetting, Gaussian blur, JPEG re-encoding and signal-dependent noise; the result is
+    rounded to 8 bits as a camera frame is. Sparse input and reference are not touched."""
+    from io import BytesIO
+
+    from PIL import Image
+
+    rng = np.random.default_rng([seed, 3_000_000, step])
+    out = []
+    _, _, h, w = rgb.shape
+    for x in rgb:
+        if rng.random() >= p:
+            out.append(x)
+            continue
+        gain = rng.uniform(0.6, 1.5) * rng.uniform(0.85, 1.15, size=3)
+        x = x * torch.tensor(gain, dtype=x.dtype).view(3, 1, 1)
+        m = x.mean()
+        x = (x - m) * rng.uniform(0.7, 1.3) + m
+        grey = (0.299 * x[0] + 0.587 * x[1] + 0.114 * x[2])[None]
+        x = (grey + (x - grey) * rng.uniform(0.5, 1.4)).clamp(0.0, 1.0)
+        x = x ** float(rng.uniform(0.7, 1.45))
+        if rng.random() < 0.3:  # vignetting
+            yy = torch.linspace(-1, 1, h).view(h, 1)
+            xx = torch.linspace(-1, 1, w).view(1, w)
+            x = x * (1.0 - rng.uniform(0.1, 0.5) * (yy * yy + xx * xx) / 2.0)
+        if rng.random() < 0.3:  # defocus / motion-free blur
+            k = _gauss_kernel(float(rng.uniform(0.4, 1.3)))
+            r = len(k) // 2
+            xp = torch.nn.functional.pad(x[None], (r, r, r, r), mode="replicate")
+            xp = torch.nn.functional.conv2d(xp, k.view(1, 1, 1, -1).repeat(3, 1, 1, 1), groups=3)
+            x = torch.nn.functional.conv2d(xp, k.view(1, 1, -1, 1).repeat(3, 1, 1, 1), groups=3)[0]
+        if rng.random() < 0.2:  # JPEG
+            arr = (x.clamp(0, 1) * 255).round().byte().permute(1, 2, 0).numpy()
+            buf = BytesIO()
+            Image.fromarray(arr).save(buf, "JPEG", quality=int(rng.integers(30, 90)))
+            buf.seek(0)
+            with Image.open(buf) as im:
+                x = torch.from_numpy(np.asarray(im.convert("RGB"), np.float32) / 255.0)
+            x = x.permute(2, 0, 1)
+        a, b = rng.uniform(0.0, 0.01), rng.uniform(0.0, 0.02)  # shot + read noise
+        g = torch.Generator().manual_seed(int(rng.integers(0, 2**31)))
+        sd = torch.sqrt(a * x.clamp_min(0) + b * b)
+        x = x + sd * torch.randn(x.shape, generator=g)
+        out.append((x.clamp(0.0, 1.0) * 255.0).round() / 255.0)
+    return torch.stack(out)
+
+
+class TeacherCache:
+    """Dense depth of a trained teacher network for every training frame (un-flipped, clean
+    RGB), computed lazily the first time a frame is drawn and kept as float16; `save`/`load`
+    keep it across resumes (`<run>/teacher_cache.npy` + `.done.npy`)."""
+
+    def __init__(self, teacher, rec: data.Recording, path: Path,
+                 valid_status: tuple[int, ...] = (5,)):
+        self.teacher, self.rec, self.path = teacher.eval(), rec, Path(path)
+        self.valid_status = valid_status
+        self.done_path = self.path.with_name(self.path.stem + ".done.npy")
+        n, h, w = len(rec), rec.height, rec.width
+        if self.path.exists() and self.done_path.exists():
+            self.depth = np.load(self.path)
+            self.done = np.load(self.done_path)
+            if self.depth.shape != (n, h, w):
+                raise ValueError(f"{self.path}: shape {self.depth.shape}, expected {(n, h, w)}")
+        else:
+            self.depth = np.zeros((n, h, w), np.float16)
+            self.done = np.zeros(n, bool)
+
+    @torch.no_grad()
+    def get(self, idx: np.ndarray, flips: np.ndarray | None) -> Tensor:
+        """Teacher depth [B,1,H,W] m of frames `idx`, mirrored where `flips`."""
+        idx = np.asarray(idx, np.int64)
+        todo = np.unique(idx[~self.done[idx]])
+        if len(todo):
+            rgb, sp, _ = data.batch(self.rec, todo, None, self.valid_status)
+            self.depth[todo] = self.teacher(rgb, sp)[:, 0].numpy().astype(np.float16)
+            self.done[todo] = True
+        d = self.depth[idx].astype(np.float32)
+        if flips is not None:
+            f = np.asarray(flips, bool)
+            d[f] = d[f][:, :, ::-1]
+        return torch.from_numpy(np.ascontiguousarray(d[:, None]))
+
+    def save(self) -> None:
+        """Writes the cache atomically (depth first, then the done flags)."""
+        for arr, p in ((self.depth, self.path), (self.done, self.done_path)):
+            tmp = p.with_name(p.stem + ".tmp.npy")
+            np.save(tmp, arr)
+            os.replace(tmp, p)
+
+
+def load_teacher(variant: str, weights: str | Path):
+    """The distillation teacher: a trained variant (e.g. the shipped `mcu`), eval mode, frozen."""
+    net = build(variant, calibrate_bn=False)
+    net.load_state_dict(load_weights(weights))
+    return net.eval().requires_grad_(False)
 
 
 # --------------------------------------------------------------------------------- training
@@ -386,10 +495,17 @@ def train(args: argparse.Namespace) -> dict:
     t0 = time.perf_counter()
     size = (net.cfg.height, net.cfg.width)  # frames resampled to the model's input, as in eval
     train_rec = data.load_recordings(args.train, size=size)
-    test_rec = data.load_recording(args.test, size=size)
+    test_rec = data.load_recordings(args.test, size=size)
     evaluator = Evaluator(test_rec, args.eval_frames)
     print(f"data: {len(train_rec)} train / {len(evaluator.idx)} test frames "
           f"({time.perf_counter() - t0:.1f} s); baselines {json.dumps(evaluator.base)}")
+
+    teacher = None
+    if args.teacher and not prior_only and args.kd_weight > 0:
+        teacher = TeacherCache(load_teacher(args.teacher_variant, args.teacher), train_rec,
+                               out / "teacher_cache.npy")
+        print(f"distillation from {args.teacher} ({args.teacher_variant}), weight "
+              f"{args.kd_weight}; {int(teacher.done.sum())}/{len(train_rec)} frames cached")
 
     captured: dict[str, Tensor] = {}
     net.prior.register_forward_hook(lambda _m, _i, o: captured.__setitem__("d_inv", o[0]))
@@ -398,6 +514,8 @@ def train(args: argparse.Namespace) -> dict:
         _atomic_save({"model": net.state_dict(), "optimizer": opt.state_dict(),
                       "scheduler": sched.state_dict(), "step": step, "wall_s": wall,
                       "rng": {"torch": torch.get_rng_state()}, "args": vars(args)}, ckpt_path)
+        if teacher is not None:
+            teacher.save()
         row = {}
         if evaluate:
             te = time.perf_counter()
@@ -421,8 +539,14 @@ def train(args: argparse.Namespace) -> dict:
         ts = time.perf_counter()
         idx, flips = batch_plan(args.seed, step, args.batch, len(train_rec))
         rgb, sp, gt = data.batch(train_rec, idx, flips)
+        t_depth = None if teacher is None else teacher.get(idx, flips)
         y0, x0, ch, cw = crop_plan(args.seed, step, rgb.shape[2], rgb.shape[3], crop)
         rgb, sp, gt = (t[:, :, y0:y0 + ch, x0:x0 + cw] for t in (rgb, sp, gt))
+        if t_depth is not None:
+            t_depth = t_depth[:, :, y0:y0 + ch, x0:x0 + cw]
+        if args.augment:
+            rgb = photometric(rgb, args.seed, step, args.augment_p)
+        l_kd = None
         if prior_only:
             l_prior = ssi_inverse_loss(net.prior(rgb)[0], gt)
             l_main, loss = None, l_prior
@@ -431,6 +555,9 @@ def train(args: argparse.Namespace) -> dict:
             l_main = silog_loss(pred, gt)
             l_prior = ssi_inverse_loss(captured["d_inv"], gt)
             loss = l_main + args.prior_weight * l_prior
+            if t_depth is not None:
+                l_kd = silog_loss(pred, t_depth)
+                loss = loss + args.kd_weight * l_kd
         opt.zero_grad(set_to_none=True)
         loss.backward()
         gn = torch.nn.utils.clip_grad_norm_(trained.parameters(), args.clip)
@@ -448,11 +575,13 @@ def train(args: argparse.Namespace) -> dict:
         _append(out / "train.csv", TRAIN_FIELDS, {
             "step": step, "wall_s": round(wall, 2), "lr": f"{lr:.3e}", "loss": f"{loss.item():.5f}",
             "silog": "" if l_main is None else f"{l_main.item():.5f}",
-            "prior": f"{l_prior.item():.5f}", "grad_norm": f"{float(gn):.4f}"})
+            "prior": f"{l_prior.item():.5f}",
+            "kd": "" if l_kd is None else f"{l_kd.item():.5f}", "grad_norm": f"{float(gn):.4f}"})
         if step % 10 == 0:
             silog = "-" if l_main is None else f"{l_main.item():.4f}"
+            kd = "" if l_kd is None else f" kd {l_kd.item():.4f}"
             print(f"step {step} loss {loss.item():.4f} silog {silog} "
-                  f"prior {l_prior.item():.4f} lr {lr:.2e} ({wall:.0f} s)", flush=True)
+                  f"prior {l_prior.item():.4f}{kd} lr {lr:.2e} ({wall:.0f} s)", flush=True)
         if time.perf_counter() - last_ckpt >= args.ckpt_every_s:
             last_row = checkpoint(evaluate=True) or last_row
             last_ckpt = time.perf_counter()
@@ -539,7 +668,7 @@ def plot(run_dir: str | Path, width: int = 900, height: int = 600) -> Path | Non
 def main(argv: list[str] | None = None) -> int:
     """CLI entry point (see module doc)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--variant", default="mcu", choices=["mcu", "phone"])
+    ap.add_argument("--variant", default="mcu", choices=sorted(VARIANTS))
     ap.add_argument("--train", help="training recording folder(s), comma-separated "
                     "(required to train)")
     ap.add_argument("--test", help="held-out recording folder (required to train or evaluate)")
@@ -568,6 +697,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--crop", default=None, metavar="HxW",
                     help="train on a random HxW window of each batch (multiples of 32; "
                          "evaluation stays on whole frames)")
+    ap.add_argument("--teacher", default=None, metavar="WEIGHTS",
+                    help="distil from these trained weights (e.g. runs/mcu_phase5/model_final.pt):"
+                         " SILog of the prediction against the teacher's dense depth, weight "
+                         "--kd-weight, on top of the reference loss (depthor stage only)")
+    ap.add_argument("--teacher-variant", default="mcu", choices=sorted(VARIANTS))
+    ap.add_argument("--kd-weight", type=float, default=1.0)
+    ap.add_argument("--augment", action="store_true",
+                    help="photometric/sensor augmentation of the RGB (`photometric`)")
+    ap.add_argument("--augment-p", type=float, default=0.8,
+                    help="share of training images that get the photometric augmentation")
     ap.add_argument("--resume", action="store_true", help="continue from <out>/ckpt.pt")
     ap.add_argument("--switch-train", action="store_true",
                     help="with --resume: keep the schedule but draw the remaining batches from "
