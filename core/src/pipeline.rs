@@ -73,8 +73,8 @@ impl core::fmt::Display for FrameError {
             FrameError::Camera(k) => write!(f, "camera: {k}"),
             FrameError::Sensor(k) => write!(f, "dToF sensor: {k}"),
             FrameError::Buffer(what) => write!(f, "{what} is too small for the frame"),
-            FrameError::Projection(e) => write!(f, "projection: {e:?}"),
-            FrameError::Engine(e) => write!(f, "model: {e:?}"),
+            FrameError::Projection(e) => write!(f, "projection: {e}"),
+            FrameError::Engine(e) => write!(f, "model: {e}"),
             FrameError::NoValidZones { zones } => {
                 write!(f, "dToF sensor: none of the {zones} zones is valid")
             }
