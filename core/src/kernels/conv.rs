@@ -439,7 +439,13 @@ pub fn conv2d_with(
     if scratch.len() < len {
         return Err(KernelError::Scratch);
     }
+    let depthwise = op.geometry.groups == in_shape.c
+        && out.c == in_shape.c
+        && len >= out.w.div_ceil(PB) * PB + in_shape.w;
     match isa {
+        _ if depthwise => {
+            depthwise_conv(isa, op, input, in_shape, out, output, &mut scratch[..len])
+        }
         Isa::Avx512Vnni => run::<Quads>(isa, op, input, in_shape, out, output, &mut scratch[..len]),
         _ => run::<Pairs>(isa, op, input, in_shape, out, output, &mut scratch[..len]),
     }
@@ -489,6 +495,105 @@ impl Micro for Quads {
         };
         if !done {
             dot::portable::<u8, i8, 4>(t, acc);
+        }
+    }
+}
+
+/// Depthwise convolution (one input and one output channel per group): per channel and output
+/// row, every tap adds `w · (x − zp)` to a row of i32 sums (16-bit products, exact), which the
+/// compiler vectorises across the row; then the row is requantised like a conv block.
+fn depthwise_conv(
+    isa: Isa,
+    op: &Conv2d,
+    input: &[i8],
+    in_shape: Shape,
+    out: Shape,
+    output: &mut [i8],
+    scratch: &mut [i32],
+) {
+    match isa {
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2 | Isa::Avx512Vnni if Isa::Avx2.available() => {
+            // SAFETY: AVX2 is available (checked).
+            unsafe { depthwise_avx2(isa, op, input, in_shape, out, output, scratch) }
+        }
+        _ => depthwise_rows(isa, op, input, in_shape, out, output, scratch),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn depthwise_avx2(
+    isa: Isa,
+    op: &Conv2d,
+    input: &[i8],
+    in_shape: Shape,
+    out: Shape,
+    output: &mut [i8],
+    scratch: &mut [i32],
+) {
+    depthwise_rows(isa, op, input, in_shape, out, output, scratch)
+}
+
+#[inline(always)]
+fn depthwise_rows(
+    isa: Isa,
+    op: &Conv2d,
+    input: &[i8],
+    in_shape: Shape,
+    out: Shape,
+    output: &mut [i8],
+    scratch: &mut [i32],
+) {
+    let g = &op.geometry;
+    let (kh, kw) = (g.kernel[0], g.kernel[1]);
+    let (ih, iw) = (in_shape.h, in_shape.w);
+    let zp = op.quant.input_zero_point;
+    let (acc, rest) = scratch.split_at_mut(out.w.div_ceil(PB) * PB);
+    let xrow = &mut rest[..iw];
+    let mut block: Acc = [0; NB * PB];
+    for c in 0..out.c {
+        let chan = &input[c * ih * iw..(c + 1) * ih * iw];
+        let w = &op.weights[c * kh * kw..(c + 1) * kh * kw];
+        let rq = [op.row_quant(c, op.channels[c].bias)];
+        for oy in 0..out.h {
+            acc.fill(0);
+            for ky in 0..kh {
+                let iy = (oy * g.stride[0] + ky * g.dilation[0]) as isize - g.padding[0] as isize;
+                if iy < 0 || iy >= ih as isize {
+                    continue;
+                }
+                let row = &chan[iy as usize * iw..(iy as usize + 1) * iw];
+                for (d, &x) in xrow.iter_mut().zip(row) {
+                    *d = x as i32 - zp;
+                }
+                for kx in 0..kw {
+                    let off = (kx * g.dilation[1]) as isize - g.padding[1] as isize;
+                    let Some((lo, hi)) = pack::valid_cols(off, g.stride[1], iw, out.w) else {
+                        continue;
+                    };
+                    let first = (lo as isize * g.stride[1] as isize + off) as usize;
+                    let wv = w[ky * kw + kx] as i16;
+                    let dst = &mut acc[lo..=hi];
+                    if g.stride[1] == 1 {
+                        // |w| ≤ 128 and |x − zp| ≤ 255: the product fits i16 exactly.
+                        for (a, &x) in dst.iter_mut().zip(&xrow[first..]) {
+                            *a = a.wrapping_add(i32::from(wv.wrapping_mul(x as i16)));
+                        }
+                    } else {
+                        let xs = xrow[first..].iter().step_by(g.stride[1]);
+                        for (a, &x) in dst.iter_mut().zip(xs) {
+                            *a = a.wrapping_add(i32::from(wv.wrapping_mul(x as i16)));
+                        }
+                    }
+                }
+            }
+            for ox0 in (0..out.w).step_by(PB) {
+                let n = PB.min(out.w - ox0);
+                block[..n].copy_from_slice(&acc[ox0..ox0 + n]);
+                let at = c * out.h * out.w + oy * out.w + ox0;
+                op.finish_block(isa, &rq, c, &block, n, output, at, out.h * out.w);
+            }
         }
     }
 }
@@ -839,6 +944,67 @@ pub(crate) mod tests {
     kernel_tests!(suite_avx2, ref: conv2d_ref, fast: avx2, golden: golden, arb: arb_valid(), check: check);
     kernel_tests!(suite_avx512_vnni, ref: conv2d_ref, fast: avx512_vnni, golden: golden, arb: arb_valid(), check: check);
 
+    /// Depthwise shapes (the dedicated row path) on every kernel set against the reference:
+    /// strides, dilations, paddings, kernel sizes, widths below and above one pixel block.
+    #[test]
+    fn depthwise_matches_reference_on_every_set() {
+        let mut seed = 7u64;
+        for (k, s, d, p, h, w) in [
+            (3usize, 1usize, 1usize, 1usize, 9usize, 40usize),
+            (3, 2, 1, 1, 10, 37),
+            (5, 1, 2, 4, 7, 33),
+            (3, 1, 1, 0, 5, 6),
+            (7, 2, 1, 3, 12, 70),
+        ] {
+            let c = 5;
+            let geometry = ConvGeometry {
+                kernel: [k, k],
+                stride: [s, s],
+                dilation: [d, d],
+                padding: [p, p],
+                groups: c,
+            };
+            let in_shape = Shape::new(c, h, w);
+            let mut next = || {
+                seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (seed >> 33) as u32
+            };
+            let case = Case {
+                name: "depthwise",
+                geometry,
+                in_shape,
+                out_c: c,
+                input: (0..in_shape.len().unwrap()).map(|_| next() as i8).collect(),
+                in_q: QParams {
+                    scale: 0.02,
+                    zero_point: -7,
+                },
+                weights: (0..c * k * k).map(|_| next() as i8).collect(),
+                w_scales: (0..c).map(|i| 0.002 + 0.001 * i as f32).collect(),
+                bias: (0..c).map(|i| i as i32 * 100 - 200).collect(),
+                out_q: QParams {
+                    scale: 0.05,
+                    zero_point: 4,
+                },
+                act: Activation::LeakyRelu(0.1),
+                expect: None,
+            };
+            let (_, yr) = run(&case, conv2d_ref);
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                let f: Impl = match isa {
+                    Isa::Portable => portable,
+                    Isa::ArmDsp => arm_dsp,
+                    Isa::Avx2 => avx2,
+                    Isa::Avx512Vnni => avx512_vnni,
+                };
+                let (_, y) = run(&case, f);
+                assert_eq!(y, yr, "{} k{k} s{s} d{d} p{p} {h}x{w}", isa.name());
+            }
+        }
+    }
+
     /// Extremes that could saturate a 16-bit pair sum or the biased byte path: all inputs at
     /// −128 / 127 against zero points at the other end, weights at ±127/−128, many taps.
     #[test]
@@ -894,7 +1060,8 @@ pub(crate) mod tests {
 
     /// Speed of every kernel set against the reference on a 3×3 conv, by default 16→16 at
     /// 60×80 (a typical `mcu` half-resolution layer; `CONV_SPEED_SHAPE=ic,oc,h,w` for another).
-    /// Run: `cargo test --release -p depthor-core --lib conv_speed -- --ignored --nocapture`.
+    /// `CONV_SPEED_DEPTHWISE=1` makes it depthwise. Run: `cargo test --release -p depthor-core
+    /// --lib conv_speed -- --ignored --nocapture`.
     #[test]
     #[ignore]
     fn conv_speed() {
@@ -904,9 +1071,15 @@ pub(crate) mod tests {
             [ic, oc, h, w] => (ic, oc, h, w),
             _ => (16usize, 16usize, 60usize, 80usize),
         };
+        let groups = if std::env::var("CONV_SPEED_DEPTHWISE").is_ok() {
+            ic
+        } else {
+            1
+        };
         let g = ConvGeometry {
             kernel: [3, 3],
             padding: [1, 1],
+            groups,
             ..ConvGeometry::POINTWISE
         };
         let input: Vec<i8> = (0..ic * h * w).map(|i| (i * 31 % 251) as i8).collect();
@@ -926,7 +1099,7 @@ pub(crate) mod tests {
         let out = op.check(s).unwrap();
         let mut y = std::vec![0i8; out.len().unwrap()];
         let mut scratch = std::vec![0i32; Conv2d::scratch_len(&g, s, out)];
-        let macs = (out.len().unwrap() * ic * 9) as f64;
+        let macs = (out.len().unwrap() * ic / groups * 9) as f64;
         for (name, f) in [
             ("conv2d_ref", conv2d_ref as Impl),
             ("portable", portable as Impl),

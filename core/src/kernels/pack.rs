@@ -92,6 +92,23 @@ impl Layout for Quads {
     }
 }
 
+/// Range of output columns `ox` whose input column `ox·s + off` lies in `0..n` (inclusive
+/// bounds), `None` if empty.
+#[inline]
+pub fn valid_cols(off: isize, s: usize, n: usize, out_w: usize) -> Option<(usize, usize)> {
+    let s = s as isize;
+    let lo = if off < 0 { (-off + s - 1) / s } else { 0 };
+    let last_in = n as isize - 1 - off;
+    if last_in < 0 {
+        return None;
+    }
+    let hi = (last_in / s).min(out_w as isize - 1);
+    if lo > hi {
+        return None;
+    }
+    Some((lo as usize, hi as usize))
+}
+
 /// Words per packed row and phase: the output columns rounded up to [`PB`] plus the widest
 /// tap reach `⌊(kw − 1)·dw / sw⌋`.
 pub fn row_width(g: &ConvGeometry, out_w: usize) -> usize {
