@@ -727,7 +727,7 @@ def main(argv: list[str] | None = None) -> int:
         net = make_model(a.variant, a.seed)
         net.load_state_dict(load_weights(a.eval_only))
         size = (net.cfg.height, net.cfg.width)
-        print(json.dumps(Evaluator(data.load_recording(a.test, size=size), a.eval_frames)(net)))
+        print(json.dumps(Evaluator(data.load_recordings(a.test, size=size), a.eval_frames)(net)))
         return 0
     print(json.dumps(train(a)))
     return 0
