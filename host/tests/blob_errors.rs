@@ -76,6 +76,25 @@ fn mutated_blobs_are_refused_quickly_naming_path_and_offset() {
     let msg = Int8Model::from_file(&path, None).unwrap_err().to_string();
     assert!(t.elapsed() < Duration::from_secs(1));
     assert!(msg.contains("m.dblob: byte 16: "), "{msg}");
+    // The largest header size still allowed is answered quickly too (planned or refused).
+    for (h, w) in [(4096u16, 4096u16), (4096, 1), (1, 4096), (1, 1)] {
+        let mut blob = good.clone();
+        blob[16..18].copy_from_slice(&h.to_le_bytes());
+        blob[18..20].copy_from_slice(&w.to_le_bytes());
+        fix_crc(&mut blob);
+        let t = Instant::now();
+        let r = Int8Model::from_bytes(blob, None).map(|m| m.arena_bytes());
+        println!(
+            "{h}×{w}: {:?} in {:?}",
+            r.as_ref().map_err(|e| e.to_string()),
+            t.elapsed()
+        );
+        assert!(
+            t.elapsed() < Duration::from_secs(5),
+            "{h}×{w}: {:?}",
+            t.elapsed()
+        );
+    }
 }
 
 #[test]
