@@ -43,10 +43,51 @@ pub unsafe fn block(
     out_stride: usize,
     tail: impl Fn(&RowConsts, i32) -> i8,
 ) {
+    let rows = |k: &RowConsts, a: &[i32], o: &mut [i8]| row(k, a, o);
+    block_with(consts, acc, acc_stride, n, out, at, out_stride, rows, tail)
+}
+
+/// [`block`] with 16 lanes first (AVX-512 F+BW): the same integer function, so the same bits.
+///
+/// # Safety
+/// The CPU must have AVX-512 F and BW; the slice conditions of [`block`] hold.
+#[target_feature(enable = "avx512f,avx512bw,avx2")]
+#[allow(clippy::too_many_arguments)]
+pub unsafe fn block512(
+    consts: &[RowConsts],
+    acc: &[i32],
+    acc_stride: usize,
+    n: usize,
+    out: &mut [i8],
+    at: usize,
+    out_stride: usize,
+    tail: impl Fn(&RowConsts, i32) -> i8,
+) {
+    let rows = |k: &RowConsts, a: &[i32], o: &mut [i8]| {
+        let done = row512(k, a, o);
+        done + row(k, &a[done..], &mut o[done..])
+    };
+    block_with(consts, acc, acc_stride, n, out, at, out_stride, rows, tail)
+}
+
+/// The loop of [`block`] / [`block512`] over channel rows with a given vector row function.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn block_with(
+    consts: &[RowConsts],
+    acc: &[i32],
+    acc_stride: usize,
+    n: usize,
+    out: &mut [i8],
+    at: usize,
+    out_stride: usize,
+    rows: impl Fn(&RowConsts, &[i32], &mut [i8]) -> usize,
+    tail: impl Fn(&RowConsts, i32) -> i8,
+) {
     for (j, k) in consts.iter().enumerate() {
         let a = &acc[j * acc_stride..j * acc_stride + n];
         let o = &mut out[at + j * out_stride..at + j * out_stride + n];
-        let done = row(k, a, o);
+        let done = rows(k, a, o);
         for (d, &v) in o[done..].iter_mut().zip(&a[done..]) {
             *d = tail(k, v);
         }
@@ -105,33 +146,6 @@ pub unsafe fn row(k: &RowConsts, acc: &[i32], out: &mut [i8]) -> usize {
         i += 8;
     }
     n
-}
-
-/// [`block`] with 16 lanes (AVX-512 F+BW): the same integer function, so the same bits.
-///
-/// # Safety
-/// The CPU must have AVX-512 F and BW; the slice conditions of [`block`] hold.
-#[target_feature(enable = "avx512f,avx512bw,avx2")]
-#[allow(clippy::too_many_arguments)]
-pub unsafe fn block512(
-    consts: &[RowConsts],
-    acc: &[i32],
-    acc_stride: usize,
-    n: usize,
-    out: &mut [i8],
-    at: usize,
-    out_stride: usize,
-    tail: impl Fn(&RowConsts, i32) -> i8,
-) {
-    for (j, k) in consts.iter().enumerate() {
-        let a = &acc[j * acc_stride..j * acc_stride + n];
-        let o = &mut out[at + j * out_stride..at + j * out_stride + n];
-        let done = row512(k, a, o);
-        let done = done + row(k, &a[done..], &mut o[done..]);
-        for (d, &v) in o[done..].iter_mut().zip(&a[done..]) {
-            *d = tail(k, v);
-        }
-    }
 }
 
 /// `trunc((a·b + nudge) / 2³¹)` of the even 32-bit lanes (`b ≥ 0`), 64-bit lanes.
