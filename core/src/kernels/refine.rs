@@ -383,7 +383,7 @@ fn step<A: Map>(
         #[cfg(target_arch = "x86_64")]
         Isa::Avx2 | Isa::Avx512Vnni if Isa::Avx2.available() => match a.as_i8() {
             Some(m) if m.channels >= off.len() && m.plane >= h * w && cur.len() >= h * w => {
-                step_i8_avx2(m, off, g, h, w, cur, nxt)
+                step_i8_avx2(isa, m, off, g, h, w, cur, nxt)
             }
             // SAFETY: AVX2 is available (checked).
             _ => unsafe { step_avx2(a, off, g, h, w, cur, nxt) },
@@ -457,7 +457,9 @@ fn step_i8_scalar(
 
 /// [`step`] on an int8 map with the AVX2 run kernel for each row's interior pixels.
 #[cfg(target_arch = "x86_64")]
+#[allow(clippy::too_many_arguments)]
 fn step_i8_avx2(
+    isa: Isa,
     a: &I8Map,
     off: &[(isize, isize)],
     g: &[f32],
@@ -479,12 +481,25 @@ fn step_i8_avx2(
     for y in 0..h {
         let (mut x0, mut x1) = (0, 0);
         if y >= rad && y + rad < h && w > 2 * rad {
+            let wide = isa == Isa::Avx512Vnni && Isa::Avx512Vnni.available();
+            let lanes = if wide { 16 } else { 8 };
             x0 = rad;
-            x1 = rad + (w - 2 * rad) / 8 * 8;
-            // SAFETY: AVX2 is available (the caller's match); `a` has ≥ n channels over ≥ h·w
-            // pixels and every window of x0..x1 in row y lies inside the image, so every
-            // `i + delta` is a pixel of `cur`.
-            unsafe { super::x86_64::refine::step_run(a, &delta[..n], g, y * w, x0, x1, cur, nxt) };
+            x1 = rad + (w - 2 * rad) / lanes * lanes;
+            // SAFETY: AVX2 (and AVX-512 F for `wide`) is available (the caller's match and the
+            // test above); `a` has ≥ n channels over ≥ h·w pixels and every window of x0..x1 in
+            // row y lies inside the image, so every `i + delta` is a pixel of `cur`.
+            unsafe {
+                let args = (a, &delta[..n], g, y * w, x0, x1);
+                if wide {
+                    super::x86_64::refine::step_run512(
+                        args.0, args.1, args.2, args.3, args.4, args.5, cur, nxt,
+                    )
+                } else {
+                    super::x86_64::refine::step_run(
+                        args.0, args.1, args.2, args.3, args.4, args.5, cur, nxt,
+                    )
+                }
+            };
         }
         if w < 8 {
             for x in (0..x0).chain(x1..w) {

@@ -1,4 +1,4 @@
-//! AVX2 refinement on int8 maps, 8 pixels per vector: [`crate::kernels::refine`]'s step and
+//! AVX2 / AVX-512 refinement on int8 maps, 8 or 16 pixels per vector: [`crate::kernels::refine`]'s step and
 //! output accumulation with every pixel's operations in the module doc's order (IEEE
 //! multiply, add, divide, max; no FMA), so the bits equal the per-pixel path's.
 
@@ -11,14 +11,169 @@ use core::arch::x86_64::*;
 #[inline]
 unsafe fn load8(m: &I8Map, c: usize, i: usize) -> __m256 {
     let p = m.data().as_ptr().add(c * m.plane() + i);
-    let q = _mm256_cvtepi8_epi32(_mm_loadl_epi64(p as *const __m128i));
-    let d = _mm256_sub_epi32(q, _mm256_set1_epi32(m.q().zero_point));
-    _mm256_mul_ps(_mm256_set1_ps(m.q().scale), _mm256_cvtepi32_ps(d))
+    <__m256 as Lanes>::dequant(p, m.q().zero_point, m.q().scale)
 }
 
-/// The interior pixels `x0..x1` of row `y` (every window inside, `x1 − x0` a multiple of 8) of
-/// one propagation step. Callers check `a` has `delta.len()` channels over `h·w` pixels, and
-/// that every `i + delta` lies in `cur`.
+/// The f32 vector operations the interior step needs, for 8 (AVX2) and 16 (AVX-512) lanes.
+/// Every method is one IEEE instruction (or a load), so both widths give each pixel the same
+/// operations in the same order.
+trait Lanes: Copy {
+    /// Pixels per vector.
+    const L: usize;
+    unsafe fn zero() -> Self;
+    unsafe fn splat(v: f32) -> Self;
+    /// `scale · (q − zp)` of the `L` codes at `p`.
+    unsafe fn dequant(p: *const i8, zp: i32, scale: f32) -> Self;
+    unsafe fn max(a: Self, b: Self) -> Self;
+    unsafe fn add(a: Self, b: Self) -> Self;
+    unsafe fn sub(a: Self, b: Self) -> Self;
+    unsafe fn mul(a: Self, b: Self) -> Self;
+    unsafe fn div(a: Self, b: Self) -> Self;
+    unsafe fn load(p: *const f32) -> Self;
+    unsafe fn store(p: *mut f32, v: Self);
+}
+
+impl Lanes for __m256 {
+    const L: usize = 8;
+    #[inline(always)]
+    unsafe fn zero() -> Self {
+        _mm256_setzero_ps()
+    }
+    #[inline(always)]
+    unsafe fn splat(v: f32) -> Self {
+        _mm256_set1_ps(v)
+    }
+    #[inline(always)]
+    unsafe fn dequant(p: *const i8, zp: i32, scale: f32) -> Self {
+        let q = _mm256_cvtepi8_epi32(_mm_loadl_epi64(p as *const __m128i));
+        let d = _mm256_sub_epi32(q, _mm256_set1_epi32(zp));
+        _mm256_mul_ps(_mm256_set1_ps(scale), _mm256_cvtepi32_ps(d))
+    }
+    #[inline(always)]
+    unsafe fn max(a: Self, b: Self) -> Self {
+        _mm256_max_ps(a, b)
+    }
+    #[inline(always)]
+    unsafe fn add(a: Self, b: Self) -> Self {
+        _mm256_add_ps(a, b)
+    }
+    #[inline(always)]
+    unsafe fn sub(a: Self, b: Self) -> Self {
+        _mm256_sub_ps(a, b)
+    }
+    #[inline(always)]
+    unsafe fn mul(a: Self, b: Self) -> Self {
+        _mm256_mul_ps(a, b)
+    }
+    #[inline(always)]
+    unsafe fn div(a: Self, b: Self) -> Self {
+        _mm256_div_ps(a, b)
+    }
+    #[inline(always)]
+    unsafe fn load(p: *const f32) -> Self {
+        _mm256_loadu_ps(p)
+    }
+    #[inline(always)]
+    unsafe fn store(p: *mut f32, v: Self) {
+        _mm256_storeu_ps(p, v)
+    }
+}
+
+impl Lanes for __m512 {
+    const L: usize = 16;
+    #[inline(always)]
+    unsafe fn zero() -> Self {
+        _mm512_setzero_ps()
+    }
+    #[inline(always)]
+    unsafe fn splat(v: f32) -> Self {
+        _mm512_set1_ps(v)
+    }
+    #[inline(always)]
+    unsafe fn dequant(p: *const i8, zp: i32, scale: f32) -> Self {
+        let q = _mm512_cvtepi8_epi32(_mm_loadu_si128(p as *const __m128i));
+        let d = _mm512_sub_epi32(q, _mm512_set1_epi32(zp));
+        _mm512_mul_ps(_mm512_set1_ps(scale), _mm512_cvtepi32_ps(d))
+    }
+    #[inline(always)]
+    unsafe fn max(a: Self, b: Self) -> Self {
+        _mm512_max_ps(a, b)
+    }
+    #[inline(always)]
+    unsafe fn add(a: Self, b: Self) -> Self {
+        _mm512_add_ps(a, b)
+    }
+    #[inline(always)]
+    unsafe fn sub(a: Self, b: Self) -> Self {
+        _mm512_sub_ps(a, b)
+    }
+    #[inline(always)]
+    unsafe fn mul(a: Self, b: Self) -> Self {
+        _mm512_mul_ps(a, b)
+    }
+    #[inline(always)]
+    unsafe fn div(a: Self, b: Self) -> Self {
+        _mm512_div_ps(a, b)
+    }
+    #[inline(always)]
+    unsafe fn load(p: *const f32) -> Self {
+        _mm512_loadu_ps(p)
+    }
+    #[inline(always)]
+    unsafe fn store(p: *mut f32, v: Self) {
+        _mm512_storeu_ps(p, v)
+    }
+}
+
+/// The interior pixels `x0..x1` of row `y` (every window inside, `x1 − x0` a multiple of `L`)
+/// of one propagation step, `L` pixels per vector.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+unsafe fn step_lanes<V: Lanes>(
+    a: &I8Map,
+    delta: &[isize],
+    g: &[f32],
+    row_start: usize,
+    x0: usize,
+    x1: usize,
+    cur: &[f32],
+    nxt: &mut [f32],
+) {
+    let n = delta.len().min(48);
+    let (zp, scale) = (a.q().zero_point, a.q().scale);
+    let data = a.data().as_ptr();
+    let plane = a.plane();
+    let zero = V::zero();
+    let one = V::splat(1.0);
+    let mut r = [zero; 48];
+    let mut x = x0;
+    while x + V::L <= x1 {
+        let i = row_start + x;
+        let mut s = zero;
+        for (j, (rj, &gj)) in r[..n].iter_mut().zip(g).enumerate() {
+            let v = V::max(V::dequant(data.add(j * plane + i), zp, scale), zero);
+            *rj = V::mul(v, V::splat(gj));
+            s = V::add(s, *rj);
+        }
+        let q = V::div(one, V::add(one, s));
+        let mut wsum = zero;
+        for rj in r[..n].iter_mut() {
+            *rj = V::mul(*rj, q);
+            wsum = V::add(wsum, *rj);
+        }
+        let c = cur.as_ptr();
+        let mut d = V::mul(V::sub(one, wsum), V::load(c.add(i)));
+        for (rj, &dj) in r[..n].iter().zip(delta) {
+            let cn = V::load(c.offset(i as isize + dj));
+            d = V::add(d, V::mul(*rj, cn));
+        }
+        V::store(nxt.as_mut_ptr().add(i), d);
+        x += V::L;
+    }
+}
+
+/// [`step_lanes`] with 8 lanes. Callers check `a` has `delta.len()` channels over `h·w`
+/// pixels, and that every `i + delta` of `x0..x1` in the row lies in `cur`.
 ///
 /// # Safety
 /// The CPU must have AVX2 and the conditions above must hold.
@@ -34,34 +189,26 @@ pub unsafe fn step_run(
     cur: &[f32],
     nxt: &mut [f32],
 ) {
-    let n = delta.len().min(48);
-    let zero = _mm256_setzero_ps();
-    let one = _mm256_set1_ps(1.0);
-    let mut r = [zero; 48];
-    let mut x = x0;
-    while x + 8 <= x1 {
-        let i = row_start + x;
-        let mut s = zero;
-        for (j, (rj, &gj)) in r[..n].iter_mut().zip(g).enumerate() {
-            let v = _mm256_max_ps(load8(a, j, i), zero);
-            *rj = _mm256_mul_ps(v, _mm256_set1_ps(gj));
-            s = _mm256_add_ps(s, *rj);
-        }
-        let q = _mm256_div_ps(one, _mm256_add_ps(one, s));
-        let mut wsum = zero;
-        for rj in r[..n].iter_mut() {
-            *rj = _mm256_mul_ps(*rj, q);
-            wsum = _mm256_add_ps(wsum, *rj);
-        }
-        let c = cur.as_ptr();
-        let mut d = _mm256_mul_ps(_mm256_sub_ps(one, wsum), _mm256_loadu_ps(c.add(i)));
-        for (rj, &dj) in r[..n].iter().zip(delta) {
-            let cn = _mm256_loadu_ps(c.offset(i as isize + dj));
-            d = _mm256_add_ps(d, _mm256_mul_ps(*rj, cn));
-        }
-        _mm256_storeu_ps(nxt.as_mut_ptr().add(i), d);
-        x += 8;
-    }
+    step_lanes::<__m256>(a, delta, g, row_start, x0, x1, cur, nxt)
+}
+
+/// [`step_run`] with 16 lanes (`x1 − x0` a multiple of 16).
+///
+/// # Safety
+/// The CPU must have AVX-512 F and the conditions of [`step_run`] must hold.
+#[target_feature(enable = "avx512f,avx2")]
+#[allow(clippy::too_many_arguments)]
+pub unsafe fn step_run512(
+    a: &I8Map,
+    delta: &[isize],
+    g: &[f32],
+    row_start: usize,
+    x0: usize,
+    x1: usize,
+    cur: &[f32],
+    nxt: &mut [f32],
+) {
+    step_lanes::<__m512>(a, delta, g, row_start, x0, x1, cur, nxt)
 }
 
 /// `softmax3` of pixels `i..i + 8` of a 3-channel map.
