@@ -33,8 +33,8 @@ pub struct Args {
 
 /// Runs `depthor gap`.
 pub fn handle(args: Args) -> anyhow::Result<()> {
-    let header = depthor_host::recording::Recording::open(&args.real)
-        .with_context(|| format!("opening {}", args.real.display()))?;
+    // The recording's errors name the file and field already.
+    let header = depthor_host::recording::Recording::open(&args.real)?;
     let bar = super::progress(header.len() as u64, "reading");
     let data = load_recording(&args.real, || bar.inc(1))?;
     bar.finish_and_clear();

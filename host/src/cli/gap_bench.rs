@@ -161,7 +161,7 @@ pub fn handle(args: Args) -> anyhow::Result<()> {
     ));
     println!("{t}");
     if let Some(p) = args.out {
-        std::fs::write(p, &t)?;
+        depthor_host::atomic::write_file(p, t.as_bytes())?;
     }
     Ok(())
 }
@@ -226,7 +226,7 @@ fn calibrate_units(args: &Args) -> anyhow::Result<()> {
     let json = serde_json::to_string_pretty(&table)?;
     println!("{json}");
     if let Some(p) = &args.out {
-        std::fs::write(p, json + "\n")?;
+        depthor_host::atomic::write_file(p, (json + "\n").as_bytes())?;
     }
     Ok(())
 }

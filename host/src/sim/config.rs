@@ -228,10 +228,11 @@ impl SimConfig {
             .saturating_mul(win(self.grid.ifov[1], width));
         // Window indices (4 B) plus the depths gathered per window (4 B), per worker.
         let windows = window_px.saturating_mul(8).saturating_mul(workers.max(1));
-        // RGB, depth, labels, reflectance, second depth and rendering buffers: ≈ 32 B per pixel.
-        let images = px
-            .saturating_mul(32)
-            .saturating_mul(frames_held.max(1) + workers.max(1));
+        // A frame held (RGB 3 B, depth 4 B, labels 1 B, reference depth 4 B per pixel) and a
+        // frame being made (also reflectance, second depth and rendering buffers).
+        let held = px.saturating_mul(12).saturating_mul(frames_held);
+        let making = px.saturating_mul(32).saturating_mul(workers.max(1));
+        let images = held.saturating_add(making);
         MemoryEstimate {
             windows_bytes: windows,
             images_bytes: images,
