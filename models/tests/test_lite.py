@@ -109,3 +109,28 @@ def test_photometric_augmentation_is_seeded_and_in_range():
     assert 0.0 <= a.min().item() and a.max().item() <= 1.0
     assert not torch.equal(a, rgb)
     assert torch.equal(photometric(rgb, 0, 5, 0.0), rgb)
+
+
+@pytest.mark.slow
+def test_mcu_lite_nnef_matches_torch(no_network, lite, tmp_path):
+    """Offline NNEF export of mcu_lite and its prior, run in tract (grouped convs, the final
+    f32 upsample)."""
+    import tract
+
+    from depthor_models.export import export_nnef
+
+    net, t = lite
+    rgb, sparse = t.values["rgb"], t.values["sparse"]
+    full = export_nnef(net, (rgb, sparse), tmp_path / "depthor.nnef.tgz", ["rgb", "sparse"],
+                       ["depth"])
+    prior = export_nnef(net.prior, (rgb,), tmp_path / "prior.nnef.tgz", ["rgb"],
+                        ["d_inv", "f_mde"])
+    m = tract.nnef().load(str(full)).into_runnable()
+    (depth,) = [o.to_numpy() for o in m.run([rgb.numpy(), sparse.numpy()])]
+    assert np.abs(depth - t.values["depth"].numpy()).max() <= 1e-4
+    m = tract.nnef().load(str(prior)).into_runnable()
+    outs = [o.to_numpy() for o in m.run([rgb.numpy()])]
+    with torch.no_grad():
+        ref = net.prior(rgb)
+    for o, r in zip(outs, ref):
+        assert np.abs(o - r.numpy()).max() <= 1e-4
