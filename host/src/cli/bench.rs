@@ -214,15 +214,16 @@ struct OpTime {
 
 /// The int8 multiply-accumulate peak of one core this bench assumes, with its derivation.
 fn int8_peak(isa: Isa) -> (f64, String) {
-    let mhz = std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|t| {
-            t.lines()
-                .find(|l| l.starts_with("cpu MHz"))
-                .and_then(|l| l.split(':').nth(1))
-                .and_then(|v| v.trim().parse::<f64>().ok())
-        })
-        .unwrap_or(2500.0);
+    let read = std::fs::read_to_string("/proc/cpuinfo").ok().and_then(|t| {
+        t.lines()
+            .find(|l| l.starts_with("cpu MHz"))
+            .and_then(|l| l.split(':').nth(1))
+            .and_then(|v| v.trim().parse::<f64>().ok())
+    });
+    let (mhz, source) = match read {
+        Some(m) => (m, "/proc/cpuinfo"),
+        None => (2500.0, "clock not readable: 2500 MHz assumed"),
+    };
     let (per_cycle, how) = match isa {
         Isa::Avx512Vnni => (64.0, "one 512-bit vpdpbusd (64 int8 MACs) per cycle"),
         Isa::Avx2 => (32.0, "two 256-bit vpmaddwd (16 MACs each) per cycle"),
@@ -232,7 +233,7 @@ fn int8_peak(isa: Isa) -> (f64, String) {
     (
         peak,
         format!(
-            "{:.0} GMAC/s = {how} x {mhz:.0} MHz (/proc/cpuinfo); an estimate, not measured",
+            "{:.0} GMAC/s = {how} x {mhz:.0} MHz ({source}); an estimate, not measured",
             peak / 1e9
         ),
     )
