@@ -1,7 +1,7 @@
 //! Calibration of the RGB camera and the dToF sensor: intrinsics, zone geometry and the rigid
 //! transform from the dToF frame to the camera frame (paper supplement, "Project dToF to Sparse
 //! Depth Map"). Mirrors the `camera`, `dtof` and `dtof_to_camera` objects of `recording.json`
-//! (`depthor-recording/1`, see DESIGN.md).
+//! (`depthor-recording/1`, see docs/recording.md).
 
 /// Pinhole intrinsics of the RGB camera, in pixels (`K_rgb`).
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -99,7 +99,7 @@ pub trait ErrorType {
     type Error: Error;
 }
 
-/// ST `target_status` value for a valid range (DESIGN.md: 5 and 9 are valid, 255 is no target).
+/// ST `target_status` value for a valid range (docs/recording.md: 5 and 9 are valid, 255 is no target).
 pub const STATUS_VALID: u8 = 5;
 /// ST `target_status` value for a valid range with a larger sigma (still used).
 pub const STATUS_VALID_LARGE_SIGMA: u8 = 9;

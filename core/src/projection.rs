@@ -1,5 +1,5 @@
 //! Zones → sparse depth map at camera resolution (paper supplement, "Project dToF to Sparse Depth
-//! Map"; DESIGN.md, pipeline step 1).
+//! Map"; docs/design.md, pipeline step 1).
 //!
 //! Each valid zone becomes one point at the projection of its centre ray:
 //!

@@ -15,7 +15,7 @@ use crate::sim::{simulate, SimConfig, SimError, SimInput, SimOutput};
 use depthor_core::calibration::CameraIntrinsics;
 use image::RgbImage;
 
-/// Default image size (height, width) of each simulator preset (DESIGN.md "Sensor presets";
+/// Default image size (height, width) of each simulator preset (docs/design.md "Sensor presets";
 /// `phone` is the paper's 912×684 portrait frame).
 pub fn preset_size(preset: &str) -> Option<(u32, u32)> {
     match preset {

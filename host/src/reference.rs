@@ -1,9 +1,9 @@
-//! The host's float reference: an exported DEPTHOR NNEF model run through tract (DESIGN.md,
+//! The host's float reference: an exported DEPTHOR NNEF model run through tract (docs/design.md,
 //! layout: "float reference through tract-nnef").
 //!
 //! [`FloatReference::load`] reads a `.nnef.tgz`, `.tar` or NNEF directory, fixes its inputs to
 //! one `H × W` (binding any symbolic dimension), optimises it once and keeps the runnable plan;
-//! [`FloatReference::run`] then runs one frame. The tensor convention is graph.md's:
+//! [`FloatReference::run`] then runs one frame. The tensor convention is docs/graph.md's:
 //!
 //! | tensor | shape | content |
 //! |---|---|---|
@@ -52,7 +52,7 @@ pub enum ReferenceError {
         #[source]
         source: TractError,
     },
-    /// The model loaded but does not follow the graph.md contract (inputs, outputs, shapes).
+    /// The model loaded but does not follow the docs/graph.md contract (inputs, outputs, shapes).
     #[error("NNEF model {}: {what}", path.display())]
     Contract {
         /// The model path.
@@ -160,7 +160,7 @@ fn bind_dims(
 
 impl FloatReference {
     /// Loads the NNEF model at `path` (`.nnef.tgz`, `.tar` or a directory holding `graph.nnef`),
-    /// fixes its inputs to `height × width`, checks it against graph.md (inputs `rgb`
+    /// fixes its inputs to `height × width`, checks it against docs/graph.md (inputs `rgb`
     /// `[1,3,H,W]` and `sparse` `[1,1,H,W]`, f32; output `[1,1,H,W]` f32) and optimises it.
     ///
     /// Every error names the file.

@@ -218,7 +218,7 @@ pub fn depth_image(depth_m: &[f32], width: u32, height: u32, lo: f32, hi: f32) -
     })
 }
 
-/// Colours of the material classes of `labels.png` (DESIGN.md): diffuse grey, transparent cyan,
+/// Colours of the material classes of `labels.png` (docs/recording.md): diffuse grey, transparent cyan,
 /// specular magenta, dark yellow.
 pub const LABEL_COLOURS: [[u8; 3]; 4] = [[70, 70, 70], [0, 230, 230], [230, 0, 230], [240, 220, 0]];
 

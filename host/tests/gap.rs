@@ -1,6 +1,6 @@
 //! Gap tool: every library effect hidden at 4× its unit size in simulated "real" recordings is
 //! named and its parameter recovered within 25 %; a null recording gets no finding; bad input
-//! gives clear errors; `depthor gap` writes the DESIGN.md report.
+//! gives clear errors; `depthor gap` writes the docs/design.md report.
 //!
 //! Scenes: 32 rendered 120×160 frames (the `mcu` preset), shared by all tests of this file.
 

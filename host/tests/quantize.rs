@@ -104,8 +104,8 @@ fn committed_mcu_blob_loads_and_fits_budgets() {
         "mcu: blob {} bytes, int8 weights {weights} bytes, arena at 120×160 {arena} bytes",
         blob.len()
     );
-    assert!(weights <= 512 * 1024, "DESIGN.md: weights ≤ 512 KiB");
-    assert!(arena <= 2 * 1024 * 1024, "DESIGN.md: arena ≤ 2 MiB");
+    assert!(weights <= 512 * 1024, "docs/design.md: weights ≤ 512 KiB");
+    assert!(arena <= 2 * 1024 * 1024, "docs/design.md: arena ≤ 2 MiB");
     let mut mem = vec![0u8; arena + 64];
     let e = Engine::new(&blob, &mut mem).unwrap();
     assert_eq!(e.input_shape(), (120, 160));

@@ -111,7 +111,7 @@ fn round_trip_preserves_everything_and_quantises_depth_to_mm() {
         [1234, 65535, 0, 1]
     );
 
-    // The header spells the enum and the null rectangles as DESIGN.md does.
+    // The header spells the enum and the null rectangles as docs/recording.md does.
     let text = std::fs::read_to_string(out.join("recording.json")).unwrap();
     assert!(text.contains("\"format\": \"depthor-recording/1\""));
     assert!(text.contains("\"distance\": \"radial\""));

@@ -1,4 +1,4 @@
-"""depthor models: the DEPTHOR network in graph.md ops, its NNEF / graph.json exporters, golden
+"""depthor models: the DEPTHOR network in docs/graph.md ops, its NNEF / graph.json exporters, golden
 tensors and a numpy interpreter of graph.json (the spec the Rust core engine implements)."""
 
 from .net import VARIANTS, Depthor, NetConfig, build, config, random_inputs

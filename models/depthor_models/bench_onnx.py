@@ -14,7 +14,7 @@
    loaded as training loads them (`data.batch`); frame N is held out for the SQNR. `random`:
    `net.random_inputs`. The recordings under shared/data/real are never read. By default the
    bins head, the d0 upsampling and refine stay f32 (excluded nodes), as in the core's blob
-   (models/README.md "Why the bins head and refine are f32"); `--int8-heads` quantises every
+   (docs/blob.md "Quantisation": why the bins head and refine are f32); `--int8-heads` quantises every
    node ORT can.
 3. Times both models in ORT on one thread (intra/inter op 1, sequential, all graph
    optimisations): `--warmup` (1) runs each, then `--runs` (20) timed runs of one frame, f32
@@ -224,7 +224,7 @@ def entropy_ranges(model_path: Path, frames, exclude: list[str], cache_path: Pat
 
 
 def input_ranges(net: Depthor) -> dict[str, tuple[float, float]]:
-    """The input ranges the host quantizer fixes (models/README.md "Blob format"): rgb is
+    """The input ranges the host quantizer fixes (docs/blob.md "Quantisation"): rgb is
     byte/255, sparse spans [0, max_depth_m]."""
     return {"rgb": (0.0, 1.0), "sparse": (0.0, float(net.cfg.max_depth_m))}
 

@@ -1,4 +1,4 @@
-"""Building blocks written only with graph.md ops (see ops.py)."""
+"""Building blocks written only with docs/graph.md ops (see ops.py)."""
 
 from __future__ import annotations
 
@@ -37,9 +37,9 @@ class ConvBNAct(nn.Module):
 
 
 class BasicBlock(nn.Module):
-    """ResNet BasicBlock in the graph.md form.
+    """ResNet BasicBlock in the docs/graph.md form.
 
-    graph.md lets a batch_norm sit only between a conv2d and an activation, so the second conv and
+    docs/graph.md lets a batch_norm sit only between a conv2d and an activation, so the second conv and
     the projection shortcut carry a bias instead of a BN: conv-BN-relu → conv(+b) ; shortcut =
     identity or 1×1 conv(+b, stride) ; add → relu.
     """
@@ -59,7 +59,7 @@ class BasicBlock(nn.Module):
 
 
 class CBAM(nn.Module):
-    """CBAM written out in graph.md ops: channel attention (shared 1×1-conv MLP over avg and max
+    """CBAM written out in docs/graph.md ops: channel attention (shared 1×1-conv MLP over avg and max
     pools, add, sigmoid, mul) then spatial attention (channel mean/max, concat, 7×7 sigmoid conv,
     mul)."""
 
@@ -103,8 +103,8 @@ class SepConv(nn.Module):
 
 
 class InvertedResidual(nn.Module):
-    """MobileNetV2 inverted residual in the graph.md form: 1×1 expand conv-BN-relu, 3×3
-    depthwise conv-BN-relu, 1×1 projection conv(+bias, no activation: graph.md allows a
+    """MobileNetV2 inverted residual in the docs/graph.md form: 1×1 expand conv-BN-relu, 3×3
+    depthwise conv-BN-relu, 1×1 projection conv(+bias, no activation: docs/graph.md allows a
     batch_norm only before an activation, so the linear bottleneck carries a bias instead of a
     BN, like BasicBlock's second conv), identity add when stride 1 and cin == cout."""
 

@@ -1,4 +1,4 @@
-"""Training data from `depthor-recording/1` folders (DESIGN.md), loaded into memory once.
+"""Training data from `depthor-recording/1` folders (docs/recording.md), loaded into memory once.
 
 A frame gives the network's inputs and target:
 - rgb: `rgb.png` as float [3, H, W] in [0, 1];

@@ -1,5 +1,5 @@
 """Exports one variant: NNEF of the full network and of the prior (torch-to-nnef, offline),
-graph.json + weights.bin (graph.md), golden tensors, and summary.json with parameter/MAC counts.
+graph.json + weights.bin (docs/graph.md), golden tensors, and summary.json with parameter/MAC counts.
 
     python -m depthor_models.export --variant mcu --out mcu [--weights runs/mcu/ckpt.pt]
 
@@ -26,7 +26,7 @@ from torch import Tensor, nn
 from . import golden, graph_export
 from .net import VARIANTS, Depthor, build, random_inputs
 
-TRACT_VERSION = "0.23.9"  # the tract measured in shared/notes/nnef-export.md
+TRACT_VERSION = "0.23.9"  # the tract of requirements.txt and host/Cargo.toml, which load the export
 DEFAULT_SEED = 0
 GOLDEN_SEED = 1
 

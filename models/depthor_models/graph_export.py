@@ -1,4 +1,4 @@
-"""graph.json + weights.bin exporter (graph.md, format `depthor-graph/1`) and MAC counting.
+"""graph.json + weights.bin exporter (docs/graph.md, format `depthor-graph/1`) and MAC counting.
 
 The graph is recorded while the network runs one forward pass inside :func:`ops.recording`
 (forward hooks give every op its module scope), so nodes come out in execution order = a
@@ -34,7 +34,7 @@ class Traced:
 
 @torch.no_grad()
 def trace(net: Depthor, rgb: Tensor, sparse: Tensor) -> Traced:
-    """Runs `net` once on (rgb, sparse) recording graph.md nodes; the output value is `depth`."""
+    """Runs `net` once on (rgb, sparse) recording docs/graph.md nodes; the output value is `depth`."""
     if net.training:
         raise RuntimeError("trace needs the network in eval mode")
     with ops.recording(net) as rec:

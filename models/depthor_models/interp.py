@@ -1,5 +1,5 @@
 """A small pure-numpy interpreter of graph.json (depthor-graph/1): the executable spec of the
-graph.md ops that the Rust core engine implements. It shares no code with the PyTorch ops, and
+docs/graph.md ops that the Rust core engine implements. It shares no code with the PyTorch ops, and
 refine is written with explicit index bounds instead of padding, so agreement with PyTorch is a
 real check of graph.json.
 
@@ -83,7 +83,7 @@ def _softmax0(x):
 
 
 def bins_head(feat, bin_logits, weight, bias, min_d, max_d):
-    """graph.md bins_head."""
+    """docs/graph.md bins_head."""
     wi = np.maximum(bin_logits.reshape(-1), 0.0) + 0.1
     wi = wi / wi.sum()
     width = (max_d - min_d) * wi
@@ -114,7 +114,7 @@ def _neighbour(a, dy, dx):
 
 
 def refine(d0, affs, kmix, tmix, iterations, sigmas):
-    """graph.md refine (three kernels 3/5/7)."""
+    """docs/graph.md refine (three kernels 3/5/7)."""
     d0 = d0[0]
     weights = []
     for size, aff, sigma in zip((3, 5, 7), affs, sigmas):

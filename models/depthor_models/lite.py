@@ -21,7 +21,7 @@ mixed-affinity refine with outputs at t ∈ {0, T/2, T} — with these changes (
   the paper's full-resolution refinement (pixel_shuffle of the guidance);
 - affinity and mixing heads are 1×1 convs on the guidance (3×3 in the dense network), N = 64 bins.
 
-Only graph.md ops are used (conv2d with `groups`, batch_norm, relu/leaky_relu, add, mul, concat,
+Only docs/graph.md ops are used (conv2d with `groups`, batch_norm, relu/leaky_relu, add, mul, concat,
 upsample_bilinear, pixel_shuffle, pooling, minmax_norm, reciprocal, linear, bins_head, refine).
 """
 

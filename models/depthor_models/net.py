@@ -1,4 +1,4 @@
-"""The DEPTHOR network (graph.md "Network shape"), variants `mcu` and `phone`.
+"""The DEPTHOR network (docs/design.md "Pipeline"), variants `mcu` and `phone`.
 
 rgb → prior → (D_inv, F_mde); depth input cat(n = minmax(D_inv), minmax(1/(n+0.1)), S) → depth
 encoder; RGB encoder; fusing decoder → F_unet (1/2); bin logits MLP; bins_head → d_half;
@@ -58,9 +58,9 @@ class NetConfig:
 
 
 VARIANTS: dict[str, NetConfig] = {
-    # DESIGN.md: 120×160, all weights ≤ 512 KiB int8.
+    # docs/design.md: 120×160, all weights ≤ 512 KiB int8.
     "mcu": NetConfig(variant="mcu", height=120, width=160),
-    # DESIGN.md: 320×240 portrait, ≥ 30 fps int8 on one x86 core (≲ 1.5 GMAC, graph.md).
+    # docs/design.md: 320×240 portrait, ≥ 30 fps int8 on one x86 core (≲ 1.5 GMAC).
     "phone": NetConfig(
         variant="phone",
         height=320,

@@ -1,4 +1,4 @@
-"""The graph.md ops (depthor-graph/1) as PyTorch functions, plus the recorder that turns a forward
+"""The docs/graph.md ops (depthor-graph/1) as PyTorch functions, plus the recorder that turns a forward
 pass into graph.json nodes.
 
 Every op here is plain PyTorch written in a form that torch-to-nnef exports and tract runs fast
@@ -49,7 +49,7 @@ class Node:
 
 
 class Recorder:
-    """Records graph.md ops while a network runs forward (see :func:`recording`).
+    """Records docs/graph.md ops while a network runs forward (see :func:`recording`).
 
     Values are tracked by tensor identity; every tensor an op consumes must come from a graph
     input or an earlier recorded op, so a forgotten (unrecorded) torch op fails loudly.
@@ -156,7 +156,7 @@ class Recorder:
         params: dict[str, str] | None = None,
         owner: nn.Module | None = None,
     ) -> None:
-        """Appends one node; `params` maps graph.md param keys to `owner` attribute names."""
+        """Appends one node; `params` maps docs/graph.md param keys to `owner` attribute names."""
         name = self.node_name(op, owner)
         in_names = [self.value_name(t) for t in inputs]
         pmap = {}
@@ -188,7 +188,7 @@ def _rec(op, inputs, out, attrs=None, params=None, owner=None) -> Tensor:
 
 
 # ---------------------------------------------------------------------------------------------
-# Ops (graph.md names)
+# Ops (docs/graph.md names)
 # ---------------------------------------------------------------------------------------------
 
 ACTIVATIONS = ("none", "relu", "leaky_relu", "sigmoid")
@@ -295,7 +295,7 @@ def channel_softmax(x: Tensor) -> Tensor:
 
 
 def bin_centres(bin_logits: Tensor, min_depth: float, max_depth: float) -> Tensor:
-    """graph.md bins: w = relu(l) + 0.1 normalised; centre_i = min + sum_{j<i} width_j + width_i/2.
+    """docs/graph.md bins: w = relu(l) + 0.1 normalised; centre_i = min + sum_{j<i} width_j + width_i/2.
 
     `bin_logits` is [1, N, 1, 1]; returns centres [1, N, 1, 1] in metres.
     """
@@ -308,7 +308,7 @@ def bin_centres(bin_logits: Tensor, min_depth: float, max_depth: float) -> Tenso
 def bins_head_math(
     feat: Tensor, bin_logits: Tensor, weight: Tensor, bias: Tensor, min_depth: float, max_depth: float
 ) -> Tensor:
-    """graph.md bins_head semantics: sum_i softmax_i(W F + b) * centre_i -> [1,1,h,w] metres."""
+    """docs/graph.md bins_head semantics: sum_i softmax_i(W F + b) * centre_i -> [1,1,h,w] metres."""
     centres = bin_centres(bin_logits, min_depth, max_depth)
     logits = F.conv2d(feat, weight[:, :, None, None], bias)
     e = torch.exp(logits - logits.amax(dim=1, keepdim=True))
@@ -350,7 +350,7 @@ def refine_math(
     sizes: tuple[int, ...] = (3, 5, 7),
     iterations: int = 6,
 ) -> Tensor:
-    """graph.md refine semantics with F.pad + shifted slices (neighbours outside the image add 0).
+    """docs/graph.md refine semantics with F.pad + shifted slices (neighbours outside the image add 0).
 
     `sigmas` is a 1-D tensor [σ3, σ5, σ7] (learnable in training, constants in the graph).
     """
@@ -395,7 +395,7 @@ def refine_math(
 
 
 class Conv(nn.Conv2d):
-    """graph.md conv2d with symmetric zero padding and a fused activation."""
+    """docs/graph.md conv2d with symmetric zero padding and a fused activation."""
 
     def __init__(
         self,
@@ -435,7 +435,7 @@ class Conv(nn.Conv2d):
 
 
 class BatchNorm(nn.BatchNorm2d):
-    """graph.md batch_norm (inference: running statistics; the quantizer folds it)."""
+    """docs/graph.md batch_norm (inference: running statistics; the quantizer folds it)."""
 
     def forward(self, x: Tensor) -> Tensor:
         y = super().forward(x)
@@ -444,7 +444,7 @@ class BatchNorm(nn.BatchNorm2d):
 
 
 class Linear(nn.Linear):
-    """graph.md linear on a [1, I, 1, 1] vector with a fused activation."""
+    """docs/graph.md linear on a [1, I, 1, 1] vector with a fused activation."""
 
     def __init__(self, cin: int, cout: int, activation: str = "none", alpha: float = 0.1):
         super().__init__(cin, cout)
@@ -459,7 +459,7 @@ class Linear(nn.Linear):
 
 
 class BinsHead(nn.Module):
-    """graph.md bins_head: per-pixel 1×1 logits, softmax over N bins, expectation of bin centres."""
+    """docs/graph.md bins_head: per-pixel 1×1 logits, softmax over N bins, expectation of bin centres."""
 
     def __init__(self, cin: int, n_bins: int, min_depth: float, max_depth: float):
         super().__init__()
@@ -476,7 +476,7 @@ class BinsHead(nn.Module):
 
 
 class Refine(nn.Module):
-    """graph.md refine: 3/5/7 affinity propagation, T iterations, per-pixel kernel/time mixing."""
+    """docs/graph.md refine: 3/5/7 affinity propagation, T iterations, per-pixel kernel/time mixing."""
 
     SIZES = (3, 5, 7)
 

@@ -1,6 +1,6 @@
 """The default monocular prior: a small encoder-decoder on RGB giving relative inverse depth D_inv
 (1×H×W, relu) and features F_mde (C_mde × H/2 × W/2). Its nodes are named `prior.*` in graph.json,
-and it is exported alone as its own NNEF (DESIGN.md, pipeline step 2)."""
+and it is exported alone as its own NNEF (docs/design.md, pipeline step 2)."""
 
 from __future__ import annotations
 

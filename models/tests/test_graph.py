@@ -117,9 +117,9 @@ def test_depth_input_bounded_when_prior_is_zero():
 def test_budgets(traced):
     mcu = graph_export.count(traced["mcu"])
     phone = graph_export.count(traced["phone"])
-    # DESIGN.md: mcu weights ≤ 512 KiB int8 (≈ 450 k parameters after BN folding)
+    # docs/design.md: mcu weights ≤ 512 KiB int8 (≈ 450 k parameters after BN folding)
     assert mcu["params_deployed"] <= 450_000
-    # graph.md: phone ≲ 1.5 GMAC at 320×240
+    # docs/design.md: phone ≲ 1.5 GMAC at 320×240
     assert phone["macs"] <= 1.5e9
     assert 0 < mcu["params_prior"] < mcu["params_deployed"]
 

@@ -1,4 +1,4 @@
-"""Hand-computed cases for the graph.md ops, in PyTorch (ops.py) and in the numpy interpreter."""
+"""Hand-computed cases for the docs/graph.md ops, in PyTorch (ops.py) and in the numpy interpreter."""
 
 from __future__ import annotations
 

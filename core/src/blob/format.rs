@@ -1,68 +1,7 @@
-//! Byte format of the int8 model blob, version 1 (`DPTH` v1). The host quantizer writes it, the
-//! core reads it in place (weights are never copied). All integers and floats are
-//! little-endian; `f32` is IEEE-754 binary32. Offsets are in bytes.
-//!
-//! ```text
-//! ┌ header, 32 bytes ───────────────────────────────────────────────────────────────────┐
-//! │  0  [u8;4] magic "DPTH"          16 u16 height (native input rows H)                │
-//! │  4  u16 version = 1              18 u16 width  (native input columns W)             │
-//! │  6  u16 flags = 0 (reserved)     20 u16 n_tensors      22 u16 n_ops                 │
-//! │  8  u32 payload_len              24 u16 rgb input id   26 u16 sparse input id       │
-//! │ 12  u32 crc32(payload)           28 u16 output id      30 u16 reserved = 0          │
-//! ├ payload = bytes 32 .. 32 + payload_len ─────────────────────────────────────────────┤
-//! │ tensor table: n_tensors × 16 bytes                                                  │
-//! │   0 u8 dtype (0 = int8, 1 = f32)   1 u8 reserved = 0   2 u16 channels (≥ 1)         │
-//! │   4 f32 scale (int8: finite, > 0)  8 i32 zero_point (int8: −128..=127)              │
-//! │  12 u32 reserved = 0                                                                │
-//! │ op list: n_ops records, each starting 4-byte aligned (relative to the blob start)   │
-//! │   0 u8 opcode   1 u8 n_inputs (1..=8)   2 u16 output tensor id                      │
-//! │   4 u16 attr_len (multiple of 4)        6 u16 reserved = 0                          │
-//! │   8 n_inputs × u16 input ids, zero-padded to a multiple of 4 bytes                  │
-//! │   … attr_len bytes of attributes (layout per opcode below)                          │
-//! │ data section: starts at the first 16-byte boundary after the op list; parameters    │
-//! │   are referenced by a u32 offset relative to the data section start (NONE =         │
-//! │   0xFFFF_FFFF for an absent bias); the writer aligns each parameter to 16 bytes     │
-//! │   (the reader does not rely on it). Lengths follow from the shapes.                 │
-//! └─────────────────────────────────────────────────────────────────────────────────────┘
-//! ```
-//!
-//! The CRC is [`crc32`](super::checksum::crc32) over the payload only. The blob may be longer
-//! than `32 + payload_len`; the tail is ignored. Tensor shapes are not stored: channels come
-//! from the table, spatial sizes from shape inference for the run size `H×W` (the engine may run
-//! the same weights at another size). Input tensors have shape `[3,H,W]` (rgb, values
-//! `byte/255` quantised with the tensor's parameters) and `[1,H,W]` (sparse depth, metres);
-//! the output is `[1,H,W]` metres. Every other tensor is the output of exactly one op, and ops
-//! are in topological order (inputs produced before use).
-//!
-//! ## Ops (opcode: inputs → output; attributes)
-//! Names are graph.md's. `batch_norm` is folded into the preceding conv by the quantizer; a conv
-//! with `activation: "sigmoid"` is written as conv (`none`) followed by a `sigmoid` op.
-//! Quantisation: activations int8 asymmetric per tensor, weights int8 symmetric per output
-//! channel with f32 scales `s_w[o]`, bias int32 in units of `s_in · s_w[o]` (TFLite int8 spec).
-//!
-//! | code | op | attributes (bytes) |
-//! |---|---|---|
-//! | 1 | `conv2d` | u16 kh, kw, stride_h, stride_w, dil_h, dil_w, pad_h, pad_w, groups; u8 activation (0 none, 1 relu, 2 leaky_relu); u8 0; f32 alpha; u32 weight `[O, I/g, kh, kw]` i8; u32 bias `[O]` i32 or NONE; u32 w_scale `[O]` f32 — 36 bytes |
-//! | 2 | `linear` | as `conv2d` with a 1×1 kernel, unit stride and dilation, no padding, groups 1; weight `[O, I]` |
-//! | 3 | `relu` | `[u8; 256]` table, entry `q as u8` is the int8 output for input code `q` |
-//! | 4 | `leaky_relu` | same table layout (slope baked in) |
-//! | 5 | `sigmoid` | same table layout |
-//! | 6 | `reciprocal` | same table layout (`1/(x + eps)` baked in) |
-//! | 7 | `add` | none; two int8 inputs of one shape |
-//! | 8 | `mul` | none; second input `[C,H,W]`, `[1,H,W]` (over channels) or `[C,1,1]` (over space) |
-//! | 9 | `concat` | none; 1..=8 inputs with equal H, W; each requantised to the output |
-//! | 10 | `upsample_bilinear` | u8 mode, u8 0, u16 a, u16 b, u16 0 — mode 0: size `a×b`; 1: scale `H·a × W·b`; 2: the size of tensor `a` (produced earlier); int8 in/out share parameters; f32 allowed |
-//! | 11 | `pixel_shuffle` | u16 factor, u16 0; int8 in/out share parameters; f32 allowed |
-//! | 12 | `global_avg_pool` | none |
-//! | 13 | `global_max_pool` | none |
-//! | 14 | `channel_mean` | none |
-//! | 15 | `channel_max` | none |
-//! | 16 | `minmax_norm` | f32 eps |
-//! | 17 | `bins_head` | u16 n_bins, u16 0; f32 min_depth_m, max_depth_m; u32 weight `[N, C]` i8; u32 bias `[N]` i32 or NONE; u32 w_scale `[N]` f32 — inputs features (int8) and bin logits (`[N,1,1]`, int8 or f32); output f32 |
-//! | 18 | `refine` | u16 iterations T (even), u16 0; f32 σ3, σ5, σ7 — inputs d0 (f32), aff3 (8 ch), aff5 (24), aff7 (48), kmix (3), tmix (3) (int8); output f32 |
-//!
-//! Lookup tables are stored rather than computed so the core needs no transcendental math for
-//! element-wise activations; only `bins_head` and `refine` call `exp` (see their modules).
+//! Constants of the int8 model blob, version 1 (`DPTH` v1): magic, header and record sizes,
+//! dtype, opcode, activation and upsample-mode codes, and the reader's limits. The byte layout and
+//! each opcode's attributes are specified in `docs/blob.md`; the host quantizer writes it, the
+//! core reads it in place (weights are never copied).
 
 /// Magic bytes at offset 0.
 pub const MAGIC: [u8; 4] = *b"DPTH";
@@ -153,7 +92,7 @@ pub mod upsample_mode {
     pub const LIKE: u8 = 2;
 }
 
-/// The graph.md name of an opcode (`None` for unknown codes).
+/// The `docs/graph.md` name of an opcode (`None` for unknown codes).
 pub fn op_name(code: u8) -> Option<&'static str> {
     use opcode::*;
     Some(match code {

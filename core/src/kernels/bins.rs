@@ -1,4 +1,4 @@
-//! Adaptive-bins head (graph.md `bins_head`): per-pixel logits over `N` bins from a 1×1 conv
+//! Adaptive-bins head (docs/graph.md `bins_head`): per-pixel logits over `N` bins from a 1×1 conv
 //! of the features (int8 × int8 → int32, never stored as a map), then a softmax-weighted sum of
 //! bin centres → depth in metres.
 //!

@@ -169,7 +169,7 @@ impl MulQuant {
     }
 }
 
-/// Reference `mul` with `b` broadcast per [`Broadcast`] (graph.md: `[1,1,H,W]` or `[1,C,1,1]`).
+/// Reference `mul` with `b` broadcast per [`Broadcast`] (docs/graph.md: `[1,1,H,W]` or `[1,C,1,1]`).
 pub fn mul_ref(
     q: &MulQuant,
     a: &[i8],

@@ -1,4 +1,4 @@
-//! f32 reference of every graph op (graph.md semantics), for calibration by the host quantizer
+//! f32 reference of every graph op (docs/graph.md semantics), for calibration by the host quantizer
 //! and as ground truth in tests. Plain loops, CHW layout, `no_std`; the one transcendental
 //! function, [`exp`], is the crate's own (about 2 ULP, plain IEEE operations), so results are the
 //! same on the host and on a Cortex-M4F.

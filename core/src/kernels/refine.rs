@@ -1,4 +1,4 @@
-//! Affinity propagation (graph.md `refine`), in f32.
+//! Affinity propagation (docs/graph.md `refine`), in f32.
 //!
 //! **Why f32.** Depth in metres is propagated `T` times with weights that sum to one; int8
 //! (4 cm steps over 10 m) would add a quantisation step per iteration, and Q-format would need

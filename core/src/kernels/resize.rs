@@ -1,4 +1,4 @@
-//! Bilinear resize to an explicit size with `align_corners = true` (graph.md `upsample_bilinear`).
+//! Bilinear resize to an explicit size with `align_corners = true` (docs/graph.md `upsample_bilinear`).
 //!
 //! Source coordinate of output index `o` is `o·(n_in − 1)/(n_out − 1)`, an exact rational
 //! `i0 + f/D` with `D = n_out − 1`. The int8 path interpolates the codes with these exact

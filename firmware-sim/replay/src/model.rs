@@ -21,7 +21,7 @@ static ALIGNED_BLOB: &Align16<[u8]> = &Align16(*include_bytes!(concat!(
 /// The `mcu` int8 model blob (16-byte aligned).
 pub static MCU_BLOB: &[u8] = &ALIGNED_BLOB.0;
 
-/// Arena bytes the firmware reserves: the DESIGN.md `mcu` arena budget, 2 MiB (its goal is
+/// Arena bytes the firmware reserves: the docs/design.md `mcu` arena budget, 2 MiB (its goal is
 /// 384 KiB). [`Engine::with_size`] reports `ArenaTooSmall` when a blob needs more.
 pub const ARENA_BUDGET_BYTES: usize = 2 * 1024 * 1024;
 
@@ -43,7 +43,7 @@ mod tests {
     #[test]
     fn blob_is_aligned_and_fits_the_budgets() {
         assert_eq!(MCU_BLOB.as_ptr() as usize % 16, 0);
-        // DESIGN.md: mcu weights ≤ 512 KiB (the blob holds the weights plus the graph).
+        // docs/design.md: mcu weights ≤ 512 KiB (the blob holds the weights plus the graph).
         assert!(MCU_BLOB.len() <= 512 * 1024, "{}", MCU_BLOB.len());
         let need = engine::required_arena_bytes(MCU_BLOB, 120, 160).unwrap();
         assert!(need <= ARENA_BUDGET_BYTES, "{need}");

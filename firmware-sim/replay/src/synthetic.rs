@@ -11,7 +11,7 @@ use depthor_core::calibration::{
 
 use crate::writer::FrameData;
 
-/// Image height of the `mcu` variant (DESIGN.md, model variants).
+/// Image height of the `mcu` variant (docs/design.md, model variants).
 pub const MCU_HEIGHT: u32 = 120;
 /// Image width of the `mcu` variant.
 pub const MCU_WIDTH: u32 = 160;

@@ -46,7 +46,7 @@ impl Probe for TickProbe {
     }
 }
 
-/// Image size this build holds: the `mcu` variant's 120×160 (DESIGN.md).
+/// Image size this build holds: the `mcu` variant's 120×160 (docs/design.md).
 const PIXELS: usize = 120 * 160;
 /// Zones this build holds: 8×8 (VL53L5CX class).
 const ZONES: usize = 64;

@@ -43,7 +43,7 @@ pub fn handle(args: Args) -> Result<()> {
 }
 
 /// Writes an imported set as one recording; frames whose camera differs from the first frame's
-/// carry their own `camera` object (DESIGN.md).
+/// carry their own `camera` object (docs/recording.md).
 pub fn write_set(set: &ImportedSet, out: &Path, overwrite: bool) -> Result<PathBuf> {
     let first = set
         .frames

@@ -12,7 +12,7 @@ use depthor_host::quantize::graph::Graph;
 use depthor_host::quantize::quantize_with;
 use std::path::PathBuf;
 
-/// DESIGN.md budgets of the `mcu` variant (bytes).
+/// docs/design.md budgets of the `mcu` variant (bytes).
 const MCU_WEIGHTS_BUDGET: usize = 512 * 1024;
 const MCU_ARENA_BUDGET: usize = 2 * 1024 * 1024;
 const MCU_ARENA_GOAL: usize = 384 * 1024;

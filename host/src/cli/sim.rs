@@ -27,7 +27,7 @@ use std::path::{Path, PathBuf};
 /// Arguments of `depthor sim`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Sensor preset: l5, phone or mcu (DESIGN.md "Sensor presets").
+    /// Sensor preset: l5, phone or mcu (docs/design.md "Sensor presets").
     #[arg(long)]
     preset: Option<String>,
     /// Simulator configuration JSON (overrides --preset's aspects; see `depthor_host::sim`).

@@ -1,4 +1,4 @@
-//! The effect library the gap tool chooses from (DESIGN.md "Sim-to-real gap tool"). Each effect is
+//! The effect library the gap tool chooses from (docs/design.md "Sim-to-real gap tool"). Each effect is
 //! a simulator aspect (its module in `crate::sim` holds the parameters and the forward model);
 //! here it gets what fitting needs: the parameters to fit with their bounds, how to write them into
 //! a [`SimConfig`], the covariate stratum where its signature shows, and what separates it from
@@ -80,7 +80,7 @@ impl Covariate {
 /// One effect of the library.
 #[derive(Clone, Copy, Debug)]
 pub struct Candidate {
-    /// DESIGN.md name (also the [`SimConfig`] field).
+    /// docs/design.md name (also the [`SimConfig`] field).
     pub name: &'static str,
     /// The physics in words.
     pub physics: &'static str,
@@ -90,7 +90,7 @@ pub struct Candidate {
     pub stratum: Covariate,
 }
 
-/// The library, in DESIGN.md order (11 of the 13 effects; `cover_glass` and `timing_offset` are
+/// The library, in docs/design.md order (11 of the 13 effects; `cover_glass` and `timing_offset` are
 /// not implemented).
 pub const LIBRARY: [Candidate; 11] = [
     Candidate {

@@ -1,4 +1,4 @@
-//! Sim-to-real gap tool (`depthor gap`, DESIGN.md "Sim-to-real gap tool"): compares real zones
+//! Sim-to-real gap tool (`depthor gap`, docs/design.md "Sim-to-real gap tool"): compares real zones
 //! with the simulator's predictive distribution for the same reference depth, RGB and labels,
 //! localises the mismatch, names the missing physics from the effect library, fits it, and proves
 //! the fit on held-out frames.

@@ -1,4 +1,4 @@
-//! The gap tool's outputs: `report.json` exactly as DESIGN.md, `report.md` with one card per
+//! The gap tool's outputs: `report.json` exactly as docs/design.md, `report.md` with one card per
 //! finding, the fitted `sim_config.json`, and PNG plots.
 
 use std::collections::BTreeMap;
@@ -15,7 +15,7 @@ use super::Analysis;
 /// One finding of `report.json`.
 #[derive(Clone, Debug, Serialize)]
 pub struct FindingJson {
-    /// Effect name (DESIGN.md library).
+    /// Effect name (docs/design.md library).
     pub effect: String,
     /// Fitted parameters.
     pub params: BTreeMap<String, f64>,

@@ -1,9 +1,9 @@
 //! Unit ("1×") sizes of the benchmark's effects, measured: for each effect, the smallest size at
 //! which the gap tool names it in at least half of the trials, on rendered scenes whose seeds are
 //! disjoint from the benchmark's (`depthor gap-bench --calibrate-units`). The result is committed
-//! as `units.json` (with the command that produced it) and compiled in; [`start_unit`], the old
-//! hand estimates, is only where the calibration ladder starts (and the fallback for an effect
-//! the table lacks).
+//! as `host/data/gap_units.json` (with the command that produced it) and compiled in;
+//! [`start_unit`], the old hand estimates, is only where the calibration ladder starts (and the
+//! fallback for an effect the table lacks).
 
 use std::collections::BTreeMap;
 use std::sync::OnceLock;
@@ -49,7 +49,7 @@ pub struct CalibratedUnit {
     pub bracketed: bool,
 }
 
-/// `units.json`: the calibrated units and how they were obtained.
+/// `host/data/gap_units.json`: the calibrated units and how they were obtained.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct UnitTable {
     /// The command that wrote the table.
@@ -78,10 +78,12 @@ pub struct UnitTable {
     pub units: BTreeMap<String, CalibratedUnit>,
 }
 
-/// The committed table (`host/src/gap/units.json`); empty when it does not parse.
+/// The committed table (`host/data/gap_units.json`); empty when it does not parse.
 pub fn calibrated() -> &'static UnitTable {
     static T: OnceLock<UnitTable> = OnceLock::new();
-    T.get_or_init(|| serde_json::from_str(include_str!("units.json")).unwrap_or_default())
+    T.get_or_init(|| {
+        serde_json::from_str(include_str!("../../data/gap_units.json")).unwrap_or_default()
+    })
 }
 
 /// Unit ("1×") size of effect `name`: the calibrated one, or [`start_unit`] when the table lacks

@@ -1,5 +1,5 @@
-//! Reader of the Python export `graph.json` (`depthor-graph/1`, see `models/README.md` and the
-//! graph contract) and its `weights.bin` (little-endian f32 tensors at 64-byte aligned offsets).
+//! Reader of the Python export `graph.json` (`depthor-graph/1`, specified in `docs/graph.md`)
+//! and its `weights.bin` (little-endian f32 tensors at 64-byte aligned offsets).
 //! Every error names the file and the JSON field (`nodes[12].attrs.kernel`) or tensor at fault.
 
 use depthor_core::kernels::bins::BinsAttrs;
@@ -67,7 +67,7 @@ pub enum GraphActivation {
     Sigmoid,
 }
 
-/// A graph.md op with its attributes and parameters.
+/// A docs/graph.md op with its attributes and parameters.
 #[derive(Clone, Debug, PartialEq)]
 pub enum NodeOp {
     /// `conv2d`; weight `[O, I/groups, kh, kw]`.

@@ -1,4 +1,4 @@
-//! Serde types mirroring `recording.json` and `dtof.json` of `depthor-recording/1` (DESIGN.md),
+//! Serde types mirroring `recording.json` and `dtof.json` of `depthor-recording/1` (docs/recording.md),
 //! their checked parsing, their validation (shared by the reader and the writer) and their
 //! conversions to the core's calibration types.
 
@@ -19,7 +19,7 @@ pub const FORMAT: &str = "depthor-recording/1";
 pub const MAX_ST_STATUS: u8 = 13;
 
 /// Largest material class in `labels.png` (0 diffuse/unknown, 1 transparent, 2 specular/mirror,
-/// 3 dark/absorbing; DESIGN.md).
+/// 3 dark/absorbing; docs/recording.md).
 pub const MAX_LABEL: u8 = 3;
 
 /// `recording.json`.

@@ -1,4 +1,4 @@
-//! Recordings in the `depthor-recording/1` format (DESIGN.md): the file-backed input of every
+//! Recordings in the `depthor-recording/1` format (docs/recording.md): the file-backed input of every
 //! host tool and the output of the simulator and the importers.
 //!
 //! ```text

@@ -2,7 +2,7 @@
 use super::math::{v3, V3};
 use super::texture::{luminance, Texture};
 
-/// Material class, written to `labels` (DESIGN.md: 0 diffuse/unknown, 1 transparent,
+/// Material class, written to `labels` (docs/recording.md: 0 diffuse/unknown, 1 transparent,
 /// 2 specular/mirror, 3 dark/absorbing).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[repr(u8)]

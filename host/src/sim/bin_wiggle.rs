@@ -1,4 +1,4 @@
-//! `bin_wiggle` (gap-tool library, DESIGN.md): the histogram's time bins leave a periodic range
+//! `bin_wiggle` (gap-tool library, docs/design.md): the histogram's time bins leave a periodic range
 //! error. Forward model: `d' = d + amplitude_m · sin(2π d / period_m)`.
 use serde::{Deserialize, Serialize};
 

@@ -1,4 +1,4 @@
-//! `border_dropout` (gap-tool library, DESIGN.md): vignetting and illumination roll-off toward the
+//! `border_dropout` (gap-tool library, docs/design.md): vignetting and illumination roll-off toward the
 //! zone grid's corners. Forward model: a zone at normalised radius `r` (0 at the grid centre, 1 at
 //! a corner) is lost with probability `p_corner · r^exponent`.
 use serde::{Deserialize, Serialize};

@@ -14,7 +14,7 @@ use super::frame::{Scene, ZoneEffect, ZoneGrid};
 use super::truth::ZoneEvents;
 use crate::rng::Rng;
 
-/// Label of dark/absorbing pixels (DESIGN.md, `labels.png`).
+/// Label of dark/absorbing pixels (docs/recording.md, `labels.png`).
 pub const LABEL_DARK: u8 = 3;
 
 /// Parameters of the low-reflectivity loss.

@@ -1,4 +1,4 @@
-//! `dark_dropout` (gap-tool library, DESIGN.md): low-reflectance surfaces return too few photons.
+//! `dark_dropout` (gap-tool library, docs/design.md): low-reflectance surfaces return too few photons.
 //! Forward model: a zone whose window has mean brightness `b` (HSV V / 255, the reflectance proxy
 //! available in every recording) is lost with probability `p_black · max(0, 1 − b / knee)`: the
 //! darker the zone, the likelier the loss, nothing above `knee`.

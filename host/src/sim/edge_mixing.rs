@@ -1,4 +1,4 @@
-//! `edge_mixing` (gap-tool library, DESIGN.md): a zone straddling a depth edge sees two returns and
+//! `edge_mixing` (gap-tool library, docs/design.md): a zone straddling a depth edge sees two returns and
 //! reports a mix instead of the dominant peak. Forward model: `d' = d + weight · (mean − d)`, with
 //! `mean` the mean depth over the zone's window (no effect on zones of one surface).
 use serde::{Deserialize, Serialize};

@@ -1,4 +1,4 @@
-//! `multipath` (gap-tool library, DESIGN.md): transparent and specular surfaces add a longer light
+//! `multipath` (gap-tool library, docs/design.md): transparent and specular surfaces add a longer light
 //! path to the zone's histogram, pulling the reported distance farther. Forward model: a zone whose
 //! window is a fraction `f` transparent/specular (labels 1, 2) reports `d · (1 + extra · min(1, 4f))`:
 //! the farther return grows with the material's share and saturates once a quarter of the iFoV

@@ -1,4 +1,4 @@
-//! Sensor presets (DESIGN.md "Sensor presets"; figures from the paper's supplement "Details of dToF
+//! Sensor presets (docs/design.md "Sensor presets"; figures from the paper's supplement "Details of dToF
 //! Simulation Method"). Pixel figures are given at the paper's image size and stored as fractions,
 //! so a preset applies to any image of the same aspect ratio (`mcu` is `l5` at 120×160).
 

@@ -1,4 +1,4 @@
-//! `radial_distance` (gap-tool library, DESIGN.md): the sensor reports range along the zone's ray
+//! `radial_distance` (gap-tool library, docs/design.md): the sensor reports range along the zone's ray
 //! where the simulator assumes planar z. Forward model: a zone at normalised grid position
 //! `(r, c)` on a tangent grid spanning `fov_deg` looks along `(tan(h/2)·c, tan(v/2)·r, 1)`, so its
 //! radial range is `k = sqrt(1 + tx² + ty²)` times z; the reported distance is

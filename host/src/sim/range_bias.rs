@@ -1,4 +1,4 @@
-//! `range_bias` (gap-tool library, DESIGN.md): offset and scale error of the reported distance
+//! `range_bias` (gap-tool library, docs/design.md): offset and scale error of the reported distance
 //! (e.g. an uncalibrated cover-glass delay or clock error). Forward model:
 //! `d' = offset_m + (1 + scale) · d`, kept above 1 mm.
 use serde::{Deserialize, Serialize};

@@ -1,4 +1,4 @@
-//! `range_dropout` (gap-tool library, DESIGN.md): the returned signal falls as ρ/r², so the
+//! `range_dropout` (gap-tool library, docs/design.md): the returned signal falls as ρ/r², so the
 //! probability that a zone detects nothing rises with range. Forward model: a zone with a return
 //! at `d` metres is lost with probability `1 − exp(−k·d²)` (`k` = `loss_per_m2`): ≈ `k·d²` while
 //! small, saturating at 1 far away.

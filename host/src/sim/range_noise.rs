@@ -1,4 +1,4 @@
-//! `range_noise` (gap-tool library, DESIGN.md): timing jitter whose effect grows as the signal
+//! `range_noise` (gap-tool library, docs/design.md): timing jitter whose effect grows as the signal
 //! falls with range. Forward model: the reported distance gets zero-mean Gaussian noise of standard
 //! deviation `sigma_per_m · d` (kept above 1 mm).
 use serde::{Deserialize, Serialize};

@@ -11,9 +11,9 @@ use super::grid::{histogram_peak, PeakScratch};
 use super::truth::ZoneEvents;
 use crate::rng::Rng;
 
-/// Label of transparent pixels (DESIGN.md, `labels.png`).
+/// Label of transparent pixels (docs/recording.md, `labels.png`).
 pub const LABEL_TRANSPARENT: u8 = 1;
-/// Label of specular / mirror pixels (DESIGN.md, `labels.png`).
+/// Label of specular / mirror pixels (docs/recording.md, `labels.png`).
 pub const LABEL_SPECULAR: u8 = 2;
 
 /// Parameters of one non-Lambertian material (`transparent` or `specular` in [`super::SimConfig`]).

@@ -1,4 +1,4 @@
-//! `zone_crosstalk` (gap-tool library, DESIGN.md): light of one zone leaks into its neighbours'
+//! `zone_crosstalk` (gap-tool library, docs/design.md): light of one zone leaks into its neighbours'
 //! SPADs, blurring the returns across the grid. Forward model: every zone with a return reports
 //! `(1 − coupling) · d + coupling · m`, with `m` the mean distance of its 4-neighbours that have a
 //! return (before the blur); zones without such neighbours are unchanged.
