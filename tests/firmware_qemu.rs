@@ -3,8 +3,9 @@
 //! requires exit status 0 and per-frame hash lines equal to the host build of the same loop.
 //! Bad images must make the firmware print `ERROR <code>` and exit with that code, not panic.
 //!
-//! Needs `qemu-system-arm` and the `thumbv7em-none-eabihf` Rust target (CI installs both);
-//! without them these tests FAIL with a message saying what to install.
+//! Needs `qemu-system-arm` and the `thumbv7em-none-eabihf` Rust target (`bash scripts/setup.sh`
+//! installs both; the test command `bash scripts/test.sh` runs it first); without them these
+//! tests FAIL with a message saying what to install.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -58,7 +59,7 @@ fn build_firmware(bin: &str, image: &Path, dir: &Path) -> PathBuf {
     assert!(
         out.status.success(),
         "building firmware-sim failed (is the Rust target installed? \
-         `rustup target add {TARGET}`):\n{stderr}"
+         `bash scripts/setup.sh` or `rustup target add {TARGET}`):\n{stderr}"
     );
     let elf = target_dir.join(TARGET).join("release").join(bin);
     let copy = dir.join(format!("{bin}.elf"));
@@ -92,7 +93,7 @@ fn run_qemu(elf: &Path) -> (i32, String) {
         Ok(c) => c,
         Err(e) => panic!(
             "cannot run qemu-system-arm ({e}); install it: \
-             `apt-get install -y qemu-system-arm` (Debian). This test must not be skipped."
+             `bash scripts/setup.sh` or `apt-get install -y qemu-system-arm` (Debian). This test must not be skipped."
         ),
     };
     let start = Instant::now();

@@ -1,0 +1,12 @@
+#!/usr/bin/env bash
+# The test command: set-up (scripts/setup.sh, installs what is missing), every Rust test of the
+# workspace (including the Cortex-M firmware under QEMU) and the Python tests of models/.
+# Usage: bash scripts/test.sh      (a clean run is ≈ 40 min on a 2-core machine)
+# Extra arguments go to `cargo test`, e.g. `bash scripts/test.sh -- --skip firmware`.
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+bash scripts/setup.sh
+echo "== cargo test --workspace"
+cargo test --workspace "$@"
+echo "== models/smoke.sh (Python)"
+bash models/smoke.sh
