@@ -1,7 +1,7 @@
 """Writes a variant's model card, models/<variant>/MODEL_CARD.md, from measured files only.
 
     python3 models/card.py mcu --synthetic eval/mcu_test500/summary.json \
-        --real eval/mcu_real/summary.json [--run models/runs/mcu_phase3] [--regression eval/reg/summary.json]
+        --real eval/mcu_real/summary.json [--run models/mcu/train] [--regression eval/reg/summary.json]
 
 Inputs: models/<variant>/summary.json (export: parameters, MACs), card.json (the regression
 entry host/tests/model_card.rs checks), `depthor eval` summaries (synthetic held-out set, real
