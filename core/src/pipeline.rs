@@ -97,6 +97,45 @@ pub struct FrameReport {
     pub run: RunStats,
 }
 
+/// The stages of [`depth_frame`], in order, as reported to a [`Probe`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    /// RGB capture through the camera HAL.
+    Camera,
+    /// Zone read through the dToF sensor HAL.
+    Dtof,
+    /// Zones → sparse depth.
+    Projection,
+    /// The int8 model: RGB + sparse depth → dense depth.
+    Model,
+    /// The frame is done (no stage runs after this mark).
+    Done,
+}
+
+impl Stage {
+    /// Short lowercase name (`camera`, `dtof`, `projection`, `model`, `done`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::Camera => "camera",
+            Stage::Dtof => "dtof",
+            Stage::Projection => "projection",
+            Stage::Model => "model",
+            Stage::Done => "done",
+        }
+    }
+}
+
+/// Observes stage boundaries inside [`depth_frame_probed`] (a firmware reads its cycle or
+/// instruction counter here); `()` observes nothing.
+pub trait Probe {
+    /// Called as `stage` begins ([`Stage::Done`]: after the last one ended).
+    fn mark(&mut self, stage: Stage);
+}
+
+impl Probe for () {
+    fn mark(&mut self, _stage: Stage) {}
+}
+
 /// Captures RGB, reads the zones, projects them and runs the model into `out` (`H×W`).
 ///
 /// Faults are per frame: a camera of another resolution than the calibration's is
@@ -112,10 +151,24 @@ pub fn depth_frame<C: RgbCamera, S: DtofSensor, const N: usize>(
     buffers: &mut FrameBuffers<'_, N>,
     out: DepthOut<'_>,
 ) -> Result<FrameReport, FrameError> {
+    depth_frame_probed(camera, sensor, cal, engine, buffers, out, &mut ())
+}
+
+/// [`depth_frame`], telling `probe` where each [`Stage`] begins.
+pub fn depth_frame_probed<C: RgbCamera, S: DtofSensor, const N: usize>(
+    camera: &mut C,
+    sensor: &mut S,
+    cal: &Calibration,
+    engine: &mut Engine<'_>,
+    buffers: &mut FrameBuffers<'_, N>,
+    out: DepthOut<'_>,
+    probe: &mut impl Probe,
+) -> Result<FrameReport, FrameError> {
     let (w, h) = (cal.camera.width, cal.camera.height);
     let pixels = (w as usize)
         .checked_mul(h as usize)
         .ok_or(FrameError::Buffer("camera size"))?;
+    probe.mark(Stage::Camera);
     let rgb = buffers
         .rgb
         .get_mut(..pixels.saturating_mul(3))
@@ -131,9 +184,11 @@ pub fn depth_frame<C: RgbCamera, S: DtofSensor, const N: usize>(
             data: rgb,
         })
         .map_err(|e| FrameError::Camera(e.kind()))?;
+    probe.mark(Stage::Dtof);
     sensor
         .read_frame(buffers.zones)
         .map_err(|e| FrameError::Sensor(e.kind()))?;
+    probe.mark(Stage::Projection);
     let sparse = buffers
         .sparse_m
         .get_mut(..pixels)
@@ -145,10 +200,12 @@ pub fn depth_frame<C: RgbCamera, S: DtofSensor, const N: usize>(
             zones: projection.zones,
         });
     }
+    probe.mark(Stage::Model);
     let rgb = buffers
         .rgb
         .get(..pixels.saturating_mul(3))
         .ok_or(FrameError::Buffer("RGB buffer"))?;
     let run = engine.run_into(rgb, DepthIn::Metres(sparse), out)?;
+    probe.mark(Stage::Done);
     Ok(FrameReport { projection, run })
 }

@@ -20,7 +20,7 @@
 //! | 56 | `f32 × 9` | dToF → camera rotation, row-major |
 //! | 92 | `f32 × 3` | dToF → camera translation, metres |
 //! | 104 | frames | `frame count` records, back to back (below) |
-//! | end − 4 | `u32` | CRC-32 ([`crate::crc32`]) of every byte before it |
+//! | end − 4 | `u32` | CRC-32 (`depthor_core::blob::checksum::crc32`) of every byte before it |
 //!
 //! A frame record, `Z = rows · cols`; padding keeps every record and its RGB 4-byte aligned
 //! (relative to the image start), so the firmware copies RGB with word moves:
@@ -42,7 +42,7 @@ use depthor_core::calibration::{
     Calibration, CameraIntrinsics, DistanceKind, DtofGeometry, Extrinsics,
 };
 
-use crate::crc32::crc32;
+use depthor_core::blob::checksum::crc32;
 
 /// First eight bytes of every image.
 pub const MAGIC: [u8; 8] = *b"DPTHRPLY";

@@ -3,7 +3,8 @@
 //! What the `firmware-sim` firmware and its host build share, so both run the same code:
 //!
 //! - [`format`]: the replay flash image (`DPTHRPLY` v1): layout, and a `no_std` parser that
-//!   validates everything and never panics; [`crc32`] for its checksum.
+//!   validates everything and never panics; its checksum is the core's
+//!   [`depthor_core::blob::checksum::crc32`] (zlib's CRC-32, as for the model blob).
 //! - [`camera`]: [`camera::ReplayCamera`], an [`depthor_core::hal::RgbCamera`] over the image.
 //! - [`model`]: the `mcu` int8 blob (embedded, 16-byte aligned) and the arena budget.
 //! - [`pipeline`]: the per-frame loop (camera → zone bridge driver → projection → int8 engine)
@@ -17,13 +18,12 @@
 //! |---|---|
 //! | 0 | every frame processed |
 //! | 2–8 | the image is unusable: [`format::ImageError::exit_code`] (2 magic, 3 version, 4 header, 5 truncated, 6 trailing bytes, 7 CRC, 8 zone count) |
-//! | 10–16 | the loop stopped: [`pipeline::LoopError::exit_code`] (10 camera, 11 dToF driver, 12 bridge device, 13 zone capacity, 14 workspace, 15 projection, 16 engine) |
+//! | 10–17 | the loop stopped: [`pipeline::LoopError::exit_code`] (10 camera, 11 dToF driver, 12 bridge device, 13 zone capacity, 14 workspace, 15 projection, 16 engine, 17 no valid zone) |
 //! | 101 | panic (a bug: nothing here should panic on any image) |
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
 #![warn(missing_docs)]
 
 pub mod camera;
-pub mod crc32;
 pub mod format;
 #[cfg(any(test, feature = "std"))]
 pub mod host;

@@ -1,11 +1,12 @@
-//! The per-frame firmware loop, shared verbatim by the QEMU firmware and its host build:
+//! The per-frame firmware loop, shared verbatim by the QEMU firmware and its host build. Each
+//! frame is one call of the core's [`depth_frame_probed`] (`depthor_core::pipeline`) over:
 //!
 //! 1. **RGB**: [`ReplayCamera`] (an [`depthor_core::hal::RgbCamera`]) fills the RGB buffer.
 //! 2. **dToF**: the frame's zones are latched into a simulated zone bridge
 //!    ([`ZoneBridgeDevice`], an embedded-hal I2C device) and read back by the real driver
 //!    [`ZoneBridgeSensor`] (an [`depthor_core::hal::DtofSensor`]), so the bytes cross the same
 //!    register protocol a board's bus would carry.
-//! 3. **Projection**: [`project_to_sparse`] writes the sparse depth map `S`.
+//! 3. **Projection**: `project_to_sparse` writes the sparse depth map `S`.
 //! 4. **Model**: the int8 [`Engine`] (prepared once by the caller, see [`crate::model`]) runs on
 //!    the RGB frame and `S` and writes the dense depth map into [`Workspace::depth_m`].
 //!
@@ -14,12 +15,14 @@
 //!
 //! The driver is created per frame over a device holding that frame (the device borrows the
 //! frame's zones and the driver owns the device); it reads the header registers again each
-//! frame, which costs one 11-byte transaction.
+//! frame, which costs one 11-byte transaction. A frame without one valid zone is
+//! [`LoopError::Frame`] (exit 17): the core does not run the model without metric depth.
 
 use depthor_core::drivers::zone_bridge::{DeviceError, ZoneBridgeDevice, ZoneBridgeSensor};
-use depthor_core::engine::{self, Engine, RunStats};
-use depthor_core::hal::{self, DtofSensor, ErrorKind, RgbCamera, RgbFrame, ZoneFrame};
-use depthor_core::projection::{project_to_sparse, ProjectionError, ProjectionStats};
+use depthor_core::engine::{self, DepthOut, Engine, RunStats};
+use depthor_core::hal::{ErrorKind, ZoneFrame};
+use depthor_core::pipeline::{depth_frame_probed, FrameBuffers, FrameError};
+use depthor_core::projection::{ProjectionError, ProjectionStats};
 use embedded_hal::delay::DelayNs;
 
 use crate::camera::ReplayCamera;
@@ -64,6 +67,22 @@ pub enum LoopError {
     Projection(ProjectionError),
     /// The engine failed (or was prepared for another input size than the image's).
     Engine(engine::Error),
+    /// The core's pipeline refused the frame otherwise: no zone of it is valid
+    /// ([`FrameError::NoValidZones`]), so there is no metric depth to complete.
+    Frame(FrameError),
+}
+
+impl From<FrameError> for LoopError {
+    fn from(e: FrameError) -> Self {
+        match e {
+            FrameError::Camera(k) => LoopError::Camera(k),
+            FrameError::Sensor(k) => LoopError::Sensor(k),
+            FrameError::Buffer(what) => LoopError::Workspace(what),
+            FrameError::Projection(e) => LoopError::Projection(e),
+            FrameError::Engine(e) => LoopError::Engine(e),
+            other => LoopError::Frame(other),
+        }
+    }
 }
 
 impl LoopError {
@@ -77,6 +96,7 @@ impl LoopError {
             LoopError::Workspace(_) => 14,
             LoopError::Projection(_) => 15,
             LoopError::Engine(_) => 16,
+            LoopError::Frame(_) => 17,
         }
     }
 }
@@ -94,50 +114,14 @@ impl core::fmt::Display for LoopError {
             LoopError::Workspace(what) => write!(f, "workspace too small: {what}"),
             LoopError::Projection(e) => write!(f, "projection: {e}"),
             LoopError::Engine(e) => write!(f, "engine: {e}"),
+            LoopError::Frame(e) => write!(f, "frame: {e}"),
         }
     }
 }
 
 impl core::error::Error for LoopError {}
 
-/// The stages of a frame, in order, as reported to a [`Probe`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Stage {
-    /// RGB capture through the camera HAL.
-    Camera,
-    /// Zone read through the dToF driver and the simulated bridge.
-    Dtof,
-    /// Zones → sparse depth.
-    Projection,
-    /// The int8 model: RGB + sparse depth → dense depth.
-    Model,
-    /// The frame is done (no stage runs after this mark).
-    Done,
-}
-
-impl Stage {
-    /// Short lowercase name (`camera`, `dtof`, `projection`, `model`, `done`).
-    pub fn name(self) -> &'static str {
-        match self {
-            Stage::Camera => "camera",
-            Stage::Dtof => "dtof",
-            Stage::Projection => "projection",
-            Stage::Model => "model",
-            Stage::Done => "done",
-        }
-    }
-}
-
-/// Observes stage boundaries inside [`ReplayLoop::process_probed`] (the firmware reads its
-/// instruction counter here); `()` observes nothing.
-pub trait Probe {
-    /// Called as `stage` begins ([`Stage::Done`]: after the last one ended).
-    fn mark(&mut self, stage: Stage);
-}
-
-impl Probe for () {
-    fn mark(&mut self, _stage: Stage) {}
-}
+pub use depthor_core::pipeline::{Probe, Stage};
 
 /// What [`ReplayLoop::process`] did with one frame (the output is in the workspace).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -252,26 +236,9 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
             return Ok(None);
         };
         let cal = self.image.calibration();
-        let (w, h) = (cal.camera.width, cal.camera.height);
-        let pixels = w as usize * h as usize;
+        let pixels = cal.camera.width as usize * cal.camera.height as usize;
 
-        // 1. RGB through the camera HAL.
-        probe.mark(Stage::Camera);
-        let rgb = ws
-            .rgb
-            .get_mut(..3 * pixels)
-            .ok_or(LoopError::Workspace("RGB buffer"))?;
-        let mut rgb_frame = RgbFrame {
-            width: w,
-            height: h,
-            data: rgb,
-        };
-        self.camera
-            .capture(&mut rgb_frame)
-            .map_err(LoopError::Camera)?;
-
-        // 2. dToF through the real driver over the simulated I2C bridge.
-        probe.mark(Stage::Dtof);
+        // The frame's zones are latched into the simulated bridge, which the real driver reads.
         let zones = frame.zones();
         let staged = ws
             .bridge_mm
@@ -283,46 +250,33 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
         let device =
             ZoneBridgeDevice::new(&cal.dtof, &*staged, frame.status).map_err(LoopError::Device)?;
         let mut sensor = ZoneBridgeSensor::new(device, &mut self.delay);
-        sensor
-            .read_frame(&mut *ws.zones)
-            .map_err(|e| LoopError::Sensor(hal::Error::kind(&e)))?;
-
-        // 3. Projection: zones → sparse depth S.
-        probe.mark(Stage::Projection);
-        let sparse = ws
-            .sparse_m
-            .get_mut(..pixels)
-            .ok_or(LoopError::Workspace("sparse depth buffer"))?;
-        let stats =
-            project_to_sparse(&cal, &ws.zones.view(), sparse).map_err(LoopError::Projection)?;
-
-        // 4. Model: RGB + S → dense depth (the engine was prepared once, outside the loop).
-        probe.mark(Stage::Model);
-        if engine.input_shape() != (h as usize, w as usize) {
-            let (eh, ew) = engine.input_shape();
-            return Err(LoopError::Engine(engine::Error::ShapeMismatch {
-                what: "engine input size vs replay image",
-                expected: eh * ew,
-                found: pixels,
-            }));
-        }
         let depth = ws
             .depth_m
             .get_mut(..pixels)
             .ok_or(LoopError::Workspace("depth buffer"))?;
-        let rgb = ws
-            .rgb
-            .get(..3 * pixels)
-            .ok_or(LoopError::Workspace("RGB buffer"))?;
-        let run = engine.run(rgb, sparse, depth).map_err(LoopError::Engine)?;
-
-        probe.mark(Stage::Done);
+        let mut buffers = FrameBuffers {
+            rgb: &mut *ws.rgb,
+            sparse_m: &mut *ws.sparse_m,
+            zones: &mut *ws.zones,
+        };
+        // Camera → driver → projection → engine (prepared once, outside the loop): the core's
+        // one-frame pipeline.
+        let report = depth_frame_probed(
+            &mut self.camera,
+            &mut sensor,
+            &cal,
+            engine,
+            &mut buffers,
+            DepthOut::Metres(depth),
+            probe,
+        )
+        .map_err(LoopError::from)?;
         self.next += 1;
         Ok(Some(Processed {
             index,
             pixels,
-            stats,
-            run,
+            stats: report.projection,
+            run: report.run,
         }))
     }
 
@@ -348,6 +302,7 @@ mod tests {
     use crate::model::{prepare, ARENA_BUDGET_BYTES, MCU_BLOB};
     use crate::synthetic::{mcu_calibration, mcu_frames};
     use crate::writer::image_bytes;
+    use depthor_core::projection::project_to_sparse;
 
     struct NoDelay;
     impl DelayNs for NoDelay {

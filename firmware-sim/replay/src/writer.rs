@@ -4,10 +4,10 @@ use std::io::{self, Write};
 
 use depthor_core::calibration::{Calibration, DistanceKind};
 
-use crate::crc32::crc32;
 use crate::format::{
     record_len, rgb_offset, CRC_LEN, HEADER_LEN, MAGIC, MAX_SIDE, MAX_ZONE_SIDE, VERSION,
 };
+use depthor_core::blob::checksum::crc32;
 
 /// One frame to write: RGB888 at the calibration's camera size and the zones, row-major.
 #[derive(Clone, Debug, PartialEq, Eq)]
