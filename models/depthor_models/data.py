@@ -10,6 +10,9 @@ A frame gives the network's inputs and target:
 
 `load_recording` decodes the PNGs once (Pillow) and keeps numpy arrays; with `cache=True` it also
 stores them as `<recording>/.depthor-train-cache.npz`, reused while recording.json is unchanged.
+`FrameReader` / `FrameDataset` stream instead: only the headers are held, and each frame is
+decoded (and resampled) when a DataLoader worker asks for it, so memory is bounded by the batches
+in flight, not by the data set.
 """
 
 from __future__ import annotations
@@ -80,13 +83,8 @@ def _meta_key(meta_text: str) -> str:
     return hashlib.sha256(f"{CACHE_VERSION}:{meta_text}".encode()).hexdigest()
 
 
-def load_recording(path: str | Path, cache: bool = True,
-                   size: tuple[int, int] | None = None) -> Recording:
-    """Loads every frame of a recording (see module doc). With `size` = (H, W) different from
-    the recording's, the frames are resampled to it as `depthor eval` does (`resample`), and
-    the resampled arrays get their own cache. Raises ValueError for a recording without
-    `zone_rects_px`, without reference depth, or with frames of another size."""
-    root = Path(path)
+def _header(root: Path) -> tuple[str, dict, int, int, list, tuple[int, int]]:
+    """(recording.json text, parsed header, H, W, zone rectangles, zone grid), checked."""
     meta_text = (root / "recording.json").read_text()
     meta = json.loads(meta_text)
     if meta.get("format") != "depthor-recording/1":
@@ -99,6 +97,31 @@ def load_recording(path: str | Path, cache: bool = True,
     grid = (int(dtof["rows"]), int(dtof["cols"]))
     if len(rects) != grid[0] * grid[1]:
         raise ValueError(f"{root}: {len(rects)} zone rectangles for a {grid} grid")
+    return meta_text, meta, h, w, rects, grid
+
+
+def _read_frame(fdir: Path, h: int, w: int) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                     np.ndarray]:
+    """One frame folder: (rgb uint8 [H,W,3], depth_mm uint16 [H,W], zone distances float32 [Z]
+    in metres, zone status uint8 [Z])."""
+    im = _read_png(fdir / "rgb.png")
+    dp = _read_png(fdir / "depth.png")
+    if im.shape != (h, w, 3) or dp.shape != (h, w):
+        raise ValueError(f"{fdir}: rgb {im.shape} / depth {dp.shape}, expected {h}x{w}")
+    z = json.loads((fdir / "dtof.json").read_text())
+    zone_m = np.asarray(z["distance_mm"], np.float32) / 1000.0
+    status = np.asarray(z["status"], np.int64).clip(0, 255).astype(np.uint8)
+    return im, dp, zone_m, status
+
+
+def load_recording(path: str | Path, cache: bool = True,
+                   size: tuple[int, int] | None = None) -> Recording:
+    """Loads every frame of a recording (see module doc). With `size` = (H, W) different from
+    the recording's, the frames are resampled to it as `depthor eval` does (`resample`), and
+    the resampled arrays get their own cache. Raises ValueError for a recording without
+    `zone_rects_px`, without reference depth, or with frames of another size."""
+    root = Path(path)
+    meta_text, meta, h, w, rects, grid = _header(root)
     if size is not None and tuple(size) != (h, w):
         return _load_resampled(root, cache, (int(size[0]), int(size[1])), (h, w), meta)
     zone_px = zone_pixels(rects, h, w)
@@ -116,15 +139,7 @@ def load_recording(path: str | Path, cache: bool = True,
     zone_m = np.zeros((n, nz), np.float32)
     status = np.full((n, nz), 255, np.uint8)
     for i, fid in enumerate(ids):
-        fdir = root / "frames" / fid
-        im = _read_png(fdir / "rgb.png")
-        dp = _read_png(fdir / "depth.png")
-        if im.shape != (h, w, 3) or dp.shape != (h, w):
-            raise ValueError(f"{fdir}: rgb {im.shape} / depth {dp.shape}, expected {h}x{w}")
-        rgb[i], depth[i] = im, dp
-        z = json.loads((fdir / "dtof.json").read_text())
-        zone_m[i] = np.asarray(z["distance_mm"], np.float32) / 1000.0
-        status[i] = np.asarray(z["status"], np.int64).clip(0, 255).astype(np.uint8)
+        rgb[i], depth[i], zone_m[i], status[i] = _read_frame(root / "frames" / fid, h, w)
     if cache:
         tmp = root / (CACHE_NAME + ".tmp.npz")
         np.savez(tmp, key=np.array(key), rgb=rgb, depth_mm=depth, zone_m=zone_m, status=status)
@@ -272,4 +287,84 @@ class RecordingDataset(Dataset):
         if self.augment:
             flip = np.array([float(torch.rand((), generator=self.generator)) < self.flip_p])
         rgb, sp, gt = batch(self.rec, np.array([i]), flip, self.valid_status)
+        return rgb[0], sp[0], gt[0]
+
+
+class FrameReader:
+    """Streaming view of one or more recordings (the layouts `load_recordings` accepts): holds
+    only the headers; `read(i)` decodes frame i from its PNG + JSON files, resampled to `size`
+    as `load_recording` resamples. `zone_px`, `grid`, `ids`, `height` and `width` are those of
+    the equivalent `load_recordings(paths, size=size)`."""
+
+    def __init__(self, paths: str | Path | list, size: tuple[int, int] | None = None):
+        if isinstance(paths, (str, Path)):
+            paths = [p for p in str(paths).split(",") if p]
+        if not paths:
+            raise ValueError("no recording given")
+        self.size = None if size is None else (int(size[0]), int(size[1]))
+        self.frames: list[tuple[Path, int, int]] = []  # (frame folder, native H, native W)
+        self.ids: list[str] = []
+        self.zone_px = None
+        for p in paths:
+            root = Path(p)
+            _, meta, h, w, rects, grid = _header(root)
+            out = self.size or (h, w)
+            if out != (h, w):
+                rects = resampled_rects(rects, (h, w), out)
+            px = zone_pixels(rects, *out)
+            if self.zone_px is None:
+                self.zone_px, self.grid, self.height, self.width = px, grid, out[0], out[1]
+            elif (out, grid) != ((self.height, self.width), self.grid) or \
+                    not np.array_equal(px, self.zone_px):
+                raise ValueError(f"{p}: frame size, zone grid or zone rectangles differ from "
+                                 f"{paths[0]}")
+            for f in meta["frames"]:
+                fid = str(f["id"])
+                self.frames.append((root / "frames" / fid, h, w))
+                self.ids.append(f"{root.name}/{fid}" if len(paths) > 1 else fid)
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+    def read(self, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Frame i: (rgb uint8 [H,W,3], depth_mm uint16 [H,W], zone m float32 [Z], status
+        uint8 [Z]) at the reader's size."""
+        fdir, h, w = self.frames[i]
+        rgb, depth, zone_m, status = _read_frame(fdir, h, w)
+        if (self.height, self.width) != (h, w):
+            rgb, depth = resample(rgb[None], depth[None], (self.height, self.width))
+            rgb, depth = rgb[0], depth[0]
+        return rgb, depth, zone_m, status
+
+    def recording(self, idx) -> Recording:
+        """The frames `idx` (in that order) as an in-memory Recording."""
+        idx = [int(i) for i in idx]
+        parts = [self.read(i) for i in idx]
+        n, nz = len(idx), len(self.zone_px)
+        rgb = np.stack([p[0] for p in parts]) if parts else \
+            np.empty((0, self.height, self.width, 3), np.uint8)
+        depth = np.stack([p[1] for p in parts]) if parts else \
+            np.empty((0, self.height, self.width), np.uint16)
+        zone_m = np.stack([p[2] for p in parts]) if parts else np.zeros((n, nz), np.float32)
+        status = np.stack([p[3] for p in parts]) if parts else np.zeros((n, nz), np.uint8)
+        return Recording(rgb, depth, zone_m, status, self.zone_px, self.grid,
+                         [self.ids[i] for i in idx])
+
+
+class FrameDataset(Dataset):
+    """torch Dataset streaming frames from a `FrameReader`: item `(i, flip)` = (rgb [3,H,W],
+    sparse [1,H,W], gt [1,H,W]) of frame i, mirrored left-right when `flip`, exactly as
+    `batch(load_recordings(...), [i], [flip])[k][0]`. Meant for a DataLoader whose batch sampler
+    yields lists of `(i, flip)` (training's step plan), with workers decoding in parallel."""
+
+    def __init__(self, reader: FrameReader, valid_status: tuple[int, ...] = (5,)):
+        self.reader, self.valid_status = reader, valid_status
+
+    def __len__(self) -> int:
+        return len(self.reader)
+
+    def __getitem__(self, key):
+        i, flip = key if isinstance(key, tuple) else (key, False)
+        rec = self.reader.recording([i])
+        rgb, sp, gt = batch(rec, np.array([0]), np.array([bool(flip)]), self.valid_status)
         return rgb[0], sp[0], gt[0]

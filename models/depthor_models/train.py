@@ -24,6 +24,15 @@ With `--schedule-s T` the same OneCycle runs over T seconds of training (the sum
 kept in the checkpoint) instead of `--steps` steps, and training stops there: on a shared CPU
 whose speed is not known in advance the schedule still completes. Batches stay a function of
 (seed, step); the learning rate then also depends on the measured step times.
+
+Scale-out (models/README.md "Distributed training"): `torchrun --nproc-per-node N -m
+depthor_models.train …` runs data-parallel (DistributedDataParallel; gloo on CPU, nccl on CUDA;
+`--device`). `--batch` is the global batch: each process takes an equal slice of the same
+(seed, step) plan, and losses and batch-norm statistics are those of the whole batch
+(`dist`), so N processes train what one process trains, step for step, and the schedule is a
+function of the global step. Rank 0 writes the checkpoint and the logs and evaluates;
+`--resume` works with any process count that divides the batch. `--data stream` decodes
+frames in DataLoader workers instead of holding the set in memory.
 """
 
 from __future__ import annotations
@@ -41,7 +50,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from . import data
+from . import data, dist
 from .net import VARIANTS, Depthor, build
 
 MIN_DEPTH_M = 0.1
@@ -60,16 +69,32 @@ def valid_mask(gt: Tensor, lo: float = MIN_DEPTH_M, hi: float = MAX_DEPTH_M) -> 
     return (gt > lo) & (gt < hi)
 
 
+def silog_stats(pred: Tensor, gt: Tensor, lo: float = MIN_DEPTH_M,
+                hi: float = MAX_DEPTH_M) -> Tensor:
+    """(Σ g², Σ g, count), g = log pred − log gt over the valid pixels: the sums SILog is a
+    function of, so that batches split over processes add up (`silog_from_stats`)."""
+    m = valid_mask(gt, lo, hi)
+    if not bool(m.any()):
+        z = pred.sum() * 0.0
+        return torch.stack([z, z, z.detach()])
+    g = torch.log(pred[m].clamp_min(1e-3)) - torch.log(gt[m])
+    return torch.stack([(g * g).sum(), g.sum(), g.new_tensor(float(g.numel()))])
+
+
+def silog_from_stats(s: Tensor, alpha: float = 10.0, lam: float = 0.85) -> Tensor:
+    """α·sqrt(mean g² − λ·(mean g)²) from `silog_stats` sums; 0 (with a graph) for no pixel."""
+    n = float(s[2].detach())
+    if n == 0:
+        return s[0] * 0.0
+    d = s[0] / n - lam * (s[1] / n) ** 2
+    return alpha * torch.sqrt(d.clamp_min(1e-12))
+
+
 def silog_loss(pred: Tensor, gt: Tensor, alpha: float = 10.0, lam: float = 0.85,
                lo: float = MIN_DEPTH_M, hi: float = MAX_DEPTH_M) -> Tensor:
     """α·sqrt(mean g² − λ·(mean g)²), g = log pred − log gt over the batch's valid pixels
     (paper eq. loss). Returns 0 (with a graph) when no pixel is valid."""
-    m = valid_mask(gt, lo, hi)
-    if not bool(m.any()):
-        return pred.sum() * 0.0
-    g = torch.log(pred[m].clamp_min(1e-3)) - torch.log(gt[m])
-    d = (g * g).mean() - lam * g.mean() ** 2
-    return alpha * torch.sqrt(d.clamp_min(1e-12))
+    return silog_from_stats(silog_stats(pred, gt, lo, hi), alpha, lam)
 
 
 def _normalise(x: Tensor) -> Tensor:
@@ -78,12 +103,9 @@ def _normalise(x: Tensor) -> Tensor:
     return (x - t) / s
 
 
-def ssi_inverse_loss(d_inv: Tensor, gt: Tensor, lo: float = MIN_DEPTH_M,
-                     hi: float = MAX_DEPTH_M) -> Tensor:
-    """MiDaS-style affine-invariant loss: per image, the prediction and the reference inverse
-    depth 1/gt over valid pixels are each shifted by their median and scaled by their mean
-    absolute deviation, then compared with the mean absolute difference; averaged over images
-    with at least 16 valid pixels."""
+def ssi_stats(d_inv: Tensor, gt: Tensor, lo: float = MIN_DEPTH_M,
+              hi: float = MAX_DEPTH_M) -> Tensor:
+    """(Σ per-image loss, images) of `ssi_inverse_loss` (see there), summable over processes."""
     losses = []
     for b in range(d_inv.shape[0]):
         m = valid_mask(gt[b], lo, hi)
@@ -93,8 +115,24 @@ def ssi_inverse_loss(d_inv: Tensor, gt: Tensor, lo: float = MIN_DEPTH_M,
         g = _normalise(1.0 / gt[b][m])
         losses.append((p - g).abs().mean())
     if not losses:
-        return d_inv.sum() * 0.0
-    return torch.stack(losses).mean()
+        z = d_inv.sum() * 0.0
+        return torch.stack([z, z.detach()])
+    return torch.stack([torch.stack(losses).sum(), d_inv.new_tensor(float(len(losses)))])
+
+
+def ssi_from_stats(s: Tensor) -> Tensor:
+    """The mean per-image loss from `ssi_stats` sums; 0 (with a graph) for no image."""
+    n = float(s[1].detach())
+    return s[0] * 0.0 if n == 0 else s[0] / n
+
+
+def ssi_inverse_loss(d_inv: Tensor, gt: Tensor, lo: float = MIN_DEPTH_M,
+                     hi: float = MAX_DEPTH_M) -> Tensor:
+    """MiDaS-style affine-invariant loss: per image, the prediction and the reference inverse
+    depth 1/gt over valid pixels are each shifted by their median and scaled by their mean
+    absolute deviation, then compared with the mean absolute difference; averaged over images
+    with at least 16 valid pixels."""
+    return ssi_from_stats(ssi_stats(d_inv, gt, lo, hi))
 
 
 # ---------------------------------------------------------------------------------- metrics
@@ -173,10 +211,12 @@ def predict(net: Depthor, rec: data.Recording, idx: np.ndarray, batch_size: int 
     """The network's depth [N, H, W] for frames `idx` (eval mode; restores the previous mode)."""
     was_training = net.training
     net.eval()
+    p = next(net.parameters())
     out = []
     for s in range(0, len(idx), batch_size):
         rgb, sp, _ = data.batch(rec, idx[s:s + batch_size], None, valid_status)
-        out.append(net(rgb, sp)[:, 0].numpy())
+        depth = net(rgb.to(p.device, p.dtype), sp.to(p.device, p.dtype))[:, 0]
+        out.append(depth.float().cpu().numpy())
     net.train(was_training)
     return np.concatenate(out)
 
@@ -187,11 +227,12 @@ def prior_ssi(net: Depthor, rec: data.Recording, idx: np.ndarray, batch_size: in
     weighted by batch size (eval mode; restores the previous mode)."""
     was_training = net.training
     net.eval()
+    p = next(net.parameters())
     total, n = 0.0, 0
     for s in range(0, len(idx), batch_size):
         rgb, _, gt = data.batch(rec, idx[s:s + batch_size], None)
-        d_inv, _ = net.prior(rgb)
-        total += float(ssi_inverse_loss(d_inv, gt)) * len(rgb)
+        d_inv, _ = net.prior(rgb.to(p.device, p.dtype))
+        total += float(ssi_inverse_loss(d_inv, gt.to(p.device, p.dtype))) * len(rgb)
         n += len(rgb)
     net.train(was_training)
     return total / max(n, 1)
@@ -226,53 +267,75 @@ def _gauss_kernel(sigma: float) -> Tensor:
     return k / k.sum()
 
 
-def photometric(rgb: Tensor, seed: int, step: int, p: float = 0.8) -> Tensor:
-    """RGB-only photometric / sensor augmentation against the sim-to-real gap, a pure function
-    of (seed, step): each image of the batch, with probability `p`, gets exposure gain, white
-    balance (per-channel gain), contrast, saturation, gamma, then with their own probabilities
-    vignetting, Gaussian blur, JPEG re-encoding and signal-dependent noise; the result is
-    rounded to 8 bits as a camera frame is. Sparse input and reference are not touched."""
+def _photometric_params(rng: np.random.Generator, p: float) -> dict | None:
+    """One image's draws of `photometric`, in the order they are taken (None: left as is)."""
+    if rng.random() >= p:
+        return None
+    prm = {"gain": rng.uniform(0.6, 1.5) * rng.uniform(0.85, 1.15, size=3),
+           "contrast": rng.uniform(0.7, 1.3), "saturation": rng.uniform(0.5, 1.4),
+           "gamma": float(rng.uniform(0.7, 1.45))}
+    prm["vignette"] = rng.uniform(0.1, 0.5) if rng.random() < 0.3 else None
+    prm["blur"] = float(rng.uniform(0.4, 1.3)) if rng.random() < 0.3 else None
+    prm["jpeg"] = int(rng.integers(30, 90)) if rng.random() < 0.2 else None
+    prm["shot"], prm["read"] = rng.uniform(0.0, 0.01), rng.uniform(0.0, 0.02)
+    prm["noise_seed"] = int(rng.integers(0, 2**31))
+    return prm
+
+
+def _photometric_apply(x: Tensor, prm: dict) -> Tensor:
+    """`photometric` on one image [3,H,W] with its drawn parameters."""
     from io import BytesIO
 
     from PIL import Image
 
+    _, h, w = x.shape
+    x = x * torch.tensor(prm["gain"], dtype=x.dtype).view(3, 1, 1)
+    m = x.mean()
+    x = (x - m) * prm["contrast"] + m
+    grey = (0.299 * x[0] + 0.587 * x[1] + 0.114 * x[2])[None]
+    x = (grey + (x - grey) * prm["saturation"]).clamp(0.0, 1.0)
+    x = x ** prm["gamma"]
+    if prm["vignette"] is not None:
+        yy = torch.linspace(-1, 1, h).view(h, 1)
+        xx = torch.linspace(-1, 1, w).view(1, w)
+        x = x * (1.0 - prm["vignette"] * (yy * yy + xx * xx) / 2.0)
+    if prm["blur"] is not None:  # defocus / motion-free blur
+        k = _gauss_kernel(prm["blur"])
+        r = len(k) // 2
+        xp = torch.nn.functional.pad(x[None], (r, r, r, r), mode="replicate")
+        xp = torch.nn.functional.conv2d(xp, k.view(1, 1, 1, -1).repeat(3, 1, 1, 1), groups=3)
+        x = torch.nn.functional.conv2d(xp, k.view(1, 1, -1, 1).repeat(3, 1, 1, 1), groups=3)[0]
+    if prm["jpeg"] is not None:
+        arr = (x.clamp(0, 1) * 255).round().byte().permute(1, 2, 0).numpy()
+        buf = BytesIO()
+        Image.fromarray(arr).save(buf, "JPEG", quality=prm["jpeg"])
+        buf.seek(0)
+        with Image.open(buf) as im:
+            x = torch.from_numpy(np.asarray(im.convert("RGB"), np.float32) / 255.0)
+        x = x.permute(2, 0, 1)
+    a, b = prm["shot"], prm["read"]  # shot + read noise
+    g = torch.Generator().manual_seed(prm["noise_seed"])
+    sd = torch.sqrt(a * x.clamp_min(0) + b * b)
+    x = x + sd * torch.randn(x.shape, generator=g)
+    return (x.clamp(0.0, 1.0) * 255.0).round() / 255.0
+
+
+def photometric(rgb: Tensor, seed: int, step: int, p: float = 0.8, first: int = 0) -> Tensor:
+    """RGB-only photometric / sensor augmentation against the sim-to-real gap, a pure function
+    of (seed, step): each image of the batch, with probability `p`, gets exposure gain, white
+    balance (per-channel gain), contrast, saturation, gamma, then with their own probabilities
+    vignetting, Gaussian blur, JPEG re-encoding and signal-dependent noise; the result is
+    rounded to 8 bits as a camera frame is. Sparse input and reference are not touched.
+    `rgb` may be the images `first … first + len(rgb) − 1` of a larger batch (one process's
+    share of the global batch): they get what they would get in the whole batch."""
     rng = np.random.default_rng([seed, 3_000_000, step])
     out = []
-    _, _, h, w = rgb.shape
-    for x in rgb:
-        if rng.random() >= p:
-            out.append(x)
+    for b in range(first + len(rgb)):
+        prm = _photometric_params(rng, p)
+        if b < first:
             continue
-        gain = rng.uniform(0.6, 1.5) * rng.uniform(0.85, 1.15, size=3)
-        x = x * torch.tensor(gain, dtype=x.dtype).view(3, 1, 1)
-        m = x.mean()
-        x = (x - m) * rng.uniform(0.7, 1.3) + m
-        grey = (0.299 * x[0] + 0.587 * x[1] + 0.114 * x[2])[None]
-        x = (grey + (x - grey) * rng.uniform(0.5, 1.4)).clamp(0.0, 1.0)
-        x = x ** float(rng.uniform(0.7, 1.45))
-        if rng.random() < 0.3:  # vignetting
-            yy = torch.linspace(-1, 1, h).view(h, 1)
-            xx = torch.linspace(-1, 1, w).view(1, w)
-            x = x * (1.0 - rng.uniform(0.1, 0.5) * (yy * yy + xx * xx) / 2.0)
-        if rng.random() < 0.3:  # defocus / motion-free blur
-            k = _gauss_kernel(float(rng.uniform(0.4, 1.3)))
-            r = len(k) // 2
-            xp = torch.nn.functional.pad(x[None], (r, r, r, r), mode="replicate")
-            xp = torch.nn.functional.conv2d(xp, k.view(1, 1, 1, -1).repeat(3, 1, 1, 1), groups=3)
-            x = torch.nn.functional.conv2d(xp, k.view(1, 1, -1, 1).repeat(3, 1, 1, 1), groups=3)[0]
-        if rng.random() < 0.2:  # JPEG
-            arr = (x.clamp(0, 1) * 255).round().byte().permute(1, 2, 0).numpy()
-            buf = BytesIO()
-            Image.fromarray(arr).save(buf, "JPEG", quality=int(rng.integers(30, 90)))
-            buf.seek(0)
-            with Image.open(buf) as im:
-                x = torch.from_numpy(np.asarray(im.convert("RGB"), np.float32) / 255.0)
-            x = x.permute(2, 0, 1)
-        a, b = rng.uniform(0.0, 0.01), rng.uniform(0.0, 0.02)  # shot + read noise
-        g = torch.Generator().manual_seed(int(rng.integers(0, 2**31)))
-        sd = torch.sqrt(a * x.clamp_min(0) + b * b)
-        x = x + sd * torch.randn(x.shape, generator=g)
-        out.append((x.clamp(0.0, 1.0) * 255.0).round() / 255.0)
+        x = rgb[b - first]
+        out.append(x if prm is None else _photometric_apply(x, prm))
     return torch.stack(out)
 
 
@@ -303,7 +366,9 @@ class TeacherCache:
         todo = np.unique(idx[~self.done[idx]])
         if len(todo):
             rgb, sp, _ = data.batch(self.rec, todo, None, self.valid_status)
-            self.depth[todo] = self.teacher(rgb, sp)[:, 0].numpy().astype(np.float16)
+            dev = next(self.teacher.parameters()).device
+            out = self.teacher(rgb.to(dev), sp.to(dev))[:, 0].cpu().numpy()
+            self.depth[todo] = out.astype(np.float16)
             self.done[todo] = True
         d = self.depth[idx].astype(np.float32)
         if flips is not None:
@@ -447,17 +512,79 @@ class Stop:
             signal.signal(s, h)
 
 
+class StepBatches(torch.utils.data.Sampler):
+    """Batch sampler of training steps `start … stop − 1`: for each, this rank's share of the
+    global batch of `batch_plan` as `(frame, flip)` pairs (rank r of `world` takes the r-th of
+    `world` equal contiguous slices), for a DataLoader over `data.FrameDataset`."""
+
+    def __init__(self, seed: int, start: int, stop: int, batch_size: int, n: int,
+                 rank: int = 0, world: int = 1):
+        if batch_size % world:
+            raise ValueError(f"--batch {batch_size}: not a multiple of the {world} processes")
+        self.seed, self.start, self.stop, self.batch, self.n = seed, start, stop, batch_size, n
+        self.rank, self.world = rank, world
+
+    def __len__(self) -> int:
+        return max(self.stop - self.start, 0)
+
+    def share(self, step: int) -> tuple[np.ndarray, np.ndarray]:
+        """(frame indices, flips) of this rank's slice of step `step`'s global batch."""
+        idx, flips = batch_plan(self.seed, step, self.batch, self.n)
+        b = self.batch // self.world
+        return idx[self.rank * b:(self.rank + 1) * b], flips[self.rank * b:(self.rank + 1) * b]
+
+    def __iter__(self):
+        for step in range(self.start, self.stop):
+            idx, flips = self.share(step)
+            yield [(int(i), bool(f)) for i, f in zip(idx, flips)]
+
+
+def _load_data(args, size, d: dist.Dist):
+    """(training source, held-out Recording or None): the source is an in-memory Recording
+    (`--data memory`, npz cache) or a `data.FrameReader` (`--data stream`); the held-out set
+    is loaded on rank 0 only (the first --eval-frames frames when streaming)."""
+    if args.data == "stream":
+        train_src = data.FrameReader(args.train, size=size)
+        test_rec = None
+        if d.main:
+            reader = data.FrameReader(args.test, size=size)
+            k = min(args.eval_frames, len(reader)) if args.eval_frames > 0 else len(reader)
+            test_rec = reader.recording(range(k))
+        return train_src, test_rec
+    # Rank 0 first: it writes the caches the others then read.
+    for turn in ((0,), tuple(range(1, d.world))):
+        if d.rank in turn:
+            train_src = data.load_recordings(args.train, size=size)
+            test_rec = data.load_recordings(args.test, size=size) if d.main else None
+        if d.world > 1:
+            dist.agree([0.0], d)
+    return train_src, test_rec
+
+
 def train(args: argparse.Namespace) -> dict:
-    """Runs (or resumes) training as configured by the CLI arguments; returns the last eval row."""
+    """Runs (or resumes) training as configured by the CLI arguments; returns the last eval row
+    (on rank 0; {} on the other ranks of a torchrun job)."""
     torch.set_num_threads(args.threads)
+    d = dist.setup(getattr(args, "device", None))
+    try:
+        return _train(args, d)
+    finally:
+        dist.close(d)
+
+
+def _train(args: argparse.Namespace, d: dist.Dist) -> dict:
+    say = print if d.main else (lambda *a, **k: None)
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    if d.main:
+        out.mkdir(parents=True, exist_ok=True)
     ckpt_path = out / "ckpt.pt"
     net = make_model(args.variant, args.seed)
     prior_only = args.stage == "prior"
     trained = net.prior if prior_only else net
     net.requires_grad_(not prior_only)
     trained.requires_grad_(True)
+    dtype = getattr(torch, getattr(args, "dtype", "float32"))
+    net.to(d.device, dtype)
     opt, sched = make_optim(trained, args.max_lr, args.steps, args.weight_decay)
     step, wall = 0, 0.0
     if args.resume and ckpt_path.exists():
@@ -474,46 +601,69 @@ def train(args: argparse.Namespace) -> dict:
         for k in forced:
             if k == "train" and args.switch_train:
                 if saved.get(k) != args.train:
-                    print(f"resume: training set switched from {saved.get(k)!r} to {args.train!r} "
-                          f"(batches from step {step} on are drawn from the new set)")
+                    say(f"resume: training set switched from {saved.get(k)!r} to {args.train!r} "
+                        f"(batches from step {step} on are drawn from the new set)")
                 continue
             if saved.get(k) != getattr(args, k):
-                print(f"resume: using the checkpoint's {k}={saved.get(k)!r} "
-                      f"(command line said {getattr(args, k)!r})")
+                say(f"resume: using the checkpoint's {k}={saved.get(k)!r} "
+                    f"(command line said {getattr(args, k)!r})")
                 setattr(args, k, saved.get(k))
-        print(f"resumed from {ckpt_path} at step {step} ({wall:.0f} s trained)")
+        was = int(ck.get("world", 1))
+        say(f"resumed from {ckpt_path} at step {step} ({wall:.0f} s trained; written by "
+            f"{was} process{'es' if was > 1 else ''}, continued by {d.world})")
     elif args.init:
         net.load_state_dict(load_weights(args.init))
-        print(f"initialised from {args.init}")
+        say(f"initialised from {args.init}")
     if not args.resume or step == 0:
         torch.manual_seed(args.seed)
-    _rewrite_csv(out / "train.csv", TRAIN_FIELDS, step + 1)
-    _rewrite_csv(out / "eval.csv", EVAL_FIELDS, step + 1)
-    (out / "args.json").write_text(json.dumps(vars(args), indent=1) + "\n")
+    if args.batch % d.world:
+        raise ValueError(f"--batch {args.batch}: the global batch must be a multiple of the "
+                         f"{d.world} processes")
+    if d.main:
+        _rewrite_csv(out / "train.csv", TRAIN_FIELDS, step + 1)
+        _rewrite_csv(out / "eval.csv", EVAL_FIELDS, step + 1)
+        (out / "args.json").write_text(json.dumps(vars(args), indent=1) + "\n")
 
     crop = parse_crop(args.crop)
     t0 = time.perf_counter()
     size = (net.cfg.height, net.cfg.width)  # frames resampled to the model's input, as in eval
-    train_rec = data.load_recordings(args.train, size=size)
-    test_rec = data.load_recordings(args.test, size=size)
-    evaluator = Evaluator(test_rec, args.eval_frames)
-    print(f"data: {len(train_rec)} train / {len(evaluator.idx)} test frames "
-          f"({time.perf_counter() - t0:.1f} s); baselines {json.dumps(evaluator.base)}")
+    train_src, test_rec = _load_data(args, size, d)
+    evaluator = Evaluator(test_rec, args.eval_frames) if d.main else None
+    if d.main:
+        say(f"data: {len(train_src)} train / {len(evaluator.idx)} test frames "
+            f"({time.perf_counter() - t0:.1f} s, {args.data}); baselines "
+            f"{json.dumps(evaluator.base)}")
+    if d.world > 1:
+        say(f"distributed: {d.world} processes ({d.device.type}), {args.batch // d.world} of "
+            f"the global batch {args.batch} each")
 
     teacher = None
     if args.teacher and not prior_only and args.kd_weight > 0:
-        teacher = TeacherCache(load_teacher(args.teacher_variant, args.teacher), train_rec,
-                               out / "teacher_cache.npy")
-        print(f"distillation from {args.teacher} ({args.teacher_variant}), weight "
-              f"{args.kd_weight}; {int(teacher.done.sum())}/{len(train_rec)} frames cached")
+        if args.data == "stream":
+            raise ValueError("--teacher needs --data memory (its cache covers the frames in "
+                             "memory)")
+        teacher = TeacherCache(load_teacher(args.teacher_variant, args.teacher).to(d.device),
+                               train_src, out / "teacher_cache.npy")
+        say(f"distillation from {args.teacher} ({args.teacher_variant}), weight "
+            f"{args.kd_weight}; {int(teacher.done.sum())}/{len(train_src)} frames cached")
 
     captured: dict[str, Tensor] = {}
     net.prior.register_forward_hook(lambda _m, _i, o: captured.__setitem__("d_inv", o[0]))
+    dist.sync_batchnorm(net, d)
+    model = trained
+    if d.world > 1:
+        from torch.nn.parallel import DistributedDataParallel
+
+        model = DistributedDataParallel(
+            trained, device_ids=[d.local_rank] if d.device.type == "cuda" else None,
+            broadcast_buffers=False)
 
     def checkpoint(evaluate: bool) -> dict:
-        _atomic_save({"model": net.state_dict(), "optimizer": opt.state_dict(),
+        state = {k: v.cpu() for k, v in net.state_dict().items()}
+        _atomic_save({"model": state, "optimizer": opt.state_dict(),
                       "scheduler": sched.state_dict(), "step": step, "wall_s": wall,
-                      "rng": {"torch": torch.get_rng_state()}, "args": vars(args)}, ckpt_path)
+                      "rng": {"torch": torch.get_rng_state()}, "args": vars(args),
+                      "world": d.world}, ckpt_path)
         if teacher is not None:
             teacher.save()
         row = {}
@@ -526,6 +676,14 @@ def train(args: argparse.Namespace) -> dict:
         plot(out)
         return row
 
+    share = StepBatches(args.seed, step, args.steps, args.batch, len(train_src), d.rank, d.world)
+    first = d.rank * (args.batch // d.world)
+    batches = None
+    if args.data == "stream":
+        batches = iter(torch.utils.data.DataLoader(
+            data.FrameDataset(train_src), batch_sampler=share, num_workers=args.workers,
+            prefetch_factor=2 if args.workers > 0 else None))
+
     stop = Stop()
     last_ckpt = time.perf_counter()
     deadline = time.perf_counter() + args.time_limit_s if args.time_limit_s > 0 else math.inf
@@ -533,30 +691,45 @@ def train(args: argparse.Namespace) -> dict:
     last_row: dict = {}
     net.train()
     by_time = args.schedule_s > 0
-    while step < min(args.steps, stop_at) and not stop.flag and time.perf_counter() < deadline:
-        if by_time and wall >= args.schedule_s:
+    while step < min(args.steps, stop_at):
+        # Every rank takes the same decision, on rank 0's clock.
+        flag, late, wall = dist.agree([float(stop.flag), float(time.perf_counter() >= deadline),
+                                       wall if d.main else 0.0], d)
+        if flag or late or (by_time and wall >= args.schedule_s):
             break
         ts = time.perf_counter()
-        idx, flips = batch_plan(args.seed, step, args.batch, len(train_rec))
-        rgb, sp, gt = data.batch(train_rec, idx, flips)
+        idx, flips = share.share(step)
+        if batches is None:
+            rgb, sp, gt = data.batch(train_src, idx, flips)
+        else:
+            rgb, sp, gt = next(batches)
         t_depth = None if teacher is None else teacher.get(idx, flips)
         y0, x0, ch, cw = crop_plan(args.seed, step, rgb.shape[2], rgb.shape[3], crop)
         rgb, sp, gt = (t[:, :, y0:y0 + ch, x0:x0 + cw] for t in (rgb, sp, gt))
         if t_depth is not None:
-            t_depth = t_depth[:, :, y0:y0 + ch, x0:x0 + cw]
+            t_depth = t_depth[:, :, y0:y0 + ch, x0:x0 + cw].to(d.device, dtype)
         if args.augment:
-            rgb = photometric(rgb, args.seed, step, args.augment_p)
+            rgb = photometric(rgb, args.seed, step, args.augment_p, first)
+        rgb, sp, gt = (t.to(d.device, dtype) for t in (rgb, sp, gt))
+        # Sums over the global batch (one process: the batch's own), then the losses.
+        if prior_only:
+            parts = [ssi_stats(model(rgb)[0], gt)]
+        else:
+            pred = model(rgb, sp)
+            parts = [silog_stats(pred, gt), ssi_stats(captured["d_inv"], gt)]
+            if t_depth is not None:
+                parts.append(silog_stats(pred, t_depth))
+        sums = dist.all_reduce_sum(torch.cat(parts), d)
         l_kd = None
         if prior_only:
-            l_prior = ssi_inverse_loss(net.prior(rgb)[0], gt)
+            l_prior = ssi_from_stats(sums)
             l_main, loss = None, l_prior
         else:
-            pred = net(rgb, sp)
-            l_main = silog_loss(pred, gt)
-            l_prior = ssi_inverse_loss(captured["d_inv"], gt)
+            l_main = silog_from_stats(sums[0:3])
+            l_prior = ssi_from_stats(sums[3:5])
             loss = l_main + args.prior_weight * l_prior
             if t_depth is not None:
-                l_kd = silog_loss(pred, t_depth)
+                l_kd = silog_from_stats(sums[5:8])
                 loss = loss + args.kd_weight * l_kd
         opt.zero_grad(set_to_none=True)
         loss.backward()
@@ -572,6 +745,8 @@ def train(args: argparse.Namespace) -> dict:
             sched.step()
         step += 1
         wall += time.perf_counter() - ts
+        if not d.main:
+            continue
         _append(out / "train.csv", TRAIN_FIELDS, {
             "step": step, "wall_s": round(wall, 2), "lr": f"{lr:.3e}", "loss": f"{loss.item():.5f}",
             "silog": "" if l_main is None else f"{l_main.item():.5f}",
@@ -586,8 +761,11 @@ def train(args: argparse.Namespace) -> dict:
             last_row = checkpoint(evaluate=True) or last_row
             last_ckpt = time.perf_counter()
     stop.close()
+    del batches
+    if not d.main:
+        return {}
     last_row = checkpoint(evaluate=True) or last_row
-    torch.save(net.state_dict(), out / "model_final.pt")
+    torch.save({k: v.cpu() for k, v in net.state_dict().items()}, out / "model_final.pt")
     print(f"stopped at step {step}/{args.steps}; checkpoint {ckpt_path}", flush=True)
     return last_row
 
@@ -707,6 +885,19 @@ def main(argv: list[str] | None = None) -> int:
                     help="photometric/sensor augmentation of the RGB (`photometric`)")
     ap.add_argument("--augment-p", type=float, default=0.8,
                     help="share of training images that get the photometric augmentation")
+    ap.add_argument("--device", default=None, choices=("cpu", "cuda"),
+                    help="where to train (default: cuda when torch sees a GPU, else cpu); under "
+                         "torchrun each process takes the GPU of its LOCAL_RANK")
+    ap.add_argument("--dtype", default="float32", choices=("float32", "float64"),
+                    help="training precision; float64 is for numerical equivalence checks "
+                         "(e.g. N processes against one), several times slower")
+    ap.add_argument("--data", default="memory", choices=("memory", "stream"),
+                    help="memory: decode every training frame once and keep it in RAM (npz "
+                         "cache in the recording); stream: decode frames as batches need them "
+                         "(DataLoader workers, memory bounded by the batch, no cache)")
+    ap.add_argument("--workers", type=int, default=2,
+                    help="DataLoader worker processes per training process with --data stream "
+                         "(0 = decode in the training process)")
     ap.add_argument("--resume", action="store_true", help="continue from <out>/ckpt.pt")
     ap.add_argument("--switch-train", action="store_true",
                     help="with --resume: keep the schedule but draw the remaining batches from "
@@ -726,10 +917,13 @@ def main(argv: list[str] | None = None) -> int:
         torch.set_num_threads(a.threads)
         net = make_model(a.variant, a.seed)
         net.load_state_dict(load_weights(a.eval_only))
+        net.to(dist.pick_device(a.device))
         size = (net.cfg.height, net.cfg.width)
         print(json.dumps(Evaluator(data.load_recordings(a.test, size=size), a.eval_frames)(net)))
         return 0
-    print(json.dumps(train(a)))
+    row = train(a)
+    if int(os.environ.get("RANK", "0")) == 0:
+        print(json.dumps(row))
     return 0
 
 
