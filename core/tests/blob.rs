@@ -5,7 +5,7 @@ mod common;
 
 use common::{fix_crc, frame, rgb_planar, tiny_net};
 use depthor_core::blob::format::HEADER_LEN;
-use depthor_core::blob::parse;
+use depthor_core::blob::{parse, BlobError};
 use depthor_core::engine::{required_arena_bytes, Engine, Error};
 use proptest::prelude::*;
 use std::sync::OnceLock;
@@ -48,7 +48,7 @@ fn wrong_checksum() {
     let mut b = blob().to_vec();
     let last = b.len() - 1;
     b[last] ^= 0x40;
-    assert!(matches!(parse(&b), Err(Error::BadChecksum { .. })));
+    assert!(matches!(parse(&b), Err(BlobError::BadChecksum { .. })));
     let mut arena = vec![0u8; 1 << 16];
     assert!(matches!(
         Engine::new(&b, &mut arena),
@@ -62,14 +62,14 @@ fn wrong_version_and_magic_and_flags() {
     b[4] = 2;
     assert_eq!(
         parse(&b).err(),
-        Some(Error::UnsupportedVersion { found: 2 })
+        Some(BlobError::UnsupportedVersion { found: 2 })
     );
     let mut b = blob().to_vec();
     b[0] = b'X';
-    assert!(matches!(parse(&b), Err(Error::BadBlob { offset: 0, .. })));
+    assert!(matches!(parse(&b), Err(BlobError::Bad { offset: 0, .. })));
     let mut b = blob().to_vec();
     b[6] = 1;
-    assert!(matches!(parse(&b), Err(Error::BadBlob { offset: 6, .. })));
+    assert!(matches!(parse(&b), Err(BlobError::Bad { offset: 6, .. })));
 }
 
 #[test]
@@ -82,7 +82,7 @@ fn corrupt_fields_with_valid_crc_are_bad_blob() {
     fix_crc(&mut b);
     assert!(matches!(
         parse(&b),
-        Err(Error::BadBlob {
+        Err(BlobError::Bad {
             what: "op: unknown opcode",
             ..
         })
@@ -91,11 +91,11 @@ fn corrupt_fields_with_valid_crc_are_bad_blob() {
     let mut b = blob().to_vec();
     b[HEADER_LEN + 4..HEADER_LEN + 8].copy_from_slice(&0f32.to_le_bytes());
     fix_crc(&mut b);
-    assert!(matches!(parse(&b), Err(Error::BadBlob { offset, .. }) if offset == HEADER_LEN + 4));
+    assert!(matches!(parse(&b), Err(BlobError::Bad { offset, .. }) if offset == HEADER_LEN + 4));
     // payload_len beyond the blob.
     let mut b = blob().to_vec();
     b[8..12].copy_from_slice(&u32::MAX.to_le_bytes());
-    assert!(matches!(parse(&b), Err(Error::BadBlob { offset: 8, .. })));
+    assert!(matches!(parse(&b), Err(BlobError::Bad { offset: 8, .. })));
 }
 
 #[test]

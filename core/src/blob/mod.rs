@@ -1,8 +1,11 @@
-//! The int8 model blob: its byte [`format`], the [`checksum`] over its payload, and the
-//! validating [`parse()`]r that turns it into a [`parse::Graph`] without copying weights.
+//! The int8 model blob (`docs/blob.md`): its byte [`format`], the [`checksum`] over its payload,
+//! and the validating [`parse()`]r that turns it into a [`parse::Graph`] without copying weights,
+//! or reports a [`BlobError`].
 
 pub mod checksum;
+pub mod error;
 pub mod format;
 pub mod parse;
 
+pub use error::BlobError;
 pub use parse::{parse, Graph, OpInfo, TensorInfo};

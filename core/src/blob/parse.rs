@@ -1,11 +1,11 @@
 //! Validating parser of the blob [`format`](super::format). Everything that does not depend on
 //! the run size is checked here (magic, version, CRC, every table entry, arities, dtypes,
 //! channel counts, parameter ranges); shapes are checked by the planner. The parser never
-//! panics: every read is bounds-checked and reports [`Error::BadBlob`] with its offset.
+//! panics: every read is bounds-checked and reports [`BlobError::Bad`] with its offset.
 
 use super::checksum::crc32;
+use super::error::BlobError;
 use super::format::*;
-use crate::engine::Error;
 use crate::kernels::bins::{BinsAttrs, MAX_BINS, MAX_BIN_FEATURES};
 use crate::kernels::conv::{Activation, ConvGeometry, MAX_TAPS};
 use crate::kernels::refine::{RefineAttrs, MAX_ITERATIONS};
@@ -153,8 +153,8 @@ pub struct Graph<'a> {
 
 impl Graph<'_> {
     /// Tensor info by id (ids are validated by [`parse`]).
-    pub fn tensor(&self, id: u16) -> Result<&TensorInfo, Error> {
-        self.tensors.get(id as usize).ok_or(Error::BadBlob {
+    pub fn tensor(&self, id: u16) -> Result<&TensorInfo, BlobError> {
+        self.tensors.get(id as usize).ok_or(BlobError::Bad {
             offset: 0,
             what: "tensor id out of range",
         })
@@ -185,53 +185,53 @@ struct Reader<'a> {
 }
 
 impl<'a> Reader<'a> {
-    fn take(&mut self, n: usize, what: &'static str) -> Result<&'a [u8], Error> {
+    fn take(&mut self, n: usize, what: &'static str) -> Result<&'a [u8], BlobError> {
         let end = self.pos.checked_add(n).filter(|&e| e <= self.end);
         let s = end
             .and_then(|e| self.b.get(self.pos..e))
-            .ok_or(Error::BadBlob {
+            .ok_or(BlobError::Bad {
                 offset: self.pos,
                 what,
             })?;
         self.pos += n;
         Ok(s)
     }
-    fn arr<const N: usize>(&mut self, what: &'static str) -> Result<[u8; N], Error> {
+    fn arr<const N: usize>(&mut self, what: &'static str) -> Result<[u8; N], BlobError> {
         let s = self.take(N, what)?;
         let mut a = [0u8; N];
         a.copy_from_slice(s);
         Ok(a)
     }
-    fn u8(&mut self, what: &'static str) -> Result<u8, Error> {
+    fn u8(&mut self, what: &'static str) -> Result<u8, BlobError> {
         Ok(self.arr::<1>(what)?[0])
     }
-    fn u16(&mut self, what: &'static str) -> Result<u16, Error> {
+    fn u16(&mut self, what: &'static str) -> Result<u16, BlobError> {
         Ok(u16::from_le_bytes(self.arr(what)?))
     }
-    fn u32(&mut self, what: &'static str) -> Result<u32, Error> {
+    fn u32(&mut self, what: &'static str) -> Result<u32, BlobError> {
         Ok(u32::from_le_bytes(self.arr(what)?))
     }
-    fn i32(&mut self, what: &'static str) -> Result<i32, Error> {
+    fn i32(&mut self, what: &'static str) -> Result<i32, BlobError> {
         Ok(i32::from_le_bytes(self.arr(what)?))
     }
-    fn f32(&mut self, what: &'static str) -> Result<f32, Error> {
+    fn f32(&mut self, what: &'static str) -> Result<f32, BlobError> {
         Ok(f32::from_le_bytes(self.arr(what)?))
     }
-    fn zero16(&mut self, what: &'static str) -> Result<(), Error> {
+    fn zero16(&mut self, what: &'static str) -> Result<(), BlobError> {
         let at = self.pos;
         if self.u16(what)? != 0 {
-            return Err(Error::BadBlob { offset: at, what });
+            return Err(BlobError::Bad { offset: at, what });
         }
         Ok(())
     }
-    fn align(&mut self, a: usize, what: &'static str) -> Result<(), Error> {
+    fn align(&mut self, a: usize, what: &'static str) -> Result<(), BlobError> {
         let pad = (a - self.pos % a) % a;
         self.take(pad, what).map(|_| ())
     }
 }
 
-fn bad(offset: usize, what: &'static str) -> Error {
-    Error::BadBlob { offset, what }
+fn bad(offset: usize, what: &'static str) -> BlobError {
+    BlobError::Bad { offset, what }
 }
 
 /// Reads a little-endian f32 array element from validated bytes.
@@ -263,7 +263,7 @@ fn arity(code: u8) -> Option<(usize, usize)> {
 }
 
 /// Parses and validates a blob (see the module doc).
-pub fn parse(blob: &[u8]) -> Result<Graph<'_>, Error> {
+pub fn parse(blob: &[u8]) -> Result<Graph<'_>, BlobError> {
     let mut r = Reader {
         b: blob,
         pos: 0,
@@ -274,7 +274,7 @@ pub fn parse(blob: &[u8]) -> Result<Graph<'_>, Error> {
     }
     let version = r.u16("header: version")?;
     if version != VERSION {
-        return Err(Error::UnsupportedVersion { found: version });
+        return Err(BlobError::UnsupportedVersion { found: version });
     }
     if r.u16("header: flags")? != 0 {
         return Err(bad(6, "header: unknown flags"));
@@ -295,7 +295,7 @@ pub fn parse(blob: &[u8]) -> Result<Graph<'_>, Error> {
         .ok_or(bad(8, "header: payload_len beyond the blob"))?;
     let computed = crc32(&blob[HEADER_LEN..end]);
     if computed != stored {
-        return Err(Error::BadChecksum { stored, computed });
+        return Err(BlobError::BadChecksum { stored, computed });
     }
     r.end = end;
     if height == 0 || width == 0 {
@@ -444,7 +444,7 @@ pub fn parse(blob: &[u8]) -> Result<Graph<'_>, Error> {
         let at = op.offset;
         let in_c = tensor(op.inputs[0], at)?.channels;
         let out_c = tensor(op.output, at)?.channels;
-        let param = |rel: u32, len: usize, what: &'static str| -> Result<Param, Error> {
+        let param = |rel: u32, len: usize, what: &'static str| -> Result<Param, BlobError> {
             let offset = data.checked_add(rel as usize).ok_or(bad(at, what))?;
             match offset.checked_add(len) {
                 Some(e) if rel != NONE && e <= end => Ok(Param {
@@ -523,7 +523,7 @@ pub fn parse(blob: &[u8]) -> Result<Graph<'_>, Error> {
     })
 }
 
-fn check_scales(blob: &[u8], p: Param, n: usize, at: usize) -> Result<(), Error> {
+fn check_scales(blob: &[u8], p: Param, n: usize, at: usize) -> Result<(), BlobError> {
     let bytes = blob.get(p.range()).ok_or(bad(at, "scales"))?;
     for i in 0..n {
         let s = f32_at(bytes, i);
@@ -539,7 +539,7 @@ fn check_scales(blob: &[u8], p: Param, n: usize, at: usize) -> Result<(), Error>
 
 const NO_PARAM: Param = Param { offset: 0, len: 0 };
 
-fn read_attrs(code: u8, a: &mut Reader) -> Result<(Attrs, [u32; 3]), Error> {
+fn read_attrs(code: u8, a: &mut Reader) -> Result<(Attrs, [u32; 3]), BlobError> {
     use opcode::*;
     let at = a.pos;
     Ok(match code {
@@ -692,7 +692,7 @@ fn check_types(
     op: &OpInfo,
     tensors: &[TensorInfo],
     produced: &[bool; MAX_TENSORS],
-) -> Result<(), Error> {
+) -> Result<(), BlobError> {
     use opcode::*;
     let at = op.offset;
     let t = |id: u16| {

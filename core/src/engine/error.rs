@@ -1,6 +1,7 @@
 //! The engine's error type: everything `Engine::new`, `required_arena_bytes` and `Engine::run`
 //! can report. Errors are `Copy` so embedded callers can store and match them freely.
 
+use crate::blob::BlobError;
 use crate::engine::plan::PlanError;
 use crate::kernels::KernelError;
 
@@ -52,6 +53,16 @@ pub enum Error {
         /// The kernel's reason.
         error: KernelError,
     },
+}
+
+impl From<BlobError> for Error {
+    fn from(e: BlobError) -> Self {
+        match e {
+            BlobError::Bad { offset, what } => Error::BadBlob { offset, what },
+            BlobError::BadChecksum { stored, computed } => Error::BadChecksum { stored, computed },
+            BlobError::UnsupportedVersion { found } => Error::UnsupportedVersion { found },
+        }
+    }
 }
 
 impl From<PlanError> for Error {
