@@ -79,10 +79,11 @@ def setup(device: str | None = None, timeout_min: float = 60.0) -> Dist:
     return Dist(tdist.get_rank(), tdist.get_world_size(), local, dev, group, control)
 
 
-def close(d: Dist) -> None:
-    """Leaves the process group (waits for every rank first)."""
+def close(d: Dist, wait: bool = True) -> None:
+    """Leaves the process group (after every rank got here, when `wait`)."""
     if d.world > 1 and tdist.is_initialized():
-        tdist.barrier(group=d.control)
+        if wait:
+            tdist.barrier(group=d.control)
         tdist.destroy_process_group()
 
 

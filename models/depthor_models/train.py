@@ -567,9 +567,12 @@ def train(args: argparse.Namespace) -> dict:
     torch.set_num_threads(args.threads)
     d = dist.setup(getattr(args, "device", None))
     try:
-        return _train(args, d)
-    finally:
-        dist.close(d)
+        row = _train(args, d)
+    except BaseException:
+        dist.close(d, wait=False)  # torchrun ends the other ranks
+        raise
+    dist.close(d)
+    return row
 
 
 def _train(args: argparse.Namespace, d: dist.Dist) -> dict:
