@@ -94,7 +94,9 @@ impl Int8Model {
     pub fn from_bytes(blob: Vec<u8>, size: Option<(usize, usize)>) -> Result<Self, InferenceError> {
         let (height, width) = match size {
             Some(s) => s,
-            None => depthor_core::blob::parse(&blob).map(|g| (g.height, g.width))?,
+            None => depthor_core::blob::parse(&blob)
+                .map(|g| (g.height, g.width))
+                .map_err(depthor_core::engine::Error::from)?,
         };
         // Bounded before planning, so a header claiming a huge input is refused at once.
         if height == 0 || width == 0 || height.saturating_mul(width) > MAX_INPUT_PIXELS {
