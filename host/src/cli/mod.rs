@@ -11,6 +11,7 @@ mod gap;
 mod gap_bench;
 mod import;
 mod info;
+mod merge;
 mod project;
 mod quantize;
 mod sim;
@@ -47,6 +48,8 @@ enum Command {
     Import(import::Args),
     /// Summarise a recording: frames, resolution, reference depth and zone validity.
     Info(info::Args),
+    /// Join the shard recordings of a `depthor sim --shard K/N` run into one recording.
+    Merge(merge::Args),
     /// Simulate dToF: synthetic scenes (--scenes) or an existing recording (--from).
     Sim(sim::Args),
     /// Draw a frame's dToF zones projected onto its RGB image.
@@ -67,6 +70,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::GapBench(args) => gap_bench::handle(args),
         Command::Import(args) => import::handle(args),
         Command::Info(args) => info::handle(args),
+        Command::Merge(args) => merge::handle(args),
         Command::Project(args) => project::handle(args),
         Command::Sim(args) => sim::handle(args),
         Command::Quantize(args) => quantize::handle(args),

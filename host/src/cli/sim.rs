@@ -5,6 +5,7 @@
 //! depthor sim --preset l5 --scenes N --seed S --out DIR [--width W --height H] [--preview]
 //!             [--scene-config scenes.json]
 //! depthor sim --config cfg.json --from RECORDING --out DIR [--preview]
+//! depthor sim … --shard K/N      # frames K, K+N, … of the same run (join with `depthor merge`)
 //! ```
 
 use anyhow::{bail, Context, Result};
@@ -16,7 +17,7 @@ use depthor_host::dataset::{
     to_recording_frame, SynthFrame,
 };
 use depthor_host::recording::{
-    CameraMeta, Frame, FrameMeta, Recording, RecordingWriter, WriteOptions,
+    CameraMeta, Frame, FrameMeta, Recording, RecordingWriter, Shard, WriteOptions,
 };
 use depthor_host::sim::{preset, SimConfig};
 use depthor_host::viz::{depth_image, labels_image, mosaic, render_projection, Overlay};
@@ -61,6 +62,10 @@ pub struct Args {
     /// Replace an existing recording at --out.
     #[arg(long)]
     overwrite: bool,
+    /// Write only frames K, K+N, K+2N, … of the run (same seeds, ids and times as in the
+    /// unsharded run); `depthor merge` joins the N shards into the unsharded recording.
+    #[arg(long, value_name = "K/N", value_parser = Shard::parse, default_value = "0/1")]
+    shard: Shard,
 }
 
 /// Frames generated in parallel before they are written in order.
@@ -86,13 +91,13 @@ pub fn handle(args: Args) -> Result<()> {
     let out = match (&args.scenes, &args.from) {
         (Some(n), None) => {
             let (h, w) = size(&args, preset_name, None)?;
-            check_memory(&cfg, w, h, CHUNK.min(*n), &source)?;
+            check_memory(&cfg, w, h, CHUNK.min(args.shard.len(*n)), &source)?;
             synthetic(&args, &cfg, preset_name, *n, w, h)?
         }
         (None, Some(src)) => {
             let rec = Recording::open(src)?;
             let (h, w) = size(&args, preset_name, Some(&rec))?;
-            check_memory(&cfg, w, h, rec.len() as u64, &source)?;
+            check_memory(&cfg, w, h, args.shard.len(rec.len() as u64), &source)?;
             from_recording(&args, &cfg, &rec, w, h)?
         }
         _ => bail!("sim: give either --scenes N or --from RECORDING"),
@@ -136,7 +141,7 @@ fn size(args: &Args, preset_name: &str, src: Option<&Recording>) -> Result<(u32,
     })
 }
 
-/// Renders and simulates `n` scenes, writing them in order.
+/// Renders and simulates this shard's frames of `n` scenes, writing them in order.
 fn synthetic(
     args: &Args,
     cfg: &SimConfig,
@@ -156,28 +161,25 @@ fn synthetic(
             overwrite: args.overwrite,
         },
     )?;
-    let bar = super::progress(n, "simulating scenes");
-    let mut start = 0;
-    while start < n {
-        let end = (start + CHUNK).min(n);
-        let frames: Vec<SynthFrame> = (start..end)
-            .into_par_iter()
-            .map(|i| synth_frame(&scene_cfg, cfg, args.seed, i, w, h))
+    let mine: Vec<u64> = args.shard.frames(n).collect();
+    let bar = super::progress(mine.len() as u64, "simulating scenes");
+    for chunk in mine.chunks(CHUNK as usize) {
+        let frames: Vec<SynthFrame> = chunk
+            .par_iter()
+            .map(|&i| synth_frame(&scene_cfg, cfg, args.seed, i, w, h))
             .collect::<Result<_, _>>()?;
-        for (k, f) in frames.iter().enumerate() {
-            let i = start + k as u64;
+        for (&i, f) in chunk.iter().zip(&frames) {
             let (mut fm, frame) = to_recording_frame(&format!("{i:06}"), f);
             fm.t_s = i as f64;
             writer.add_frame(fm, &frame)?;
             bar.inc(1);
         }
-        start = end;
     }
     bar.finish_and_clear();
     Ok(writer.seal()?)
 }
 
-/// Simulates the sensor for every frame of `rec` at `w × h`.
+/// Simulates the sensor for this shard's frames of `rec` at `w × h`.
 fn from_recording(
     args: &Args,
     cfg: &SimConfig,
@@ -191,17 +193,30 @@ fn from_recording(
             rec.dir().display()
         );
     }
-    let bar = super::progress(rec.len() as u64, "simulating frames");
-    let frames = (0..rec.len())
-        .into_par_iter()
-        .map(|i| {
+    let mine: Vec<usize> = args
+        .shard
+        .frames(rec.len() as u64)
+        .map(|i| i as usize)
+        .collect();
+    let bar = super::progress(mine.len() as u64, "simulating frames");
+    let frames = mine
+        .par_iter()
+        .map(|&i| {
             let r = simulate_recording_frame(rec, i, cfg, args.seed, w, h);
             bar.inc(1);
             r
         })
         .collect::<Result<Vec<_>, _>>()?;
     bar.finish_and_clear();
-    let first = &frames[0].0.camera;
+    // The header's camera is the source's first frame's in every shard, as unsharded.
+    let first = &match mine.first() {
+        Some(0) => frames[0].0.camera,
+        _ => {
+            simulate_recording_frame(rec, 0, cfg, args.seed, w, h)?
+                .0
+                .camera
+        }
+    };
     let mut writer = RecordingWriter::create_with(
         &args.out,
         recording_meta(cfg, first),
@@ -209,7 +224,7 @@ fn from_recording(
             overwrite: args.overwrite,
         },
     )?;
-    for (i, (r, sim)) in frames.iter().enumerate() {
+    for (&i, (r, sim)) in mine.iter().zip(&frames) {
         let src = &rec.meta().frames[i];
         let camera = CameraMeta::from(r.camera);
         let fm = FrameMeta {

@@ -9,16 +9,19 @@
 //! <dir>/frames/<id>/labels.png   optional 8-bit material classes 0..=3
 //! ```
 //! [`Recording::open`] validates the header and that every frame directory exists;
-//! [`Recording::read_frame`] validates one frame. [`RecordingWriter`] writes atomically.
+//! [`Recording::read_frame`] validates one frame. [`RecordingWriter`] writes atomically;
+//! [`merge_shards`] joins the shards of a sharded run.
 
 mod error;
 mod json;
+mod merge;
 mod meta;
 mod reader;
 mod summary;
 mod writer;
 
 pub use error::{Invalid, RecordingError};
+pub use merge::{merge_shards, Shard};
 pub use meta::{
     frame_id_is_valid, CalibrationData, CameraMeta, DistanceMeta, DtofFrame, DtofMeta,
     ExtrinsicsMeta, FrameMeta, RecordingMeta, FORMAT, MAX_LABEL, MAX_ST_STATUS,
