@@ -10,7 +10,7 @@ use crate::kernels::conv::{conv2d_with, ChannelQuant, Conv2d, ConvQuant};
 use crate::kernels::elementwise::{self, AddQuant, MulQuant, Rescale};
 use crate::kernels::isa::Isa;
 use crate::kernels::pool::{self, MeanQuant};
-use crate::kernels::refine::{refine_with, I8Map, KERNELS};
+use crate::kernels::refine::{refine_with, I8Map, WholeMaps, KERNELS};
 use crate::kernels::requant::QParams;
 use crate::kernels::resize;
 use crate::kernels::KernelError;
@@ -796,12 +796,13 @@ fn exec(
                 m(3, KERNELS[2] * KERNELS[2] - 1)?,
             ];
             let (km, tm) = (m(4, 3)?, m(5, 3)?);
+            let mut rows = WholeMaps::new([&aff[0], &aff[1], &aff[2]], x_shape.w);
             refine_with(
                 isa,
                 typed(ins[0], i)?,
                 x_shape.h,
                 x_shape.w,
-                [&aff[0], &aff[1], &aff[2]],
+                &mut rows,
                 &km,
                 &tm,
                 attrs,

@@ -28,6 +28,7 @@ use crate::kernels::conv::{ChannelQuant, Conv2d};
 use crate::kernels::elementwise::{AddQuant, MulQuant, Rescale};
 use crate::kernels::float::Broadcast;
 use crate::kernels::pool::MeanQuant;
+use crate::kernels::refine;
 use crate::kernels::Shape;
 use core::mem::size_of;
 use core::ops::Range;
@@ -332,9 +333,11 @@ fn plan_op(i: usize, op: &OpInfo, g: &Graph, shapes: &[Shape]) -> Result<OpPlan,
                     return Err(err("refine: inputs differ in H or W"));
                 }
             }
-            p.scratch = x
-                .plane()
-                .and_then(|n| n.checked_mul(8))
+            let Attrs::Refine(attrs) = &op.attrs else {
+                return Err(err("refine: attributes"));
+            };
+            p.scratch = refine::scratch_len(x.w, attrs.iterations)
+                .checked_mul(4)
                 .ok_or(PlanError::TooLarge)?;
         }
         _ => return Err(err("op attributes do not match the opcode")),

@@ -430,8 +430,55 @@ pub fn conv2d_with(
     scratch: &mut [i32],
 ) -> Result<Shape, KernelError> {
     let out = op.check(in_shape)?;
+    let plane = out.plane().ok_or(KernelError::Shape)?;
+    let dst = OutRows {
+        rows: 0..out.h,
+        stride: plane,
+    };
+    conv2d_rows_with(isa, op, input, in_shape, &dst, output, scratch)?;
+    Ok(out)
+}
+
+/// Where [`conv2d_rows_with`] writes: output rows `rows` of every channel, channel `o`'s row
+/// `y` at `o · stride + (y − rows.start) · W` of the output slice.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct OutRows {
+    /// Output rows computed.
+    pub rows: core::ops::Range<usize>,
+    /// Elements between two channels in the output slice (≥ `rows.len() · W`).
+    pub stride: usize,
+}
+
+/// As [`conv2d_with`] for the output rows `dst.rows` only, written at `dst`'s layout: each
+/// row gets the bits the whole convolution gives it (the refinement computes its affinity
+/// heads one row at a time this way). Returns the whole output's shape.
+pub fn conv2d_rows_with(
+    isa: Isa,
+    op: &Conv2d,
+    input: &[i8],
+    in_shape: Shape,
+    dst: &OutRows,
+    output: &mut [i8],
+    scratch: &mut [i32],
+) -> Result<Shape, KernelError> {
+    let out = op.check(in_shape)?;
     need(input, in_shape)?;
-    need(output, out)?;
+    let band = dst
+        .rows
+        .len()
+        .checked_mul(out.w)
+        .ok_or(KernelError::Shape)?;
+    let last = (out.c.saturating_sub(1))
+        .checked_mul(dst.stride)
+        .and_then(|n| n.checked_add(band))
+        .ok_or(KernelError::Shape)?;
+    if dst.rows.start > dst.rows.end
+        || dst.rows.end > out.h
+        || dst.stride < band
+        || output.len() < last
+    {
+        return Err(KernelError::Shape);
+    }
     if !isa.available() {
         return Err(KernelError::Isa);
     }
@@ -442,12 +489,11 @@ pub fn conv2d_with(
     let depthwise = op.geometry.groups == in_shape.c
         && out.c == in_shape.c
         && len >= out.w.div_ceil(PB) * PB + in_shape.w;
+    let scratch = &mut scratch[..len];
     match isa {
-        _ if depthwise => {
-            depthwise_conv(isa, op, input, in_shape, out, output, &mut scratch[..len])
-        }
-        Isa::Avx512Vnni => run::<Quads>(isa, op, input, in_shape, out, output, &mut scratch[..len]),
-        _ => run::<Pairs>(isa, op, input, in_shape, out, output, &mut scratch[..len]),
+        _ if depthwise => depthwise_conv(isa, op, input, in_shape, out, dst, output, scratch),
+        Isa::Avx512Vnni => run::<Quads>(isa, op, input, in_shape, out, dst, output, scratch),
+        _ => run::<Pairs>(isa, op, input, in_shape, out, dst, output, scratch),
     }
     Ok(out)
 }
@@ -502,12 +548,14 @@ impl Micro for Quads {
 /// Depthwise convolution (one input and one output channel per group): per channel and output
 /// row, every tap adds `w · (x − zp)` to a row of i32 sums (16-bit products, exact), which the
 /// compiler vectorises across the row; then the row is requantised like a conv block.
+#[allow(clippy::too_many_arguments)]
 fn depthwise_conv(
     isa: Isa,
     op: &Conv2d,
     input: &[i8],
     in_shape: Shape,
     out: Shape,
+    dst: &OutRows,
     output: &mut [i8],
     scratch: &mut [i32],
 ) {
@@ -515,33 +563,37 @@ fn depthwise_conv(
         #[cfg(target_arch = "x86_64")]
         Isa::Avx2 | Isa::Avx512Vnni if Isa::Avx2.available() => {
             // SAFETY: AVX2 is available (checked).
-            unsafe { depthwise_avx2(isa, op, input, in_shape, out, output, scratch) }
+            unsafe { depthwise_avx2(isa, op, input, in_shape, out, dst, output, scratch) }
         }
-        _ => depthwise_rows(isa, op, input, in_shape, out, output, scratch),
+        _ => depthwise_rows(isa, op, input, in_shape, out, dst, output, scratch),
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
 unsafe fn depthwise_avx2(
     isa: Isa,
     op: &Conv2d,
     input: &[i8],
     in_shape: Shape,
     out: Shape,
+    dst: &OutRows,
     output: &mut [i8],
     scratch: &mut [i32],
 ) {
-    depthwise_rows(isa, op, input, in_shape, out, output, scratch)
+    depthwise_rows(isa, op, input, in_shape, out, dst, output, scratch)
 }
 
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn depthwise_rows(
     isa: Isa,
     op: &Conv2d,
     input: &[i8],
     in_shape: Shape,
     out: Shape,
+    dst: &OutRows,
     output: &mut [i8],
     scratch: &mut [i32],
 ) {
@@ -556,7 +608,7 @@ fn depthwise_rows(
         let chan = &input[c * ih * iw..(c + 1) * ih * iw];
         let w = &op.weights[c * kh * kw..(c + 1) * kh * kw];
         let rq = [op.row_quant(c, op.channels[c].bias)];
-        for oy in 0..out.h {
+        for oy in dst.rows.clone() {
             acc.fill(0);
             for ky in 0..kh {
                 let iy = (oy * g.stride[0] + ky * g.dilation[0]) as isize - g.padding[0] as isize;
@@ -591,19 +643,21 @@ fn depthwise_rows(
             for ox0 in (0..out.w).step_by(PB) {
                 let n = PB.min(out.w - ox0);
                 block[..n].copy_from_slice(&acc[ox0..ox0 + n]);
-                let at = c * out.h * out.w + oy * out.w + ox0;
-                op.finish_block(isa, &rq, c, &block, n, output, at, out.h * out.w);
+                let at = c * dst.stride + (oy - dst.rows.start) * out.w + ox0;
+                op.finish_block(isa, &rq, c, &block, n, output, at, dst.stride);
             }
         }
     }
 }
 
+#[allow(clippy::too_many_arguments)]
 fn run<F: Micro>(
     isa: Isa,
     op: &Conv2d,
     input: &[i8],
     in_shape: Shape,
     out: Shape,
+    dst: &OutRows,
     output: &mut [i8],
     scratch: &mut [i32],
 ) {
@@ -625,7 +679,6 @@ fn run<F: Micro>(
         }
     }
     let plane_in = in_shape.h * in_shape.w;
-    let plane_out = out.h * out.w;
     let zp = op.quant.input_zero_point;
     let group_shape = Shape::new(icg, in_shape.h, in_shape.w);
     let mut acc: Acc = [0; NB * PB];
@@ -635,7 +688,7 @@ fn run<F: Micro>(
         let w = &op.weights[o_first * icg * kh * kw..(o_first + ocg) * icg * kh * kw];
         pack::pack_weights::<F>(g, w, icg, ocg, &dims, weights, sums);
 
-        for oy in 0..out.h {
+        for oy in dst.rows.clone() {
             pack::pack_rows::<F>(g, x, group_shape, out.w, oy, zp, &dims, rows);
             for ox0 in (0..out.w).step_by(PB) {
                 let n = PB.min(out.w - ox0);
@@ -648,7 +701,7 @@ fn run<F: Micro>(
                     };
                     F::kernel(isa, &task, &mut acc);
                     let o0 = o_first + b * NB;
-                    let at = o0 * plane_out + oy * out.w + ox0;
+                    let at = o0 * dst.stride + (oy - dst.rows.start) * out.w + ox0;
                     let nb = NB.min(ocg - b * NB);
                     let mut rq = [RowQuant::default(); NB];
                     for (j, q) in rq.iter_mut().enumerate().take(nb) {
@@ -657,7 +710,7 @@ fn run<F: Micro>(
                             .wrapping_sub(F::bias_term(zp, sums[b * NB + j]));
                         *q = op.row_quant(o0 + j, base);
                     }
-                    op.finish_block(isa, &rq[..nb], o0, &acc, n, output, at, plane_out);
+                    op.finish_block(isa, &rq[..nb], o0, &acc, n, output, at, dst.stride);
                 }
             }
         }
@@ -946,6 +999,37 @@ pub(crate) mod tests {
 
     /// Depthwise shapes (the dedicated row path) on every kernel set against the reference:
     /// strides, dilations, paddings, kernel sizes, widths below and above one pixel block.
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+        /// Any band of output rows, written at any channel stride, holds the whole output's bits
+        /// (every kernel set of this CPU; depthwise and grouped cases included).
+        #[test]
+        fn row_bands_equal_the_whole_output(c in arb_valid(), cut in 0usize..64, extra in 0usize..9) {
+            let (out, whole) = run(&c, conv2d_ref);
+            let ch = channels(&c);
+            let op = Conv2d {
+                geometry: c.geometry,
+                quant: ConvQuant::new(c.in_q.zero_point, c.out_q.zero_point, c.act),
+                weights: &c.weights,
+                channels: &ch,
+            };
+            let y0 = cut % out.h;
+            let y1 = (y0 + 1 + cut / 7).min(out.h);
+            let stride = (y1 - y0) * out.w + extra;
+            let mut scratch = std::vec![0i32; Conv2d::scratch_len(&c.geometry, c.in_shape, out)];
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                let mut band = std::vec![0x55i8; (out.c - 1) * stride + (y1 - y0) * out.w];
+                let dst = OutRows { rows: y0..y1, stride };
+                conv2d_rows_with(isa, &op, &c.input, c.in_shape, &dst, &mut band, &mut scratch).unwrap();
+                for o in 0..out.c {
+                    let want = &whole[o * out.h * out.w + y0 * out.w..o * out.h * out.w + y1 * out.w];
+                    let got = &band[o * stride..o * stride + (y1 - y0) * out.w];
+                    prop_assert_eq!(got, want, "{} channel {} rows {}..{}", isa.name(), o, y0, y1);
+                }
+            }
+        }
+    }
+
     #[test]
     fn depthwise_matches_reference_on_every_set() {
         let mut seed = 7u64;
