@@ -2,7 +2,7 @@
 
 use super::cast::{view, view_mut, Pod};
 use super::error::Error;
-use super::plan::{plan, Plan, ALIGN};
+use super::plan::{plan_with, Memory, Plan, ALIGN};
 use crate::blob::format::{opcode, MAX_INPUTS};
 use crate::blob::parse::{f32_at, i32_at, parse, Attrs, DType, Graph, OpInfo};
 use crate::kernels::bins::{bin_centres, bins_head_i8, BinChannel, MAX_BINS};
@@ -10,7 +10,9 @@ use crate::kernels::conv::{conv2d_with, ChannelQuant, Conv2d, ConvQuant};
 use crate::kernels::elementwise::{self, AddQuant, MulQuant, Rescale};
 use crate::kernels::isa::Isa;
 use crate::kernels::pool::{self, MeanQuant};
-use crate::kernels::refine::{refine_with, I8Map, WholeMaps, KERNELS};
+use crate::kernels::refine::{
+    self, refine_with, ConvRows, Head, I8Map, RefineAttrs, WholeMaps, KERNELS,
+};
 use crate::kernels::requant::QParams;
 use crate::kernels::resize;
 use crate::kernels::KernelError;
@@ -102,10 +104,21 @@ pub struct Engine<'a> {
     isa: Isa,
 }
 
-/// Arena bytes `blob` needs at `height × width` (parses and plans; nothing runs).
+/// Arena bytes `blob` needs at `height × width` (parses and plans; nothing runs), with the
+/// default [`Memory::Streamed`] plan that [`Engine::new`] and [`Engine::with_size`] use.
 pub fn required_arena_bytes(blob: &[u8], height: usize, width: usize) -> Result<usize, Error> {
+    required_arena_bytes_with(blob, height, width, Memory::Streamed)
+}
+
+/// As [`required_arena_bytes`] for the plan `memory` ([`Engine::with_memory`]).
+pub fn required_arena_bytes_with(
+    blob: &[u8],
+    height: usize,
+    width: usize,
+    memory: Memory,
+) -> Result<usize, Error> {
     let g = parse(blob)?;
-    Ok(plan(&g, height, width)?.arena_bytes())
+    Ok(plan_with(&g, height, width, memory)?.arena_bytes())
 }
 
 fn kerr(op: usize) -> impl Fn(KernelError) -> Error + Copy {
@@ -168,7 +181,7 @@ impl<'a> Engine<'a> {
     pub fn new(blob: &'a [u8], arena: &'a mut [u8]) -> Result<Engine<'a>, Error> {
         let g = parse(blob)?;
         let (h, w) = (g.height, g.width);
-        Self::prepare(g, arena, h, w)
+        Self::prepare(g, arena, h, w, Memory::Streamed)
     }
 
     /// As [`Engine::new`] for an input of `height × width` instead of the native size.
@@ -178,7 +191,19 @@ impl<'a> Engine<'a> {
         height: usize,
         width: usize,
     ) -> Result<Engine<'a>, Error> {
-        Self::prepare(parse(blob)?, arena, height, width)
+        Self::prepare(parse(blob)?, arena, height, width, Memory::Streamed)
+    }
+
+    /// As [`Engine::with_size`] with the plan `memory`: [`Memory::Whole`] keeps every op's
+    /// output whole, so that [`Engine::run_observed`] sees all of them (more arena).
+    pub fn with_memory(
+        blob: &'a [u8],
+        arena: &'a mut [u8],
+        height: usize,
+        width: usize,
+        memory: Memory,
+    ) -> Result<Engine<'a>, Error> {
+        Self::prepare(parse(blob)?, arena, height, width, memory)
     }
 
     fn prepare(
@@ -186,8 +211,9 @@ impl<'a> Engine<'a> {
         arena: &'a mut [u8],
         h: usize,
         w: usize,
+        memory: Memory,
     ) -> Result<Engine<'a>, Error> {
-        let plan = plan(&graph, h, w)?;
+        let plan = plan_with(&graph, h, w, memory)?;
         let have = arena.len();
         let need = plan.arena_bytes();
         let pad = arena.as_ptr().align_offset(ALIGN);
@@ -270,7 +296,9 @@ impl<'a> Engine<'a> {
     }
 
     /// As [`Engine::run`], calling `observer(op_index, output)` right after each op with that
-    /// op's whole output tensor (before later ops may reuse its arena bytes).
+    /// op's whole output tensor (before later ops may reuse its arena bytes). Ops fused into a
+    /// streamed refinement ([`Memory::Streamed`]) run inside it and are not observed; build the
+    /// engine with [`Memory::Whole`] to see every op.
     pub fn run_observed(
         &mut self,
         rgb: &[u8],
@@ -442,6 +470,9 @@ impl<'a> Engine<'a> {
         let persistent = self.plan.persistent_bytes();
         let (consts, act) = self.arena.split_at_mut(persistent);
         for (i, op) in self.graph.ops.iter().enumerate() {
+            if self.plan.fused_into(i).is_some() {
+                continue; // runs row by row inside its refinement
+            }
             exec(&self.graph, &self.plan, i, op, consts, act, self.isa)?;
             if let Some(f) = observer.as_deref_mut() {
                 observe(&self.graph, &self.plan, i, op, act, f)?;
@@ -785,6 +816,9 @@ fn exec(
             )
             .map_err(e)?;
         }
+        (opcode::REFINE, Attrs::Refine(attrs)) if plan.fused_heads(i).is_some() => {
+            return exec_refine_streamed(g, plan, i, op, attrs, consts, act, isa);
+        }
         (opcode::REFINE, Attrs::Refine(attrs)) => {
             let p = x_shape.plane().ok_or(bad)?;
             let m = |k: usize, c: usize| -> Result<I8Map<'_>, Error> {
@@ -814,6 +848,132 @@ fn exec(
         _ => return Err(bad),
     }
     Ok(())
+}
+
+/// The conv op `j` as a kernel [`Conv2d`] (weights in the blob, constants in `consts`).
+fn conv_of<'g>(g: &'g Graph, plan: &Plan, j: usize, consts: &'g [u8]) -> Result<Conv2d<'g>, Error> {
+    let bad = Error::Kernel {
+        op: j,
+        error: KernelError::Shape,
+    };
+    let op = g.ops.get(j).ok_or(bad)?;
+    let Attrs::Conv {
+        geometry,
+        act,
+        weights,
+        ..
+    } = &op.attrs
+    else {
+        return Err(bad);
+    };
+    let cb = consts.get(plan.const_range(j).ok_or(bad)?).ok_or(bad)?;
+    Ok(Conv2d {
+        geometry: geometry.get(),
+        quant: ConvQuant::new(
+            g.tensor(op.inputs[0])?.q.zero_point,
+            g.tensor(op.output)?.q.zero_point,
+            *act,
+        ),
+        weights: typed(g.bytes(*weights), j)?,
+        channels: typed(cb, j)?,
+    })
+}
+
+/// `refine` op `i` with its three affinity heads run row by row ([`ConvRows`]): inputs d0,
+/// kmix, tmix and the heads' inputs; scratch the f32 windows, the int8 ring, the heads' conv
+/// scratch (the plan's layout).
+#[allow(clippy::too_many_arguments)]
+fn exec_refine_streamed(
+    g: &Graph,
+    plan: &Plan,
+    i: usize,
+    op: &OpInfo,
+    attrs: &RefineAttrs,
+    consts: &[u8],
+    act: &mut [u8],
+    isa: Isa,
+) -> Result<(), Error> {
+    let e = kerr(i);
+    let bad = Error::Kernel {
+        op: i,
+        error: KernelError::Shape,
+    };
+    let heads = plan.fused_heads(i).ok_or(bad)?;
+    let range = |id: u16| plan.tensor_range(id).ok_or(bad);
+    let head_in = |k: usize| g.ops.get(heads[k]).map(|o| o.inputs[0]).ok_or(bad);
+    let ids = [
+        op.inputs[0],
+        op.inputs[4],
+        op.inputs[5],
+        head_in(0)?,
+        head_in(1)?,
+        head_in(2)?,
+    ];
+    let mut in_r: [Range<usize>; 6] = Default::default();
+    for (r, &id) in in_r.iter_mut().zip(&ids) {
+        *r = range(id)?;
+    }
+    let mut ins: [&[u8]; MAX_INPUTS] = [&[]; MAX_INPUTS];
+    let out_r = range(op.output)?;
+    let scr_r = plan.scratch_range(i).ok_or(bad)?;
+    let (out_b, scr_b) = split(act, out_r, scr_r, &in_r, &mut ins, i)?;
+    let d0 = plan.shape(op.inputs[0]).ok_or(bad)?;
+    let (h, w) = (d0.h, d0.w);
+    let p = d0.plane().ok_or(bad)?;
+    let (km, tm) = (
+        I8Map::new(typed(ins[1], i)?, g.tensor(ids[1])?.q, 3, p).map_err(e)?,
+        I8Map::new(typed(ins[2], i)?, g.tensor(ids[2])?.q, 3, p).map_err(e)?,
+    );
+    let windows = refine::scratch_len(w, attrs.iterations)
+        .checked_mul(4)
+        .and_then(|n| n.checked_add(ALIGN - 1))
+        .map(|n| n / ALIGN * ALIGN)
+        .ok_or(bad)?;
+    let ring = refine::ring_bytes(w, attrs.iterations)
+        .checked_add(ALIGN - 1)
+        .map(|n| n / ALIGN * ALIGN)
+        .ok_or(bad)?;
+    let (win_b, rest) = scr_b.split_at_mut(windows.min(scr_b.len()));
+    let (ring_b, conv_b) = rest.split_at_mut(ring.min(rest.len()));
+    let mut convs = [None; 3];
+    for (c, &j) in convs.iter_mut().zip(&heads) {
+        *c = Some(conv_of(g, plan, j, consts)?);
+    }
+    let head = |k: usize| -> Result<Head<'_>, Error> {
+        let j = heads[k];
+        let conv = convs[k].ok_or(bad)?;
+        let out_id = g.ops.get(j).ok_or(bad)?.output;
+        Ok(Head {
+            conv,
+            input: typed(ins[3 + k], i)?,
+            in_shape: plan.shape(ids[3 + k]).ok_or(bad)?,
+            out_q: g.tensor(out_id)?.q,
+        })
+    };
+    let hs = [head(0)?, head(1)?, head(2)?];
+    let mut rows = ConvRows::new(
+        isa,
+        hs,
+        h,
+        w,
+        attrs.iterations,
+        typed_mut(ring_b, i)?,
+        typed_mut(conv_b, i)?,
+    )
+    .map_err(e)?;
+    refine_with(
+        isa,
+        typed(ins[0], i)?,
+        h,
+        w,
+        &mut rows,
+        &km,
+        &tm,
+        attrs,
+        typed_mut(out_b, i)?,
+        typed_mut(win_b, i)?,
+    )
+    .map_err(e)
 }
 
 impl core::fmt::Debug for Engine<'_> {

@@ -19,6 +19,9 @@ mod engine;
 pub mod error;
 pub mod plan;
 
-pub use engine::{required_arena_bytes, DepthIn, DepthOut, Engine, Observed, Observer, RunStats};
+pub use engine::{
+    required_arena_bytes, required_arena_bytes_with, DepthIn, DepthOut, Engine, Observed, Observer,
+    RunStats,
+};
 pub use error::Error;
-pub use plan::{plan, BufferReq, Plan, PlanError};
+pub use plan::{plan, plan_with, BufferReq, Memory, Plan, PlanError};

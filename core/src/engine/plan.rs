@@ -38,6 +38,22 @@ use heapless::Vec;
 pub const ALIGN: usize = 16;
 /// Most buffers one plan holds (a tensor each plus a scratch per op).
 pub const MAX_BUFFERS: usize = MAX_TENSORS + MAX_OPS;
+/// Most refinements per graph whose heads are fused ([`Memory::Streamed`]); others keep
+/// whole maps.
+pub const MAX_FUSED: usize = 4;
+
+/// How the plan trades arena bytes against what a run exposes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Memory {
+    /// Least memory: where a `refine` op's three affinity inputs each come from a `conv2d`
+    /// read by nothing else, those convs are fused into the refinement and run one output row
+    /// at a time into a ring ([`crate::kernels::refine::ConvRows`]); their outputs are never
+    /// stored whole (nor shown to `Engine::run_observed`). The bits do not change.
+    #[default]
+    Streamed,
+    /// Every op's output stored whole (for observers that compare every tensor).
+    Whole,
+}
 
 /// One buffer the planner must place: `bytes`, alive from step `first` to step `last` inclusive.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -85,6 +101,8 @@ pub struct Plan {
     offsets: Vec<usize, MAX_BUFFERS>,
     consts: Vec<Range<usize>, MAX_OPS>,
     broadcast: Vec<Broadcast, MAX_OPS>,
+    /// Refinements with fused heads: (refine op, head ops of kernels 3, 5, 7).
+    fused: Vec<(u16, [u16; 3]), MAX_FUSED>,
     persistent_bytes: usize,
     activation_bytes: usize,
     macs: u64,
@@ -147,6 +165,20 @@ impl Plan {
     /// Byte range of op `op`'s constants in the persistent region.
     pub fn const_range(&self, op: usize) -> Option<Range<usize>> {
         self.consts.get(op).cloned()
+    }
+    /// The refine op that runs op `op` row by row (`None`: it runs on its own).
+    pub fn fused_into(&self, op: usize) -> Option<usize> {
+        self.fused
+            .iter()
+            .find(|(_, heads)| heads.iter().any(|&j| usize::from(j) == op))
+            .map(|&(r, _)| usize::from(r))
+    }
+    /// For a refine op with fused affinity heads, the head ops of kernels 3, 5 and 7.
+    pub fn fused_heads(&self, op: usize) -> Option<[usize; 3]> {
+        self.fused
+            .iter()
+            .find(|&&(r, _)| usize::from(r) == op)
+            .map(|&(_, h)| h.map(usize::from))
     }
     /// How the second input of op `op` broadcasts (meaningful for `mul`).
     pub fn broadcast(&self, op: usize) -> Broadcast {
@@ -348,10 +380,84 @@ fn plan_op(i: usize, op: &OpInfo, g: &Graph, shapes: &[Shape]) -> Result<OpPlan,
     Ok(p)
 }
 
-/// Plans `graph` for an input of `h × w` (see the module doc). Pure: reads only its arguments.
+/// Plans `graph` for an input of `h × w` with [`Memory::Streamed`] (see the module doc).
 pub fn plan(graph: &Graph, h: usize, w: usize) -> Result<Plan, PlanError> {
+    plan_with(graph, h, w, Memory::Streamed)
+}
+
+/// Per op, the refine op it can be fused into: a `conv2d` whose output is one of the three
+/// affinity inputs of a `refine` and read by nothing else, where all three are such convs.
+fn fusable(graph: &Graph) -> Result<Vec<Option<u16>, MAX_OPS>, PlanError> {
+    let n_ops = graph.ops.len();
+    let mut fused: Vec<Option<u16>, MAX_OPS> = Vec::new();
+    fused.resize(n_ops, None).map_err(|_| PlanError::TooLarge)?;
+    let mut readers: Vec<u16, MAX_TENSORS> = Vec::new();
+    readers
+        .resize(graph.tensors.len(), 0)
+        .map_err(|_| PlanError::TooLarge)?;
+    let mut producer: Vec<Option<u16>, MAX_TENSORS> = Vec::new();
+    producer
+        .resize(graph.tensors.len(), None)
+        .map_err(|_| PlanError::TooLarge)?;
+    for (i, op) in graph.ops.iter().enumerate() {
+        for &id in &op.inputs {
+            if let Some(r) = readers.get_mut(id as usize) {
+                *r = r.saturating_add(1);
+            }
+        }
+        if let Some(p) = producer.get_mut(op.output as usize) {
+            *p = Some(i as u16);
+        }
+    }
+    let mut count = 0;
+    for (i, op) in graph.ops.iter().enumerate() {
+        if op.code != opcode::REFINE || op.inputs.len() != 6 {
+            continue;
+        }
+        let mut heads = [0u16; 3];
+        let ok = op.inputs[1..4].iter().zip(&mut heads).all(|(&t, head)| {
+            let Some(Some(p)) = producer.get(t as usize).copied() else {
+                return false;
+            };
+            *head = p;
+            let conv = &graph.ops[p as usize];
+            conv.code == opcode::CONV2D
+                && readers.get(t as usize) == Some(&1)
+                && t != graph.output
+                && graph
+                    .tensors
+                    .get(t as usize)
+                    .is_some_and(|x| x.dtype == DType::I8)
+        });
+        if ok && count < MAX_FUSED {
+            count += 1;
+            for h in heads {
+                fused[h as usize] = Some(i as u16);
+            }
+        }
+    }
+    Ok(fused)
+}
+
+/// Plans `graph` for an input of `h × w` with the given [`Memory`] choice. Pure: reads only its
+/// arguments.
+pub fn plan_with(graph: &Graph, h: usize, w: usize, memory: Memory) -> Result<Plan, PlanError> {
     let n_t = graph.tensors.len();
     let n_ops = graph.ops.len();
+    let fused_into = match memory {
+        Memory::Streamed => fusable(graph)?,
+        Memory::Whole => {
+            let mut v: Vec<Option<u16>, MAX_OPS> = Vec::new();
+            v.resize(n_ops, None).map_err(|_| PlanError::TooLarge)?;
+            v
+        }
+    };
+    let mut fused: Vec<(u16, [u16; 3]), MAX_FUSED> = Vec::new();
+    // Scratch bytes of each fused head (run inside its refinement, which holds it).
+    let mut head_scratch: Vec<usize, MAX_OPS> = Vec::new();
+    head_scratch
+        .resize(n_ops, 0)
+        .map_err(|_| PlanError::TooLarge)?;
     let zero = Shape::default();
     let mut shapes: Vec<Shape, MAX_TENSORS> = Vec::new();
     shapes.resize(n_t, zero).map_err(|_| PlanError::TooLarge)?;
@@ -366,9 +472,40 @@ pub fn plan(graph: &Graph, h: usize, w: usize) -> Result<Plan, PlanError> {
     let mut persistent = 0usize;
     let mut macs = 0u64;
     for (i, op) in graph.ops.iter().enumerate() {
-        let p = plan_op(i, op, graph, &shapes)?;
+        let mut p = plan_op(i, op, graph, &shapes)?;
         shapes[op.output as usize] = p.out;
         let step = i + 1;
+        if fused_into[i].is_some() {
+            head_scratch[i] = core::mem::take(&mut p.scratch);
+        }
+        if let Attrs::Refine(attrs) = &op.attrs {
+            let mine: [Option<u16>; 3] = core::array::from_fn(|k| {
+                let t = op.inputs[1 + k];
+                (0..i)
+                    .find(|&j| graph.ops[j].output == t && fused_into[j] == Some(i as u16))
+                    .map(|j| j as u16)
+            });
+            if let [Some(a), Some(b), Some(c)] = mine {
+                let conv_scratch = [a, b, c]
+                    .iter()
+                    .map(|&j| head_scratch[j as usize])
+                    .max()
+                    .unwrap_or(0);
+                let ring = refine::ring_bytes(p.out.w, attrs.iterations);
+                p.scratch = round_up(p.scratch)?
+                    .checked_add(round_up(ring)?)
+                    .and_then(|n| n.checked_add(conv_scratch))
+                    .ok_or(PlanError::TooLarge)?;
+                fused
+                    .push((i as u16, [a, b, c]))
+                    .map_err(|_| PlanError::TooLarge)?;
+                // The heads' inputs are read while the refinement runs.
+                for j in [a, b, c] {
+                    let input = graph.ops[j as usize].inputs[0] as usize;
+                    reqs[input].last = reqs[input].last.max(step);
+                }
+            }
+        }
         let cb = round_up(p.consts)?;
         consts
             .push(persistent..persistent + p.consts)
@@ -404,6 +541,11 @@ pub fn plan(graph: &Graph, h: usize, w: usize) -> Result<Plan, PlanError> {
             .ok_or(PlanError::TooLarge)?;
         reqs[t].bytes = round_up(n)?;
     }
+    for (op, f) in graph.ops.iter().zip(&fused_into) {
+        if f.is_some() {
+            reqs[op.output as usize].bytes = 0;
+        }
+    }
     let mut offsets: Vec<usize, MAX_BUFFERS> = Vec::new();
     offsets
         .resize(reqs.len(), 0)
@@ -418,6 +560,7 @@ pub fn plan(graph: &Graph, h: usize, w: usize) -> Result<Plan, PlanError> {
         offsets,
         consts,
         broadcast,
+        fused,
         persistent_bytes: persistent,
         activation_bytes,
         macs,

@@ -997,8 +997,6 @@ pub(crate) mod tests {
     kernel_tests!(suite_avx2, ref: conv2d_ref, fast: avx2, golden: golden, arb: arb_valid(), check: check);
     kernel_tests!(suite_avx512_vnni, ref: conv2d_ref, fast: avx512_vnni, golden: golden, arb: arb_valid(), check: check);
 
-    /// Depthwise shapes (the dedicated row path) on every kernel set against the reference:
-    /// strides, dilations, paddings, kernel sizes, widths below and above one pixel block.
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(48))]
         /// Any band of output rows, written at any channel stride, holds the whole output's bits
@@ -1030,6 +1028,8 @@ pub(crate) mod tests {
         }
     }
 
+    /// Depthwise shapes (the dedicated row path) on every kernel set against the reference:
+    /// strides, dilations, paddings, kernel sizes, widths below and above one pixel block.
     #[test]
     fn depthwise_matches_reference_on_every_set() {
         let mut seed = 7u64;
