@@ -203,8 +203,8 @@ fn arena_at_mcu_size() {
     assert!(p.arena_bytes() < 4 << 20);
 }
 
-/// The streamed plan (affinity heads fused into the refinement, run row by row) gives the
-/// whole plan's bits, at the native size and at one taller than a refinement window, and needs
+/// The streamed plan (affinity heads fused into the refinement, run row by row; concats read in
+/// place by their conv) gives the whole plan's bits, at the native size and at one taller than a refinement window, and needs
 /// less arena.
 #[test]
 fn streamed_refinement_equals_whole_maps() {
@@ -218,6 +218,10 @@ fn streamed_refinement_equals_whole_maps() {
     for j in streamed.fused_heads(refine).unwrap() {
         assert_eq!(streamed.fused_into(j), Some(refine));
     }
+    assert!(
+        (0..g.ops.len()).any(|i| streamed.concat_in_place(i).is_some()),
+        "the test net has a concat read in place by its conv"
+    );
     let whole = plan_with(&g, H, W, Memory::Whole).unwrap();
     assert!((0..g.ops.len()).all(|i| whole.fused_into(i).is_none()));
     for (h, w) in [(H, W), (36, 20)] {

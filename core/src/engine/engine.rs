@@ -6,9 +6,12 @@ use super::plan::{plan_with, Memory, Plan, ALIGN};
 use crate::blob::format::{opcode, MAX_INPUTS};
 use crate::blob::parse::{f32_at, i32_at, parse, Attrs, DType, Graph, OpInfo};
 use crate::kernels::bins::{bin_centres, bins_head_i8, BinChannel, MAX_BINS};
-use crate::kernels::conv::{conv2d_with, ChannelQuant, Conv2d, ConvQuant};
+use crate::kernels::conv::{
+    conv2d_parts_with, conv2d_with, ChannelQuant, Conv2d, ConvQuant, OutRows,
+};
 use crate::kernels::elementwise::{self, AddQuant, MulQuant, Rescale};
 use crate::kernels::isa::Isa;
+use crate::kernels::pack::Parts;
 use crate::kernels::pool::{self, MeanQuant};
 use crate::kernels::refine::{
     self, refine_with, ConvRows, Head, I8Map, RefineAttrs, WholeMaps, KERNELS,
@@ -624,6 +627,9 @@ fn exec(
     act: &mut [u8],
     isa: Isa,
 ) -> Result<(), Error> {
+    if let Some(c) = plan.concat_in_place(i) {
+        return exec_conv_on_parts(g, plan, i, c, consts, act, isa);
+    }
     let e = kerr(i);
     let bad = Error::Kernel {
         op: i,
@@ -877,6 +883,69 @@ fn conv_of<'g>(g: &'g Graph, plan: &Plan, j: usize, consts: &'g [u8]) -> Result<
         weights: typed(g.bytes(*weights), j)?,
         channels: typed(cb, j)?,
     })
+}
+
+/// Conv op `i` reading the parts of concat op `c` in place, each mapped by a 256-entry table of
+/// the concat's rescale (the codes the concat would have written).
+fn exec_conv_on_parts(
+    g: &Graph,
+    plan: &Plan,
+    i: usize,
+    c: usize,
+    consts: &[u8],
+    act: &mut [u8],
+    isa: Isa,
+) -> Result<(), Error> {
+    let bad = Error::Kernel {
+        op: i,
+        error: KernelError::Shape,
+    };
+    let op = g.ops.get(i).ok_or(bad)?;
+    let concat = g.ops.get(c).ok_or(bad)?;
+    let n = concat.inputs.len();
+    let mut in_r: [Range<usize>; MAX_INPUTS] = Default::default();
+    for (r, &id) in in_r.iter_mut().zip(&concat.inputs) {
+        *r = plan.tensor_range(id).ok_or(bad)?;
+    }
+    let mut ins: [&[u8]; MAX_INPUTS] = [&[]; MAX_INPUTS];
+    let out_r = plan.tensor_range(op.output).ok_or(bad)?;
+    let scr_r = plan.scratch_range(i).ok_or(bad)?;
+    let (out_b, scr_b) = split(act, out_r, scr_r, &in_r[..n], &mut ins, i)?;
+    let rescales: &[Rescale] = typed(consts.get(plan.const_range(c).ok_or(bad)?).ok_or(bad)?, c)?;
+    let x = plan.shape(op.inputs[0]).ok_or(bad)?;
+    let mut tables = [[0i8; 256]; MAX_INPUTS];
+    let mut parts = Parts::new(x.plane().ok_or(bad)?);
+    for (k, t) in tables.iter_mut().enumerate().take(n) {
+        let r = rescales.get(k).ok_or(bad)?;
+        for (code, v) in t.iter_mut().enumerate() {
+            *v = r.apply(code as u8 as i8);
+        }
+    }
+    for (k, &id) in concat.inputs.iter().enumerate() {
+        let r = rescales.get(k).ok_or(bad)?;
+        let table = (!r.is_identity()).then_some(&tables[k]);
+        let ch = plan.shape(id).ok_or(bad)?.c;
+        if !parts.push(typed(ins[k], i)?, ch, table) {
+            return Err(bad);
+        }
+    }
+    let conv = conv_of(g, plan, i, consts)?;
+    let out = plan.shape(op.output).ok_or(bad)?;
+    let dst = OutRows {
+        rows: 0..out.h,
+        stride: out.plane().ok_or(bad)?,
+    };
+    conv2d_parts_with(
+        isa,
+        &conv,
+        &parts,
+        x,
+        &dst,
+        typed_mut(out_b, i)?,
+        typed_mut(scr_b, i)?,
+    )
+    .map_err(kerr(i))?;
+    Ok(())
 }
 
 /// `refine` op `i` with its three affinity heads run row by row ([`ConvRows`]): inputs d0,

@@ -27,6 +27,7 @@ use crate::kernels::bins::BinChannel;
 use crate::kernels::conv::{ChannelQuant, Conv2d};
 use crate::kernels::elementwise::{AddQuant, MulQuant, Rescale};
 use crate::kernels::float::Broadcast;
+use crate::kernels::pack::MAX_PARTS;
 use crate::kernels::pool::MeanQuant;
 use crate::kernels::refine;
 use crate::kernels::Shape;
@@ -41,6 +42,9 @@ pub const MAX_BUFFERS: usize = MAX_TENSORS + MAX_OPS;
 /// Most refinements per graph whose heads are fused ([`Memory::Streamed`]); others keep
 /// whole maps.
 pub const MAX_FUSED: usize = 4;
+/// Most concats per graph read in place by their conv ([`Memory::Streamed`]); others are
+/// copied.
+pub const MAX_IN_PLACE: usize = 32;
 
 /// How the plan trades arena bytes against what a run exposes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -103,6 +107,8 @@ pub struct Plan {
     broadcast: Vec<Broadcast, MAX_OPS>,
     /// Refinements with fused heads: (refine op, head ops of kernels 3, 5, 7).
     fused: Vec<(u16, [u16; 3]), MAX_FUSED>,
+    /// Concats read in place: (concat op, the conv that reads its parts).
+    in_place: Vec<(u16, u16), MAX_IN_PLACE>,
     persistent_bytes: usize,
     activation_bytes: usize,
     macs: u64,
@@ -168,10 +174,24 @@ impl Plan {
     }
     /// The refine op that runs op `op` row by row (`None`: it runs on its own).
     pub fn fused_into(&self, op: usize) -> Option<usize> {
-        self.fused
+        let head = self
+            .fused
             .iter()
             .find(|(_, heads)| heads.iter().any(|&j| usize::from(j) == op))
-            .map(|&(r, _)| usize::from(r))
+            .map(|&(r, _)| usize::from(r));
+        head.or_else(|| {
+            self.in_place
+                .iter()
+                .find(|&&(c, _)| usize::from(c) == op)
+                .map(|&(_, j)| usize::from(j))
+        })
+    }
+    /// For a conv that reads a concat's parts in place, the concat op.
+    pub fn concat_in_place(&self, conv: usize) -> Option<usize> {
+        self.in_place
+            .iter()
+            .find(|&&(_, j)| usize::from(j) == conv)
+            .map(|&(c, _)| usize::from(c))
     }
     /// For a refine op with fused affinity heads, the head ops of kernels 3, 5 and 7.
     pub fn fused_heads(&self, op: usize) -> Option<[usize; 3]> {
@@ -385,8 +405,10 @@ pub fn plan(graph: &Graph, h: usize, w: usize) -> Result<Plan, PlanError> {
     plan_with(graph, h, w, Memory::Streamed)
 }
 
-/// Per op, the refine op it can be fused into: a `conv2d` whose output is one of the three
-/// affinity inputs of a `refine` and read by nothing else, where all three are such convs.
+/// Per op, the op it can be fused into: a `conv2d` whose output is one of the three affinity
+/// inputs of a `refine` and read by nothing else, where all three are such convs, goes into the
+/// refine; a `concat` read only by a `conv2d` with one group (not itself fused) goes into that
+/// conv, which reads its parts in place.
 fn fusable(graph: &Graph) -> Result<Vec<Option<u16>, MAX_OPS>, PlanError> {
     let n_ops = graph.ops.len();
     let mut fused: Vec<Option<u16>, MAX_OPS> = Vec::new();
@@ -436,6 +458,43 @@ fn fusable(graph: &Graph) -> Result<Vec<Option<u16>, MAX_OPS>, PlanError> {
             }
         }
     }
+    let mut count = 0;
+    for op in graph.ops.iter() {
+        let t = op.output as usize;
+        let int8 = |id: u16| {
+            graph
+                .tensors
+                .get(id as usize)
+                .is_some_and(|x| x.dtype == DType::I8)
+        };
+        if op.code != opcode::CONCAT
+            || readers.get(t) != Some(&1)
+            || op.output == graph.output
+            || !int8(op.output)
+            || !op.inputs.iter().all(|&id| int8(id))
+            || op.inputs.len() > MAX_PARTS
+            || count == MAX_IN_PLACE
+        {
+            continue;
+        }
+        let Some(j) = graph.ops.iter().position(|o| o.inputs.contains(&op.output)) else {
+            continue;
+        };
+        let reader = &graph.ops[j];
+        let one_group =
+            matches!(&reader.attrs, Attrs::Conv { geometry, .. } if geometry.get().groups == 1);
+        if reader.code == opcode::CONV2D
+            && reader.inputs[0] == op.output
+            && one_group
+            && fused[j].is_none()
+        {
+            let Some(c) = producer.get(t).copied().flatten() else {
+                continue;
+            };
+            fused[c as usize] = Some(j as u16);
+            count += 1;
+        }
+    }
     Ok(fused)
 }
 
@@ -453,6 +512,7 @@ pub fn plan_with(graph: &Graph, h: usize, w: usize, memory: Memory) -> Result<Pl
         }
     };
     let mut fused: Vec<(u16, [u16; 3]), MAX_FUSED> = Vec::new();
+    let mut in_place: Vec<(u16, u16), MAX_IN_PLACE> = Vec::new();
     // Scratch bytes of each fused head (run inside its refinement, which holds it).
     let mut head_scratch: Vec<usize, MAX_OPS> = Vec::new();
     head_scratch
@@ -477,6 +537,19 @@ pub fn plan_with(graph: &Graph, h: usize, w: usize, memory: Memory) -> Result<Pl
         let step = i + 1;
         if fused_into[i].is_some() {
             head_scratch[i] = core::mem::take(&mut p.scratch);
+        }
+        if op.code == opcode::CONV2D {
+            if let Some(c) = (0..i)
+                .find(|&c| graph.ops[c].code == opcode::CONCAT && fused_into[c] == Some(i as u16))
+            {
+                in_place
+                    .push((c as u16, i as u16))
+                    .map_err(|_| PlanError::TooLarge)?;
+                // The parts are read while the conv runs.
+                for &id in &graph.ops[c].inputs {
+                    reqs[id as usize].last = reqs[id as usize].last.max(step);
+                }
+            }
         }
         if let Attrs::Refine(attrs) = &op.attrs {
             let mine: [Option<u16>; 3] = core::array::from_fn(|k| {
@@ -561,6 +634,7 @@ pub fn plan_with(graph: &Graph, h: usize, w: usize, memory: Memory) -> Result<Pl
         consts,
         broadcast,
         fused,
+        in_place,
         persistent_bytes: persistent,
         activation_bytes,
         macs,

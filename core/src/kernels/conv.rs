@@ -9,7 +9,7 @@
 
 use super::dot::{self, Acc, Task};
 use super::isa::Isa;
-use super::pack::{self, Layout, Pairs, Quads, NB, PB};
+use super::pack::{self, Dense, Layout, Pairs, Parts, Quads, Source, NB, PB};
 use super::requant::{clamp_i8, Requant};
 use super::{need, KernelError, Shape};
 
@@ -449,6 +449,43 @@ pub struct OutRows {
     pub stride: usize,
 }
 
+/// Checks `dst` against the output shape and the output and scratch lengths; returns the
+/// scratch the conv uses.
+fn check_buffers(
+    isa: Isa,
+    op: &Conv2d,
+    in_shape: Shape,
+    out: Shape,
+    dst: &OutRows,
+    output_len: usize,
+    scratch_len: usize,
+) -> Result<usize, KernelError> {
+    let band = dst
+        .rows
+        .len()
+        .checked_mul(out.w)
+        .ok_or(KernelError::Shape)?;
+    let last = (out.c.saturating_sub(1))
+        .checked_mul(dst.stride)
+        .and_then(|n| n.checked_add(band))
+        .ok_or(KernelError::Shape)?;
+    if dst.rows.start > dst.rows.end
+        || dst.rows.end > out.h
+        || dst.stride < band
+        || output_len < last
+    {
+        return Err(KernelError::Shape);
+    }
+    if !isa.available() {
+        return Err(KernelError::Isa);
+    }
+    let len = Conv2d::scratch_len(&op.geometry, in_shape, out);
+    if scratch_len < len {
+        return Err(KernelError::Scratch);
+    }
+    Ok(len)
+}
+
 /// As [`conv2d_with`] for the output rows `dst.rows` only, written at `dst`'s layout: each
 /// row gets the bits the whole convolution gives it (the refinement computes its affinity
 /// heads one row at a time this way). Returns the whole output's shape.
@@ -463,37 +500,48 @@ pub fn conv2d_rows_with(
 ) -> Result<Shape, KernelError> {
     let out = op.check(in_shape)?;
     need(input, in_shape)?;
-    let band = dst
-        .rows
-        .len()
-        .checked_mul(out.w)
-        .ok_or(KernelError::Shape)?;
-    let last = (out.c.saturating_sub(1))
-        .checked_mul(dst.stride)
-        .and_then(|n| n.checked_add(band))
-        .ok_or(KernelError::Shape)?;
-    if dst.rows.start > dst.rows.end
-        || dst.rows.end > out.h
-        || dst.stride < band
-        || output.len() < last
-    {
-        return Err(KernelError::Shape);
-    }
-    if !isa.available() {
-        return Err(KernelError::Isa);
-    }
-    let len = Conv2d::scratch_len(&op.geometry, in_shape, out);
-    if scratch.len() < len {
-        return Err(KernelError::Scratch);
-    }
+    let len = check_buffers(isa, op, in_shape, out, dst, output.len(), scratch.len())?;
     let depthwise = op.geometry.groups == in_shape.c
         && out.c == in_shape.c
         && len >= out.w.div_ceil(PB) * PB + in_shape.w;
     let scratch = &mut scratch[..len];
+    let src = Dense {
+        data: input,
+        plane: in_shape.plane().ok_or(KernelError::Shape)?,
+    };
     match isa {
         _ if depthwise => depthwise_conv(isa, op, input, in_shape, out, dst, output, scratch),
-        Isa::Avx512Vnni => run::<Quads>(isa, op, input, in_shape, out, dst, output, scratch),
-        _ => run::<Pairs>(isa, op, input, in_shape, out, dst, output, scratch),
+        Isa::Avx512Vnni => run::<Quads, _>(isa, op, &src, in_shape, out, dst, output, scratch),
+        _ => run::<Pairs, _>(isa, op, &src, in_shape, out, dst, output, scratch),
+    }
+    Ok(out)
+}
+
+/// As [`conv2d_rows_with`] on an input given as the parts of a concat, read in place (each
+/// part's codes mapped to the concat's by its table): the bits of the conv run on the concat's
+/// output. `in_shape.c` must equal the parts' channels; depthwise convs are not accepted
+/// (`Err(Attr)`).
+pub fn conv2d_parts_with(
+    isa: Isa,
+    op: &Conv2d,
+    input: &Parts,
+    in_shape: Shape,
+    dst: &OutRows,
+    output: &mut [i8],
+    scratch: &mut [i32],
+) -> Result<Shape, KernelError> {
+    let out = op.check(in_shape)?;
+    if input.channels() != in_shape.c {
+        return Err(KernelError::Shape);
+    }
+    let len = check_buffers(isa, op, in_shape, out, dst, output.len(), scratch.len())?;
+    if op.geometry.groups == in_shape.c && out.c == in_shape.c && in_shape.c > 1 {
+        return Err(KernelError::Attr);
+    }
+    let scratch = &mut scratch[..len];
+    match isa {
+        Isa::Avx512Vnni => run::<Quads, _>(isa, op, input, in_shape, out, dst, output, scratch),
+        _ => run::<Pairs, _>(isa, op, input, in_shape, out, dst, output, scratch),
     }
     Ok(out)
 }
@@ -651,10 +699,10 @@ fn depthwise_rows(
 }
 
 #[allow(clippy::too_many_arguments)]
-fn run<F: Micro>(
+fn run<F: Micro, S: Source>(
     isa: Isa,
     op: &Conv2d,
-    input: &[i8],
+    input: &S,
     in_shape: Shape,
     out: Shape,
     dst: &OutRows,
@@ -678,18 +726,16 @@ fn run<F: Micro>(
             }
         }
     }
-    let plane_in = in_shape.h * in_shape.w;
     let zp = op.quant.input_zero_point;
     let group_shape = Shape::new(icg, in_shape.h, in_shape.w);
     let mut acc: Acc = [0; NB * PB];
     for grp in 0..g.groups {
-        let x = &input[grp * icg * plane_in..(grp + 1) * icg * plane_in];
         let o_first = grp * ocg;
         let w = &op.weights[o_first * icg * kh * kw..(o_first + ocg) * icg * kh * kw];
         pack::pack_weights::<F>(g, w, icg, ocg, &dims, weights, sums);
 
         for oy in dst.rows.clone() {
-            pack::pack_rows::<F>(g, x, group_shape, out.w, oy, zp, &dims, rows);
+            pack::pack_rows::<F, S>(g, input, grp * icg, group_shape, out.w, oy, zp, &dims, rows);
             for ox0 in (0..out.w).step_by(PB) {
                 let n = PB.min(out.w - ox0);
                 for b in 0..dims.n_blocks {
@@ -1197,6 +1243,56 @@ pub(crate) mod tests {
             }
             let dt = t.elapsed().as_secs_f64() / reps as f64;
             std::println!("{name}: {:.3} ms, {:.2} GMAC/s", dt * 1e3, macs / dt / 1e9);
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(32))]
+        /// A conv reading the parts of a concat in place (codes mapped by each part's rescale
+        /// table) gives the bits of the conv run on the concat's output, on every kernel set.
+        #[test]
+        fn parts_read_in_place_equal_the_concat(c in arb_valid(), split in 1usize..8, zp in -20i32..20, ratio in 0.3f32..2.5) {
+            use crate::kernels::elementwise::{concat_part, Rescale};
+            use crate::kernels::pack::Parts;
+            prop_assume!(c.geometry.groups == 1 && c.in_shape.c >= 2);
+            let s = c.in_shape;
+            let plane = s.h * s.w;
+            let c1 = 1 + split % (s.c - 1);
+            let parts_c = [c1, s.c - c1];
+            // Part 0 passes through; part 1 comes from another scale and zero point.
+            let from = [c.in_q, QParams { scale: c.in_q.scale * ratio, zero_point: zp }];
+            let mut concat = std::vec![0i8; s.len().unwrap()];
+            let mut c0 = 0;
+            let mut tables = [[0i8; 256]; 2];
+            for k in 0..2 {
+                let part = &c.input[c0 * plane..(c0 + parts_c[k]) * plane];
+                let r = Rescale::new(from[k], c.in_q);
+                for (code, t) in tables[k].iter_mut().enumerate() {
+                    *t = r.apply(code as u8 as i8);
+                }
+                concat_part(part, Shape::new(parts_c[k], s.h, s.w), &r, &mut concat, s, c0).unwrap();
+                c0 += parts_c[k];
+            }
+            let ch = channels(&c);
+            let op = Conv2d {
+                geometry: c.geometry,
+                quant: ConvQuant::new(c.in_q.zero_point, c.out_q.zero_point, c.act),
+                weights: &c.weights,
+                channels: &ch,
+            };
+            let out = op.check(s).unwrap();
+            let mut scratch = std::vec![0i32; Conv2d::scratch_len(&c.geometry, s, out)];
+            let mut want = std::vec![0i8; out.len().unwrap()];
+            conv2d_ref(&op, &concat, s, &mut want, &mut scratch).unwrap();
+            let mut parts = Parts::new(plane);
+            assert!(parts.push(&c.input[..c1 * plane], c1, None));
+            assert!(parts.push(&c.input[c1 * plane..], s.c - c1, Some(&tables[1])));
+            let dst = OutRows { rows: 0..out.h, stride: out.h * out.w };
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                let mut got = std::vec![0i8; out.len().unwrap()];
+                conv2d_parts_with(isa, &op, &parts, s, &dst, &mut got, &mut scratch).unwrap();
+                prop_assert_eq!(&got, &want, "{}", isa.name());
+            }
         }
     }
 
