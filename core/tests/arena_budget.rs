@@ -42,13 +42,22 @@ fn shipped_blobs_stay_within_their_arena_ceilings() {
     }
 }
 
-/// Where the streamed plan peaks: per step, the live bytes and the largest live buffers.
+/// Where the streamed plan peaks: per step, the live bytes and the largest live buffers (of the
+/// shipped blobs, or of the blob at `$ARENA_BLOB`).
 #[test]
-#[ignore = "diagnostic: cargo test -p depthor-core --test arena_budget -- --ignored --nocapture"]
+#[ignore = "diagnostic: [ARENA_BLOB=path] cargo test -p depthor-core --test arena_budget -- --ignored --nocapture"]
 fn where_the_arena_peaks() {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    for (variant, ..) in BUDGETS {
-        let blob = std::fs::read(root.join("models").join(variant).join("depthor.dblob")).unwrap();
+    let paths: Vec<std::path::PathBuf> = match std::env::var_os("ARENA_BLOB") {
+        Some(p) => vec![p.into()],
+        None => BUDGETS
+            .iter()
+            .map(|(v, ..)| root.join("models").join(v).join("depthor.dblob"))
+            .collect(),
+    };
+    for path in paths {
+        let variant = path.display();
+        let blob = std::fs::read(&path).unwrap();
         let g = parse(&blob).unwrap();
         let p = plan_with(&g, g.height, g.width, Memory::Streamed).unwrap();
         let bufs: Vec<_> = p.buffers().collect();
@@ -64,7 +73,12 @@ fn where_the_arena_peaks() {
             })
             .collect();
         steps.sort_unstable_by(|a, b| b.cmp(a));
-        println!("{variant}: activations {} B", p.activation_bytes());
+        println!(
+            "{variant}: arena {} B (activations {} B); whole plan {} B",
+            p.arena_bytes(),
+            p.activation_bytes(),
+            plan_with(&g, g.height, g.width, Memory::Whole).unwrap().arena_bytes()
+        );
         for &(live, s) in steps.iter().take(6) {
             let op = s.checked_sub(1).and_then(|i| g.ops.get(i));
             let mut here: Vec<(usize, usize)> = bufs
