@@ -551,12 +551,8 @@ fn write_consts(
                 act, bias, scales, ..
             },
         ) => {
-            let dst: &mut [ChannelQuant] = typed_mut(region, i)?;
-            let sb = g.bytes(*scales);
-            for (o, cq) in dst.iter_mut().enumerate() {
-                let b = bias.map_or(0, |p| i32_at(g.bytes(p), o));
-                *cq = ChannelQuant::new(b, in_q.scale, f32_at(sb, o), out_q.scale, *act);
-            }
+            let _ = (act, bias, scales);
+            fill_channel_quants(g, i, typed_mut(region, i)?)?;
         }
         (opcode::BINS_HEAD, Attrs::Bins { bias, scales, .. }) => {
             let dst: &mut [BinChannel] = typed_mut(region, i)?;
@@ -610,6 +606,58 @@ fn write_consts(
     Ok(())
 }
 
+/// Writes conv op `i`'s per-channel requantisation constants into `dst` (one per output
+/// channel that `dst` holds).
+fn fill_channel_quants(g: &Graph, i: usize, dst: &mut [ChannelQuant]) -> Result<(), Error> {
+    let bad = Error::Kernel {
+        op: i,
+        error: KernelError::Shape,
+    };
+    let op = g.ops.get(i).ok_or(bad)?;
+    let Attrs::Conv {
+        act, bias, scales, ..
+    } = &op.attrs
+    else {
+        return Err(bad);
+    };
+    let (in_q, out_q) = (g.tensor(op.inputs[0])?.q, g.tensor(op.output)?.q);
+    let sb = g.bytes(*scales);
+    for (o, cq) in dst.iter_mut().enumerate() {
+        let b = bias.map_or(0, |p| i32_at(g.bytes(p), o));
+        *cq = ChannelQuant::new(b, in_q.scale, f32_at(sb, o), out_q.scale, *act);
+    }
+    Ok(())
+}
+
+/// Conv op `j`'s per-channel constants and the scratch its kernel may use: from the
+/// persistent region, or computed now at the head of `scratch` ([`Plan::channel_bytes`]).
+fn channel_quants<'s>(
+    g: &Graph,
+    plan: &Plan,
+    j: usize,
+    consts: &'s [u8],
+    scratch: &'s mut [u8],
+) -> Result<(&'s [ChannelQuant], &'s mut [u8]), Error> {
+    let bad = Error::Kernel {
+        op: j,
+        error: KernelError::Shape,
+    };
+    let bytes = plan.channel_bytes(g, j);
+    if bytes == 0 {
+        let cb = consts.get(plan.const_range(j).ok_or(bad)?).ok_or(bad)?;
+        return Ok((typed(cb, j)?, scratch));
+    }
+    if scratch.len() < bytes {
+        return Err(bad);
+    }
+    let (head, rest) = scratch.split_at_mut(bytes);
+    let out_c = g.tensor(g.ops.get(j).ok_or(bad)?.output)?.channels;
+    let cq: &mut [ChannelQuant] = typed_mut(head, j)?;
+    let cq = cq.get_mut(..out_c).ok_or(bad)?;
+    fill_channel_quants(g, j, cq)?;
+    Ok((cq, rest))
+}
+
 fn first<T: Pod + Default>(b: &[u8], op: usize) -> Result<T, Error> {
     typed::<T>(b, op)?.first().copied().ok_or(Error::Kernel {
         op,
@@ -660,6 +708,7 @@ fn exec(
                 ..
             },
         ) => {
+            let (channels, scr_b) = channel_quants(g, plan, i, consts, scr_b)?;
             let conv = Conv2d {
                 geometry: geometry.get(),
                 quant: ConvQuant::new(
@@ -668,7 +717,7 @@ fn exec(
                     *act,
                 ),
                 weights: typed(g.bytes(*weights), i)?,
-                channels: typed(cb, i)?,
+                channels,
             };
             conv2d_with(
                 isa,
@@ -857,7 +906,7 @@ fn exec(
 }
 
 /// The conv op `j` as a kernel [`Conv2d`] (weights in the blob, constants in `consts`).
-fn conv_of<'g>(g: &'g Graph, plan: &Plan, j: usize, consts: &'g [u8]) -> Result<Conv2d<'g>, Error> {
+fn conv_of<'g>(g: &'g Graph, j: usize, channels: &'g [ChannelQuant]) -> Result<Conv2d<'g>, Error> {
     let bad = Error::Kernel {
         op: j,
         error: KernelError::Shape,
@@ -872,7 +921,6 @@ fn conv_of<'g>(g: &'g Graph, plan: &Plan, j: usize, consts: &'g [u8]) -> Result<
     else {
         return Err(bad);
     };
-    let cb = consts.get(plan.const_range(j).ok_or(bad)?).ok_or(bad)?;
     Ok(Conv2d {
         geometry: geometry.get(),
         quant: ConvQuant::new(
@@ -881,7 +929,7 @@ fn conv_of<'g>(g: &'g Graph, plan: &Plan, j: usize, consts: &'g [u8]) -> Result<
             *act,
         ),
         weights: typed(g.bytes(*weights), j)?,
-        channels: typed(cb, j)?,
+        channels,
     })
 }
 
@@ -929,7 +977,8 @@ fn exec_conv_on_parts(
             return Err(bad);
         }
     }
-    let conv = conv_of(g, plan, i, consts)?;
+    let (channels, scr_b) = channel_quants(g, plan, i, consts, scr_b)?;
+    let conv = conv_of(g, i, channels)?;
     let out = plan.shape(op.output).ok_or(bad)?;
     let dst = OutRows {
         rows: 0..out.h,
@@ -1004,10 +1053,14 @@ fn exec_refine_streamed(
         .ok_or(bad)?;
     let (win_b, rest) = scr_b.split_at_mut(windows.min(scr_b.len()));
     let (ring_b, conv_b) = rest.split_at_mut(ring.min(rest.len()));
-    let mut convs = [None; 3];
-    for (c, &j) in convs.iter_mut().zip(&heads) {
-        *c = Some(conv_of(g, plan, j, consts)?);
-    }
+    let (c0, conv_b) = channel_quants(g, plan, heads[0], consts, conv_b)?;
+    let (c1, conv_b) = channel_quants(g, plan, heads[1], consts, conv_b)?;
+    let (c2, conv_b) = channel_quants(g, plan, heads[2], consts, conv_b)?;
+    let convs = [
+        Some(conv_of(g, heads[0], c0)?),
+        Some(conv_of(g, heads[1], c1)?),
+        Some(conv_of(g, heads[2], c2)?),
+    ];
     let head = |k: usize| -> Result<Head<'_>, Error> {
         let j = heads[k];
         let conv = convs[k].ok_or(bad)?;

@@ -52,7 +52,10 @@ pub enum Memory {
     /// Least memory: where a `refine` op's three affinity inputs each come from a `conv2d`
     /// read by nothing else, those convs are fused into the refinement and run one output row
     /// at a time into a ring ([`crate::kernels::refine::ConvRows`]); their outputs are never
-    /// stored whole (nor shown to `Engine::run_observed`). The bits do not change.
+    /// stored whole (nor shown to `Engine::run_observed`). A concat read only by one conv is
+    /// read in place by it. Convs compute their per-channel requantisation constants per run
+    /// in their scratch rather than holding them in the persistent region. The bits do not
+    /// change.
     #[default]
     Streamed,
     /// Every op's output stored whole (for observers that compare every tensor).
@@ -109,6 +112,8 @@ pub struct Plan {
     fused: Vec<(u16, [u16; 3]), MAX_FUSED>,
     /// Concats read in place: (concat op, the conv that reads its parts).
     in_place: Vec<(u16, u16), MAX_IN_PLACE>,
+    /// Whether convs compute their per-channel constants per run in their scratch.
+    per_run_consts: bool,
     persistent_bytes: usize,
     activation_bytes: usize,
     macs: u64,
@@ -185,6 +190,21 @@ impl Plan {
                 .find(|&&(c, _)| usize::from(c) == op)
                 .map(|&(_, j)| usize::from(j))
         })
+    }
+    /// Bytes at the head of conv op `op`'s scratch that hold its per-channel constants, computed
+    /// per run ([`Memory::Streamed`]; 0 where they sit in the persistent region).
+    pub fn channel_bytes(&self, graph: &Graph, op: usize) -> usize {
+        let Some(o) = graph.ops.get(op) else {
+            return 0;
+        };
+        if !self.per_run_consts || !matches!(o.code, opcode::CONV2D | opcode::LINEAR) {
+            return 0;
+        }
+        let out_c = graph
+            .tensors
+            .get(o.output as usize)
+            .map_or(0, |t| t.channels);
+        round_up(out_c * size_of::<ChannelQuant>()).unwrap_or(0)
     }
     /// For a conv that reads a concat's parts in place, the concat op.
     pub fn concat_in_place(&self, conv: usize) -> Option<usize> {
@@ -514,6 +534,11 @@ pub fn plan_with(graph: &Graph, h: usize, w: usize, memory: Memory) -> Result<Pl
     let mut fused: Vec<(u16, [u16; 3]), MAX_FUSED> = Vec::new();
     let mut in_place: Vec<(u16, u16), MAX_IN_PLACE> = Vec::new();
     // Scratch bytes of each fused head (run inside its refinement, which holds it).
+    let per_run_consts = memory == Memory::Streamed;
+    let mut head_consts: Vec<usize, MAX_OPS> = Vec::new();
+    head_consts
+        .resize(n_ops, 0)
+        .map_err(|_| PlanError::TooLarge)?;
     let mut head_scratch: Vec<usize, MAX_OPS> = Vec::new();
     head_scratch
         .resize(n_ops, 0)
@@ -535,8 +560,21 @@ pub fn plan_with(graph: &Graph, h: usize, w: usize, memory: Memory) -> Result<Pl
         let mut p = plan_op(i, op, graph, &shapes)?;
         shapes[op.output as usize] = p.out;
         let step = i + 1;
+        let conv = matches!(op.code, opcode::CONV2D | opcode::LINEAR);
+        // Streamed: a conv's per-channel constants are computed per run at the head of its
+        // scratch instead of being held in the persistent region.
+        let channel_bytes = if conv && per_run_consts {
+            round_up(core::mem::take(&mut p.consts))?
+        } else {
+            0
+        };
         if fused_into[i].is_some() {
             head_scratch[i] = core::mem::take(&mut p.scratch);
+            head_consts[i] = channel_bytes;
+        } else if channel_bytes > 0 {
+            p.scratch = round_up(p.scratch)?
+                .checked_add(channel_bytes)
+                .ok_or(PlanError::TooLarge)?;
         }
         if op.code == opcode::CONV2D {
             if let Some(c) = (0..i)
@@ -564,10 +602,12 @@ pub fn plan_with(graph: &Graph, h: usize, w: usize, memory: Memory) -> Result<Pl
                     .map(|&j| head_scratch[j as usize])
                     .max()
                     .unwrap_or(0);
+                let head_channels: usize = [a, b, c].iter().map(|&j| head_consts[j as usize]).sum();
                 let ring = refine::ring_bytes(p.out.w, attrs.iterations);
                 p.scratch = round_up(p.scratch)?
                     .checked_add(round_up(ring)?)
-                    .and_then(|n| n.checked_add(conv_scratch))
+                    .and_then(|n| n.checked_add(head_channels))
+                    .and_then(|n| n.checked_add(round_up(conv_scratch).ok()?))
                     .ok_or(PlanError::TooLarge)?;
                 fused
                     .push((i as u16, [a, b, c]))
@@ -635,6 +675,7 @@ pub fn plan_with(graph: &Graph, h: usize, w: usize, memory: Memory) -> Result<Pl
         broadcast,
         fused,
         in_place,
+        per_run_consts,
         persistent_bytes: persistent,
         activation_bytes,
         macs,
