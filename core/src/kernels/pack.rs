@@ -182,10 +182,13 @@ impl Source for Dense<'_> {
 /// Most parts of a [`Parts`] input.
 pub const MAX_PARTS: usize = 8;
 
+/// One part of a [`Parts`] input: codes, channels, rescale table.
+type Part<'a> = (&'a [i8], usize, Option<&'a [i8; 256]>);
+
 /// Several CHW tensors of one plane size, read as their concatenation along channels.
 #[derive(Clone, Copy, Debug)]
 pub struct Parts<'a> {
-    parts: [(&'a [i8], usize, Option<&'a [i8; 256]>); MAX_PARTS],
+    parts: [Part<'a>; MAX_PARTS],
     n: usize,
     plane: usize,
 }

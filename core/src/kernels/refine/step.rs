@@ -277,11 +277,11 @@ fn row_lanes<A: Map, const L: usize>(
         }
         let (ia, ic) = (at.aff + x, at.cur + x);
         let mut s = [0f32; L];
-        for j in 0..n {
+        for (j, (rj, &gj)) in r[..n].iter_mut().zip(&br.g).enumerate() {
             let v = a.values::<L>(j, ia);
             for l in 0..L {
-                r[j][l] = relu(v[l]) * br.g[j];
-                s[l] += r[j][l];
+                rj[l] = relu(v[l]) * gj;
+                s[l] += rj[l];
             }
         }
         let mut q = [0f32; L];
@@ -331,6 +331,7 @@ pub fn step_pixel<A: Map>(
     let mut r = [0f32; MAX_NEIGHBOURS];
     let mut idx = [0usize; MAX_NEIGHBOURS];
     let mut s = 0.0f32;
+    #[allow(clippy::needless_range_loop)] // j indexes four tables of the branch in step
     for j in 0..n {
         let (dy, dx) = br.off[j];
         let (ny, nx) = (y as isize + dy, x as isize + dx);
