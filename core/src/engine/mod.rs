@@ -6,15 +6,17 @@
 //!   [`Memory::Streamed`] plan: a refinement's three affinity heads run row by row inside it
 //!   into a ring of `(T − 1)·r + 1` rows ([`crate::kernels::refine::ConvRows`]), the
 //!   refinement itself is a row wavefront (windows of 14 rows per iteration, not two whole
-//!   maps), and a concat read only by one conv is read in place by that conv. No affinity map
+//!   maps), a concat read only by one conv is read in place by that conv, and convs compute
+//!   their per-channel constants per run in their scratch (the persistent region keeps only
+//!   the element-wise ops' few constants). No affinity map
 //!   and no such concat is ever stored whole; the bits are those of [`Memory::Whole`], which
 //!   keeps every op's output for `Engine::run_observed`. Shipped blobs at their native sizes
 //!   (`cargo test -p depthor-core --test arena_budget -- --nocapture`):
 //!
 //!   | variant | H×W | `Memory::Streamed` | `Memory::Whole` |
 //!   |---|---|---|---|
-//!   | `mcu` | 120×160 | 685 327 B | 1 922 687 B |
-//!   | `phone` | 320×240 | 1 869 983 B | 7 431 599 B |
+//!   | `mcu` | 120×160 | 654 863 B | 1 922 687 B |
+//!   | `phone` | 320×240 | 1 826 479 B | 7 431 599 B |
 //!
 //!   The `mcu` peak is now the refinement step (the 8-channel full-resolution guidance the
 //!   heads read, d0 and the output in f32, the mixing maps and the 7×7 ring); the 384 KiB

@@ -22,7 +22,7 @@ static ALIGNED_BLOB: &Align16<[u8]> = &Align16(*include_bytes!(concat!(
 pub static MCU_BLOB: &[u8] = &ALIGNED_BLOB.0;
 
 /// Arena bytes the firmware reserves: 704 KiB, the shipped `mcu` blob's streamed plan
-/// (685 327 B at 120×160, `core/tests/arena_budget.rs`) with a little room; the goal
+/// (654 863 B at 120×160, `core/tests/arena_budget.rs`) with a little room; the goal
 /// (docs/design.md) is 384 KiB. [`Engine::with_size`] reports `ArenaTooSmall` when a blob needs more.
 pub const ARENA_BUDGET_BYTES: usize = 704 * 1024;
 
