@@ -34,6 +34,12 @@ def table(methods: dict) -> list[str]:
     return rows
 
 
+def aggregate(s: dict) -> str:
+    """How the summary combined its frames (docs/eval.md); summaries written before `depthor
+    eval --aggregate` existed pooled pixels."""
+    return {"image": "per-image mean", "pixel": "pooled pixels"}.get(s.get("aggregate", "pixel"), s.get("aggregate"))
+
+
 def verdict(s: dict) -> list[str]:
     """The comparisons the issue's acceptance asks for, as measured."""
     out = []
@@ -151,15 +157,15 @@ def main() -> None:
     if a.synthetic:
         s = json.loads(a.synthetic.read_text())
         L += ["## Held-out synthetic test set", "",
-              f"{s['frames']} frames; command: `{a.synthetic_command}`", ""] + table(s["methods"]) + [""] + verdict(s) + [""]
+              f"{s['frames']} frames ({aggregate(s)}); command: `{a.synthetic_command}`", ""] + table(s["methods"]) + [""] + verdict(s) + [""]
     for title, path, command in a.extra_synthetic:
         s = json.loads(Path(path).read_text())
         L += [f"## Held-out synthetic test set: {title}", "",
-              f"{s['frames']} frames; command: `{command}`", ""] + table(s["methods"]) + [""] + verdict(s) + [""]
+              f"{s['frames']} frames ({aggregate(s)}); command: `{command}`", ""] + table(s["methods"]) + [""] + verdict(s) + [""]
     if a.real:
         s = json.loads(a.real.read_text())
         L += ["## Real RGB-D sets (dToF simulated on their reference depth with this variant's preset)", "",
-              f"Command: `{a.real_command}`", ""] + real_section(s, a.discussion) + [""]
+              f"Command: `{a.real_command}` ({aggregate(s)})", ""] + real_section(s, a.discussion) + [""]
     r = card["regression"]
     L += ["## Regression check", "",
           f"`host/tests/model_card.rs` rebuilds {r['scenes']} scenes (preset {r['preset']}, seed {r['seed']}) and fails "

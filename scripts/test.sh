@@ -6,7 +6,9 @@
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 bash scripts/setup.sh
-echo "== cargo test --workspace"
-cargo test --workspace "$@"
+# Python first: it makes models/.venv, which host/tests/eval_aggregate.rs runs train.py's
+# metrics in.
 echo "== models/smoke.sh (Python)"
 bash models/smoke.sh
+echo "== cargo test --workspace"
+cargo test --workspace "$@"

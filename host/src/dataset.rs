@@ -169,6 +169,18 @@ pub struct Resampled {
     pub labels: Option<Vec<u8>>,
 }
 
+/// The centred crop `(x0, y0, width, height)` of a `sw × sh` image with the aspect ratio of
+/// `width × height`: the region [`resample_frame`] scales to the target size.
+pub fn centre_crop(sw: u32, sh: u32, width: u32, height: u32) -> (u32, u32, u32, u32) {
+    let target = width as f64 / height as f64;
+    let (cw, ch) = if sw as f64 / sh as f64 > target {
+        (((sh as f64 * target).round() as u32).clamp(1, sw), sh)
+    } else {
+        (sw, ((sw as f64 / target).round() as u32).clamp(1, sh))
+    };
+    ((sw - cw) / 2, (sh - ch) / 2, cw, ch)
+}
+
 /// Resamples frame `frame` (camera `cam`) to `width × height` (see [`Resampled`]).
 pub fn resample_frame(
     cam: &CameraIntrinsics,
@@ -179,14 +191,7 @@ pub fn resample_frame(
     height: u32,
 ) -> Resampled {
     let (sw, sh) = (cam.width, cam.height);
-    // Crop to the target aspect ratio, centred.
-    let target = width as f64 / height as f64;
-    let (cw, ch) = if sw as f64 / sh as f64 > target {
-        (((sh as f64 * target).round() as u32).clamp(1, sw), sh)
-    } else {
-        (sw, ((sw as f64 / target).round() as u32).clamp(1, sh))
-    };
-    let (x0, y0) = ((sw - cw) / 2, (sh - ch) / 2);
+    let (x0, y0, cw, ch) = centre_crop(sw, sh, width, height);
     let cropped = image::imageops::crop_imm(rgb, x0, y0, cw, ch).to_image();
     let filter = if cw >= width {
         image::imageops::FilterType::Triangle

@@ -9,7 +9,7 @@
 
 use anyhow::{Context, Result};
 use depthor_core::calibration::CameraIntrinsics;
-use depthor_core::metrics::Metrics;
+use depthor_core::metrics::{Metrics, MetricsAccumulator};
 use depthor_core::projection::{for_each_point, ProjectedPoint};
 use image::RgbImage;
 use std::path::Path;
@@ -23,7 +23,7 @@ use crate::recording::{CalibrationData, Recording};
 use crate::reference::prior::{fit_scale_shift, PriorReference};
 use crate::reference::FloatReference;
 use crate::sim::{preset, simulate, SimConfig, SimInput, SimOutput};
-use crate::viz::{depth_image, mosaic, render_projection, Overlay};
+use crate::viz::{depth_image, draw_points, Overlay};
 
 /// One input frame at the model's size.
 #[derive(Clone, Debug)]
@@ -40,6 +40,43 @@ pub struct EvalFrame {
     pub rows: u16,
     /// Zone columns of the sensor.
     pub cols: u16,
+    /// The reference at the dataset's own resolution, over the region the model's input was
+    /// cropped from (recordings only; `depthor eval --native` scores on it).
+    pub native: Option<NativeReference>,
+}
+
+/// A frame's reference depth at the recording's resolution, cropped to the model's aspect ratio
+/// exactly as the model's input was (centred crop, [`crate::dataset::resample_frame`]).
+#[derive(Clone, Debug)]
+pub struct NativeReference {
+    /// Crop width, pixels of the recording.
+    pub width: u32,
+    /// Crop height.
+    pub height: u32,
+    /// Reference depth over the crop, metres (0 = none), row-major.
+    pub depth_m: Vec<f32>,
+}
+
+/// Bilinear upsampling (or downsampling) of a `w × h` depth map to `out_w × out_h`, pixel
+/// centres aligned (`x_src = (x + 0.5) · w / out_w − 0.5`, clamped at the borders).
+pub fn resize_bilinear(src: &[f32], w: u32, h: u32, out_w: u32, out_h: u32) -> Vec<f32> {
+    let (w, h) = (w as usize, h as usize);
+    let coord = |i: u32, n_out: u32, n: usize| -> (usize, usize, f32) {
+        let x = ((i as f32 + 0.5) * n as f32 / n_out as f32 - 0.5).clamp(0.0, (n - 1) as f32);
+        let x0 = x.floor() as usize;
+        (x0, (x0 + 1).min(n - 1), x - x0 as f32)
+    };
+    let mut out = Vec::with_capacity(out_w as usize * out_h as usize);
+    for y in 0..out_h {
+        let (y0, y1, fy) = coord(y, out_h, h);
+        for x in 0..out_w {
+            let (x0, x1, fx) = coord(x, out_w, w);
+            let top = src[y0 * w + x0] * (1.0 - fx) + src[y0 * w + x1] * fx;
+            let bottom = src[y1 * w + x0] * (1.0 - fx) + src[y1 * w + x1] * fx;
+            out.push(top * (1.0 - fy) + bottom * fy);
+        }
+    }
+    out
 }
 
 impl EvalFrame {
@@ -125,6 +162,7 @@ pub fn rendered_frame(
         points,
         rows: cfg.grid.rows,
         cols: cfg.grid.cols,
+        native: None,
     })
 }
 
@@ -141,6 +179,11 @@ impl RecordingFrames {
             rec: Recording::open(dir)?,
             cfg: preset(preset_name)?,
         })
+    }
+
+    /// Whether the frames have colour images (`false` for zone-only recordings).
+    pub fn has_rgb(&self) -> bool {
+        self.rec.meta().rgb
     }
 
     /// Frames in the recording.
@@ -165,6 +208,18 @@ impl RecordingFrames {
             .clone()
             .unwrap_or_else(|| vec![0.0; (cam.width * cam.height) as usize]);
         let r = resample_frame(&cam, &frame.rgb, &depth, frame.labels.as_deref(), w, h);
+        let native = frame.depth_m.as_ref().map(|d| {
+            let (x0, y0, cw, ch) = crate::dataset::centre_crop(cam.width, cam.height, w, h);
+            let depth_m = (y0..y0 + ch)
+                .flat_map(|y| (x0..x0 + cw).map(move |x| (y * cam.width + x) as usize))
+                .map(|i| d.get(i).copied().unwrap_or(0.0))
+                .collect();
+            NativeReference {
+                width: cw,
+                height: ch,
+                depth_m,
+            }
+        });
         let meta = self.rec.meta().dtof.as_ref();
         let (points, rows, cols) = match (&frame.dtof, self.rec.calibration(i), meta) {
             (Some(d), Some(cal), Some(meta)) => {
@@ -211,6 +266,7 @@ impl RecordingFrames {
             points,
             rows,
             cols,
+            native,
         })
     }
 }
@@ -312,7 +368,22 @@ impl Evaluator {
 
     /// Loads a model's int8 blob and, when `with_float`, its float network and prior (tract).
     pub fn load(files: &ModelFiles, with_float: bool, depth_range_m: (f32, f32)) -> Result<Self> {
-        let int8 = Int8Model::from_file(&files.blob(), None)?;
+        if files.embedded && with_float {
+            anyhow::bail!(
+                "model mcu: no models/mcu folder found (looked in {}); the embedded int8 blob has \
+                 no float network: pass --no-float, or --models-dir DIR (or DEPTHOR_MODELS) with mcu/",
+                crate::models::search_dirs()
+                    .iter()
+                    .map(|d| d.display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
+        let int8 = if files.embedded {
+            Int8Model::embedded_mcu()?
+        } else {
+            Int8Model::from_file(&files.blob(), None)?
+        };
         let (h, w) = int8.input_shape();
         let float = if with_float {
             Some((
@@ -401,34 +472,229 @@ pub fn metrics_table(rows: &[(&str, Metrics)]) -> String {
     t
 }
 
-/// RGB with the dToF points | reference | `pred` | |pred − reference| (0–1 m) | `extra` (if any),
-/// depths coloured on one scale from 0 to the largest reference depth.
-pub fn comparison_mosaic(f: &EvalFrame, pred: &[f32], extra: Option<&[f32]>) -> RgbImage {
+/// The comparison figure of one frame and the numbers behind it: RGB with the dToF points |
+/// reference | `pred` (`label`) | `extra` (`extra_label`, if any) on one Turbo depth scale from
+/// the 2nd to the 98th percentile of the reference, with its colour bar in metres, then
+/// |pred − reference| on Viridis from 0 to its 98th percentile, with its own bar. The CSV has one
+/// row per panel: `panel,colour_map,lo_m,hi_m,valid_pixels,median_m`.
+pub fn comparison_mosaic(
+    f: &EvalFrame,
+    pred: (&str, &[f32]),
+    extra: Option<(&str, &[f32])>,
+) -> Result<(RgbImage, String)> {
+    use crate::plot::{figure, robust_range, ColourMap, Panel};
     let (w, h) = (f.width(), f.height());
-    let hi = f
-        .reference_m
-        .iter()
-        .copied()
-        .fold(0.0f32, f32::max)
-        .max(1.0);
+    let (lo, hi) = robust_range(&f.reference_m, 0.02, 0.98)
+        .or_else(|| robust_range(pred.1, 0.02, 0.98))
+        .unwrap_or((0.0, 1.0));
     let err: Vec<f32> = pred
+        .1
         .iter()
         .zip(&f.reference_m)
-        .map(|(p, r)| if *r > 0.0 { (p - r).abs() + 1e-6 } else { 0.0 })
+        .map(|(p, r)| if *r > 0.0 { (p - r).abs() } else { f32::NAN })
         .collect();
+    let err_hi = robust_range(&err, 0.0, 0.98).map_or(0.1, |r| r.1.max(0.01));
     let overlay = Overlay {
-        lo_m: 0.0,
+        lo_m: lo,
         hi_m: hi,
         ..Overlay::auto(w, h, &f.points)
     };
+    let depth = |d: &[f32]| depth_image(d, w, h, lo, hi);
     let mut panels = vec![
-        render_projection(&f.rgb, &f.points, &overlay),
-        depth_image(&f.reference_m, w, h, 0.0, hi),
-        depth_image(pred, w, h, 0.0, hi),
-        depth_image(&err, w, h, 0.0, 1.0),
+        Panel::new(
+            format!("RGB + {}×{} dToF zones", f.rows, f.cols),
+            draw_points(&f.rgb, &f.points, &overlay),
+        ),
+        Panel::new("reference depth", depth(&f.reference_m)),
+        Panel::new(pred.0, depth(pred.1)),
     ];
-    if let Some(x) = extra {
-        panels.push(depth_image(x, w, h, 0.0, hi));
+    if let Some((label, x)) = extra {
+        panels.push(Panel::new(label, depth(x)));
     }
-    mosaic(&panels, 4)
+    if let Some(last) = panels.last_mut() {
+        *last = last
+            .clone()
+            .with_bar(ColourMap::Turbo, lo, hi, "depth (m), black = none");
+    }
+    let err_img = RgbImage::from_fn(w, h, |x, y| {
+        let e = err[(y * w + x) as usize];
+        if e.is_finite() {
+            ColourMap::Viridis.of(e, 0.0, err_hi)
+        } else {
+            image::Rgb([255, 255, 255])
+        }
+    });
+    panels.push(
+        Panel::new(format!("|{} − reference|", pred.0), err_img).with_bar(
+            ColourMap::Viridis,
+            0.0,
+            err_hi,
+            "abs. error (m), white = no ref.",
+        ),
+    );
+    let img = figure(&format!("frame {} ({w}×{h})", f.id), &panels, 240)?;
+    let median = |d: &[f32]| {
+        let mut v: Vec<f32> = d
+            .iter()
+            .copied()
+            .filter(|x| x.is_finite() && *x > 0.0)
+            .collect();
+        v.sort_by(f32::total_cmp);
+        (v.len(), v.get(v.len() / 2).copied().unwrap_or(f32::NAN))
+    };
+    let mut csv = String::from("panel,colour_map,lo_m,hi_m,valid_pixels,median_m\n");
+    let mut row = |name: &str, map: &str, lo: f32, hi: f32, d: &[f32]| {
+        let (n, m) = median(d);
+        csv += &format!("{name},{map},{lo:.4},{hi:.4},{n},{m:.4}\n");
+    };
+    row("reference", "turbo", lo, hi, &f.reference_m);
+    row(pred.0, "turbo", lo, hi, pred.1);
+    if let Some((label, x)) = extra {
+        row(label, "turbo", lo, hi, x);
+    }
+    row("abs_error", "viridis", 0.0, err_hi, &err);
+    Ok((img, csv))
+}
+
+/// Writes [`comparison_mosaic`]'s picture at `path` and its CSV beside it.
+pub fn write_mosaic(
+    path: &Path,
+    f: &EvalFrame,
+    pred: (&str, &[f32]),
+    extra: Option<(&str, &[f32])>,
+) -> Result<()> {
+    let (img, csv) = comparison_mosaic(f, pred, extra)?;
+    img.save(path)
+        .with_context(|| format!("{}: cannot write", path.display()))?;
+    let csv_path = path.with_extension("csv");
+    std::fs::write(&csv_path, csv).with_context(|| format!("{}: cannot write", csv_path.display()))
+}
+
+/// How metrics over several frames are combined (docs/eval.md).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Aggregate {
+    /// Each metric computed per image, then averaged over the images that have valid pixels
+    /// (the published protocol, and the training code's `metrics()`).
+    Image,
+    /// Every valid pixel of every frame pooled into one set, then each metric computed once.
+    Pixel,
+}
+
+impl Aggregate {
+    /// `image` or `pixel`, as written in outputs.
+    pub fn key(self) -> &'static str {
+        match self {
+            Aggregate::Image => "image",
+            Aggregate::Pixel => "pixel",
+        }
+    }
+
+    /// One line for people saying how the figures were combined.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Aggregate::Image => "per-image mean (each metric per frame, then averaged over frames)",
+            Aggregate::Pixel => "pooled pixels (every valid pixel of every frame counted once)",
+        }
+    }
+}
+
+/// One method's metrics over a set of frames, kept both ways so either aggregate can be asked.
+#[derive(Clone, Debug)]
+pub struct MetricsSet {
+    pooled: MetricsAccumulator,
+    images: Vec<Metrics>,
+}
+
+impl MetricsSet {
+    /// An empty set; reference depths must be below `max_depth_m` to count.
+    pub fn new(max_depth_m: f32) -> Self {
+        MetricsSet {
+            pooled: MetricsAccumulator::new(max_depth_m),
+            images: Vec::new(),
+        }
+    }
+
+    /// Adds one frame's accumulator (one image).
+    pub fn add_image(&mut self, frame: &MetricsAccumulator) {
+        self.pooled.merge(frame);
+        self.images.push(frame.finish());
+    }
+
+    /// Adds every image of `other`.
+    pub fn merge(&mut self, other: &MetricsSet) {
+        self.pooled.merge(&other.pooled);
+        self.images.extend_from_slice(&other.images);
+    }
+
+    /// The metrics, combined as `how` says. With [`Aggregate::Image`] each field is the mean
+    /// over the images with valid pixels (EWMAE over those where it is defined); `count` and
+    /// `invalid_pred` are totals either way.
+    pub fn finish(&self, how: Aggregate) -> Metrics {
+        let pooled = self.pooled.finish();
+        if how == Aggregate::Pixel {
+            return pooled;
+        }
+        let scored: Vec<&Metrics> = self.images.iter().filter(|m| m.count > 0).collect();
+        let mean = |f: &dyn Fn(&Metrics) -> f64| {
+            let v: Vec<f64> = scored
+                .iter()
+                .map(|m| f(m))
+                .filter(|x| x.is_finite())
+                .collect();
+            if v.is_empty() {
+                f64::NAN
+            } else {
+                v.iter().sum::<f64>() / v.len() as f64
+            }
+        };
+        Metrics {
+            count: pooled.count,
+            delta1: mean(&|m| m.delta1),
+            delta2: mean(&|m| m.delta2),
+            delta3: mean(&|m| m.delta3),
+            abs_rel: mean(&|m| m.abs_rel),
+            rmse: mean(&|m| m.rmse),
+            log10: mean(&|m| m.log10),
+            mae: mean(&|m| m.mae),
+            ewmae: mean(&|m| m.ewmae),
+            invalid_pred: pooled.invalid_pred,
+        }
+    }
+
+    /// Images added.
+    pub fn images(&self) -> usize {
+        self.images.len()
+    }
+}
+
+#[cfg(test)]
+mod aggregate_tests {
+    use super::*;
+
+    #[test]
+    fn image_mean_weights_frames_equally_and_pixel_pool_weights_pixels() {
+        // Frame A: 1 pixel off by 1 m; frame B: 3 exact pixels.
+        let mut a = MetricsAccumulator::new(10.0);
+        a.add_map(&[3.0], &[2.0], 1, 1).unwrap();
+        let mut b = MetricsAccumulator::new(10.0);
+        b.add_map(&[2.0; 3], &[2.0; 3], 3, 1).unwrap();
+        let mut set = MetricsSet::new(10.0);
+        set.add_image(&a);
+        set.add_image(&b);
+        let img = set.finish(Aggregate::Image);
+        let pix = set.finish(Aggregate::Pixel);
+        assert!((img.rmse - 0.5).abs() < 1e-12, "{img:?}"); // (1 + 0) / 2
+        assert!((pix.rmse - 0.5).abs() < 1e-12, "{pix:?}"); // sqrt(1 / 4)
+        assert!((img.mae - 0.5).abs() < 1e-12); // (1 + 0) / 2
+        assert!((pix.mae - 0.25).abs() < 1e-12); // 1 / 4
+        assert_eq!((img.count, pix.count), (4, 4));
+    }
+
+    #[test]
+    fn bilinear_resize_keeps_constants_and_aligns_centres() {
+        assert_eq!(resize_bilinear(&[2.0; 4], 2, 2, 5, 3), vec![2.0; 15]);
+        // 2 → 4 columns: centres at −0.25, 0.25, 0.75, 1.25 of the source, clamped.
+        let up = resize_bilinear(&[0.0, 1.0], 2, 1, 4, 1);
+        assert_eq!(up, vec![0.0, 0.25, 0.75, 1.0]);
+    }
 }

@@ -138,6 +138,15 @@ impl Int8Model {
         self.blob.len()
     }
 
+    /// SHA-256 of the blob, lower-case hex (names the exact model in eval summaries).
+    pub fn blob_sha256(&self) -> String {
+        use sha2::Digest;
+        sha2::Sha256::digest(&self.blob)
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect()
+    }
+
     /// Bytes of int8 weights in the blob (validated at construction, so 0 only for a model
     /// without convolutions).
     pub fn int8_weight_bytes(&self) -> usize {

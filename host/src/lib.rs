@@ -11,6 +11,7 @@ pub mod import;
 pub mod inference;
 mod json_field;
 pub mod models;
+pub mod plot;
 pub mod quantize;
 pub mod recording;
 pub mod reference;

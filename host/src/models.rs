@@ -1,8 +1,47 @@
 //! The shipped models on disk. `models/<variant>/` holds `depthor.dblob` (int8 blob for the
 //! core), `depthor.nnef.tgz` (the float network for tract) and `prior.nnef.tgz` (the monocular
 //! prior alone). Commands take `--model mcu`, `--model phone` or a directory with those files.
+//!
+//! A variant name is looked up, in order, in the folder given by `--models-dir` (or the
+//! `DEPTHOR_MODELS` environment variable), beside the binary (`<bin>/models`,
+//! `<bin>/../share/depthor/models`), under the current folder (`models/`) and in the source tree
+//! the binary was built from (when it still exists). `mcu` needs none of them for its int8 blob:
+//! the blob is embedded in the binary ([`crate::inference::MCU_BLOB`]).
 
 use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+/// The folder `--models-dir` / `DEPTHOR_MODELS` named, set once by the command line.
+static MODELS_DIR: OnceLock<PathBuf> = OnceLock::new();
+
+/// Makes `dir` the first place variant names are looked up (`--models-dir`). A second call is
+/// ignored.
+pub fn set_models_dir(dir: PathBuf) {
+    let _ = MODELS_DIR.set(dir);
+}
+
+/// The folders that may hold `<variant>/`, in lookup order.
+pub fn search_dirs() -> Vec<PathBuf> {
+    let mut dirs = Vec::new();
+    if let Some(d) = MODELS_DIR.get() {
+        dirs.push(d.clone());
+    } else if let Some(d) = std::env::var_os("DEPTHOR_MODELS") {
+        dirs.push(PathBuf::from(d));
+    }
+    if let Some(bin) = std::env::current_exe()
+        .ok()
+        .and_then(|e| e.parent().map(Path::to_path_buf))
+    {
+        dirs.push(bin.join("models"));
+        dirs.push(bin.join("../share/depthor/models"));
+    }
+    dirs.push(PathBuf::from("models"));
+    let source = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models");
+    if source.is_dir() {
+        dirs.push(source);
+    }
+    dirs
+}
 
 /// The variants shipped in `models/`.
 pub const VARIANTS: [&str; 2] = ["mcu", "phone"];
@@ -14,6 +53,9 @@ pub struct ModelFiles {
     pub dir: PathBuf,
     /// Variant name (the directory name): also the simulator preset its inputs come from.
     pub variant: String,
+    /// No folder was found and this is `mcu`: the int8 blob is the one embedded in the binary
+    /// (the float network and the prior are not available).
+    pub embedded: bool,
 }
 
 /// A `--model` argument that names neither a directory nor a shipped variant.
@@ -27,32 +69,45 @@ pub struct UnknownModel {
 }
 
 impl ModelFiles {
-    /// Resolves `name_or_dir`: an existing directory, else `models/<variant>` under the current
-    /// directory, else under the source tree this binary was built from.
+    /// Resolves `name_or_dir`: an existing directory, else `<variant>` in [`search_dirs`]; `mcu`
+    /// found nowhere resolves to the embedded blob.
     pub fn resolve(name_or_dir: &str) -> Result<Self, UnknownModel> {
         let given = Path::new(name_or_dir);
         let mut looked = vec![given.to_path_buf()];
         if !given.is_dir() && VARIANTS.contains(&name_or_dir) {
-            looked.push(Path::new("models").join(name_or_dir));
-            looked.push(
-                Path::new(env!("CARGO_MANIFEST_DIR"))
-                    .join("../models")
-                    .join(name_or_dir),
-            );
+            looked.extend(search_dirs().into_iter().map(|d| d.join(name_or_dir)));
         }
-        let dir = looked
-            .iter()
-            .find(|p| p.is_dir())
-            .cloned()
-            .ok_or_else(|| UnknownModel {
+        let Some(dir) = looked.iter().find(|p| p.is_dir()).cloned() else {
+            if name_or_dir == "mcu" {
+                return Ok(ModelFiles {
+                    dir: PathBuf::from("<embedded>"),
+                    variant: "mcu".into(),
+                    embedded: true,
+                });
+            }
+            return Err(UnknownModel {
                 given: name_or_dir.to_string(),
-                looked: looked.clone(),
-            })?;
+                looked,
+            });
+        };
         let variant = dir.file_name().map_or_else(
             || name_or_dir.to_string(),
             |n| n.to_string_lossy().into_owned(),
         );
-        Ok(ModelFiles { dir, variant })
+        Ok(ModelFiles {
+            dir,
+            variant,
+            embedded: false,
+        })
+    }
+
+    /// Where the files are, for messages and summaries: the folder, or `embedded`.
+    pub fn describe(&self) -> String {
+        if self.embedded {
+            "embedded in the binary (mcu int8 blob only)".into()
+        } else {
+            self.dir.display().to_string()
+        }
     }
 
     /// The int8 blob (core).
@@ -89,6 +144,7 @@ mod tests {
     fn resolves_variants_and_rejects_unknown_names() {
         let m = ModelFiles::resolve("mcu").unwrap();
         assert_eq!(m.variant, "mcu");
+        assert!(!m.embedded, "the source tree's models/mcu is found");
         assert!(m.blob().is_file());
         assert_eq!(m.preset(), "mcu");
         let e = ModelFiles::resolve("nano").unwrap_err().to_string();

@@ -1,5 +1,5 @@
-//! Drawing helpers for the CLI's images: the Turbo depth colormap, filled discs, a tiny bitmap
-//! font for numbers, and a colour bar with its range written beside it.
+//! Pixel-level drawing for the CLI's images: the Turbo depth colormap, filled discs, depth and
+//! label maps as images. Titles, colour bars and charts are [`crate::plot`]'s.
 
 use depthor_core::projection::ProjectedPoint;
 use image::{Rgb, RgbImage};
@@ -79,56 +79,7 @@ pub fn fill_rect(img: &mut RgbImage, x0: u32, y0: u32, w: u32, h: u32, colour: R
     }
 }
 
-/// 3×5 glyphs, one row per entry, bit 2 = left column.
-fn glyph(c: char) -> Option<[u8; 5]> {
-    Some(match c {
-        '0' => [0b111, 0b101, 0b101, 0b101, 0b111],
-        '1' => [0b010, 0b110, 0b010, 0b010, 0b111],
-        '2' => [0b111, 0b001, 0b111, 0b100, 0b111],
-        '3' => [0b111, 0b001, 0b111, 0b001, 0b111],
-        '4' => [0b101, 0b101, 0b111, 0b001, 0b001],
-        '5' => [0b111, 0b100, 0b111, 0b001, 0b111],
-        '6' => [0b111, 0b100, 0b111, 0b101, 0b111],
-        '7' => [0b111, 0b001, 0b010, 0b010, 0b010],
-        '8' => [0b111, 0b101, 0b111, 0b101, 0b111],
-        '9' => [0b111, 0b101, 0b111, 0b001, 0b111],
-        '.' => [0b000, 0b000, 0b000, 0b000, 0b010],
-        '-' => [0b000, 0b000, 0b111, 0b000, 0b000],
-        'm' => [0b000, 0b000, 0b111, 0b111, 0b101],
-        ' ' => [0; 5],
-        _ => return None,
-    })
-}
-
-/// Width in pixels of `text` drawn by [`draw_text`] at `scale`.
-pub fn text_width(text: &str, scale: u32) -> u32 {
-    (text.chars().count() as u32 * 4).saturating_sub(1) * scale
-}
-
-/// Draws `text` (digits, `.`, `-`, `m`, space; other characters are skipped as spaces) with its
-/// top-left corner at `(x, y)`, each font pixel a `scale × scale` square.
-pub fn draw_text(img: &mut RgbImage, x: u32, y: u32, text: &str, scale: u32, colour: Rgb<u8>) {
-    for (k, c) in text.chars().enumerate() {
-        let Some(rows) = glyph(c) else { continue };
-        let gx = x + k as u32 * 4 * scale;
-        for (r, bits) in rows.iter().enumerate() {
-            for col in 0..3 {
-                if bits & (0b100 >> col) != 0 {
-                    fill_rect(
-                        img,
-                        gx + col * scale,
-                        y + r as u32 * scale,
-                        scale,
-                        scale,
-                        colour,
-                    );
-                }
-            }
-        }
-    }
-}
-
-/// Layout of [`render_projection`].
+/// Layout of [`draw_points`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Overlay {
     /// Disc radius in pixels.
@@ -141,11 +92,17 @@ pub struct Overlay {
 
 impl Overlay {
     /// Radius scaled to the image (≈1/100 of the larger side, at least 2 px) and the colour
-    /// range spanning the points' depths (a 1 cm span around a single depth).
+    /// range spanning the points' depths (a 1 cm span around a single depth); with 20 points or
+    /// more, from their 5th to 95th percentile, so a few noise zones cannot set it.
     pub fn auto(width: u32, height: u32, points: &[ProjectedPoint]) -> Self {
-        let (lo, hi) = points.iter().fold((f32::INFINITY, 0.0f32), |(lo, hi), p| {
-            (lo.min(p.depth_m), hi.max(p.depth_m))
-        });
+        let mut d: Vec<f32> = points.iter().map(|p| p.depth_m).collect();
+        d.sort_by(f32::total_cmp);
+        let q = |p: f64| d[((d.len() - 1) as f64 * p).round() as usize];
+        let (lo, hi) = match d.len() {
+            0 => (f32::INFINITY, 0.0),
+            n if n >= 20 => (q(0.05), q(0.95)),
+            _ => (d[0], d[d.len() - 1]),
+        };
         let (lo_m, hi_m) = if points.is_empty() {
             (0.0, 1.0)
         } else if hi - lo < 0.01 {
@@ -161,45 +118,26 @@ impl Overlay {
     }
 }
 
-/// The RGB image with every point drawn as a Turbo-coloured disc (black rim) and, to its right,
-/// a colour bar labelled with the range in metres (top = far). Points keep the image's pixel
-/// coordinates; the output is wider than `rgb` by the bar panel.
-pub fn render_projection(rgb: &RgbImage, points: &[ProjectedPoint], overlay: &Overlay) -> RgbImage {
-    let (w, h) = rgb.dimensions();
-    let scale = (h / 120).max(1);
-    let labels = [
-        format!("{:.2}m", overlay.hi_m),
-        format!("{:.2}m", overlay.lo_m),
-    ];
-    let label_w = labels
-        .iter()
-        .map(|l| text_width(l, scale))
-        .max()
-        .unwrap_or(0);
-    let bar_w = 6 * scale;
-    let pad = 3 * scale;
-    let panel = pad + bar_w + pad + label_w + pad;
-    let mut out = RgbImage::from_pixel(w + panel, h, Rgb([255, 255, 255]));
-    image::imageops::replace(&mut out, rgb, 0, 0);
+/// The RGB image with every point drawn as a Turbo-coloured disc (black rim) over
+/// `[overlay.lo_m, overlay.hi_m]` (clamped at the ends); same size as `rgb`. The titled picture
+/// with its colour bar is [`crate::plot::figure`]'s.
+pub fn draw_points(rgb: &RgbImage, points: &[ProjectedPoint], overlay: &Overlay) -> RgbImage {
+    let mut out = rgb.clone();
     for p in points {
         fill_disc(&mut out, p.u, p.v, overlay.radius + 1.0, Rgb([0, 0, 0]));
         let c = depth_colour(p.depth_m, overlay.lo_m, overlay.hi_m);
         fill_disc(&mut out, p.u, p.v, overlay.radius, c);
     }
-    // Colour bar: top row = hi (far), bottom row = lo (near).
-    let top = pad;
-    let bar_h = h.saturating_sub(2 * pad).max(1);
-    let bx = w + pad;
-    for r in 0..bar_h {
-        let t = 1.0 - r as f32 / (bar_h.max(2) - 1) as f32;
-        fill_rect(&mut out, bx, top + r, bar_w, 1, turbo(t));
-    }
-    let black = Rgb([0, 0, 0]);
-    let lx = bx + bar_w + pad;
-    draw_text(&mut out, lx, top, &labels[0], scale, black);
-    let bottom = (top + bar_h).saturating_sub(5 * scale);
-    draw_text(&mut out, lx, bottom, &labels[1], scale, black);
     out
+}
+
+/// The numbers behind a picture of projected zones: one row per point, `zone,u_px,v_px,depth_m`.
+pub fn points_csv(points: &[ProjectedPoint]) -> String {
+    let mut s = String::from("zone,u_px,v_px,depth_m\n");
+    for p in points {
+        s += &format!("{},{:.2},{:.2},{:.4}\n", p.zone, p.u, p.v, p.depth_m);
+    }
+    s
 }
 
 /// A depth map (metres, row-major `width × height`) as a Turbo image over `[lo, hi]`; unknown
@@ -233,20 +171,6 @@ pub fn labels_image(labels: &[u8], width: u32, height: u32) -> RgbImage {
     })
 }
 
-/// Images side by side (top-aligned, white background, `gap` pixels between them).
-pub fn mosaic(images: &[RgbImage], gap: u32) -> RgbImage {
-    let w =
-        images.iter().map(|i| i.width()).sum::<u32>() + gap * images.len().saturating_sub(1) as u32;
-    let h = images.iter().map(|i| i.height()).max().unwrap_or(0);
-    let mut out = RgbImage::from_pixel(w.max(1), h.max(1), Rgb([255, 255, 255]));
-    let mut x = 0i64;
-    for img in images {
-        image::imageops::replace(&mut out, img, x, 0);
-        x += i64::from(img.width() + gap);
-    }
-    out
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -278,12 +202,52 @@ mod tests {
     }
 
     #[test]
-    fn text_draws_glyph_bits() {
-        let mut img = RgbImage::new(8, 6);
-        draw_text(&mut img, 0, 0, "1", 1, Rgb([255, 0, 0]));
-        // '1' row 0 = 0b010: only the middle column.
-        assert_eq!(img.get_pixel(0, 0)[0], 0);
-        assert_eq!(img.get_pixel(1, 0)[0], 255);
-        assert_eq!(text_width("1.5m", 2), (16 - 1) * 2);
+    fn points_are_turbo_discs_with_a_black_rim_at_their_centres() {
+        use depthor_core::projection::ProjectedPoint;
+        let grey = Rgb([128, 128, 128]);
+        let rgb = RgbImage::from_pixel(64, 48, grey);
+        let pt = |zone, u: f32, v: f32, d| ProjectedPoint {
+            zone,
+            u,
+            v,
+            x: u as u32,
+            y: v as u32,
+            depth_m: d,
+        };
+        let points = [
+            pt(0, 16.0, 8.0, 1.0),
+            pt(1, 48.0, 8.0, 2.0),
+            pt(2, 16.0, 40.0, 3.0),
+        ];
+        let overlay = Overlay::auto(64, 48, &points);
+        assert_eq!(
+            (overlay.lo_m, overlay.hi_m, overlay.radius),
+            (1.0, 3.0, 2.0)
+        );
+        let img = draw_points(&rgb, &points, &overlay);
+        assert_eq!(img.dimensions(), (64, 48));
+        assert_eq!(*img.get_pixel(16, 8), turbo(0.0));
+        assert_eq!(*img.get_pixel(48, 8), turbo(0.5));
+        assert_eq!(*img.get_pixel(16, 40), turbo(1.0));
+        assert_eq!(*img.get_pixel(18, 8), Rgb([0, 0, 0])); // rim: 2.5 px from the centre
+        assert_eq!(*img.get_pixel(32, 24), grey);
+    }
+
+    #[test]
+    fn a_few_noise_zones_do_not_set_the_colour_range() {
+        use depthor_core::projection::ProjectedPoint;
+        let mut points: Vec<ProjectedPoint> = (0..64)
+            .map(|i| ProjectedPoint {
+                zone: i,
+                u: 1.0,
+                v: 1.0,
+                x: 1,
+                y: 1,
+                depth_m: 1.5 + 0.01 * f32::from(i),
+            })
+            .collect();
+        points[7].depth_m = 12.0; // one noise zone
+        let o = Overlay::auto(160, 120, &points);
+        assert!(o.hi_m < 2.2 && o.lo_m > 1.5, "{o:?}");
     }
 }

@@ -91,10 +91,11 @@ fn eval_scores_every_method_on_every_frame() {
         .unwrap()
         .filter(|e| {
             let n = e.as_ref().unwrap().file_name();
-            n.to_string_lossy().starts_with("mosaic_")
+            let n = n.to_string_lossy();
+            n.starts_with("mosaic_") && n.ends_with(".png")
         })
         .count();
-    assert_eq!(mosaics, 4); // 2 per recording
+    assert_eq!(mosaics, 4); // 2 per recording, each with its CSV beside it
 }
 
 #[test]

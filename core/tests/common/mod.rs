@@ -323,11 +323,7 @@ impl Net {
                     let s = v[ins[0]].0;
                     let p = s.h * s.w;
                     let mut o = vec![0.0; p];
-                    let mut scratch =
-                        vec![
-                            0.0;
-                            depthor_core::kernels::refine::scratch_len(s.w, attrs.iterations)
-                        ];
+                    let mut scratch = vec![0.0; 2 * p];
                     float::refine(
                         &v[ins[0]].1,
                         s.h,

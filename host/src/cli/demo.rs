@@ -1,71 +1,98 @@
-//! `depthor demo`: the main job on the embedded default model. With no arguments it renders a
-//! scene, simulates the `mcu` sensor (8×8 zones), projects the zones, runs the int8 model in the
-//! core, and compares it with the classical baselines; with `--recording DIR` it runs on the
-//! user's recording (its own dToF if it has some, else the simulated `mcu` sensor on its
-//! reference depth). Writes `<out>/depth_<id>.png` (16-bit mm) and `<out>/mosaic_<id>.png`
-//! (RGB with the points | reference | int8 model | |error| | joint bilateral baseline).
+//! `depthor demo`: the main job. With no arguments it renders a scene, simulates the `mcu`
+//! sensor (8×8 zones), projects the zones, runs the int8 model embedded in the binary in the
+//! core, and compares it with the classical baselines; `--model phone` (or a model folder) runs
+//! another variant on its own preset; `--recording DIR` runs on the user's recording (its own dToF
+//! if it has some, else the simulated sensor on its reference depth). Writes
+//! `<out>/depth_<id>.png` (16-bit mm) and `<out>/mosaic_<id>.png` (RGB with the points |
+//! reference | int8 model | |error| | joint bilateral baseline).
 
 use anyhow::{Context, Result};
 use depthor_core::metrics::MetricsAccumulator;
-use depthor_host::atomic::{AtomicDir, Existing};
 use depthor_host::evaluation::{
-    comparison_mosaic, metrics_table, rendered_frame, EvalFrame, Evaluator, Method, RecordingFrames,
+    metrics_table, rendered_frame, write_mosaic, Aggregate, EvalFrame, Evaluator, Method,
+    MetricsSet, RecordingFrames,
 };
-use depthor_host::inference::Int8Model;
+use depthor_host::models::ModelFiles;
 use depthor_host::recording::depth_m_to_mm;
 use image::{ImageBuffer, Luma};
+use serde_json::json;
 use std::path::{Path, PathBuf};
 
 /// Arguments of `depthor demo`.
 #[derive(Debug, clap::Args)]
+#[command(after_help = "Examples:
+  depthor demo                                    # rendered scene, embedded mcu model, ./demo/
+  depthor demo --model phone --out demo-phone     # the phone variant on its 40×30 sensor
+  depthor demo --recording rec/middlebury --frames 3 --out demo-mb --overwrite
+  depthor demo --json | jq .methods.int8.rmse")]
 pub struct Args {
-    /// Run on this recording instead of a rendered scene.
-    #[arg(long)]
+    /// `mcu` (embedded in the binary), `phone`, or a model folder (depthor.dblob).
+    #[arg(long, default_value = "mcu")]
+    model: String,
+    /// Run on this recording instead of rendered scenes.
+    #[arg(long, short = 'r', value_name = "DIR")]
     recording: Option<PathBuf>,
-    /// Output directory.
+    /// Output folder.
     #[arg(long, default_value = "demo")]
     out: PathBuf,
-    /// Frames to run (rendered scenes, or the first frames of the recording).
+    /// Write into an existing non-empty --out (files of the same name are replaced).
+    #[arg(long)]
+    overwrite: bool,
+    /// Frames: rendered scenes, or the first N frames of --recording (0 = all of them).
     #[arg(long, default_value_t = 1)]
     frames: usize,
-    /// Scene seed.
-    #[arg(long, default_value_t = 2025)]
+    /// Scene seed (rendered scenes).
+    #[arg(long, default_value_t = super::common::DEFAULT_SEED)]
     seed: u64,
     /// Largest depth counted by the metrics, metres.
     #[arg(long, default_value_t = 10.0)]
     max_depth: f32,
+    /// Print the results as JSON on stdout instead of the table.
+    #[arg(long)]
+    json: bool,
 }
-
-/// The simulator preset of the embedded model.
-const PRESET: &str = "mcu";
 
 /// Runs the demo and prints metrics and time per frame.
 pub fn handle(args: Args) -> Result<()> {
-    let mut eval = Evaluator::new(Int8Model::embedded_mcu()?, None, (0.1, args.max_depth));
+    let files = ModelFiles::resolve(&args.model)?;
+    let preset = files.preset().to_string();
+    let mut eval = Evaluator::load(&files, false, (0.1, args.max_depth))?;
     let (h, w) = eval.int8().input_shape();
     let frames: Vec<EvalFrame> = match &args.recording {
         None => (0..args.frames.max(1) as u64)
-            .map(|i| rendered_frame(PRESET, args.seed, i, w as u32, h as u32))
+            .map(|i| rendered_frame(&preset, args.seed, i, w as u32, h as u32))
             .collect::<Result<_>>()?,
         Some(dir) => {
-            let rec = RecordingFrames::open(dir, PRESET)?;
-            (0..rec.len().min(args.frames.max(1)))
+            let rec = RecordingFrames::open(dir, &preset)?;
+            if !rec.has_rgb() {
+                anyhow::bail!(
+                    "{}: recording.json: rgb: false (zone-only recording); the models need colour images",
+                    dir.display()
+                );
+            }
+            let n = match args.frames {
+                0 => rec.len(),
+                n => n.min(rec.len()),
+            };
+            (0..n)
                 .map(|i| rec.frame(i, w as u32, h as u32))
                 .collect::<Result<_>>()?
         }
     };
     // Everything goes into `<out>.partial-<pid>`; an error anywhere leaves `<out>` untouched.
-    let staging = AtomicDir::create(&args.out, Existing::Merge)?;
+    let staging = super::common::out_dir(&args.out, args.overwrite)?;
     let methods = eval.methods();
-    let mut acc: Vec<MetricsAccumulator> = methods
+    let mut acc: Vec<MetricsSet> = methods
         .iter()
-        .map(|_| MetricsAccumulator::new(args.max_depth))
+        .map(|_| MetricsSet::new(args.max_depth))
         .collect();
     let mut model_time = 0.0f64;
     for f in &frames {
         let preds = eval.predict(f)?;
         for (a, p) in acc.iter_mut().zip(&preds) {
-            a.add_map(&p.depth_m, &f.reference_m, w, h)?;
+            let mut frame = MetricsAccumulator::new(args.max_depth);
+            frame.add_map(&p.depth_m, &f.reference_m, w, h)?;
+            a.add_image(&frame);
         }
         let pick = |m: Method| preds.iter().find(|p| p.method == m).map(|p| &p.depth_m[..]);
         let pred = pick(Method::Int8).context("no int8 prediction")?;
@@ -73,22 +100,41 @@ pub fn handle(args: Args) -> Result<()> {
         write_outputs(staging.path(), f, pred, pick(Method::JointBilateral))?;
     }
     let out = staging.commit()?;
-    println!(
-        "depthor demo: {} frame(s) at {h}×{w}, embedded mcu model ({} KiB blob, {} KiB arena)",
-        frames.len(),
-        eval.int8().blob_bytes() / 1024,
-        eval.int8().arena_bytes() / 1024
-    );
+    let ms = 1e3 * model_time / frames.len().max(1) as f64;
     let rows: Vec<_> = methods
         .iter()
         .zip(&acc)
-        .map(|(m, a)| (m.label(), a.finish()))
+        .map(|(m, a)| (*m, a.finish(Aggregate::Image)))
         .collect();
-    print!("{}", metrics_table(&rows));
+    if args.json {
+        let methods: serde_json::Map<_, _> = rows
+            .iter()
+            .map(|(m, x)| (m.key().to_string(), super::eval::metrics_json(x)))
+            .collect();
+        return super::common::print_json(&json!({
+            "model": files.variant, "model_files": files.describe(),
+            "blob_sha256": eval.int8().blob_sha256(),
+            "frames": frames.len(), "height": h, "width": w, "seed": args.seed,
+            "aggregate": Aggregate::Image.key(),
+            "max_depth_m": args.max_depth, "methods": methods,
+            "int8_ms_per_frame": ms, "out": out.display().to_string(),
+        }));
+    }
     println!(
-        "int8 model time per frame (this machine, one thread): {:.1} ms",
-        1e3 * model_time / frames.len().max(1) as f64
+        "depthor demo: {} frame(s) at {h}×{w}, {} model ({}; {} KiB blob, {} KiB arena)",
+        frames.len(),
+        files.variant,
+        files.describe(),
+        eval.int8().blob_bytes() / 1024,
+        eval.int8().arena_bytes() / 1024
     );
+    let table: Vec<_> = rows.iter().map(|(m, x)| (m.label(), *x)).collect();
+    print!("{}", metrics_table(&table));
+    println!(
+        "aggregate: {} (see docs/eval.md); RMSE and EWMAE in m, δ fractions",
+        Aggregate::Image.describe()
+    );
+    println!("int8 model time per frame (this machine, one thread): {ms:.1} ms");
     println!("wrote {}", out.display());
     Ok(())
 }
@@ -103,8 +149,10 @@ fn write_outputs(out: &Path, f: &EvalFrame, pred: &[f32], jbu: Option<&[f32]>) -
     depth_png
         .save(&path)
         .with_context(|| format!("{}: cannot write", path.display()))?;
-    let path = out.join(format!("mosaic_{}.png", f.id));
-    comparison_mosaic(f, pred, jbu)
-        .save(&path)
-        .with_context(|| format!("{}: cannot write", path.display()))
+    write_mosaic(
+        &out.join(format!("mosaic_{}.png", f.id)),
+        f,
+        ("int8 model", pred),
+        jbu.map(|d| ("joint bilateral", d)),
+    )
 }

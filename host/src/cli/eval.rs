@@ -2,34 +2,45 @@
 //! model (core), the float model (tract) and the baselines on the same inputs of every frame of
 //! one or more recordings. Writes `<out>/frames.csv` (one row per recording, frame and method),
 //! `<out>/summary.json` (metrics over all frames of each recording and over their union, the best
-//! baseline, int8 against it and against float) and `<out>/mosaic_<recording>_<id>.png` for a
-//! sample of frames (RGB with the dToF points | reference | int8 prediction | |error|).
+//! baseline, int8 against it and against float; the depthor version, commit, blob SHA-256),
+//! `<out>/mosaic_<recording>_<id>.png` for a sample of frames and, with `--save-depth`,
+//! `<out>/depth/<recording>/<method>/<id>.png` (16-bit PNG, millimetres). The metrics, their
+//! aggregation and every output are documented in docs/eval.md.
 
 use anyhow::{bail, Context, Result};
 use depthor_core::metrics::{Metrics, MetricsAccumulator};
-use depthor_host::atomic::{AtomicDir, Existing};
 use depthor_host::evaluation::{
-    comparison_mosaic, metrics_table, Evaluator, Method, RecordingFrames,
+    metrics_table, resize_bilinear, write_mosaic, Aggregate, EvalFrame, Evaluator, Method,
+    MetricsSet, RecordingFrames,
 };
 use depthor_host::models::ModelFiles;
+use depthor_host::recording::depth_m_to_mm;
 use serde_json::json;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// Arguments of `depthor eval`.
 #[derive(Debug, clap::Args)]
+#[command(after_help = "Examples:
+  depthor eval --model mcu --recording rec/mcu-test --out eval/mcu
+  depthor eval --model phone --recording rec/a --recording rec/b --aggregate pixel --json
+  depthor eval --recording rec/middlebury --native --save-depth --out eval/mb --overwrite
+Metrics and outputs: docs/eval.md.")]
 pub struct Args {
-    /// `mcu`, `phone` or a model directory (depthor.dblob, depthor.nnef.tgz, prior.nnef.tgz).
+    /// `mcu`, `phone` or a model folder (depthor.dblob, depthor.nnef.tgz, prior.nnef.tgz).
     #[arg(long, default_value = "mcu")]
     model: String,
     /// Recording(s) to evaluate on (need reference depth; zones are simulated with the
     /// variant's preset where a recording has none). Repeat for several; the summary also
     /// gives their union.
-    #[arg(long, required = true)]
+    #[arg(long, short = 'r', value_name = "DIR", required = true)]
     recording: Vec<PathBuf>,
-    /// Output directory (default: eval/<variant>_<first recording's name>).
+    /// Output folder (default: eval/<variant>_<first recording's name>).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Write into an existing non-empty --out (files of the same name are replaced).
+    #[arg(long)]
+    overwrite: bool,
     /// Evaluate only the first N frames of each recording (0 = all).
     #[arg(long, default_value_t = 0)]
     frames: usize,
@@ -42,6 +53,21 @@ pub struct Args {
     /// Pixels with reference depth beyond this are not counted, metres.
     #[arg(long, default_value_t = 10.0)]
     max_depth: f32,
+    /// How frames are combined: `image` (each metric per frame, then the mean over frames: the
+    /// published protocol) or `pixel` (all valid pixels pooled).
+    #[arg(long, value_enum, default_value_t = Aggregate::Image)]
+    aggregate: Aggregate,
+    /// Score at the recording's own resolution: predictions upsampled bilinearly to the crop of
+    /// the frame the model's input came from, against the full-resolution reference.
+    #[arg(long)]
+    native: bool,
+    /// Also write every int8 and float prediction as a 16-bit PNG in millimetres (at the scoring
+    /// resolution) under <out>/depth/<recording>/<method>/<id>.png.
+    #[arg(long)]
+    save_depth: bool,
+    /// Print summary.json on stdout instead of the tables.
+    #[arg(long)]
+    json: bool,
 }
 
 const CSV_HEADER: &str =
@@ -49,7 +75,7 @@ const CSV_HEADER: &str =
 
 /// Metrics of every method over a set of frames, and their time.
 struct Totals {
-    acc: Vec<MetricsAccumulator>,
+    sets: Vec<MetricsSet>,
     seconds: Vec<f64>,
     frames: usize,
 }
@@ -57,16 +83,14 @@ struct Totals {
 impl Totals {
     fn new(methods: usize, max_depth: f32) -> Self {
         Totals {
-            acc: (0..methods)
-                .map(|_| MetricsAccumulator::new(max_depth))
-                .collect(),
+            sets: (0..methods).map(|_| MetricsSet::new(max_depth)).collect(),
             seconds: vec![0.0; methods],
             frames: 0,
         }
     }
 
     fn merge(&mut self, other: &Totals) {
-        for (a, b) in self.acc.iter_mut().zip(&other.acc) {
+        for (a, b) in self.sets.iter_mut().zip(&other.sets) {
             a.merge(b);
         }
         for (a, b) in self.seconds.iter_mut().zip(&other.seconds) {
@@ -75,12 +99,12 @@ impl Totals {
         self.frames += other.frames;
     }
 
-    fn results(&self, methods: &[Method]) -> Vec<(Method, Metrics, f64)> {
+    fn results(&self, methods: &[Method], how: Aggregate) -> Vec<(Method, Metrics, f64)> {
         methods
             .iter()
-            .zip(&self.acc)
+            .zip(&self.sets)
             .zip(&self.seconds)
-            .map(|((m, a), s)| (*m, a.finish(), 1e3 * s / self.frames.max(1) as f64))
+            .map(|((m, a), s)| (*m, a.finish(how), 1e3 * s / self.frames.max(1) as f64))
             .collect()
     }
 }
@@ -89,6 +113,59 @@ impl Totals {
 fn name_of(dir: &Path) -> String {
     dir.file_name()
         .map_or_else(|| "recording".into(), |s| s.to_string_lossy().into_owned())
+}
+
+/// `p` relative to the current folder when it is inside it, else as given.
+fn relative(p: &Path) -> String {
+    let rel = std::env::current_dir()
+        .ok()
+        .and_then(|cwd| p.strip_prefix(&cwd).ok().map(Path::to_path_buf));
+    rel.unwrap_or_else(|| p.to_path_buf()).display().to_string()
+}
+
+/// The source tree's commit (`git rev-parse HEAD`, `-dirty` with uncommitted changes to tracked
+/// files) when the tree this binary was built from is still there; else `None`.
+fn git_commit() -> Option<String> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let git = |args: &[&str]| {
+        std::process::Command::new("git")
+            .arg("-C")
+            .arg(dir)
+            .args(args)
+            .output()
+            .ok()
+            .filter(|o| o.status.success())
+            .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+    };
+    let head = git(&["rev-parse", "HEAD"])?;
+    let dirty =
+        git(&["status", "--porcelain", "--untracked-files=no"]).is_some_and(|s| !s.is_empty());
+    Some(if dirty { format!("{head}-dirty") } else { head })
+}
+
+/// The prediction and reference a frame is scored on: the model's size, or with `native` the
+/// recording's (prediction upsampled bilinearly).
+fn scored<'a>(
+    frame: &'a EvalFrame,
+    pred: &[f32],
+    native: bool,
+) -> Result<(Vec<f32>, &'a [f32], u32, u32)> {
+    if !native {
+        return Ok((
+            pred.to_vec(),
+            &frame.reference_m,
+            frame.width(),
+            frame.height(),
+        ));
+    }
+    let n = frame.native.as_ref().with_context(|| {
+        format!(
+            "frame {}: no reference at the recording's resolution",
+            frame.id
+        )
+    })?;
+    let up = resize_bilinear(pred, frame.width(), frame.height(), n.width, n.height);
+    Ok((up, &n.depth_m, n.width, n.height))
 }
 
 /// Runs the evaluation and prints the summary tables.
@@ -102,6 +179,13 @@ pub fn handle(args: Args) -> Result<()> {
             if frames.is_empty() {
                 bail!("{}: the recording has no frames", dir.display());
             }
+            if !frames.has_rgb() {
+                bail!(
+                    "{}: recording.json: rgb: false (zone-only recording); eval needs colour \
+                     images and reference depth",
+                    dir.display()
+                );
+            }
             Ok((dir.clone(), frames))
         })
         .collect::<Result<Vec<_>>>()?;
@@ -111,12 +195,13 @@ pub fn handle(args: Args) -> Result<()> {
         PathBuf::from("eval").join(format!("{}_{}", files.variant, name_of(&args.recording[0])))
     });
     // Everything goes into `<out>.partial-<pid>`; an error anywhere leaves `<out>` untouched.
-    let staging = AtomicDir::create(&out_dir, Existing::Merge)?;
+    let staging = super::common::out_dir(&out_dir, args.overwrite)?;
     let out = staging.path().to_path_buf();
     let methods = eval.methods();
     let mut csv = vec![CSV_HEADER.to_string()];
     let mut union = Totals::new(methods.len(), args.max_depth);
     let mut per_recording = Vec::new();
+    let mut native_size = None;
     let total: usize = recordings
         .iter()
         .map(|(_, f)| limit(args.frames, f.len()))
@@ -144,20 +229,23 @@ pub fn handle(args: Args) -> Result<()> {
             totals.frames += 1;
             let preds = eval.predict(&frame)?;
             for (k, p) in preds.iter().enumerate() {
+                let (pred, reference, sw, sh) = scored(&frame, &p.depth_m, args.native)?;
+                native_size.get_or_insert((sh, sw));
                 let mut acc = MetricsAccumulator::new(args.max_depth);
-                acc.add_map(&p.depth_m, &frame.reference_m, w, h)?;
-                totals.acc[k].merge(&acc);
+                acc.add_map(&pred, reference, sw as usize, sh as usize)?;
+                totals.sets[k].add_image(&acc);
                 totals.seconds[k] += p.seconds;
                 csv.push(format!(
                     "{name},{}",
                     csv_row(&frame.id, p.method, &acc.finish(), p.seconds)
                 ));
+                if args.save_depth && matches!(p.method, Method::Int8 | Method::Float) {
+                    save_depth(&out, &name, p.method, &frame.id, &pred, sw, sh)?;
+                }
             }
             if i % mosaic_every == 0 {
                 let path = out.join(format!("mosaic_{name}_{}.png", frame.id));
-                comparison_mosaic(&frame, &preds[0].depth_m, None)
-                    .save(&path)
-                    .with_context(|| format!("{}: cannot write", path.display()))?;
+                write_mosaic(&path, &frame, ("int8 model", &preds[0].depth_m), None)?;
             }
         }
         if totals.frames == 0 {
@@ -173,19 +261,35 @@ pub fn handle(args: Args) -> Result<()> {
     bar.finish_and_clear();
     write_text(&out.join("frames.csv"), &(csv.join("\n") + "\n"))?;
 
-    let union_results = union.results(&methods);
+    let how = args.aggregate;
+    let union_results = union.results(&methods, how);
     let mut summary = comparison_json(&union_results);
+    summary["depthor_version"] = json!(env!("CARGO_PKG_VERSION"));
+    summary["git_commit"] = json!(git_commit());
     summary["model"] = json!(files.variant);
-    summary["model_dir"] = json!(files.dir.display().to_string());
+    summary["model_dir"] = if files.embedded {
+        json!(null)
+    } else {
+        json!(relative(&files.dir))
+    };
+    summary["model_embedded"] = json!(files.embedded);
+    summary["blob_sha256"] = json!(eval.int8().blob_sha256());
+    summary["aggregate"] = json!(how.key());
+    summary["aggregate_note"] = json!(how.describe());
+    summary["scored_at"] = json!(if args.native { "native" } else { "model" });
     summary["frames"] = json!(union.frames);
     summary["height"] = json!(h);
     summary["width"] = json!(w);
+    if args.native {
+        summary["first_native_crop"] =
+            json!(native_size.map(|(h, w)| json!({"height": h, "width": w})));
+    }
     summary["max_depth_m"] = json!(args.max_depth);
     summary["recordings"] = per_recording
         .iter()
         .map(|(dir, t)| {
-            let mut r = comparison_json(&t.results(&methods));
-            r["recording"] = json!(dir.display().to_string());
+            let mut r = comparison_json(&t.results(&methods, how));
+            r["recording"] = json!(relative(dir));
             r["frames"] = json!(t.frames);
             r
         })
@@ -195,14 +299,24 @@ pub fn handle(args: Args) -> Result<()> {
         &(serde_json::to_string_pretty(&summary)? + "\n"),
     )?;
     let out = staging.commit()?;
+    if args.json {
+        return super::common::print_json(&summary);
+    }
 
     println!(
-        "depthor eval: {} at {h}×{w}, reference ≤ {} m",
-        files.variant, args.max_depth
+        "depthor eval: {} at {h}×{w}, scored at {}, reference ≤ {} m, {}",
+        files.variant,
+        if args.native {
+            "the recording's resolution (--native)"
+        } else {
+            "the model's resolution"
+        },
+        args.max_depth,
+        how.describe()
     );
     for (dir, t) in &per_recording {
         println!("\n{} ({} frames)", dir.display(), t.frames);
-        print_results(&t.results(&methods));
+        print_results(&t.results(&methods, how));
     }
     if per_recording.len() > 1 {
         println!(
@@ -215,6 +329,7 @@ pub fn handle(args: Args) -> Result<()> {
     for (m, _, ms) in &union_results {
         println!("{:<20} {ms:8.1} ms/frame", m.label());
     }
+    println!("aggregate: {} ({})", how.key(), how.describe());
     println!("wrote {}", out.display());
     Ok(())
 }
@@ -226,15 +341,35 @@ fn limit(frames: usize, len: usize) -> usize {
     }
 }
 
+/// `<out>/depth/<recording>/<method>/<id>.png`, 16-bit millimetres.
+fn save_depth(out: &Path, rec: &str, m: Method, id: &str, d: &[f32], w: u32, h: u32) -> Result<()> {
+    let dir = out.join("depth").join(rec).join(m.key());
+    std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+    let mm: Vec<u16> = d.iter().map(|&x| depth_m_to_mm(x)).collect();
+    let img: image::ImageBuffer<image::Luma<u16>, Vec<u16>> =
+        image::ImageBuffer::from_raw(w, h, mm).context("depth size")?;
+    let path = dir.join(format!("{id}.png"));
+    img.save(&path)
+        .with_context(|| format!("{}: cannot write", path.display()))
+}
+
 fn print_results(results: &[(Method, Metrics, f64)]) {
     let rows: Vec<(&str, Metrics)> = results.iter().map(|(m, x, _)| (m.label(), *x)).collect();
     print!("{}", metrics_table(&rows));
     let c = comparison_json(results);
     if let Some(c) = c.get("int8_vs_best_baseline") {
-        println!("int8 vs best baseline: {c}");
+        println!(
+            "int8 vs best baseline: RMSE ratio {:.3}, δ1 gain {:+.3}",
+            c["rmse_ratio"].as_f64().unwrap_or(f64::NAN),
+            c["delta1_gain"].as_f64().unwrap_or(f64::NAN)
+        );
     }
     if let Some(c) = c.get("int8_vs_float") {
-        println!("int8 vs float: {c}");
+        println!(
+            "int8 vs float: RMSE {:+.1} %, δ1 {:+.3}",
+            100.0 * c["rmse_rel_diff"].as_f64().unwrap_or(f64::NAN),
+            c["delta1_diff"].as_f64().unwrap_or(f64::NAN)
+        );
     }
 }
 
@@ -256,7 +391,8 @@ fn csv_row(id: &str, m: Method, x: &Metrics, seconds: f64) -> String {
     )
 }
 
-fn metrics_json(x: &Metrics) -> serde_json::Value {
+/// One method's metrics as JSON (the keys of docs/eval.md).
+pub fn metrics_json(x: &Metrics) -> serde_json::Value {
     json!({
         "pixels": x.count, "delta1": x.delta1, "delta2": x.delta2, "delta3": x.delta3,
         "abs_rel": x.abs_rel, "rmse": x.rmse, "log10": x.log10, "mae": x.mae, "ewmae": x.ewmae,

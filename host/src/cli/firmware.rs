@@ -24,9 +24,16 @@ const FIRMWARE_ZONES: usize = 64;
 
 /// Arguments of `depthor firmware-image`.
 #[derive(Debug, clap::Args)]
+#[command(after_help = "Examples:
+  depthor firmware-image --recording rec/mcu --frames 5 --out fw      # fw/replay.dri
+  depthor firmware-image --recording rec/mcu --out fw --overwrite")]
 pub struct ImageArgs {
-    /// Recording directory (holds recording.json and per-frame dtof.json).
-    recording: PathBuf,
+    /// Recording folder (holds recording.json and per-frame dtof.json).
+    #[arg(long = "recording", short = 'r', value_name = "DIR")]
+    recording: Option<PathBuf>,
+    /// The same as a path (older spelling).
+    #[arg(value_name = "RECORDING", hide = true)]
+    recording_path: Option<PathBuf>,
     /// Frames to take from the start of the recording.
     #[arg(long, default_value_t = 5)]
     frames: usize,
@@ -36,16 +43,34 @@ pub struct ImageArgs {
     /// Output image width (the `mcu` model's 160).
     #[arg(long, default_value_t = 160)]
     width: u32,
-    /// Where to write the image.
+    /// Output folder (receives replay.dri; an --out ending in .dri names the file itself).
     #[arg(long)]
     out: PathBuf,
+    /// Replace an existing replay.dri (refused otherwise).
+    #[arg(long)]
+    overwrite: bool,
 }
 
 /// Arguments of `depthor firmware-replay`.
 #[derive(Debug, clap::Args)]
+#[command(after_help = "Examples:
+  depthor firmware-replay --image fw/replay.dri
+  depthor firmware-replay --recording rec/mcu --frames 3")]
 pub struct ReplayArgs {
-    /// A replay image (file) or a recording directory (converted as `firmware-image` would).
-    input: PathBuf,
+    /// A recording folder (converted as `firmware-image` would).
+    #[arg(
+        long = "recording",
+        short = 'r',
+        value_name = "DIR",
+        conflicts_with = "image"
+    )]
+    recording: Option<PathBuf>,
+    /// A replay image file (`firmware-image`'s replay.dri).
+    #[arg(long, value_name = "FILE")]
+    image: Option<PathBuf>,
+    /// An image file or a recording folder as a path (older spelling).
+    #[arg(value_name = "INPUT", hide = true)]
+    input: Option<PathBuf>,
     /// With a recording: frames to take.
     #[arg(long, default_value_t = 5)]
     frames: usize,
@@ -53,15 +78,23 @@ pub struct ReplayArgs {
 
 /// Writes the image and says what it holds.
 pub fn handle_image(args: ImageArgs) -> Result<()> {
-    let bytes = image_from_recording(&args.recording, args.frames, args.height, args.width)?;
+    let recording = super::common::input_recording(args.recording, args.recording_path)?;
+    let target = super::common::OutFile::new(&args.out, "replay.dri");
+    if target.path.exists() && !args.overwrite {
+        bail!(
+            "{}: exists (pass --overwrite to replace it)",
+            target.path.display()
+        );
+    }
+    let bytes = image_from_recording(&recording, args.frames, args.height, args.width)?;
     // Parsed before writing, so an image the replay would refuse is never left at --out.
     let image = Image::parse(&bytes).context("the image does not parse")?;
-    depthor_host::atomic::write_file(&args.out, &bytes)?;
+    target.write(&bytes, args.overwrite)?;
     let (h, w) = image.size();
     let (rows, cols) = image.zone_grid();
     println!(
         "{}: {} frames, {h}x{w} RGB, {rows}x{cols} zones, {} bytes",
-        args.out.display(),
+        target.path.display(),
         image.frame_count(),
         bytes.len()
     );
@@ -70,13 +103,18 @@ pub fn handle_image(args: ImageArgs) -> Result<()> {
 
 /// Runs the host build of the firmware loop and prints its lines.
 pub fn handle_replay(args: ReplayArgs) -> Result<()> {
-    let bytes = if args.input.is_dir() {
-        image_from_recording(&args.input, args.frames, 120, 160)?
+    let input = match (args.recording, args.image, args.input) {
+        (Some(p), None, None) | (None, Some(p), None) | (None, None, Some(p)) => p,
+        (None, None, None) => bail!("firmware-replay: give --recording DIR or --image FILE"),
+        _ => bail!("firmware-replay: give one input (--recording DIR or --image FILE)"),
+    };
+    let bytes = if input.is_dir() {
+        image_from_recording(&input, args.frames, 120, 160)?
     } else {
-        std::fs::read(&args.input).with_context(|| format!("{}", args.input.display()))?
+        std::fs::read(&input).with_context(|| format!("{}", input.display()))?
     };
     let image = Image::parse(&bytes)
-        .map_err(|e| anyhow::anyhow!("ERROR {}: {e} ({})", e.exit_code(), args.input.display()))?;
+        .map_err(|e| anyhow::anyhow!("ERROR {}: {e} ({})", e.exit_code(), input.display()))?;
     let n = replay_image::<FIRMWARE_ZONES>(image, StdDelay, |out| println!("{out}"))
         .map_err(|e| anyhow::anyhow!("ERROR {}: {e}", e.exit_code()))?;
     println!("frames {n}");

@@ -6,33 +6,43 @@ use std::sync::Mutex;
 
 use anyhow::Context;
 
-use depthor_host::atomic::{AtomicDir, Existing};
 use depthor_host::gap::{analyze, load_recording, report, GapOptions};
 use depthor_host::sim::{preset, SimConfig};
 
 /// Arguments of `depthor gap`.
 #[derive(Debug, clap::Args)]
+#[command(after_help = "Examples:
+  depthor gap --recording rec/real-l5 --out gap/l5
+  depthor gap --recording rec/real-l5 --sim-config my_sim.json --draws 64 --out gap/l5 --overwrite
+Outputs and method: docs/gap.md.")]
 pub struct Args {
-    /// The real recording (needs reference depth and dToF zones).
-    #[arg(long)]
+    /// The real recording (needs reference depth and dToF zones; `--real` is the older spelling).
+    #[arg(long = "recording", short = 'r', value_name = "DIR", alias = "real")]
     real: PathBuf,
     /// Simulator configuration JSON to compare with (default: the preset matching the
     /// recording's zone grid, `l5` for 8×8, `phone` for 40×30).
     #[arg(long)]
     sim_config: Option<PathBuf>,
-    /// Output directory for report.md, report.json, sim_config.json and plots.
+    /// Output folder for report.md, report.json, sim_config.json and plots.
     #[arg(long)]
     out: PathBuf,
+    /// Write into an existing non-empty --out (files of the same name are replaced).
+    #[arg(long)]
+    overwrite: bool,
+    /// Print the findings and fit as JSON on stdout.
+    #[arg(long)]
+    json: bool,
     /// Monte-Carlo draws of the simulator per frame.
     #[arg(long, default_value_t = GapOptions::default().draws)]
     draws: usize,
     /// Seed of the draws.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = super::common::DEFAULT_SEED)]
     seed: u64,
 }
 
 /// Runs `depthor gap`.
 pub fn handle(args: Args) -> anyhow::Result<()> {
+    super::common::refuse_non_empty(&args.out, args.overwrite)?;
     // The recording's errors name the file and field already.
     let header = depthor_host::recording::Recording::open(&args.real)?;
     let bar = super::progress(header.len() as u64, "reading");
@@ -67,9 +77,13 @@ pub fn handle(args: Args) -> anyhow::Result<()> {
     })?;
     bar.finish_and_clear();
     // The report goes into `<out>.partial-<pid>` and moves into place only when complete.
-    let staging = AtomicDir::create(&args.out, Existing::Merge)?;
+    let staging = super::common::out_dir(&args.out, args.overwrite)?;
     report::write(&a, staging.path())?;
     staging.commit()?;
+    if args.json {
+        let report = staging_report(&args.out)?;
+        return super::common::print_json(&report);
+    }
     println!(
         "{} finding(s); held-out NLL/zone {:.4} → {:.4}; report in {}",
         a.selection.findings.len(),
@@ -84,4 +98,12 @@ pub fn handle(args: Args) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// report.json as written (the same findings and fit, for `--json`).
+fn staging_report(out: &std::path::Path) -> anyhow::Result<serde_json::Value> {
+    let path = out.join("report.json");
+    let text = std::fs::read_to_string(&path)
+        .with_context(|| format!("{}: cannot read", path.display()))?;
+    serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))
 }

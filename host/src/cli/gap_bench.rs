@@ -13,6 +13,10 @@ use depthor_host::sim::preset;
 
 /// Arguments of `depthor gap-bench`.
 #[derive(Debug, clap::Args)]
+#[command(after_help = "Examples:
+  depthor gap-bench --frames 40 --sizes 1,2,4 --nulls 20 --seed 1000 --out bench   # bench/gap_bench.md
+  depthor gap-bench --calibrate-units --frames 40 --trials 4 --out units            # units/gap_units.json
+Method and results: docs/gap.md.")]
 pub struct Args {
     /// Frames per "real" recording.
     #[arg(long, default_value_t = 40)]
@@ -42,8 +46,8 @@ pub struct Args {
     /// Only cases whose label contains this.
     #[arg(long)]
     only: Option<String>,
-    /// Seed of the scenes and the "real" measurements.
-    #[arg(long, default_value_t = 1000)]
+    /// Seed of the scenes and the "real" measurements (the docs/results/gap tables used 1000).
+    #[arg(long, default_value_t = super::common::DEFAULT_SEED)]
     seed: u64,
     /// Monte-Carlo draws of the simulator per frame (the tool's `--draws`).
     #[arg(long, default_value_t = GapOptions::default().draws)]
@@ -51,9 +55,14 @@ pub struct Args {
     /// Print each case's selection log.
     #[arg(long)]
     verbose: bool,
-    /// Write the Markdown table here too (with `--calibrate-units`: the unit table, JSON).
+    /// Also write the Markdown table into this folder as gap_bench.md (with
+    /// `--calibrate-units`: the unit table as gap_units.json); an --out ending in .md / .json
+    /// names the file itself.
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Replace an existing output file (refused otherwise).
+    #[arg(long)]
+    overwrite: bool,
     /// Measure each effect's unit ("1×") size instead of running the benchmark: the smallest
     /// size at which the tool names it in ≥ half of `--trials` recordings of `--frames` rendered
     /// frames, scene seeds from `--calibrate-seed` (disjoint from the benchmark's).
@@ -75,6 +84,21 @@ pub struct Args {
 
 /// Runs `depthor gap-bench`.
 pub fn handle(args: Args) -> anyhow::Result<()> {
+    // Refused before the (long) run, not after it.
+    if let Some(p) = &args.out {
+        let name = if args.calibrate_units {
+            "gap_units.json"
+        } else {
+            "gap_bench.md"
+        };
+        let f = super::common::OutFile::new(p, name);
+        if f.path.exists() && !args.overwrite {
+            anyhow::bail!(
+                "{}: exists (pass --overwrite to replace it)",
+                f.path.display()
+            );
+        }
+    }
     if args.calibrate_units {
         return calibrate_units(&args);
     }
@@ -161,7 +185,7 @@ pub fn handle(args: Args) -> anyhow::Result<()> {
     ));
     println!("{t}");
     if let Some(p) = args.out {
-        depthor_host::atomic::write_file(p, t.as_bytes())?;
+        super::common::OutFile::new(&p, "gap_bench.md").write(t.as_bytes(), args.overwrite)?;
     }
     Ok(())
 }
@@ -226,7 +250,8 @@ fn calibrate_units(args: &Args) -> anyhow::Result<()> {
     let json = serde_json::to_string_pretty(&table)?;
     println!("{json}");
     if let Some(p) = &args.out {
-        depthor_host::atomic::write_file(p, (json + "\n").as_bytes())?;
+        super::common::OutFile::new(p, "gap_units.json")
+            .write((json + "\n").as_bytes(), args.overwrite)?;
     }
     Ok(())
 }

@@ -10,6 +10,9 @@ use std::path::PathBuf;
 
 /// Arguments of `depthor merge`.
 #[derive(Debug, clap::Args)]
+#[command(after_help = "Examples:
+  depthor sim --preset l5 --scenes 100 --shard 0/2 --out rec/l5-0     # and --shard 1/2 --out rec/l5-1
+  depthor merge --out rec/l5 rec/l5-0 rec/l5-1                        # byte-identical to the unsharded run")]
 pub struct Args {
     /// Shard recordings in shard order: the one written with `--shard 0/N` first, then 1/N, …
     #[arg(required = true, num_args = 1..)]

@@ -4,6 +4,7 @@ use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 
 mod bench;
+pub mod common;
 mod demo;
 mod eval;
 mod firmware;
@@ -21,8 +22,17 @@ pub const EXIT_FAILURE: u8 = 2;
 
 /// Depth completion from a light-weight dToF sensor and an RGB camera (DEPTHOR).
 #[derive(Debug, Parser)]
-#[command(name = "depthor", version, about)]
+#[command(
+    name = "depthor",
+    version,
+    about,
+    after_help = "Examples:\n  depthor demo                                   # the main job, embedded mcu model\n  depthor info --recording rec/l5\n  depthor eval --model mcu --recording rec/mcu-test --out eval/mcu\n\nEvery command: `depthor <command> --help` shows its options and examples."
+)]
 pub struct Cli {
+    /// Folder holding the model variants (`mcu/`, `phone/`), looked in first (default: beside
+    /// the binary, then ./models; the `mcu` int8 blob is embedded in the binary).
+    #[arg(long, global = true, env = "DEPTHOR_MODELS", value_name = "DIR")]
+    models_dir: Option<std::path::PathBuf>,
     #[command(subcommand)]
     command: Command,
 }
@@ -60,6 +70,9 @@ enum Command {
 
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
+    if let Some(dir) = cli.models_dir {
+        depthor_host::models::set_models_dir(dir);
+    }
     match cli.command {
         Command::Bench(args) => bench::handle(args),
         Command::Demo(args) => demo::handle(args),

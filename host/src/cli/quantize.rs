@@ -19,6 +19,10 @@ const MCU_ARENA_GOAL: usize = 384 * 1024;
 
 /// Arguments of `depthor quantize`.
 #[derive(Debug, clap::Args)]
+#[command(after_help = "Examples:
+  depthor quantize --graph models/mcu/graph.json --out build/mcu          # build/mcu/depthor.dblob
+  depthor quantize --graph models/mcu/graph.json --out models/mcu --overwrite --report \\
+      --scene-config models/scenes/close_range.json --scene-config-frames 16")]
 pub struct Args {
     /// graph.json of the Python export.
     #[arg(long)]
@@ -26,14 +30,17 @@ pub struct Args {
     /// weights.bin (default: beside graph.json).
     #[arg(long)]
     weights: Option<PathBuf>,
-    /// Output blob.
+    /// Output folder (receives depthor.dblob; an --out ending in .dblob names the file itself).
     #[arg(long)]
     out: PathBuf,
+    /// Replace an existing depthor.dblob (refused otherwise).
+    #[arg(long)]
+    overwrite: bool,
     /// Calibration frames.
     #[arg(long, default_value_t = 16)]
     frames: usize,
     /// Seed of the first calibration scene (scene k uses seed + k).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = super::common::DEFAULT_SEED)]
     seed: u64,
     /// Activation ranges: `mse` (clip where it lowers the expected int8 error) or `minmax`.
     #[arg(long, default_value = "mse")]
@@ -76,19 +83,26 @@ pub fn handle(args: Args) -> Result<()> {
             seed,
         )?);
     }
+    let target = super::common::OutFile::new(&args.out, "depthor.dblob");
+    if target.path.exists() && !args.overwrite {
+        anyhow::bail!(
+            "{}: exists (pass --overwrite to replace it)",
+            target.path.display()
+        );
+    }
     let q = quantize_with(&net, &frames, args.ranges)?;
     // Checked before writing, so a blob the engine refuses is never left at --out.
     let arena = required_arena_bytes(&q.blob, net.height, net.width).map_err(|e| {
         anyhow::anyhow!(
             "{}: {}",
-            args.out.display(),
+            target.path.display(),
             depthor_host::inference::engine_detail(&e)
         )
     })?;
-    depthor_host::atomic::write_file(&args.out, &q.blob)?;
+    target.write(&q.blob, args.overwrite)?;
     println!(
         "{}: variant {} at {}×{} (H×W), {} ops, {} tensors, {} blob bytes",
-        args.out.display(),
+        target.path.display(),
         net.variant,
         net.height,
         net.width,

@@ -16,17 +16,25 @@ use depthor_host::dataset::{
     dtof_frame, preset_size, recording_meta, simulate_recording_frame, synth_frame,
     to_recording_frame, SynthFrame,
 };
+use depthor_host::plot::{figure, robust_range, ColourMap, Panel};
 use depthor_host::recording::{
     CameraMeta, Frame, FrameMeta, Recording, RecordingWriter, Shard, WriteOptions,
 };
 use depthor_host::sim::{preset, SimConfig};
-use depthor_host::viz::{depth_image, labels_image, mosaic, render_projection, Overlay};
+use depthor_host::viz::{
+    depth_image, draw_points, labels_image, points_csv, Overlay, LABEL_COLOURS,
+};
 use image::RgbImage;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
 /// Arguments of `depthor sim`.
 #[derive(Debug, clap::Args)]
+#[command(after_help = "Examples:
+  depthor sim --preset l5 --scenes 100 --out rec/l5 --preview
+  depthor sim --preset mcu --recording rec/middlebury --out rec/middlebury-mcu
+  depthor sim --preset mcu --scenes 100 --scene-config models/scenes/close_range.json --out rec/near
+  depthor sim --config my_sim.json --scenes 10 --width 320 --height 240 --out rec/mine --overwrite")]
 pub struct Args {
     /// Sensor preset: l5, phone or mcu (docs/design.md "Sensor presets").
     #[arg(long)]
@@ -41,13 +49,14 @@ pub struct Args {
     /// ranges (e.g. models/scenes/close_range.json; see `depthor_host::scene::SceneConfig`).
     #[arg(long, conflicts_with = "from")]
     scene_config: Option<PathBuf>,
-    /// Simulate the sensor for this recording's reference depth instead of rendering scenes.
-    #[arg(long)]
+    /// Simulate the sensor for this recording's reference depth instead of rendering scenes
+    /// (`--from` is the older spelling).
+    #[arg(long = "recording", short = 'r', value_name = "DIR", alias = "from")]
     from: Option<PathBuf>,
     /// Random seed (frame i uses the sub-stream (seed, i)).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = super::common::DEFAULT_SEED)]
     seed: u64,
-    /// Output recording directory.
+    /// Output recording folder.
     #[arg(long)]
     out: PathBuf,
     /// Image width (default: the preset's, or the source recording's).
@@ -59,7 +68,7 @@ pub struct Args {
     /// Also write a PNG mosaic per frame (RGB | depth | labels | projected points) to OUT/preview.
     #[arg(long)]
     preview: bool,
-    /// Replace an existing recording at --out.
+    /// Replace an existing recording at --out (refused otherwise).
     #[arg(long)]
     overwrite: bool,
     /// Write only frames K, K+N, K+2N, … of the run (same seeds, ids and times as in the
@@ -100,7 +109,7 @@ pub fn handle(args: Args) -> Result<()> {
             check_memory(&cfg, w, h, args.shard.len(rec.len() as u64), &source)?;
             from_recording(&args, &cfg, &rec, w, h)?
         }
-        _ => bail!("sim: give either --scenes N or --from RECORDING"),
+        _ => bail!("sim: give either --scenes N or --recording DIR"),
     };
     // The recording is complete in its temporary folder; previews join it before it moves.
     if args.preview {
@@ -254,9 +263,12 @@ pub fn write_previews(out: &Path) -> Result<()> {
         .into_par_iter()
         .try_for_each(|i| -> Result<()> {
             let frame = rec.read_frame(i)?;
-            let img = preview(&rec, i, &frame)?;
+            let (img, csv) = preview(&rec, i, &frame)?;
             let path = dir.join(format!("{}.png", frame.id));
             img.save(&path)
+                .with_context(|| format!("{}: cannot write", path.display()))?;
+            let path = path.with_extension("csv");
+            std::fs::write(&path, csv)
                 .with_context(|| format!("{}: cannot write", path.display()))?;
             bar.inc(1);
             Ok(())
@@ -265,21 +277,31 @@ pub fn write_previews(out: &Path) -> Result<()> {
     Ok(())
 }
 
-/// One preview mosaic.
-fn preview(rec: &Recording, i: usize, frame: &Frame) -> Result<RgbImage> {
+/// One preview figure (RGB | reference depth | material labels | projected zones) and the
+/// projected zones as CSV.
+fn preview(rec: &Recording, i: usize, frame: &Frame) -> Result<(RgbImage, String)> {
     let cam: CameraIntrinsics = rec.camera(i);
     let (w, h) = (cam.width, cam.height);
-    let mut panels = vec![frame.rgb.clone()];
     let depth = frame.depth_m.as_deref().unwrap_or(&[]);
-    let hi = depth
-        .iter()
-        .copied()
-        .filter(|d| d.is_finite())
-        .fold(0.0f32, f32::max)
-        .max(0.1);
-    panels.push(depth_image(depth, w, h, 0.0, hi));
+    let (lo, hi) = robust_range(depth, 0.02, 0.98).unwrap_or((0.0, 1.0));
+    let mut csv = points_csv(&[]);
+    let mut panels = vec![
+        Panel::new("RGB", frame.rgb.clone()),
+        Panel::new("reference depth", depth_image(depth, w, h, lo, hi)).with_bar(
+            ColourMap::Turbo,
+            lo,
+            hi,
+            "depth (m), black = none",
+        ),
+    ];
     if let Some(l) = &frame.labels {
-        panels.push(labels_image(l, w, h));
+        let names = ["diffuse", "transparent", "specular", "dark"];
+        let legend = LABEL_COLOURS
+            .iter()
+            .zip(names)
+            .map(|(c, n)| (image::Rgb(*c), n.to_string()))
+            .collect();
+        panels.push(Panel::new("material labels", labels_image(l, w, h)).with_legend(legend));
     }
     if let (Some(cal), Some(d), Some(meta)) =
         (rec.calibration(i), &frame.dtof, rec.meta().dtof.as_ref())
@@ -287,11 +309,19 @@ fn preview(rec: &Recording, i: usize, frame: &Frame) -> Result<RgbImage> {
         let mut points = Vec::new();
         for_each_point(&cal.as_core(), &d.view(meta), |p| points.push(p))?;
         let overlay = Overlay {
-            lo_m: 0.0,
+            lo_m: lo,
             hi_m: hi,
             ..Overlay::auto(w, h, &points)
         };
-        panels.push(render_projection(&frame.rgb, &points, &overlay));
+        csv = points_csv(&points);
+        panels.push(
+            Panel::new(
+                format!("{}×{} zones projected", meta.rows, meta.cols),
+                draw_points(&frame.rgb, &points, &overlay),
+            )
+            .with_bar(ColourMap::Turbo, lo, hi, "zone depth (m)"),
+        );
     }
-    Ok(mosaic(&panels, 4))
+    let img = figure(&format!("frame {} ({w}×{h})", frame.id), &panels, 240)?;
+    Ok((img, csv))
 }

@@ -15,7 +15,6 @@ pub mod effects;
 pub mod likelihood;
 pub mod localise;
 pub mod model;
-pub mod plot;
 pub mod report;
 pub mod select;
 pub mod stats;

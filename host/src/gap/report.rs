@@ -9,8 +9,8 @@ use serde::Serialize;
 
 use super::effects::{self, Covariate};
 use super::localise::{pit_histogram, zone_maps, FitMetrics, Slice};
-use super::plot::{bar_plot, heat_map, line_plot};
 use super::Analysis;
+use crate::plot::{bar_chart, line_chart, zone_heat_map, Series, PALETTE};
 
 /// One finding of `report.json`.
 #[derive(Clone, Debug, Serialize)]
@@ -138,36 +138,60 @@ pub fn write(a: &Analysis, out: &Path) -> anyhow::Result<()> {
         serde_json::to_string_pretty(&report)?,
     )?;
     std::fs::write(out.join("sim_config.json"), a.selection.estimate.to_json())?;
-    // Plots: per covariate, dropout excess before (red) / after (blue), PIT shift before (orange)
-    // / after (green).
+    // Plots (each with its numbers beside it as .csv): per covariate, dropout excess and PIT
+    // shift before (solid) and after (dashed) the fit.
     for cov in Covariate::ALL {
         let (db, pb) = curves(&a.slices_before, cov);
         let (da, pa) = curves(&a.slices_after, cov);
-        line_plot(
+        let series = |label: &str, points, colour, dashed| Series {
+            label: label.to_string(),
+            points,
+            colour,
+            dashed,
+        };
+        line_chart(
             &out.join(format!("covariate_{}.png", cov.name())),
-            &[db, da, pb, pa],
+            &format!("real − simulated, by {}", cov.name()),
+            &format!("{} (slice centre)", cov.name()),
+            "dropout excess (fraction) / PIT − ½",
+            &[
+                series("dropout excess, before fit", db, PALETTE[0], false),
+                series("dropout excess, after fit", da, PALETTE[0], true),
+                series("PIT shift, before fit", pb, PALETTE[1], false),
+                series("PIT shift, after fit", pa, PALETTE[1], true),
+            ],
         )?;
     }
-    bar_plot(
-        &out.join("pit_before.png"),
-        &pit_histogram(&a.before, 10),
-        0.1,
-    )?;
-    bar_plot(
-        &out.join("pit_after.png"),
-        &pit_histogram(&a.after, 10),
-        0.1,
-    )?;
+    for (tag, recs) in [("before", &a.before), ("after", &a.after)] {
+        bar_chart(
+            &out.join(format!("pit_{tag}.png")),
+            &format!("PIT of the real zone depths under the simulator, {tag} the fit"),
+            (0.0, 1.0),
+            "PIT value (probability of a simulated depth ≤ the real one)",
+            "fraction of valid zones",
+            &pit_histogram(recs, 10),
+            (0.1, "calibrated: uniform, 0.1 per bin"),
+        )?;
+    }
     let (rows, cols) = a.grid;
     for (tag, recs) in [("before", &a.before), ("after", &a.after)] {
         let (ex, pit) = zone_maps(recs, rows * cols);
-        heat_map(
+        zone_heat_map(
             &out.join(format!("zones_dropout_{tag}.png")),
+            &format!("dropout excess per zone (real − simulated), {tag} the fit"),
+            "dropout excess (fraction)",
             &ex,
             rows,
             cols,
         )?;
-        heat_map(&out.join(format!("zones_pit_{tag}.png")), &pit, rows, cols)?;
+        zone_heat_map(
+            &out.join(format!("zones_pit_{tag}.png")),
+            &format!("mean PIT − ½ per zone (> 0: real farther), {tag} the fit"),
+            "PIT − ½",
+            &pit,
+            rows,
+            cols,
+        )?;
     }
     std::fs::write(out.join("report.md"), markdown(a, &report))?;
     Ok(())

@@ -16,6 +16,8 @@ mod redwood;
 mod resample;
 mod sun;
 mod tum;
+mod vl53l5cx_log;
+mod zjul5;
 
 use std::path::{Path, PathBuf};
 
@@ -23,7 +25,7 @@ use depthor_core::calibration::CameraIntrinsics;
 use image::RgbImage;
 
 /// Which kind of set [`load`] reads. CLI names: `middlebury`, `nyu`, `redwood`, `tum`, `sun`,
-/// `nyu-raw`, `arkit`.
+/// `nyu-raw`, `arkit`, `zjul5`, `vl53l5cx-log`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum ImportKind {
     /// Middlebury 2014 stereo (MiddEval3, `<scene>/{im0.png,disp0GT.pfm,calib.txt}`): every scene.
@@ -40,6 +42,11 @@ pub enum ImportKind {
     NyuRaw,
     /// The PromptDA iPhone example: `image.jpg` + ARKit LiDAR `arkit_depth.png`.
     Arkit,
+    /// ZJU-L5 (Deltar): `.h5` files with rgb, depth, hist_data, fr, mask; zones kept.
+    Zjul5,
+    /// VL53L5CX zone logs (`*.json`, `{"tof": {"distances": [[64 mm]…]}}`): zones only, no RGB.
+    #[value(name = "vl53l5cx-log")]
+    Vl53l5cxLog,
 }
 
 impl ImportKind {
@@ -53,6 +60,8 @@ impl ImportKind {
             ImportKind::Sun => "sun",
             ImportKind::NyuRaw => "nyu-raw",
             ImportKind::Arkit => "arkit",
+            ImportKind::Zjul5 => "zjul5",
+            ImportKind::Vl53l5cxLog => "vl53l5cx-log",
         }
     }
 }
@@ -141,6 +150,19 @@ pub struct ImportedSet {
     pub frames: Vec<ImportedFrame>,
     /// Assumptions and choices the importer made (guessed intrinsics, resampling, byte order…).
     pub notes: Vec<String>,
+    /// The set's own dToF zones (ZJU-L5, VL53L5CX logs), one zone frame per frame.
+    pub dtof: Option<ImportedDtof>,
+    /// Whether the frames have colour images (`false`: zone logs; see docs/recording.md).
+    pub has_rgb: bool,
+}
+
+/// A set's own dToF sensor: its geometry and one zone frame per imported frame.
+#[derive(Clone, Debug)]
+pub struct ImportedDtof {
+    /// Zone grid, field of view, zone rectangles.
+    pub meta: crate::recording::DtofMeta,
+    /// Zone measurements, in the order of [`ImportedSet::frames`].
+    pub frames: Vec<crate::recording::DtofFrame>,
 }
 
 impl ImportedSet {
@@ -204,6 +226,7 @@ impl ImportError {
 /// Loads the set of kind `kind` from `src`, the set's folder as under `data/real/<folder>`
 /// (a folder may hold several kinds: each picks its own files).
 pub fn load(kind: ImportKind, src: &Path) -> Result<ImportedSet, ImportError> {
+    let (mut dtof, mut has_rgb) = (None, true);
     let (frames, notes) = match kind {
         ImportKind::Middlebury => middlebury::load(src)?,
         ImportKind::Nyu => nyu::load(src)?,
@@ -212,6 +235,17 @@ pub fn load(kind: ImportKind, src: &Path) -> Result<ImportedSet, ImportError> {
         ImportKind::Sun => sun::load(src)?,
         ImportKind::NyuRaw => nyu_raw::load(src)?,
         ImportKind::Arkit => arkit::load(src)?,
+        ImportKind::Zjul5 => {
+            let (loaded, zones) = zjul5::load(src)?;
+            dtof = Some(zones);
+            loaded
+        }
+        ImportKind::Vl53l5cxLog => {
+            let (loaded, zones) = vl53l5cx_log::load(src)?;
+            dtof = Some(zones);
+            has_rgb = false;
+            loaded
+        }
     };
     let folder = src
         .canonicalize()
@@ -222,6 +256,8 @@ pub fn load(kind: ImportKind, src: &Path) -> Result<ImportedSet, ImportError> {
         name: format!("{folder}-{}", kind.cli_name()),
         frames,
         notes,
+        dtof,
+        has_rgb,
     })
 }
 

@@ -139,6 +139,13 @@ impl<'a> At<'a> {
         self.value.as_str().ok_or_else(|| self.expected("a string"))
     }
 
+    /// A boolean.
+    pub(crate) fn bool(&self) -> Result<bool, Invalid> {
+        self.value
+            .as_bool()
+            .ok_or_else(|| self.expected("true or false"))
+    }
+
     /// Any JSON number as f64 (finiteness is checked by validation, not here).
     pub(crate) fn f64(&self) -> Result<f64, Invalid> {
         self.value.as_f64().ok_or_else(|| self.expected("a number"))

@@ -22,13 +22,23 @@ pub const MAX_ST_STATUS: u8 = 13;
 /// 3 dark/absorbing; docs/recording.md).
 pub const MAX_LABEL: u8 = 3;
 
+fn is_true(b: &bool) -> bool {
+    *b
+}
+
 /// `recording.json`.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct RecordingMeta {
     /// Always [`FORMAT`].
     pub format: String,
-    /// The RGB camera (frames may override it).
+    /// The RGB camera (frames may override it). In a recording without colour images
+    /// (`rgb: false`) it is the virtual camera the zones are projected into.
     pub camera: CameraMeta,
+    /// Whether the frames have `rgb.png` (`"rgb": false` only in zone-only recordings such as
+    /// imported VL53L5CX logs; absent = true). Readers then hand out a black image of the
+    /// camera's size.
+    #[serde(skip_serializing_if = "is_true")]
+    pub rgb: bool,
     /// The dToF sensor, absent for recordings with reference depth only.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub dtof: Option<DtofMeta>,
@@ -211,10 +221,22 @@ impl RecordingMeta {
     /// Reads a parsed `recording.json` and validates it; errors name the field.
     pub fn from_json(value: &serde_json::Value) -> Result<Self, Invalid> {
         let at = At::root(value);
-        at.object(&["format", "camera", "dtof", "dtof_to_camera", "frames"])?;
+        at.object(&[
+            "format",
+            "camera",
+            "rgb",
+            "dtof",
+            "dtof_to_camera",
+            "frames",
+        ])?;
         let meta = RecordingMeta {
             format: at.req("format")?.at().str()?.to_string(),
             camera: CameraMeta::parse(at.req("camera")?.at())?,
+            rgb: at
+                .get("rgb")
+                .map(|c| c.at().bool())
+                .transpose()?
+                .unwrap_or(true),
             dtof: at
                 .get("dtof")
                 .map(|c| DtofMeta::parse(c.at()))
@@ -401,6 +423,7 @@ impl RecordingMeta {
         RecordingMeta {
             format: FORMAT.to_string(),
             camera,
+            rgb: true,
             dtof,
             dtof_to_camera,
             frames: Vec::new(),

@@ -151,8 +151,13 @@ impl Recording {
         })
     }
 
-    /// Reads frame `i`'s `rgb.png`: 8-bit RGB at the frame's camera size.
+    /// Reads frame `i`'s `rgb.png`: 8-bit RGB at the frame's camera size (black when the
+    /// recording has no colour images, `"rgb": false`).
     pub fn read_rgb(&self, i: usize) -> Result<RgbImage, RecordingError> {
+        if !self.meta.rgb {
+            let c = self.camera(i);
+            return Ok(RgbImage::new(c.width, c.height));
+        }
         let path = self.frame_file(i, files::RGB);
         match decode_png(&path)? {
             DynamicImage::ImageRgb8(img) => {

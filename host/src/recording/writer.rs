@@ -133,7 +133,9 @@ impl RecordingWriter {
         let dir = self.out_dir.join(files::FRAMES).join(&frame.id);
 
         // Validate everything before writing anything.
-        check_size(&dir.join(files::RGB), frame.rgb.dimensions(), &cam)?;
+        if self.meta.rgb {
+            check_size(&dir.join(files::RGB), frame.rgb.dimensions(), &cam)?;
+        }
         let len_err = |name: &str, got: usize| {
             RecordingError::new(
                 dir.join(name),
@@ -176,7 +178,9 @@ impl RecordingWriter {
 
         let tmp = self.tmp_dir.join(files::FRAMES).join(&frame.id);
         std::fs::create_dir_all(&tmp).map_err(|e| RecordingError::io(&tmp, "create", e))?;
-        write_png(&tmp.join(files::RGB), &frame.rgb)?;
+        if self.meta.rgb {
+            write_png(&tmp.join(files::RGB), &frame.rgb)?;
+        }
         if let Some(d) = &frame.depth_m {
             let mm: Vec<u16> = d.iter().map(|&x| depth_m_to_mm(x)).collect();
             let img = ImageBuffer::<Luma<u16>, _>::from_raw(cam.width, cam.height, mm)
