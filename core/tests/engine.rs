@@ -202,3 +202,59 @@ fn arena_at_mcu_size() {
     }
     assert!(p.arena_bytes() < 4 << 20);
 }
+
+/// The streamed plan (affinity heads fused into the refinement, run row by row; concats read in
+/// place by their conv) gives the whole plan's bits, at the native size and at one taller than a refinement window, and needs
+/// less arena.
+#[test]
+fn streamed_refinement_equals_whole_maps() {
+    use depthor_core::engine::{plan_with, required_arena_bytes_with, Memory};
+    let (blob, _, rgb, sparse) = blob_and_float();
+    let g = parse(&blob).unwrap();
+    let streamed = plan_with(&g, H, W, Memory::Streamed).unwrap();
+    let refine = (0..g.ops.len())
+        .find(|&i| streamed.fused_heads(i).is_some())
+        .expect("the test net's refinement has three single-use conv heads");
+    for j in streamed.fused_heads(refine).unwrap() {
+        assert_eq!(streamed.fused_into(j), Some(refine));
+    }
+    assert!(
+        (0..g.ops.len()).any(|i| streamed.concat_in_place(i).is_some()),
+        "the test net has a concat read in place by its conv"
+    );
+    let whole = plan_with(&g, H, W, Memory::Whole).unwrap();
+    assert!((0..g.ops.len()).all(|i| whole.fused_into(i).is_none()));
+    for (h, w) in [(H, W), (36, 20)] {
+        let (rgb, sparse) = if (h, w) == (H, W) {
+            (rgb.clone(), sparse.clone())
+        } else {
+            common::frame(h, w)
+        };
+        let mut outs = Vec::new();
+        for memory in [Memory::Whole, Memory::Streamed] {
+            let need = required_arena_bytes_with(&blob, h, w, memory).unwrap();
+            let mut arena = vec![0u8; need];
+            let mut eng = Engine::with_memory(&blob, &mut arena, h, w, memory).unwrap();
+            let mut out = vec![0f32; h * w];
+            eng.run(&rgb, &sparse, &mut out).unwrap();
+            outs.push((need, out));
+        }
+        let same = outs[0]
+            .1
+            .iter()
+            .zip(&outs[1].1)
+            .all(|(a, b)| a.to_bits() == b.to_bits());
+        assert!(same, "{h}x{w}: streamed output differs from whole maps");
+        assert!(
+            outs[1].0 < outs[0].0,
+            "{h}x{w}: arena {} !< {}",
+            outs[1].0,
+            outs[0].0
+        );
+    }
+    let (a, b) = (
+        required_arena_bytes_with(&blob, 120, 160, Memory::Whole).unwrap(),
+        required_arena_bytes_with(&blob, 120, 160, Memory::Streamed).unwrap(),
+    );
+    println!("tiny net at 120x160: arena whole {a} B, streamed {b} B");
+}

@@ -2,15 +2,20 @@
 
 use super::cast::{view, view_mut, Pod};
 use super::error::Error;
-use super::plan::{plan, Plan, ALIGN};
+use super::plan::{plan_with, Memory, Plan, ALIGN};
 use crate::blob::format::{opcode, MAX_INPUTS};
 use crate::blob::parse::{f32_at, i32_at, parse, Attrs, DType, Graph, OpInfo};
 use crate::kernels::bins::{bin_centres, bins_head_i8, BinChannel, MAX_BINS};
-use crate::kernels::conv::{conv2d_with, ChannelQuant, Conv2d, ConvQuant};
+use crate::kernels::conv::{
+    conv2d_parts_with, conv2d_with, ChannelQuant, Conv2d, ConvQuant, OutRows,
+};
 use crate::kernels::elementwise::{self, AddQuant, MulQuant, Rescale};
 use crate::kernels::isa::Isa;
+use crate::kernels::pack::Parts;
 use crate::kernels::pool::{self, MeanQuant};
-use crate::kernels::refine::{refine_with, I8Map, KERNELS};
+use crate::kernels::refine::{
+    self, refine_with, ConvRows, Head, I8Map, RefineAttrs, WholeMaps, KERNELS,
+};
 use crate::kernels::requant::QParams;
 use crate::kernels::resize;
 use crate::kernels::KernelError;
@@ -102,10 +107,21 @@ pub struct Engine<'a> {
     isa: Isa,
 }
 
-/// Arena bytes `blob` needs at `height × width` (parses and plans; nothing runs).
+/// Arena bytes `blob` needs at `height × width` (parses and plans; nothing runs), with the
+/// default [`Memory::Streamed`] plan that [`Engine::new`] and [`Engine::with_size`] use.
 pub fn required_arena_bytes(blob: &[u8], height: usize, width: usize) -> Result<usize, Error> {
+    required_arena_bytes_with(blob, height, width, Memory::Streamed)
+}
+
+/// As [`required_arena_bytes`] for the plan `memory` ([`Engine::with_memory`]).
+pub fn required_arena_bytes_with(
+    blob: &[u8],
+    height: usize,
+    width: usize,
+    memory: Memory,
+) -> Result<usize, Error> {
     let g = parse(blob)?;
-    Ok(plan(&g, height, width)?.arena_bytes())
+    Ok(plan_with(&g, height, width, memory)?.arena_bytes())
 }
 
 fn kerr(op: usize) -> impl Fn(KernelError) -> Error + Copy {
@@ -168,7 +184,7 @@ impl<'a> Engine<'a> {
     pub fn new(blob: &'a [u8], arena: &'a mut [u8]) -> Result<Engine<'a>, Error> {
         let g = parse(blob)?;
         let (h, w) = (g.height, g.width);
-        Self::prepare(g, arena, h, w)
+        Self::prepare(g, arena, h, w, Memory::Streamed)
     }
 
     /// As [`Engine::new`] for an input of `height × width` instead of the native size.
@@ -178,7 +194,19 @@ impl<'a> Engine<'a> {
         height: usize,
         width: usize,
     ) -> Result<Engine<'a>, Error> {
-        Self::prepare(parse(blob)?, arena, height, width)
+        Self::prepare(parse(blob)?, arena, height, width, Memory::Streamed)
+    }
+
+    /// As [`Engine::with_size`] with the plan `memory`: [`Memory::Whole`] keeps every op's
+    /// output whole, so that [`Engine::run_observed`] sees all of them (more arena).
+    pub fn with_memory(
+        blob: &'a [u8],
+        arena: &'a mut [u8],
+        height: usize,
+        width: usize,
+        memory: Memory,
+    ) -> Result<Engine<'a>, Error> {
+        Self::prepare(parse(blob)?, arena, height, width, memory)
     }
 
     fn prepare(
@@ -186,8 +214,9 @@ impl<'a> Engine<'a> {
         arena: &'a mut [u8],
         h: usize,
         w: usize,
+        memory: Memory,
     ) -> Result<Engine<'a>, Error> {
-        let plan = plan(&graph, h, w)?;
+        let plan = plan_with(&graph, h, w, memory)?;
         let have = arena.len();
         let need = plan.arena_bytes();
         let pad = arena.as_ptr().align_offset(ALIGN);
@@ -270,7 +299,9 @@ impl<'a> Engine<'a> {
     }
 
     /// As [`Engine::run`], calling `observer(op_index, output)` right after each op with that
-    /// op's whole output tensor (before later ops may reuse its arena bytes).
+    /// op's whole output tensor (before later ops may reuse its arena bytes). Ops fused into a
+    /// streamed refinement ([`Memory::Streamed`]) run inside it and are not observed; build the
+    /// engine with [`Memory::Whole`] to see every op.
     pub fn run_observed(
         &mut self,
         rgb: &[u8],
@@ -442,6 +473,9 @@ impl<'a> Engine<'a> {
         let persistent = self.plan.persistent_bytes();
         let (consts, act) = self.arena.split_at_mut(persistent);
         for (i, op) in self.graph.ops.iter().enumerate() {
+            if self.plan.fused_into(i).is_some() {
+                continue; // runs row by row inside its refinement
+            }
             exec(&self.graph, &self.plan, i, op, consts, act, self.isa)?;
             if let Some(f) = observer.as_deref_mut() {
                 observe(&self.graph, &self.plan, i, op, act, f)?;
@@ -517,12 +551,8 @@ fn write_consts(
                 act, bias, scales, ..
             },
         ) => {
-            let dst: &mut [ChannelQuant] = typed_mut(region, i)?;
-            let sb = g.bytes(*scales);
-            for (o, cq) in dst.iter_mut().enumerate() {
-                let b = bias.map_or(0, |p| i32_at(g.bytes(p), o));
-                *cq = ChannelQuant::new(b, in_q.scale, f32_at(sb, o), out_q.scale, *act);
-            }
+            let _ = (act, bias, scales);
+            fill_channel_quants(g, i, typed_mut(region, i)?)?;
         }
         (opcode::BINS_HEAD, Attrs::Bins { bias, scales, .. }) => {
             let dst: &mut [BinChannel] = typed_mut(region, i)?;
@@ -576,6 +606,58 @@ fn write_consts(
     Ok(())
 }
 
+/// Writes conv op `i`'s per-channel requantisation constants into `dst` (one per output
+/// channel that `dst` holds).
+fn fill_channel_quants(g: &Graph, i: usize, dst: &mut [ChannelQuant]) -> Result<(), Error> {
+    let bad = Error::Kernel {
+        op: i,
+        error: KernelError::Shape,
+    };
+    let op = g.ops.get(i).ok_or(bad)?;
+    let Attrs::Conv {
+        act, bias, scales, ..
+    } = &op.attrs
+    else {
+        return Err(bad);
+    };
+    let (in_q, out_q) = (g.tensor(op.inputs[0])?.q, g.tensor(op.output)?.q);
+    let sb = g.bytes(*scales);
+    for (o, cq) in dst.iter_mut().enumerate() {
+        let b = bias.map_or(0, |p| i32_at(g.bytes(p), o));
+        *cq = ChannelQuant::new(b, in_q.scale, f32_at(sb, o), out_q.scale, *act);
+    }
+    Ok(())
+}
+
+/// Conv op `j`'s per-channel constants and the scratch its kernel may use: from the
+/// persistent region, or computed now at the head of `scratch` ([`Plan::channel_bytes`]).
+fn channel_quants<'s>(
+    g: &Graph,
+    plan: &Plan,
+    j: usize,
+    consts: &'s [u8],
+    scratch: &'s mut [u8],
+) -> Result<(&'s [ChannelQuant], &'s mut [u8]), Error> {
+    let bad = Error::Kernel {
+        op: j,
+        error: KernelError::Shape,
+    };
+    let bytes = plan.channel_bytes(g, j);
+    if bytes == 0 {
+        let cb = consts.get(plan.const_range(j).ok_or(bad)?).ok_or(bad)?;
+        return Ok((typed(cb, j)?, scratch));
+    }
+    if scratch.len() < bytes {
+        return Err(bad);
+    }
+    let (head, rest) = scratch.split_at_mut(bytes);
+    let out_c = g.tensor(g.ops.get(j).ok_or(bad)?.output)?.channels;
+    let cq: &mut [ChannelQuant] = typed_mut(head, j)?;
+    let cq = cq.get_mut(..out_c).ok_or(bad)?;
+    fill_channel_quants(g, j, cq)?;
+    Ok((cq, rest))
+}
+
 fn first<T: Pod + Default>(b: &[u8], op: usize) -> Result<T, Error> {
     typed::<T>(b, op)?.first().copied().ok_or(Error::Kernel {
         op,
@@ -593,6 +675,9 @@ fn exec(
     act: &mut [u8],
     isa: Isa,
 ) -> Result<(), Error> {
+    if let Some(c) = plan.concat_in_place(i) {
+        return exec_conv_on_parts(g, plan, i, c, consts, act, isa);
+    }
     let e = kerr(i);
     let bad = Error::Kernel {
         op: i,
@@ -623,6 +708,7 @@ fn exec(
                 ..
             },
         ) => {
+            let (channels, scr_b) = channel_quants(g, plan, i, consts, scr_b)?;
             let conv = Conv2d {
                 geometry: geometry.get(),
                 quant: ConvQuant::new(
@@ -631,7 +717,7 @@ fn exec(
                     *act,
                 ),
                 weights: typed(g.bytes(*weights), i)?,
-                channels: typed(cb, i)?,
+                channels,
             };
             conv2d_with(
                 isa,
@@ -785,6 +871,9 @@ fn exec(
             )
             .map_err(e)?;
         }
+        (opcode::REFINE, Attrs::Refine(attrs)) if plan.fused_heads(i).is_some() => {
+            return exec_refine_streamed(g, plan, i, op, attrs, consts, act, isa);
+        }
         (opcode::REFINE, Attrs::Refine(attrs)) => {
             let p = x_shape.plane().ok_or(bad)?;
             let m = |k: usize, c: usize| -> Result<I8Map<'_>, Error> {
@@ -796,12 +885,13 @@ fn exec(
                 m(3, KERNELS[2] * KERNELS[2] - 1)?,
             ];
             let (km, tm) = (m(4, 3)?, m(5, 3)?);
+            let mut rows = WholeMaps::new([&aff[0], &aff[1], &aff[2]], x_shape.w);
             refine_with(
                 isa,
                 typed(ins[0], i)?,
                 x_shape.h,
                 x_shape.w,
-                [&aff[0], &aff[1], &aff[2]],
+                &mut rows,
                 &km,
                 &tm,
                 attrs,
@@ -813,6 +903,199 @@ fn exec(
         _ => return Err(bad),
     }
     Ok(())
+}
+
+/// The conv op `j` as a kernel [`Conv2d`] (weights in the blob, constants in `consts`).
+fn conv_of<'g>(g: &'g Graph, j: usize, channels: &'g [ChannelQuant]) -> Result<Conv2d<'g>, Error> {
+    let bad = Error::Kernel {
+        op: j,
+        error: KernelError::Shape,
+    };
+    let op = g.ops.get(j).ok_or(bad)?;
+    let Attrs::Conv {
+        geometry,
+        act,
+        weights,
+        ..
+    } = &op.attrs
+    else {
+        return Err(bad);
+    };
+    Ok(Conv2d {
+        geometry: geometry.get(),
+        quant: ConvQuant::new(
+            g.tensor(op.inputs[0])?.q.zero_point,
+            g.tensor(op.output)?.q.zero_point,
+            *act,
+        ),
+        weights: typed(g.bytes(*weights), j)?,
+        channels,
+    })
+}
+
+/// Conv op `i` reading the parts of concat op `c` in place, each mapped by a 256-entry table of
+/// the concat's rescale (the codes the concat would have written).
+fn exec_conv_on_parts(
+    g: &Graph,
+    plan: &Plan,
+    i: usize,
+    c: usize,
+    consts: &[u8],
+    act: &mut [u8],
+    isa: Isa,
+) -> Result<(), Error> {
+    let bad = Error::Kernel {
+        op: i,
+        error: KernelError::Shape,
+    };
+    let op = g.ops.get(i).ok_or(bad)?;
+    let concat = g.ops.get(c).ok_or(bad)?;
+    let n = concat.inputs.len();
+    let mut in_r: [Range<usize>; MAX_INPUTS] = Default::default();
+    for (r, &id) in in_r.iter_mut().zip(&concat.inputs) {
+        *r = plan.tensor_range(id).ok_or(bad)?;
+    }
+    let mut ins: [&[u8]; MAX_INPUTS] = [&[]; MAX_INPUTS];
+    let out_r = plan.tensor_range(op.output).ok_or(bad)?;
+    let scr_r = plan.scratch_range(i).ok_or(bad)?;
+    let (out_b, scr_b) = split(act, out_r, scr_r, &in_r[..n], &mut ins, i)?;
+    let rescales: &[Rescale] = typed(consts.get(plan.const_range(c).ok_or(bad)?).ok_or(bad)?, c)?;
+    let x = plan.shape(op.inputs[0]).ok_or(bad)?;
+    let mut tables = [[0i8; 256]; MAX_INPUTS];
+    let mut parts = Parts::new(x.plane().ok_or(bad)?);
+    for (k, t) in tables.iter_mut().enumerate().take(n) {
+        let r = rescales.get(k).ok_or(bad)?;
+        for (code, v) in t.iter_mut().enumerate() {
+            *v = r.apply(code as u8 as i8);
+        }
+    }
+    for (k, &id) in concat.inputs.iter().enumerate() {
+        let r = rescales.get(k).ok_or(bad)?;
+        let table = (!r.is_identity()).then_some(&tables[k]);
+        let ch = plan.shape(id).ok_or(bad)?.c;
+        if !parts.push(typed(ins[k], i)?, ch, table) {
+            return Err(bad);
+        }
+    }
+    let (channels, scr_b) = channel_quants(g, plan, i, consts, scr_b)?;
+    let conv = conv_of(g, i, channels)?;
+    let out = plan.shape(op.output).ok_or(bad)?;
+    let dst = OutRows {
+        rows: 0..out.h,
+        stride: out.plane().ok_or(bad)?,
+    };
+    conv2d_parts_with(
+        isa,
+        &conv,
+        &parts,
+        x,
+        &dst,
+        typed_mut(out_b, i)?,
+        typed_mut(scr_b, i)?,
+    )
+    .map_err(kerr(i))?;
+    Ok(())
+}
+
+/// `refine` op `i` with its three affinity heads run row by row ([`ConvRows`]): inputs d0,
+/// kmix, tmix and the heads' inputs; scratch the f32 windows, the int8 ring, the heads' conv
+/// scratch (the plan's layout).
+#[allow(clippy::too_many_arguments)]
+fn exec_refine_streamed(
+    g: &Graph,
+    plan: &Plan,
+    i: usize,
+    op: &OpInfo,
+    attrs: &RefineAttrs,
+    consts: &[u8],
+    act: &mut [u8],
+    isa: Isa,
+) -> Result<(), Error> {
+    let e = kerr(i);
+    let bad = Error::Kernel {
+        op: i,
+        error: KernelError::Shape,
+    };
+    let heads = plan.fused_heads(i).ok_or(bad)?;
+    let range = |id: u16| plan.tensor_range(id).ok_or(bad);
+    let head_in = |k: usize| g.ops.get(heads[k]).map(|o| o.inputs[0]).ok_or(bad);
+    let ids = [
+        op.inputs[0],
+        op.inputs[4],
+        op.inputs[5],
+        head_in(0)?,
+        head_in(1)?,
+        head_in(2)?,
+    ];
+    let mut in_r: [Range<usize>; 6] = Default::default();
+    for (r, &id) in in_r.iter_mut().zip(&ids) {
+        *r = range(id)?;
+    }
+    let mut ins: [&[u8]; MAX_INPUTS] = [&[]; MAX_INPUTS];
+    let out_r = range(op.output)?;
+    let scr_r = plan.scratch_range(i).ok_or(bad)?;
+    let (out_b, scr_b) = split(act, out_r, scr_r, &in_r, &mut ins, i)?;
+    let d0 = plan.shape(op.inputs[0]).ok_or(bad)?;
+    let (h, w) = (d0.h, d0.w);
+    let p = d0.plane().ok_or(bad)?;
+    let (km, tm) = (
+        I8Map::new(typed(ins[1], i)?, g.tensor(ids[1])?.q, 3, p).map_err(e)?,
+        I8Map::new(typed(ins[2], i)?, g.tensor(ids[2])?.q, 3, p).map_err(e)?,
+    );
+    let windows = refine::scratch_len(w, attrs.iterations)
+        .checked_mul(4)
+        .and_then(|n| n.checked_add(ALIGN - 1))
+        .map(|n| n / ALIGN * ALIGN)
+        .ok_or(bad)?;
+    let ring = refine::ring_bytes(w, attrs.iterations)
+        .checked_add(ALIGN - 1)
+        .map(|n| n / ALIGN * ALIGN)
+        .ok_or(bad)?;
+    let (win_b, rest) = scr_b.split_at_mut(windows.min(scr_b.len()));
+    let (ring_b, conv_b) = rest.split_at_mut(ring.min(rest.len()));
+    let (c0, conv_b) = channel_quants(g, plan, heads[0], consts, conv_b)?;
+    let (c1, conv_b) = channel_quants(g, plan, heads[1], consts, conv_b)?;
+    let (c2, conv_b) = channel_quants(g, plan, heads[2], consts, conv_b)?;
+    let convs = [
+        Some(conv_of(g, heads[0], c0)?),
+        Some(conv_of(g, heads[1], c1)?),
+        Some(conv_of(g, heads[2], c2)?),
+    ];
+    let head = |k: usize| -> Result<Head<'_>, Error> {
+        let j = heads[k];
+        let conv = convs[k].ok_or(bad)?;
+        let out_id = g.ops.get(j).ok_or(bad)?.output;
+        Ok(Head {
+            conv,
+            input: typed(ins[3 + k], i)?,
+            in_shape: plan.shape(ids[3 + k]).ok_or(bad)?,
+            out_q: g.tensor(out_id)?.q,
+        })
+    };
+    let hs = [head(0)?, head(1)?, head(2)?];
+    let mut rows = ConvRows::new(
+        isa,
+        hs,
+        h,
+        w,
+        attrs.iterations,
+        typed_mut(ring_b, i)?,
+        typed_mut(conv_b, i)?,
+    )
+    .map_err(e)?;
+    refine_with(
+        isa,
+        typed(ins[0], i)?,
+        h,
+        w,
+        &mut rows,
+        &km,
+        &tm,
+        attrs,
+        typed_mut(out_b, i)?,
+        typed_mut(win_b, i)?,
+    )
+    .map_err(e)
 }
 
 impl core::fmt::Debug for Engine<'_> {

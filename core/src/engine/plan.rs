@@ -27,7 +27,9 @@ use crate::kernels::bins::BinChannel;
 use crate::kernels::conv::{ChannelQuant, Conv2d};
 use crate::kernels::elementwise::{AddQuant, MulQuant, Rescale};
 use crate::kernels::float::Broadcast;
+use crate::kernels::pack::MAX_PARTS;
 use crate::kernels::pool::MeanQuant;
+use crate::kernels::refine;
 use crate::kernels::Shape;
 use core::mem::size_of;
 use core::ops::Range;
@@ -37,6 +39,28 @@ use heapless::Vec;
 pub const ALIGN: usize = 16;
 /// Most buffers one plan holds (a tensor each plus a scratch per op).
 pub const MAX_BUFFERS: usize = MAX_TENSORS + MAX_OPS;
+/// Most refinements per graph whose heads are fused ([`Memory::Streamed`]); others keep
+/// whole maps.
+pub const MAX_FUSED: usize = 4;
+/// Most concats per graph read in place by their conv ([`Memory::Streamed`]); others are
+/// copied.
+pub const MAX_IN_PLACE: usize = 32;
+
+/// How the plan trades arena bytes against what a run exposes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Memory {
+    /// Least memory: where a `refine` op's three affinity inputs each come from a `conv2d`
+    /// read by nothing else, those convs are fused into the refinement and run one output row
+    /// at a time into a ring ([`crate::kernels::refine::ConvRows`]); their outputs are never
+    /// stored whole (nor shown to `Engine::run_observed`). A concat read only by one conv is
+    /// read in place by it. Convs compute their per-channel requantisation constants per run
+    /// in their scratch rather than holding them in the persistent region. The bits do not
+    /// change.
+    #[default]
+    Streamed,
+    /// Every op's output stored whole (for observers that compare every tensor).
+    Whole,
+}
 
 /// One buffer the planner must place: `bytes`, alive from step `first` to step `last` inclusive.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -84,6 +108,12 @@ pub struct Plan {
     offsets: Vec<usize, MAX_BUFFERS>,
     consts: Vec<Range<usize>, MAX_OPS>,
     broadcast: Vec<Broadcast, MAX_OPS>,
+    /// Refinements with fused heads: (refine op, head ops of kernels 3, 5, 7).
+    fused: Vec<(u16, [u16; 3]), MAX_FUSED>,
+    /// Concats read in place: (concat op, the conv that reads its parts).
+    in_place: Vec<(u16, u16), MAX_IN_PLACE>,
+    /// Whether convs compute their per-channel constants per run in their scratch.
+    per_run_consts: bool,
     persistent_bytes: usize,
     activation_bytes: usize,
     macs: u64,
@@ -146,6 +176,49 @@ impl Plan {
     /// Byte range of op `op`'s constants in the persistent region.
     pub fn const_range(&self, op: usize) -> Option<Range<usize>> {
         self.consts.get(op).cloned()
+    }
+    /// The refine op that runs op `op` row by row (`None`: it runs on its own).
+    pub fn fused_into(&self, op: usize) -> Option<usize> {
+        let head = self
+            .fused
+            .iter()
+            .find(|(_, heads)| heads.iter().any(|&j| usize::from(j) == op))
+            .map(|&(r, _)| usize::from(r));
+        head.or_else(|| {
+            self.in_place
+                .iter()
+                .find(|&&(c, _)| usize::from(c) == op)
+                .map(|&(_, j)| usize::from(j))
+        })
+    }
+    /// Bytes at the head of conv op `op`'s scratch that hold its per-channel constants, computed
+    /// per run ([`Memory::Streamed`]; 0 where they sit in the persistent region).
+    pub fn channel_bytes(&self, graph: &Graph, op: usize) -> usize {
+        let Some(o) = graph.ops.get(op) else {
+            return 0;
+        };
+        if !self.per_run_consts || !matches!(o.code, opcode::CONV2D | opcode::LINEAR) {
+            return 0;
+        }
+        let out_c = graph
+            .tensors
+            .get(o.output as usize)
+            .map_or(0, |t| t.channels);
+        round_up(out_c * size_of::<ChannelQuant>()).unwrap_or(0)
+    }
+    /// For a conv that reads a concat's parts in place, the concat op.
+    pub fn concat_in_place(&self, conv: usize) -> Option<usize> {
+        self.in_place
+            .iter()
+            .find(|&&(_, j)| usize::from(j) == conv)
+            .map(|&(c, _)| usize::from(c))
+    }
+    /// For a refine op with fused affinity heads, the head ops of kernels 3, 5 and 7.
+    pub fn fused_heads(&self, op: usize) -> Option<[usize; 3]> {
+        self.fused
+            .iter()
+            .find(|&&(r, _)| usize::from(r) == op)
+            .map(|&(_, h)| h.map(usize::from))
     }
     /// How the second input of op `op` broadcasts (meaningful for `mul`).
     pub fn broadcast(&self, op: usize) -> Broadcast {
@@ -332,9 +405,11 @@ fn plan_op(i: usize, op: &OpInfo, g: &Graph, shapes: &[Shape]) -> Result<OpPlan,
                     return Err(err("refine: inputs differ in H or W"));
                 }
             }
-            p.scratch = x
-                .plane()
-                .and_then(|n| n.checked_mul(8))
+            let Attrs::Refine(attrs) = &op.attrs else {
+                return Err(err("refine: attributes"));
+            };
+            p.scratch = refine::scratch_len(x.w, attrs.iterations)
+                .checked_mul(4)
                 .ok_or(PlanError::TooLarge)?;
         }
         _ => return Err(err("op attributes do not match the opcode")),
@@ -345,10 +420,129 @@ fn plan_op(i: usize, op: &OpInfo, g: &Graph, shapes: &[Shape]) -> Result<OpPlan,
     Ok(p)
 }
 
-/// Plans `graph` for an input of `h × w` (see the module doc). Pure: reads only its arguments.
+/// Plans `graph` for an input of `h × w` with [`Memory::Streamed`] (see the module doc).
 pub fn plan(graph: &Graph, h: usize, w: usize) -> Result<Plan, PlanError> {
+    plan_with(graph, h, w, Memory::Streamed)
+}
+
+/// Per op, the op it can be fused into: a `conv2d` whose output is one of the three affinity
+/// inputs of a `refine` and read by nothing else, where all three are such convs, goes into the
+/// refine; a `concat` read only by a `conv2d` with one group (not itself fused) goes into that
+/// conv, which reads its parts in place.
+fn fusable(graph: &Graph) -> Result<Vec<Option<u16>, MAX_OPS>, PlanError> {
+    let n_ops = graph.ops.len();
+    let mut fused: Vec<Option<u16>, MAX_OPS> = Vec::new();
+    fused.resize(n_ops, None).map_err(|_| PlanError::TooLarge)?;
+    let mut readers: Vec<u16, MAX_TENSORS> = Vec::new();
+    readers
+        .resize(graph.tensors.len(), 0)
+        .map_err(|_| PlanError::TooLarge)?;
+    let mut producer: Vec<Option<u16>, MAX_TENSORS> = Vec::new();
+    producer
+        .resize(graph.tensors.len(), None)
+        .map_err(|_| PlanError::TooLarge)?;
+    for (i, op) in graph.ops.iter().enumerate() {
+        for &id in &op.inputs {
+            if let Some(r) = readers.get_mut(id as usize) {
+                *r = r.saturating_add(1);
+            }
+        }
+        if let Some(p) = producer.get_mut(op.output as usize) {
+            *p = Some(i as u16);
+        }
+    }
+    let mut count = 0;
+    for (i, op) in graph.ops.iter().enumerate() {
+        if op.code != opcode::REFINE || op.inputs.len() != 6 {
+            continue;
+        }
+        let mut heads = [0u16; 3];
+        let ok = op.inputs[1..4].iter().zip(&mut heads).all(|(&t, head)| {
+            let Some(Some(p)) = producer.get(t as usize).copied() else {
+                return false;
+            };
+            *head = p;
+            let conv = &graph.ops[p as usize];
+            conv.code == opcode::CONV2D
+                && readers.get(t as usize) == Some(&1)
+                && t != graph.output
+                && graph
+                    .tensors
+                    .get(t as usize)
+                    .is_some_and(|x| x.dtype == DType::I8)
+        });
+        if ok && count < MAX_FUSED {
+            count += 1;
+            for h in heads {
+                fused[h as usize] = Some(i as u16);
+            }
+        }
+    }
+    let mut count = 0;
+    for op in graph.ops.iter() {
+        let t = op.output as usize;
+        let int8 = |id: u16| {
+            graph
+                .tensors
+                .get(id as usize)
+                .is_some_and(|x| x.dtype == DType::I8)
+        };
+        if op.code != opcode::CONCAT
+            || readers.get(t) != Some(&1)
+            || op.output == graph.output
+            || !int8(op.output)
+            || !op.inputs.iter().all(|&id| int8(id))
+            || op.inputs.len() > MAX_PARTS
+            || count == MAX_IN_PLACE
+        {
+            continue;
+        }
+        let Some(j) = graph.ops.iter().position(|o| o.inputs.contains(&op.output)) else {
+            continue;
+        };
+        let reader = &graph.ops[j];
+        let one_group =
+            matches!(&reader.attrs, Attrs::Conv { geometry, .. } if geometry.get().groups == 1);
+        if reader.code == opcode::CONV2D
+            && reader.inputs[0] == op.output
+            && one_group
+            && fused[j].is_none()
+        {
+            let Some(c) = producer.get(t).copied().flatten() else {
+                continue;
+            };
+            fused[c as usize] = Some(j as u16);
+            count += 1;
+        }
+    }
+    Ok(fused)
+}
+
+/// Plans `graph` for an input of `h × w` with the given [`Memory`] choice. Pure: reads only its
+/// arguments.
+pub fn plan_with(graph: &Graph, h: usize, w: usize, memory: Memory) -> Result<Plan, PlanError> {
     let n_t = graph.tensors.len();
     let n_ops = graph.ops.len();
+    let fused_into = match memory {
+        Memory::Streamed => fusable(graph)?,
+        Memory::Whole => {
+            let mut v: Vec<Option<u16>, MAX_OPS> = Vec::new();
+            v.resize(n_ops, None).map_err(|_| PlanError::TooLarge)?;
+            v
+        }
+    };
+    let mut fused: Vec<(u16, [u16; 3]), MAX_FUSED> = Vec::new();
+    let mut in_place: Vec<(u16, u16), MAX_IN_PLACE> = Vec::new();
+    // Scratch bytes of each fused head (run inside its refinement, which holds it).
+    let per_run_consts = memory == Memory::Streamed;
+    let mut head_consts: Vec<usize, MAX_OPS> = Vec::new();
+    head_consts
+        .resize(n_ops, 0)
+        .map_err(|_| PlanError::TooLarge)?;
+    let mut head_scratch: Vec<usize, MAX_OPS> = Vec::new();
+    head_scratch
+        .resize(n_ops, 0)
+        .map_err(|_| PlanError::TooLarge)?;
     let zero = Shape::default();
     let mut shapes: Vec<Shape, MAX_TENSORS> = Vec::new();
     shapes.resize(n_t, zero).map_err(|_| PlanError::TooLarge)?;
@@ -363,9 +557,68 @@ pub fn plan(graph: &Graph, h: usize, w: usize) -> Result<Plan, PlanError> {
     let mut persistent = 0usize;
     let mut macs = 0u64;
     for (i, op) in graph.ops.iter().enumerate() {
-        let p = plan_op(i, op, graph, &shapes)?;
+        let mut p = plan_op(i, op, graph, &shapes)?;
         shapes[op.output as usize] = p.out;
         let step = i + 1;
+        let conv = matches!(op.code, opcode::CONV2D | opcode::LINEAR);
+        // Streamed: a conv's per-channel constants are computed per run at the head of its
+        // scratch instead of being held in the persistent region.
+        let channel_bytes = if conv && per_run_consts {
+            round_up(core::mem::take(&mut p.consts))?
+        } else {
+            0
+        };
+        if fused_into[i].is_some() {
+            head_scratch[i] = core::mem::take(&mut p.scratch);
+            head_consts[i] = channel_bytes;
+        } else if channel_bytes > 0 {
+            p.scratch = round_up(p.scratch)?
+                .checked_add(channel_bytes)
+                .ok_or(PlanError::TooLarge)?;
+        }
+        if op.code == opcode::CONV2D {
+            if let Some(c) = (0..i)
+                .find(|&c| graph.ops[c].code == opcode::CONCAT && fused_into[c] == Some(i as u16))
+            {
+                in_place
+                    .push((c as u16, i as u16))
+                    .map_err(|_| PlanError::TooLarge)?;
+                // The parts are read while the conv runs.
+                for &id in &graph.ops[c].inputs {
+                    reqs[id as usize].last = reqs[id as usize].last.max(step);
+                }
+            }
+        }
+        if let Attrs::Refine(attrs) = &op.attrs {
+            let mine: [Option<u16>; 3] = core::array::from_fn(|k| {
+                let t = op.inputs[1 + k];
+                (0..i)
+                    .find(|&j| graph.ops[j].output == t && fused_into[j] == Some(i as u16))
+                    .map(|j| j as u16)
+            });
+            if let [Some(a), Some(b), Some(c)] = mine {
+                let conv_scratch = [a, b, c]
+                    .iter()
+                    .map(|&j| head_scratch[j as usize])
+                    .max()
+                    .unwrap_or(0);
+                let head_channels: usize = [a, b, c].iter().map(|&j| head_consts[j as usize]).sum();
+                let ring = refine::ring_bytes(p.out.w, attrs.iterations);
+                p.scratch = round_up(p.scratch)?
+                    .checked_add(round_up(ring)?)
+                    .and_then(|n| n.checked_add(head_channels))
+                    .and_then(|n| n.checked_add(round_up(conv_scratch).ok()?))
+                    .ok_or(PlanError::TooLarge)?;
+                fused
+                    .push((i as u16, [a, b, c]))
+                    .map_err(|_| PlanError::TooLarge)?;
+                // The heads' inputs are read while the refinement runs.
+                for j in [a, b, c] {
+                    let input = graph.ops[j as usize].inputs[0] as usize;
+                    reqs[input].last = reqs[input].last.max(step);
+                }
+            }
+        }
         let cb = round_up(p.consts)?;
         consts
             .push(persistent..persistent + p.consts)
@@ -401,6 +654,11 @@ pub fn plan(graph: &Graph, h: usize, w: usize) -> Result<Plan, PlanError> {
             .ok_or(PlanError::TooLarge)?;
         reqs[t].bytes = round_up(n)?;
     }
+    for (op, f) in graph.ops.iter().zip(&fused_into) {
+        if f.is_some() {
+            reqs[op.output as usize].bytes = 0;
+        }
+    }
     let mut offsets: Vec<usize, MAX_BUFFERS> = Vec::new();
     offsets
         .resize(reqs.len(), 0)
@@ -415,6 +673,9 @@ pub fn plan(graph: &Graph, h: usize, w: usize) -> Result<Plan, PlanError> {
         offsets,
         consts,
         broadcast,
+        fused,
+        in_place,
+        per_run_consts,
         persistent_bytes: persistent,
         activation_bytes,
         macs,

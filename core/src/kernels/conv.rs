@@ -9,7 +9,7 @@
 
 use super::dot::{self, Acc, Task};
 use super::isa::Isa;
-use super::pack::{self, Layout, Pairs, Quads, NB, PB};
+use super::pack::{self, Dense, Layout, Pairs, Parts, Quads, Source, NB, PB};
 use super::requant::{clamp_i8, Requant};
 use super::{need, KernelError, Shape};
 
@@ -430,24 +430,140 @@ pub fn conv2d_with(
     scratch: &mut [i32],
 ) -> Result<Shape, KernelError> {
     let out = op.check(in_shape)?;
-    need(input, in_shape)?;
-    need(output, out)?;
+    let plane = out.plane().ok_or(KernelError::Shape)?;
+    let dst = OutRows {
+        rows: 0..out.h,
+        stride: plane,
+    };
+    conv2d_rows_with(isa, op, input, in_shape, &dst, output, scratch)?;
+    Ok(out)
+}
+
+/// Where [`conv2d_rows_with`] writes: output rows `rows` of every channel, channel `o`'s row
+/// `y` at `o · stride + (y − rows.start) · W` of the output slice.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct OutRows {
+    /// Output rows computed.
+    pub rows: core::ops::Range<usize>,
+    /// Elements between two channels in the output slice (≥ `rows.len() · W`).
+    pub stride: usize,
+}
+
+/// Checks `dst` against the output shape and the output and scratch lengths; returns the
+/// scratch the conv uses.
+fn check_buffers(
+    isa: Isa,
+    op: &Conv2d,
+    in_shape: Shape,
+    out: Shape,
+    dst: &OutRows,
+    output_len: usize,
+    scratch_len: usize,
+) -> Result<usize, KernelError> {
+    let band = dst
+        .rows
+        .len()
+        .checked_mul(out.w)
+        .ok_or(KernelError::Shape)?;
+    let last = (out.c.saturating_sub(1))
+        .checked_mul(dst.stride)
+        .and_then(|n| n.checked_add(band))
+        .ok_or(KernelError::Shape)?;
+    if dst.rows.start > dst.rows.end
+        || dst.rows.end > out.h
+        || dst.stride < band
+        || output_len < last
+    {
+        return Err(KernelError::Shape);
+    }
     if !isa.available() {
         return Err(KernelError::Isa);
     }
     let len = Conv2d::scratch_len(&op.geometry, in_shape, out);
-    if scratch.len() < len {
+    if scratch_len < len {
         return Err(KernelError::Scratch);
     }
+    Ok(len)
+}
+
+/// As [`conv2d_with`] for the output rows `dst.rows` only, written at `dst`'s layout: each
+/// row gets the bits the whole convolution gives it (the refinement computes its affinity
+/// heads one row at a time this way). Returns the whole output's shape.
+pub fn conv2d_rows_with(
+    isa: Isa,
+    op: &Conv2d,
+    input: &[i8],
+    in_shape: Shape,
+    dst: &OutRows,
+    output: &mut [i8],
+    scratch: &mut [i32],
+) -> Result<Shape, KernelError> {
+    conv2d_rows_packed(isa, op, input, in_shape, dst, output, scratch, false)
+}
+
+/// As [`conv2d_rows_with`]; with `weights_packed`, a one-group conv skips packing its weights
+/// and uses those its previous call (same `isa`, `op`, `in_shape`) left in `scratch`: the
+/// refinement's heads pack theirs once per branch, not once per row.
+#[allow(clippy::too_many_arguments)]
+pub fn conv2d_rows_packed(
+    isa: Isa,
+    op: &Conv2d,
+    input: &[i8],
+    in_shape: Shape,
+    dst: &OutRows,
+    output: &mut [i8],
+    scratch: &mut [i32],
+    weights_packed: bool,
+) -> Result<Shape, KernelError> {
+    let packed = weights_packed;
+    let out = op.check(in_shape)?;
+    need(input, in_shape)?;
+    let len = check_buffers(isa, op, in_shape, out, dst, output.len(), scratch.len())?;
     let depthwise = op.geometry.groups == in_shape.c
         && out.c == in_shape.c
         && len >= out.w.div_ceil(PB) * PB + in_shape.w;
+    let scratch = &mut scratch[..len];
+    let src = Dense {
+        data: input,
+        plane: in_shape.plane().ok_or(KernelError::Shape)?,
+    };
     match isa {
-        _ if depthwise => {
-            depthwise_conv(isa, op, input, in_shape, out, output, &mut scratch[..len])
+        _ if depthwise => depthwise_conv(isa, op, input, in_shape, out, dst, output, scratch),
+        Isa::Avx512Vnni => {
+            run::<Quads, _>(isa, op, &src, in_shape, out, dst, output, scratch, packed)
         }
-        Isa::Avx512Vnni => run::<Quads>(isa, op, input, in_shape, out, output, &mut scratch[..len]),
-        _ => run::<Pairs>(isa, op, input, in_shape, out, output, &mut scratch[..len]),
+        _ => run::<Pairs, _>(isa, op, &src, in_shape, out, dst, output, scratch, packed),
+    }
+    Ok(out)
+}
+
+/// As [`conv2d_rows_with`] on an input given as the parts of a concat, read in place (each
+/// part's codes mapped to the concat's by its table): the bits of the conv run on the concat's
+/// output. `in_shape.c` must equal the parts' channels; depthwise convs are not accepted
+/// (`Err(Attr)`).
+pub fn conv2d_parts_with(
+    isa: Isa,
+    op: &Conv2d,
+    input: &Parts,
+    in_shape: Shape,
+    dst: &OutRows,
+    output: &mut [i8],
+    scratch: &mut [i32],
+) -> Result<Shape, KernelError> {
+    let out = op.check(in_shape)?;
+    if input.channels() != in_shape.c {
+        return Err(KernelError::Shape);
+    }
+    let len = check_buffers(isa, op, in_shape, out, dst, output.len(), scratch.len())?;
+    if op.geometry.groups == in_shape.c && out.c == in_shape.c && in_shape.c > 1 {
+        return Err(KernelError::Attr);
+    }
+    let scratch = &mut scratch[..len];
+    match isa {
+        Isa::Avx512Vnni => {
+            run::<Quads, _>(isa, op, input, in_shape, out, dst, output, scratch, false)
+        }
+        _ => run::<Pairs, _>(isa, op, input, in_shape, out, dst, output, scratch, false),
     }
     Ok(out)
 }
@@ -502,12 +618,14 @@ impl Micro for Quads {
 /// Depthwise convolution (one input and one output channel per group): per channel and output
 /// row, every tap adds `w · (x − zp)` to a row of i32 sums (16-bit products, exact), which the
 /// compiler vectorises across the row; then the row is requantised like a conv block.
+#[allow(clippy::too_many_arguments)]
 fn depthwise_conv(
     isa: Isa,
     op: &Conv2d,
     input: &[i8],
     in_shape: Shape,
     out: Shape,
+    dst: &OutRows,
     output: &mut [i8],
     scratch: &mut [i32],
 ) {
@@ -515,33 +633,37 @@ fn depthwise_conv(
         #[cfg(target_arch = "x86_64")]
         Isa::Avx2 | Isa::Avx512Vnni if Isa::Avx2.available() => {
             // SAFETY: AVX2 is available (checked).
-            unsafe { depthwise_avx2(isa, op, input, in_shape, out, output, scratch) }
+            unsafe { depthwise_avx2(isa, op, input, in_shape, out, dst, output, scratch) }
         }
-        _ => depthwise_rows(isa, op, input, in_shape, out, output, scratch),
+        _ => depthwise_rows(isa, op, input, in_shape, out, dst, output, scratch),
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
 unsafe fn depthwise_avx2(
     isa: Isa,
     op: &Conv2d,
     input: &[i8],
     in_shape: Shape,
     out: Shape,
+    dst: &OutRows,
     output: &mut [i8],
     scratch: &mut [i32],
 ) {
-    depthwise_rows(isa, op, input, in_shape, out, output, scratch)
+    depthwise_rows(isa, op, input, in_shape, out, dst, output, scratch)
 }
 
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn depthwise_rows(
     isa: Isa,
     op: &Conv2d,
     input: &[i8],
     in_shape: Shape,
     out: Shape,
+    dst: &OutRows,
     output: &mut [i8],
     scratch: &mut [i32],
 ) {
@@ -556,7 +678,7 @@ fn depthwise_rows(
         let chan = &input[c * ih * iw..(c + 1) * ih * iw];
         let w = &op.weights[c * kh * kw..(c + 1) * kh * kw];
         let rq = [op.row_quant(c, op.channels[c].bias)];
-        for oy in 0..out.h {
+        for oy in dst.rows.clone() {
             acc.fill(0);
             for ky in 0..kh {
                 let iy = (oy * g.stride[0] + ky * g.dilation[0]) as isize - g.padding[0] as isize;
@@ -591,21 +713,24 @@ fn depthwise_rows(
             for ox0 in (0..out.w).step_by(PB) {
                 let n = PB.min(out.w - ox0);
                 block[..n].copy_from_slice(&acc[ox0..ox0 + n]);
-                let at = c * out.h * out.w + oy * out.w + ox0;
-                op.finish_block(isa, &rq, c, &block, n, output, at, out.h * out.w);
+                let at = c * dst.stride + (oy - dst.rows.start) * out.w + ox0;
+                op.finish_block(isa, &rq, c, &block, n, output, at, dst.stride);
             }
         }
     }
 }
 
-fn run<F: Micro>(
+#[allow(clippy::too_many_arguments)]
+fn run<F: Micro, S: Source>(
     isa: Isa,
     op: &Conv2d,
-    input: &[i8],
+    input: &S,
     in_shape: Shape,
     out: Shape,
+    dst: &OutRows,
     output: &mut [i8],
     scratch: &mut [i32],
+    weights_packed: bool,
 ) {
     let g = &op.geometry;
     let (kh, kw) = (g.kernel[0], g.kernel[1]);
@@ -624,19 +749,18 @@ fn run<F: Micro>(
             }
         }
     }
-    let plane_in = in_shape.h * in_shape.w;
-    let plane_out = out.h * out.w;
     let zp = op.quant.input_zero_point;
     let group_shape = Shape::new(icg, in_shape.h, in_shape.w);
     let mut acc: Acc = [0; NB * PB];
     for grp in 0..g.groups {
-        let x = &input[grp * icg * plane_in..(grp + 1) * icg * plane_in];
         let o_first = grp * ocg;
         let w = &op.weights[o_first * icg * kh * kw..(o_first + ocg) * icg * kh * kw];
-        pack::pack_weights::<F>(g, w, icg, ocg, &dims, weights, sums);
+        if !(weights_packed && g.groups == 1) {
+            pack::pack_weights::<F>(g, w, icg, ocg, &dims, weights, sums);
+        }
 
-        for oy in 0..out.h {
-            pack::pack_rows::<F>(g, x, group_shape, out.w, oy, zp, &dims, rows);
+        for oy in dst.rows.clone() {
+            pack::pack_rows::<F, S>(g, input, grp * icg, group_shape, out.w, oy, zp, &dims, rows);
             for ox0 in (0..out.w).step_by(PB) {
                 let n = PB.min(out.w - ox0);
                 for b in 0..dims.n_blocks {
@@ -648,7 +772,7 @@ fn run<F: Micro>(
                     };
                     F::kernel(isa, &task, &mut acc);
                     let o0 = o_first + b * NB;
-                    let at = o0 * plane_out + oy * out.w + ox0;
+                    let at = o0 * dst.stride + (oy - dst.rows.start) * out.w + ox0;
                     let nb = NB.min(ocg - b * NB);
                     let mut rq = [RowQuant::default(); NB];
                     for (j, q) in rq.iter_mut().enumerate().take(nb) {
@@ -657,7 +781,7 @@ fn run<F: Micro>(
                             .wrapping_sub(F::bias_term(zp, sums[b * NB + j]));
                         *q = op.row_quant(o0 + j, base);
                     }
-                    op.finish_block(isa, &rq[..nb], o0, &acc, n, output, at, plane_out);
+                    op.finish_block(isa, &rq[..nb], o0, &acc, n, output, at, dst.stride);
                 }
             }
         }
@@ -944,6 +1068,37 @@ pub(crate) mod tests {
     kernel_tests!(suite_avx2, ref: conv2d_ref, fast: avx2, golden: golden, arb: arb_valid(), check: check);
     kernel_tests!(suite_avx512_vnni, ref: conv2d_ref, fast: avx512_vnni, golden: golden, arb: arb_valid(), check: check);
 
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+        /// Any band of output rows, written at any channel stride, holds the whole output's bits
+        /// (every kernel set of this CPU; depthwise and grouped cases included).
+        #[test]
+        fn row_bands_equal_the_whole_output(c in arb_valid(), cut in 0usize..64, extra in 0usize..9) {
+            let (out, whole) = run(&c, conv2d_ref);
+            let ch = channels(&c);
+            let op = Conv2d {
+                geometry: c.geometry,
+                quant: ConvQuant::new(c.in_q.zero_point, c.out_q.zero_point, c.act),
+                weights: &c.weights,
+                channels: &ch,
+            };
+            let y0 = cut % out.h;
+            let y1 = (y0 + 1 + cut / 7).min(out.h);
+            let stride = (y1 - y0) * out.w + extra;
+            let mut scratch = std::vec![0i32; Conv2d::scratch_len(&c.geometry, c.in_shape, out)];
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                let mut band = std::vec![0x55i8; (out.c - 1) * stride + (y1 - y0) * out.w];
+                let dst = OutRows { rows: y0..y1, stride };
+                conv2d_rows_with(isa, &op, &c.input, c.in_shape, &dst, &mut band, &mut scratch).unwrap();
+                for o in 0..out.c {
+                    let want = &whole[o * out.h * out.w + y0 * out.w..o * out.h * out.w + y1 * out.w];
+                    let got = &band[o * stride..o * stride + (y1 - y0) * out.w];
+                    prop_assert_eq!(got, want, "{} channel {} rows {}..{}", isa.name(), o, y0, y1);
+                }
+            }
+        }
+    }
+
     /// Depthwise shapes (the dedicated row path) on every kernel set against the reference:
     /// strides, dilations, paddings, kernel sizes, widths below and above one pixel block.
     #[test]
@@ -1113,6 +1268,56 @@ pub(crate) mod tests {
             }
             let dt = t.elapsed().as_secs_f64() / reps as f64;
             std::println!("{name}: {:.3} ms, {:.2} GMAC/s", dt * 1e3, macs / dt / 1e9);
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(32))]
+        /// A conv reading the parts of a concat in place (codes mapped by each part's rescale
+        /// table) gives the bits of the conv run on the concat's output, on every kernel set.
+        #[test]
+        fn parts_read_in_place_equal_the_concat(c in arb_valid(), split in 1usize..8, zp in -20i32..20, ratio in 0.3f32..2.5) {
+            use crate::kernels::elementwise::{concat_part, Rescale};
+            use crate::kernels::pack::Parts;
+            prop_assume!(c.geometry.groups == 1 && c.in_shape.c >= 2);
+            let s = c.in_shape;
+            let plane = s.h * s.w;
+            let c1 = 1 + split % (s.c - 1);
+            let parts_c = [c1, s.c - c1];
+            // Part 0 passes through; part 1 comes from another scale and zero point.
+            let from = [c.in_q, QParams { scale: c.in_q.scale * ratio, zero_point: zp }];
+            let mut concat = std::vec![0i8; s.len().unwrap()];
+            let mut c0 = 0;
+            let mut tables = [[0i8; 256]; 2];
+            for k in 0..2 {
+                let part = &c.input[c0 * plane..(c0 + parts_c[k]) * plane];
+                let r = Rescale::new(from[k], c.in_q);
+                for (code, t) in tables[k].iter_mut().enumerate() {
+                    *t = r.apply(code as u8 as i8);
+                }
+                concat_part(part, Shape::new(parts_c[k], s.h, s.w), &r, &mut concat, s, c0).unwrap();
+                c0 += parts_c[k];
+            }
+            let ch = channels(&c);
+            let op = Conv2d {
+                geometry: c.geometry,
+                quant: ConvQuant::new(c.in_q.zero_point, c.out_q.zero_point, c.act),
+                weights: &c.weights,
+                channels: &ch,
+            };
+            let out = op.check(s).unwrap();
+            let mut scratch = std::vec![0i32; Conv2d::scratch_len(&c.geometry, s, out)];
+            let mut want = std::vec![0i8; out.len().unwrap()];
+            conv2d_ref(&op, &concat, s, &mut want, &mut scratch).unwrap();
+            let mut parts = Parts::new(plane);
+            assert!(parts.push(&c.input[..c1 * plane], c1, None));
+            assert!(parts.push(&c.input[c1 * plane..], s.c - c1, Some(&tables[1])));
+            let dst = OutRows { rows: 0..out.h, stride: out.h * out.w };
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                let mut got = std::vec![0i8; out.len().unwrap()];
+                conv2d_parts_with(isa, &op, &parts, s, &dst, &mut got, &mut scratch).unwrap();
+                prop_assert_eq!(&got, &want, "{}", isa.name());
+            }
         }
     }
 

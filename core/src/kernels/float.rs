@@ -300,7 +300,8 @@ pub fn bins_head(
     bins::bins_head_f32(features, shape, bin_logits, weights, bias, attrs, out)
 }
 
-/// `refine` on f32 maps (all `H×W` planes, CHW): see [`refine::refine`].
+/// `refine` on f32 maps (all `H×W` planes, CHW): see [`refine::refine`]; `scratch` holds ≥
+/// [`refine::scratch_len`] f32.
 #[allow(clippy::too_many_arguments)]
 pub fn refine(
     d0: &[f32],

@@ -154,11 +154,104 @@ pub fn tap_offset(g: &ConvGeometry, out_w: usize, l: usize, ky: usize, kx: usize
     ((ky * g.stride[1] + reach % g.stride[1]) * rw + reach / g.stride[1]) * l
 }
 
-/// Packs the rows output row `oy` reads from the group's `in_shape.c` channels `input` (CHW).
+/// The int8 CHW input of a convolution: one tensor ([`Dense`]), or the parts of a concat read
+/// in place, each with the table that requantises its codes to the concat's ([`Parts`]).
+pub trait Source {
+    /// Codes `start .. start + len` of channel `c`'s plane and the table mapping them to the
+    /// conv's input codes (`None`: as they are); `None` past the end.
+    fn run(&self, c: usize, start: usize, len: usize) -> Option<(&[i8], Option<&[i8; 256]>)>;
+}
+
+/// One CHW tensor of `plane` pixels per channel.
+#[derive(Clone, Copy, Debug)]
+pub struct Dense<'a> {
+    /// The codes.
+    pub data: &'a [i8],
+    /// Pixels per channel.
+    pub plane: usize,
+}
+
+impl Source for Dense<'_> {
+    #[inline(always)]
+    fn run(&self, c: usize, start: usize, len: usize) -> Option<(&[i8], Option<&[i8; 256]>)> {
+        let at = c.checked_mul(self.plane)?.checked_add(start)?;
+        Some((self.data.get(at..at.checked_add(len)?)?, None))
+    }
+}
+
+/// Most parts of a [`Parts`] input.
+pub const MAX_PARTS: usize = 8;
+
+/// One part of a [`Parts`] input: codes, channels, rescale table.
+type Part<'a> = (&'a [i8], usize, Option<&'a [i8; 256]>);
+
+/// Several CHW tensors of one plane size, read as their concatenation along channels.
+#[derive(Clone, Copy, Debug)]
+pub struct Parts<'a> {
+    parts: [Part<'a>; MAX_PARTS],
+    n: usize,
+    plane: usize,
+}
+
+impl<'a> Parts<'a> {
+    /// No parts yet, `plane` pixels per channel.
+    pub fn new(plane: usize) -> Self {
+        Parts {
+            parts: [(&[], 0, None); MAX_PARTS],
+            n: 0,
+            plane,
+        }
+    }
+    /// Appends `channels` channels of `data`, their codes mapped through `table` if given.
+    /// `false` when full or `data` is short.
+    pub fn push(&mut self, data: &'a [i8], channels: usize, table: Option<&'a [i8; 256]>) -> bool {
+        let fits = channels
+            .checked_mul(self.plane)
+            .is_some_and(|n| n <= data.len());
+        if self.n == MAX_PARTS || !fits {
+            return false;
+        }
+        self.parts[self.n] = (data, channels, table);
+        self.n += 1;
+        true
+    }
+    /// Channels of all parts.
+    pub fn channels(&self) -> usize {
+        self.parts[..self.n].iter().map(|p| p.1).sum()
+    }
+}
+
+impl Source for Parts<'_> {
+    #[inline]
+    fn run(&self, c: usize, start: usize, len: usize) -> Option<(&[i8], Option<&[i8; 256]>)> {
+        let mut c = c;
+        for &(data, channels, table) in &self.parts[..self.n] {
+            if c < channels {
+                let at = c * self.plane + start;
+                return Some((data.get(at..at.checked_add(len)?)?, table));
+            }
+            c -= channels;
+        }
+        None
+    }
+}
+
+/// `code` through `table`, if any.
+#[inline(always)]
+fn mapped(x: i8, table: Option<&[i8; 256]>) -> i8 {
+    match table {
+        Some(t) => t[x as u8 as usize],
+        None => x,
+    }
+}
+
+/// Packs the rows output row `oy` reads from channels `c0 .. c0 + in_shape.c` of `input` (the
+/// group's channels).
 #[allow(clippy::too_many_arguments)]
-pub fn pack_rows<F: Layout>(
+pub fn pack_rows<F: Layout, S: Source>(
     g: &ConvGeometry,
-    input: &[i8],
+    input: &S,
+    c0: usize,
     in_shape: Shape,
     out_w: usize,
     oy: usize,
@@ -167,7 +260,6 @@ pub fn pack_rows<F: Layout>(
     rows: &mut [F::Elem],
 ) {
     let (ih, iw) = (in_shape.h, in_shape.w);
-    let plane = ih * iw;
     let sw = g.stride[1];
     let rw = row_width(g, out_w);
     let pad = F::pad(zp);
@@ -194,29 +286,43 @@ pub fn pack_rows<F: Layout>(
                 dst[hi.max(lo) * l..].fill(pad);
                 let at = iy as usize * iw + (lo * sw + phase).saturating_sub(pw);
                 let len = hi.saturating_sub(lo);
-                if sw == 1 && (cg + 1) * l <= in_shape.c && at + len <= plane {
-                    let src = |li: usize| &input[(cg * l + li) * plane + at..][..len];
+                if sw == 1 && (cg + 1) * l <= in_shape.c {
+                    let src = |li: usize| input.run(c0 + cg * l + li, at, len);
                     let out = &mut dst[lo * l..hi * l];
                     match l {
-                        4 => interleave4::<F>([src(0), src(1), src(2), src(3)], zp, out),
-                        _ => interleave2::<F>([src(0), src(1)], zp, out),
+                        4 => {
+                            if let (Some(a), Some(b), Some(c), Some(d)) =
+                                (src(0), src(1), src(2), src(3))
+                            {
+                                interleave4::<F>([a, b, c, d], zp, out);
+                                continue;
+                            }
+                        }
+                        _ => {
+                            if let (Some(a), Some(b)) = (src(0), src(1)) {
+                                interleave2::<F>([a, b], zp, out);
+                                continue;
+                            }
+                        }
                     }
-                    continue;
                 }
                 for li in 0..l {
                     let c = cg * l + li;
                     let words = dst[lo * l..hi.max(lo) * l].iter_mut().skip(li).step_by(l);
-                    if c >= in_shape.c {
+                    let src = if c < in_shape.c {
+                        input.run(c0 + c, iy as usize * iw, iw)
+                    } else {
+                        None
+                    };
+                    let Some((src, table)) = src else {
                         for d in words {
                             *d = pad;
                         }
                         continue;
-                    }
-                    let at = c * plane + iy as usize * iw;
-                    let src = &input[at..at + iw];
+                    };
                     let ix0 = lo * sw + phase - pw;
                     for (d, &x) in words.zip(src[ix0.min(iw)..].iter().step_by(sw)) {
-                        *d = F::elem(x, zp);
+                        *d = F::elem(mapped(x, table), zp);
                     }
                 }
             }
@@ -224,24 +330,43 @@ pub fn pack_rows<F: Layout>(
     }
 }
 
+/// A row of codes and the table its codes go through (`None`: as they are).
+type Run<'a> = (&'a [i8], Option<&'a [i8; 256]>);
+
 /// `out[x·4 + l] = elem(src[l][x])`: four contiguous channel rows into words.
 #[inline]
-fn interleave4<F: Layout>(src: [&[i8]; 4], zp: i32, out: &mut [F::Elem]) {
-    let it = src[0].iter().zip(src[1]).zip(src[2]).zip(src[3]);
-    for (d, (((&a, &b), &c), &e)) in out.chunks_exact_mut(4).zip(it) {
-        d[0] = F::elem(a, zp);
-        d[1] = F::elem(b, zp);
-        d[2] = F::elem(c, zp);
-        d[3] = F::elem(e, zp);
+fn interleave4<F: Layout>(src: [Run; 4], zp: i32, out: &mut [F::Elem]) {
+    if src.iter().all(|s| s.1.is_none()) {
+        let it = src[0].0.iter().zip(src[1].0).zip(src[2].0).zip(src[3].0);
+        for (d, (((&a, &b), &c), &e)) in out.chunks_exact_mut(4).zip(it) {
+            d[0] = F::elem(a, zp);
+            d[1] = F::elem(b, zp);
+            d[2] = F::elem(c, zp);
+            d[3] = F::elem(e, zp);
+        }
+        return;
+    }
+    for (li, (run, table)) in src.into_iter().enumerate() {
+        for (d, &x) in out.iter_mut().skip(li).step_by(4).zip(run) {
+            *d = F::elem(mapped(x, table), zp);
+        }
     }
 }
 
 /// `out[x·2 + l] = elem(src[l][x])`: two contiguous channel rows into words.
 #[inline]
-fn interleave2<F: Layout>(src: [&[i8]; 2], zp: i32, out: &mut [F::Elem]) {
-    for (d, (&a, &b)) in out.chunks_exact_mut(2).zip(src[0].iter().zip(src[1])) {
-        d[0] = F::elem(a, zp);
-        d[1] = F::elem(b, zp);
+fn interleave2<F: Layout>(src: [Run; 2], zp: i32, out: &mut [F::Elem]) {
+    if src.iter().all(|s| s.1.is_none()) {
+        for (d, (&a, &b)) in out.chunks_exact_mut(2).zip(src[0].0.iter().zip(src[1].0)) {
+            d[0] = F::elem(a, zp);
+            d[1] = F::elem(b, zp);
+        }
+        return;
+    }
+    for (li, (run, table)) in src.into_iter().enumerate() {
+        for (d, &x) in out.iter_mut().skip(li).step_by(2).zip(run) {
+            *d = F::elem(mapped(x, table), zp);
+        }
     }
 }
 

@@ -323,7 +323,11 @@ impl Net {
                     let s = v[ins[0]].0;
                     let p = s.h * s.w;
                     let mut o = vec![0.0; p];
-                    let mut scratch = vec![0.0; 2 * p];
+                    let mut scratch =
+                        vec![
+                            0.0;
+                            depthor_core::kernels::refine::scratch_len(s.w, attrs.iterations)
+                        ];
                     float::refine(
                         &v[ins[0]].1,
                         s.h,

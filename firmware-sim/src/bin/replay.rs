@@ -89,10 +89,27 @@ fn profile_ops<const N: usize>(engine: &mut Engine<'_>, ws: &Workspace<'_, N>) {
     }
     let mut kinds: [(&str, u64, u64); KINDS] = [("", 0, 0); KINDS];
     let mut total = 0u64;
+    // An op fused into another (affinity heads into the refinement, a concat into its conv)
+    // runs inside it: its MACs are counted there.
+    let plan = engine.plan();
+    let macs_of = |i: usize| -> u64 {
+        if plan.fused_into(i).is_some() {
+            return 0;
+        }
+        (0..ops)
+            .filter(|&j| j == i || plan.fused_into(j) == Some(i))
+            .map(|j| plan.op_macs(engine.graph(), j))
+            .sum()
+    };
     for (i, op) in engine.graph().ops.iter().enumerate().take(ops) {
-        let name = op_name(op.code).unwrap_or("?");
+        let fused = plan.fused_into(i).is_some();
+        let name = if fused {
+            "(fused)"
+        } else {
+            op_name(op.code).unwrap_or("?")
+        };
         let n = cycles::instructions(per_op[i]);
-        let macs = engine.plan().op_macs(engine.graph(), i);
+        let macs = macs_of(i);
         total += n;
         println!("op {i} {name} macs={macs} instructions={n}");
         if let Some(k) = kinds.iter_mut().find(|k| k.0 == name || k.0.is_empty()) {

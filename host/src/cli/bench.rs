@@ -322,6 +322,17 @@ fn profile_ops(
             ms: Vec::with_capacity(runs),
         })
         .collect();
+    // Ops fused into another (affinity heads into the refinement, a concat into its conv) run
+    // inside it: their MACs and time belong to that op's row.
+    for i in 0..ops.len() {
+        if let Some(j) = plan.fused_into(i) {
+            let macs = std::mem::take(&mut ops[i].macs);
+            ops[i].name = "(fused)";
+            if let Some(t) = ops.get_mut(j) {
+                t.macs += macs;
+            }
+        }
+    }
     let mut out = vec![0f32; rgb.len() / 3];
     for _ in 0..runs {
         let mut last = Instant::now();

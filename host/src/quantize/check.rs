@@ -6,7 +6,9 @@ use super::blob_writer::quantize_channels;
 use super::calibrate::Frame;
 use super::golden::GoldenTensor;
 use super::net::{Net, OpKind};
-use depthor_core::engine::{required_arena_bytes, Engine, Error as EngineError, Observed};
+use depthor_core::engine::{
+    required_arena_bytes_with, Engine, Error as EngineError, Memory, Observed,
+};
 use depthor_core::kernels::requant::QParams;
 use std::collections::HashMap;
 
@@ -130,9 +132,25 @@ pub enum CheckError {
 }
 
 /// A zeroed arena large enough for `blob` at `net`'s native size.
+/// An arena for the [`Memory::Whole`] plan (every op's output observed).
 fn arena_for(blob: &[u8], net: &Net) -> Result<Vec<u8>, CheckError> {
-    let need = required_arena_bytes(blob, net.height, net.width)?;
+    let need = required_arena_bytes_with(blob, net.height, net.width, Memory::Whole)?;
     Ok(vec![0u8; need + 64])
+}
+
+/// An engine at `net`'s size that shows every op to `run_observed` ([`Memory::Whole`]).
+fn whole_engine<'a>(
+    blob: &'a [u8],
+    net: &Net,
+    arena: &'a mut [u8],
+) -> Result<Engine<'a>, CheckError> {
+    Ok(Engine::with_memory(
+        blob,
+        arena,
+        net.height,
+        net.width,
+        Memory::Whole,
+    )?)
 }
 
 /// The op count, after checking that the blob's ops line up one to one with `net`'s.
@@ -150,7 +168,7 @@ fn ops_line_up(engine: &Engine<'_>, net: &Net) -> Result<usize, CheckError> {
 /// Runs `blob` in the core engine and `net` in f32 on every frame and compares them.
 pub fn compare(blob: &[u8], net: &Net, frames: &[Frame]) -> Result<Comparison, CheckError> {
     let mut arena = arena_for(blob, net)?;
-    let mut engine = Engine::new(blob, &mut arena)?;
+    let mut engine = whole_engine(blob, net, &mut arena)?;
     let n_ops = ops_line_up(&engine, net)?;
     let mut sig = vec![0f64; n_ops];
     let mut noise = vec![0f64; n_ops];
@@ -229,7 +247,7 @@ pub fn op_fidelity(
     frames: &[Frame],
 ) -> Result<Vec<OpFidelity>, CheckError> {
     let mut arena = arena_for(blob, net)?;
-    let mut engine = Engine::new(blob, &mut arena)?;
+    let mut engine = whole_engine(blob, net, &mut arena)?;
     let n_ops = ops_line_up(&engine, net)?;
     let tensors = &engine.graph().tensors;
     let sparse_q = tensors[engine.graph().sparse as usize].q;

@@ -6,7 +6,7 @@
 use depthor_core::kernels::bins::BinsAttrs;
 use depthor_core::kernels::conv::{Activation, ConvGeometry};
 use depthor_core::kernels::float::{self, Broadcast};
-use depthor_core::kernels::refine::RefineAttrs;
+use depthor_core::kernels::refine::{self, RefineAttrs};
 use depthor_core::kernels::{KernelError, Shape};
 
 /// Value index of the `rgb` input (`[3,H,W]`, `byte/255`).
@@ -241,7 +241,7 @@ impl Net {
                 bias,
             } => float::bins_head(x, xs, arg(1)?, weight, bias, attrs, &mut out)?,
             OpKind::Refine(attrs) => {
-                let mut scratch = vec![0f32; 2 * xs.h * xs.w];
+                let mut scratch = vec![0f32; refine::scratch_len(xs.w, attrs.iterations)];
                 float::refine(
                     x,
                     xs.h,

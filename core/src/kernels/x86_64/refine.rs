@@ -4,6 +4,7 @@
 
 use super::vmath::exp_ps;
 use crate::kernels::refine::I8Map;
+use crate::kernels::refine::RowAt;
 use core::arch::x86_64::*;
 
 /// Dequantised codes `i..i + 8` of channel `c`: `scale · (q − zp)`.
@@ -125,15 +126,15 @@ impl Lanes for __m512 {
     }
 }
 
-/// The interior pixels `x0..x1` of row `y` (every window inside, `x1 − x0` a multiple of `L`)
-/// of one propagation step, `L` pixels per vector.
+/// The interior pixels `x0..x1` of a row located by `at` (every window inside, `x1 − x0` a
+/// multiple of `L`) of one propagation step into `nxt[x0..x1]`, `L` pixels per vector.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 unsafe fn step_lanes<V: Lanes>(
     a: &I8Map,
     delta: &[isize],
     g: &[f32],
-    row_start: usize,
+    at: RowAt,
     x0: usize,
     x1: usize,
     cur: &[f32],
@@ -148,10 +149,10 @@ unsafe fn step_lanes<V: Lanes>(
     let mut r = [zero; 48];
     let mut x = x0;
     while x + V::L <= x1 {
-        let i = row_start + x;
+        let (ia, i) = (at.aff + x, at.cur + x);
         let mut s = zero;
         for (j, (rj, &gj)) in r[..n].iter_mut().zip(g).enumerate() {
-            let v = V::max(V::dequant(data.add(j * plane + i), zp, scale), zero);
+            let v = V::max(V::dequant(data.add(j * plane + ia), zp, scale), zero);
             *rj = V::mul(v, V::splat(gj));
             s = V::add(s, *rj);
         }
@@ -167,13 +168,14 @@ unsafe fn step_lanes<V: Lanes>(
             let cn = V::load(c.offset(i as isize + dj));
             d = V::add(d, V::mul(*rj, cn));
         }
-        V::store(nxt.as_mut_ptr().add(i), d);
+        V::store(nxt.as_mut_ptr().add(x), d);
         x += V::L;
     }
 }
 
-/// [`step_lanes`] with 8 lanes. Callers check `a` has `delta.len()` channels over `h·w`
-/// pixels, and that every `i + delta` of `x0..x1` in the row lies in `cur`.
+/// [`step_lanes`] with 8 lanes. Callers check that `a` has `delta.len()` channels holding
+/// `at.aff + x` for `x < x1`, that every `at.cur + x + delta` of `x0..x1` lies in `cur`, and
+/// that `nxt` holds `x1` values.
 ///
 /// # Safety
 /// The CPU must have AVX2 and the conditions above must hold.
@@ -183,13 +185,13 @@ pub unsafe fn step_run(
     a: &I8Map,
     delta: &[isize],
     g: &[f32],
-    row_start: usize,
+    at: RowAt,
     x0: usize,
     x1: usize,
     cur: &[f32],
     nxt: &mut [f32],
 ) {
-    step_lanes::<__m256>(a, delta, g, row_start, x0, x1, cur, nxt)
+    step_lanes::<__m256>(a, delta, g, at, x0, x1, cur, nxt)
 }
 
 /// [`step_run`] with 16 lanes (`x1 − x0` a multiple of 16).
@@ -202,13 +204,13 @@ pub unsafe fn step_run512(
     a: &I8Map,
     delta: &[isize],
     g: &[f32],
-    row_start: usize,
+    at: RowAt,
     x0: usize,
     x1: usize,
     cur: &[f32],
     nxt: &mut [f32],
 ) {
-    step_lanes::<__m512>(a, delta, g, row_start, x0, x1, cur, nxt)
+    step_lanes::<__m512>(a, delta, g, at, x0, x1, cur, nxt)
 }
 
 /// `softmax3` of pixels `i..i + 8` of a 3-channel map.
@@ -231,10 +233,10 @@ unsafe fn softmax3(m: &I8Map, i: usize) -> [__m256; 3] {
 }
 
 /// `out[i] += (softmax3(tmix)[ti] · softmax3(kmix)[k]) · cur[i]` for the first `⌊p/8⌋·8`
-/// pixels; returns how many.
+/// values, which are the map pixels `first ..`; returns how many.
 ///
 /// # Safety
-/// The CPU must have AVX2 and both maps 3 channels over ≥ `p` pixels.
+/// The CPU must have AVX2 and both maps 3 channels over ≥ `first + p` pixels.
 #[target_feature(enable = "avx2")]
 pub unsafe fn accumulate(
     out: &mut [f32],
@@ -243,12 +245,13 @@ pub unsafe fn accumulate(
     kmix: &I8Map,
     ti: usize,
     k: usize,
+    first: usize,
 ) -> usize {
     let p = out.len().min(cur.len());
     let mut i = 0;
     while i + 8 <= p {
-        let t = softmax3(tmix, i)[ti.min(2)];
-        let m = softmax3(kmix, i)[k.min(2)];
+        let t = softmax3(tmix, first + i)[ti.min(2)];
+        let m = softmax3(kmix, first + i)[k.min(2)];
         let o = out.as_mut_ptr().add(i);
         let add = _mm256_mul_ps(_mm256_mul_ps(t, m), _mm256_loadu_ps(cur.as_ptr().add(i)));
         _mm256_storeu_ps(o, _mm256_add_ps(_mm256_loadu_ps(o), add));
@@ -257,10 +260,11 @@ pub unsafe fn accumulate(
     i
 }
 
-/// Pixels `i0..i0 + 8` of row `y` (`x0 = i0 − y·w`, `x0 + 8 ≤ w`) of one propagation step with
+/// Pixels `x0..x0 + 8` (`x0 + 8 ≤ w`) of row `y`, located by `at`, of one propagation step with
 /// neighbours outside the image masked per lane: weight `+0`, neighbour value the pixel's own,
-/// exactly what the per-pixel path adds for them. Callers check `a` has `off.len()` channels over
-/// `h·w` pixels.
+/// exactly what the per-pixel path adds for them. Callers check that `a` has `off.len()`
+/// channels holding `at.aff .. + w`, that the image rows around `y` lie in `cur` around
+/// `at.cur`, and that `nxt` holds `w` values.
 ///
 /// # Safety
 /// The CPU must have AVX2 and the conditions above must hold.
@@ -274,6 +278,7 @@ pub unsafe fn step_masked(
     w: usize,
     y: usize,
     x0: usize,
+    at: RowAt,
     cur: &[f32],
     nxt: &mut [f32],
 ) {
@@ -281,7 +286,7 @@ pub unsafe fn step_masked(
     let zero = _mm256_setzero_ps();
     let one = _mm256_set1_ps(1.0);
     let lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-    let i = y * w + x0;
+    let (ia, i) = (at.aff + x0, at.cur + x0);
     let c = cur.as_ptr();
     let own = _mm256_loadu_ps(c.add(i));
     let mut r = [zero; 48];
@@ -301,7 +306,7 @@ pub unsafe fn step_masked(
         } else {
             _mm256_setzero_si256()
         };
-        let v = _mm256_max_ps(load8(a, j, i), zero);
+        let v = _mm256_max_ps(load8(a, j, ia), zero);
         let rj = _mm256_mul_ps(v, _mm256_set1_ps(g[j]));
         r[j] = _mm256_and_ps(rj, _mm256_castsi256_ps(valid[j]));
         s = _mm256_add_ps(s, r[j]);
@@ -321,5 +326,5 @@ pub unsafe fn step_masked(
         let cn = _mm256_blendv_ps(own, nb, _mm256_castsi256_ps(valid[j]));
         d = _mm256_add_ps(d, _mm256_mul_ps(r[j], cn));
     }
-    _mm256_storeu_ps(nxt.as_mut_ptr().add(i), d);
+    _mm256_storeu_ps(nxt.as_mut_ptr().add(x0), d);
 }

@@ -13,10 +13,25 @@
 //! `w_c = 1 − Σ w_j` (in order), `D' = w_c·D + Σ w_j·D_j` (in order). The Gaussians
 //! `g_j = exp(−(dx²+dy²)/(2σ_k²))` are computed once per run with [`super::float::exp`]. After `t ∈ {0, T/2,
 //! T}` the output gains `(τ_t · σ_k) · D_{k,t}` with `σ`, `τ` per-pixel 3-way softmaxes of
-//! kmix / tmix. Scratch: two f32 `H×W` maps (ping-pong), i.e. `8·H·W` bytes; the output map is
-//! the accumulator.
+//! kmix / tmix. The output map is the accumulator.
+//!
+//! **Streaming (a wavefront over rows).** No iteration and no affinity map is ever held whole.
+//! Per branch of radius `r`, pass step `s` computes row `s − t·r` of iteration `t` for
+//! `t = 1..=T` in that order: the rows `y − r ..= y + r` of iteration `t − 1` it reads were
+//! computed at this or an earlier step. Each iteration `1..T` keeps a window of
+//! [`WINDOW_ROWS`] rows; the affinities come row by row from an [`AffinityRows`] source, which
+//! must keep rows `s − T·r ..= s − r` readable (a ring of [`ring_rows`] rows, or the whole map:
+//! [`WholeMaps`]). Every pixel still gets the operations above in the same order, so the bits
+//! equal the whole-map order's. Scratch: [`scratch_len`] f32 (`((T − 1)·14 + 1)·W`), against
+//! `2·H·W` for ping-pong maps.
 
-use super::float::{exp, relu};
+mod heads;
+mod step;
+
+pub use heads::{ConvRows, Head};
+pub use step::{step_pixel, step_row, Branch, RowAt, MAX_NEIGHBOURS};
+
+use super::float::exp;
 use super::isa::Isa;
 use super::requant::QParams;
 use super::KernelError;
@@ -39,6 +54,8 @@ pub struct RefineAttrs {
 pub trait Map {
     /// Channels available.
     fn channels(&self) -> usize;
+    /// Pixels per channel (the channel stride).
+    fn plane(&self) -> usize;
     /// Value of channel `c` at flat pixel index `i` (`c < channels()`, `i < plane`).
     fn value(&self, c: usize, i: usize) -> f32;
     /// The map as int8 codes, where it is one (for the vector paths).
@@ -77,6 +94,9 @@ impl<'a> F32Map<'a> {
 impl Map for F32Map<'_> {
     fn channels(&self) -> usize {
         self.channels
+    }
+    fn plane(&self) -> usize {
+        self.plane
     }
     #[inline]
     fn value(&self, c: usize, i: usize) -> f32 {
@@ -138,6 +158,9 @@ impl Map for I8Map<'_> {
     fn channels(&self) -> usize {
         self.channels
     }
+    fn plane(&self) -> usize {
+        self.plane
+    }
     fn as_i8(&self) -> Option<&I8Map<'_>> {
         Some(self)
     }
@@ -153,6 +176,102 @@ impl Map for I8Map<'_> {
     }
 }
 
+impl<M: Map> Map for &M {
+    fn channels(&self) -> usize {
+        (**self).channels()
+    }
+    fn plane(&self) -> usize {
+        (**self).plane()
+    }
+    #[inline]
+    fn value(&self, c: usize, i: usize) -> f32 {
+        (**self).value(c, i)
+    }
+    fn as_i8(&self) -> Option<&I8Map<'_>> {
+        (**self).as_i8()
+    }
+    #[inline(always)]
+    fn values<const L: usize>(&self, c: usize, i: usize) -> [f32; L] {
+        (**self).values::<L>(c, i)
+    }
+}
+
+/// Where the refinement reads its affinities, one row at a time (module doc, "Streaming").
+pub trait AffinityRows {
+    /// The map [`AffinityRows::view`] returns.
+    type View<'v>: Map
+    where
+        Self: 'v;
+    /// Makes row `y` of branch `k` (`0..3`: kernels 3, 5, 7) readable. Rows of a branch are
+    /// asked for in increasing order, once each.
+    fn compute(&mut self, k: usize, y: usize) -> Result<(), KernelError>;
+    /// The map holding row `y` of branch `k` and the index of its pixel `(y, 0)` in channel 0
+    /// (valid for rows `y − (T − 1)·r ..= y` of the latest [`AffinityRows::compute`]). One
+    /// branch's rows share one quantisation.
+    fn view(&self, k: usize, y: usize) -> Result<(Self::View<'_>, usize), KernelError>;
+}
+
+/// [`AffinityRows`] over three whole `H×W` maps.
+#[derive(Clone, Copy, Debug)]
+pub struct WholeMaps<'m, A: Map> {
+    maps: [&'m A; 3],
+    w: usize,
+}
+
+impl<'m, A: Map> WholeMaps<'m, A> {
+    /// The maps of kernels 3, 5 and 7 (at least 8, 24 and 48 channels) of an image `w` wide.
+    pub fn new(maps: [&'m A; 3], w: usize) -> Self {
+        WholeMaps { maps, w }
+    }
+}
+
+impl<A: Map> AffinityRows for WholeMaps<'_, A> {
+    type View<'v>
+        = &'v A
+    where
+        Self: 'v;
+    fn compute(&mut self, _k: usize, _y: usize) -> Result<(), KernelError> {
+        Ok(())
+    }
+    fn view(&self, k: usize, y: usize) -> Result<(&A, usize), KernelError> {
+        Ok((self.maps[k.min(2)], y * self.w))
+    }
+}
+
+/// Rows each iteration's window holds (≥ `2r + 1` for the largest radius, 3).
+pub const WINDOW_ROWS: usize = 14;
+
+/// f32 scratch elements [`refine_with`] needs for an image `w` wide and `iterations` steps.
+pub fn scratch_len(w: usize, iterations: usize) -> usize {
+    iterations
+        .saturating_sub(1)
+        .saturating_mul(WINDOW_ROWS)
+        .saturating_add(1)
+        .saturating_mul(w)
+}
+
+/// Affinity rows of branch `k` a streaming [`AffinityRows`] must keep readable at once:
+/// `(T − 1)·r + 1` (0 when `T = 0`: no row is read).
+pub fn ring_rows(k: usize, iterations: usize) -> usize {
+    if iterations == 0 {
+        return 0;
+    }
+    (iterations - 1) * (KERNELS[k.min(2)] / 2) + 1
+}
+
+/// Bytes of one int8 ring holding [`ring_rows`] rows of any branch's channels, `w` wide (the
+/// branches run one after another, so one ring serves all three).
+pub fn ring_bytes(w: usize, iterations: usize) -> usize {
+    (0..3)
+        .map(|k| {
+            ring_rows(k, iterations)
+                .saturating_mul(KERNELS[k] * KERNELS[k] - 1)
+                .saturating_mul(w)
+        })
+        .max()
+        .unwrap_or(0)
+}
+
 /// Per-pixel softmax over 3 channels of `m` at pixel `i`.
 #[inline]
 fn softmax3<M: Map>(m: &M, i: usize) -> [f32; 3] {
@@ -163,24 +282,21 @@ fn softmax3<M: Map>(m: &M, i: usize) -> [f32; 3] {
     [e[0] / s, e[1] / s, e[2] / s]
 }
 
-/// Neighbour offsets of an `s×s` window in raster order, centre skipped.
-fn offsets(s: usize, out: &mut [(isize, isize); 48]) -> usize {
-    let r = (s / 2) as isize;
-    let mut n = 0;
-    for dy in -r..=r {
-        for dx in -r..=r {
-            if (dy, dx) != (0, 0) {
-                out[n] = (dy, dx);
-                n += 1;
-            }
-        }
+/// Checks `T` and the σs.
+fn check_attrs(attrs: &RefineAttrs) -> Result<(), KernelError> {
+    let t = attrs.iterations;
+    if t > MAX_ITERATIONS
+        || !t.is_multiple_of(2)
+        || attrs.sigma.iter().any(|s| s.is_nan() || *s <= 0.0)
+    {
+        return Err(KernelError::Attr);
     }
-    n
+    Ok(())
 }
 
-/// Runs the propagation (module doc) with the fastest kernel set of this CPU. `d0`, `out`:
-/// `h·w` f32; `aff[k]`: `s_k² − 1` channels; `kmix`, `tmix`: 3 channels; `scratch`: ≥
-/// `2·h·w` f32.
+/// Runs the propagation (module doc) on three whole maps with the fastest kernel set of this
+/// CPU. `d0`, `out`: `h·w` f32; `aff[k]`: `s_k² − 1` channels; `kmix`, `tmix`: 3 channels;
+/// `scratch`: ≥ [`scratch_len`] f32.
 #[allow(clippy::too_many_arguments)]
 pub fn refine<A: Map, B: Map>(
     d0: &[f32],
@@ -193,66 +309,118 @@ pub fn refine<A: Map, B: Map>(
     out: &mut [f32],
     scratch: &mut [f32],
 ) -> Result<(), KernelError> {
-    refine_with(Isa::best(), d0, h, w, aff, kmix, tmix, attrs, out, scratch)
+    let mut rows = WholeMaps::new(aff, w);
+    refine_with(
+        Isa::best(),
+        d0,
+        h,
+        w,
+        &mut rows,
+        kmix,
+        tmix,
+        attrs,
+        out,
+        scratch,
+    )
 }
 
-/// As [`refine`] with kernel set `isa`: the x86 sets run `L` pixels per vector lane group
-/// (every pixel's own operations in the module doc's order, so the bits do not change).
+/// One iteration's window of rows in its scratch slice: image row `base` at slot 0, `len` rows.
+#[derive(Clone, Copy, Debug, Default)]
+struct Window {
+    base: usize,
+    len: usize,
+}
+
+impl Window {
+    /// Makes room for image row `y` (the next one) in `buf` (rows `w` apart), keeping the last
+    /// `keep` rows; returns its slot.
+    fn push(&mut self, buf: &mut [f32], w: usize, keep: usize, y: usize) -> usize {
+        if self.len == WINDOW_ROWS {
+            let keep = keep.min(WINDOW_ROWS);
+            buf.copy_within((WINDOW_ROWS - keep) * w..WINDOW_ROWS * w, 0);
+            self.base += WINDOW_ROWS - keep;
+            self.len = keep;
+        }
+        if self.len == 0 {
+            self.base = y;
+        }
+        self.len += 1;
+        y - self.base
+    }
+}
+
+/// As [`refine`] with kernel set `isa` and the affinities from `aff` (whole maps or computed
+/// row by row): the x86 sets run 8 or 16 pixels per vector, every pixel's own operations in the
+/// module doc's order, so the bits do not change.
 #[allow(clippy::too_many_arguments)]
-pub fn refine_with<A: Map, B: Map>(
+pub fn refine_with<R: AffinityRows, B: Map>(
     isa: Isa,
     d0: &[f32],
     h: usize,
     w: usize,
-    aff: [&A; 3],
+    aff: &mut R,
     kmix: &B,
     tmix: &B,
     attrs: &RefineAttrs,
     out: &mut [f32],
     scratch: &mut [f32],
 ) -> Result<(), KernelError> {
+    check_attrs(attrs)?;
     let p = h.checked_mul(w).ok_or(KernelError::Shape)?;
     let t_max = attrs.iterations;
-    if t_max > MAX_ITERATIONS
-        || !t_max.is_multiple_of(2)
-        || attrs.sigma.iter().any(|s| s.is_nan() || *s <= 0.0)
-    {
-        return Err(KernelError::Attr);
-    }
-    if d0.len() < p
-        || out.len() < p
-        || scratch.len() < 2 * p
-        || kmix.channels() < 3
-        || tmix.channels() < 3
-    {
+    let maps_ok = [kmix, tmix]
+        .iter()
+        .all(|m| m.channels() >= 3 && m.plane() >= p);
+    if d0.len() < p || out.len() < p || scratch.len() < scratch_len(w, t_max) || !maps_ok {
         return Err(KernelError::Shape);
-    }
-    for (a, s) in aff.iter().zip(KERNELS) {
-        if a.channels() < s * s - 1 {
-            return Err(KernelError::Shape);
-        }
     }
     let times = [0, t_max / 2, t_max];
     let out = &mut out[..p];
     out.fill(0.0);
-    let (mut cur, mut nxt) = scratch[..2 * p].split_at_mut(p);
-    let mut off = [(0isize, 0isize); 48];
-    for (k, (&a, &s)) in aff.iter().zip(&KERNELS).enumerate() {
-        let nn = offsets(s, &mut off);
-        let mut g = [0f32; 48];
-        let two_s2 = 2.0 * attrs.sigma[k] * attrs.sigma[k];
-        for (gj, &(dy, dx)) in g.iter_mut().zip(&off[..nn]) {
-            *gj = exp(-((dx * dx + dy * dy) as f32) / two_s2);
+    let win_len = WINDOW_ROWS * w;
+    for (k, &size) in KERNELS.iter().enumerate() {
+        let mut br = Branch::new(size, attrs.sigma[k], w);
+        let r = br.radius();
+        for (ti, _) in times.iter().enumerate().filter(|(_, &t)| t == 0) {
+            accumulate(isa, out, &d0[..p], tmix, kmix, ti, k, 0);
         }
-        cur.copy_from_slice(&d0[..p]);
-        for t in 0..=t_max {
-            if t > 0 {
-                step(isa, a, &off[..nn], &g[..nn], h, w, cur, nxt);
-                core::mem::swap(&mut cur, &mut nxt);
-            }
-            for (ti, &tt) in times.iter().enumerate() {
-                if tt == t {
-                    accumulate(isa, out, cur, tmix, kmix, ti, k);
+        if t_max == 0 {
+            continue;
+        }
+        let mut win = [Window::default(); MAX_ITERATIONS];
+        for s in 0..h + t_max * r {
+            for t in 1..=t_max {
+                let Some(y) = s.checked_sub(t * r).filter(|&y| y < h) else {
+                    continue;
+                };
+                if t == 1 {
+                    aff.compute(k, y)?;
+                }
+                let (map, a_at) = aff.view(k, y)?;
+                if let Some(m) = map.as_i8() {
+                    br.set_quant(m.q());
+                }
+                let (done, rest) = scratch.split_at_mut((t - 1) * win_len);
+                let (cur, c_at) = if t == 1 {
+                    (d0, y * w)
+                } else {
+                    let prev = win[t - 1];
+                    (&done[(t - 2) * win_len..], (y - prev.base) * w)
+                };
+                let dst = if t < t_max {
+                    let slot = win[t].push(&mut rest[..win_len], w, 2 * r, y);
+                    &mut rest[slot * w..(slot + 1) * w]
+                } else {
+                    &mut rest[..w]
+                };
+                let at = RowAt {
+                    aff: a_at,
+                    cur: c_at,
+                };
+                step_row(isa, &map, &br, h, w, y, at, cur, dst)?;
+                for (ti, _) in times.iter().enumerate().filter(|(_, &tt)| tt == t) {
+                    let o = &mut out[y * w..(y + 1) * w];
+                    accumulate(isa, o, dst, tmix, kmix, ti, k, y * w);
                 }
             }
         }
@@ -260,15 +428,9 @@ pub fn refine_with<A: Map, B: Map>(
     Ok(())
 }
 
-/// Pixels per lane group of the portable path: 4 where the baseline has 4-wide vectors (SSE2,
-/// NEON), 1 on scalar FPUs (Cortex-M), where lane arrays only cost loads and stores.
-const PORTABLE_LANES: usize = if cfg!(any(target_arch = "x86_64", target_arch = "aarch64")) {
-    4
-} else {
-    1
-};
-
-/// `out[i] += (softmax3(tmix)[ti] · softmax3(kmix)[k]) · cur[i]` for every pixel.
+/// `out[i] += (softmax3(tmix)[ti] · softmax3(kmix)[k]) · cur[i]` for the values of `out` and
+/// `cur`, which are the map pixels `first ..`.
+#[allow(clippy::too_many_arguments)]
 fn accumulate<B: Map>(
     isa: Isa,
     out: &mut [f32],
@@ -277,15 +439,21 @@ fn accumulate<B: Map>(
     kmix: &B,
     ti: usize,
     k: usize,
+    first: usize,
 ) {
+    let p = out.len().min(cur.len());
     match isa {
         #[cfg(target_arch = "x86_64")]
         Isa::Avx2 | Isa::Avx512Vnni if Isa::Avx2.available() => {
-            let p = out.len().min(cur.len());
             if let (Some(t), Some(m)) = (tmix.as_i8(), kmix.as_i8()) {
-                if t.channels >= 3 && m.channels >= 3 && t.plane >= p && m.plane >= p {
-                    // SAFETY: AVX2 is available; both maps hold 3 channels of ≥ p pixels.
-                    let done = unsafe { super::x86_64::refine::accumulate(out, cur, t, m, ti, k) };
+                if t.channels >= 3
+                    && m.channels >= 3
+                    && t.plane >= first + p
+                    && m.plane >= first + p
+                {
+                    // SAFETY: AVX2 is available; both maps hold 3 channels of ≥ first + p pixels.
+                    let done =
+                        unsafe { super::x86_64::refine::accumulate(out, cur, t, m, ti, k, first) };
                     accumulate_lanes::<B, 1>(
                         &mut out[done..p],
                         &cur[done..p],
@@ -293,20 +461,28 @@ fn accumulate<B: Map>(
                         kmix,
                         ti,
                         k,
-                        done,
+                        first + done,
                     );
                     return;
                 }
             }
             // SAFETY: AVX2 is available (checked).
-            unsafe { accumulate_avx2(out, cur, tmix, kmix, ti, k) }
+            unsafe { accumulate_avx2(out, cur, tmix, kmix, ti, k, first) }
         }
-        _ => accumulate_lanes::<B, PORTABLE_LANES>(out, cur, tmix, kmix, ti, k, 0),
+        _ => accumulate_lanes::<B, PORTABLE_LANES>(out, cur, tmix, kmix, ti, k, first),
     }
 }
 
+/// Pixels per lane group of the portable accumulation (as the step's).
+const PORTABLE_LANES: usize = if cfg!(any(target_arch = "x86_64", target_arch = "aarch64")) {
+    4
+} else {
+    1
+};
+
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
 unsafe fn accumulate_avx2<B: Map>(
     out: &mut [f32],
     cur: &[f32],
@@ -314,8 +490,9 @@ unsafe fn accumulate_avx2<B: Map>(
     kmix: &B,
     ti: usize,
     k: usize,
+    first: usize,
 ) {
-    accumulate_lanes::<B, 8>(out, cur, tmix, kmix, ti, k, 0)
+    accumulate_lanes::<B, 8>(out, cur, tmix, kmix, ti, k, first)
 }
 
 /// [`accumulate`] for `out`, `cur` covering map pixels `first..`, `L` pixels at a time.
@@ -365,283 +542,6 @@ fn softmax3_lanes<M: Map, const L: usize>(m: &M, i: usize) -> [[f32; L]; 3] {
     r
 }
 
-/// One propagation step of one kernel: `nxt` from `cur`. Runs of `L` pixels whose windows lie
-/// inside the image take a lane path without bounds tests, the others a per-pixel path; both
-/// add the same terms in the same order per pixel, so the bits do not depend on which ran.
-#[allow(clippy::too_many_arguments)]
-fn step<A: Map>(
-    isa: Isa,
-    a: &A,
-    off: &[(isize, isize)],
-    g: &[f32],
-    h: usize,
-    w: usize,
-    cur: &[f32],
-    nxt: &mut [f32],
-) {
-    match isa {
-        #[cfg(target_arch = "x86_64")]
-        Isa::Avx2 | Isa::Avx512Vnni if Isa::Avx2.available() => match a.as_i8() {
-            Some(m) if m.channels >= off.len() && m.plane >= h * w && cur.len() >= h * w => {
-                step_i8_avx2(isa, m, off, g, h, w, cur, nxt)
-            }
-            // SAFETY: AVX2 is available (checked).
-            _ => unsafe { step_avx2(a, off, g, h, w, cur, nxt) },
-        },
-        _ => match a.as_i8() {
-            Some(m) if PORTABLE_LANES == 1 && m.channels >= off.len() && m.plane >= h * w => {
-                step_i8_scalar(m, off, g, h, w, cur, nxt)
-            }
-            _ => step_lanes::<A, PORTABLE_LANES>(a, off, g, h, w, cur, nxt),
-        },
-    }
-}
-
-/// [`step`] on an int8 map for scalar FPUs: `relu(dequantise(q))` read from a 256-entry table
-/// (the same f32 values), interior pixels without bounds tests, borders through [`step_pixel`].
-fn step_i8_scalar(
-    a: &I8Map,
-    off: &[(isize, isize)],
-    g: &[f32],
-    h: usize,
-    w: usize,
-    cur: &[f32],
-    nxt: &mut [f32],
-) {
-    let n = off.len().min(48).min(g.len());
-    let mut lut = [0f32; 256];
-    for (code, v) in lut.iter_mut().enumerate() {
-        *v = relu(a.q.dequantize(code as u8 as i8));
-    }
-    let rad = off
-        .iter()
-        .map(|&(dy, dx)| dy.unsigned_abs().max(dx.unsigned_abs()))
-        .max()
-        .unwrap_or(0);
-    let mut delta = [0isize; 48];
-    for (d, &(dy, dx)) in delta.iter_mut().zip(off) {
-        *d = dy * w as isize + dx;
-    }
-    let mut r = [0f32; 48];
-    let data = a.data;
-    let plane = a.plane;
-    for y in 0..h {
-        let inner_row = y >= rad && y + rad < h;
-        for x in 0..w {
-            let i = y * w + x;
-            if !(inner_row && x >= rad && x + rad < w) {
-                nxt[i] = step_pixel(a, off, g, h, w, cur, y, x);
-                continue;
-            }
-            let mut s = 0.0f32;
-            for (j, (rj, &gj)) in r[..n].iter_mut().zip(g).enumerate() {
-                // In bounds: the map holds ≥ n channels of ≥ h·w pixels (the caller's match).
-                let code = data[j * plane + i] as u8;
-                *rj = lut[code as usize] * gj;
-                s += *rj;
-            }
-            let q = 1.0 / (1.0 + s);
-            let mut wsum = 0.0f32;
-            for rj in r[..n].iter_mut() {
-                *rj *= q;
-                wsum += *rj;
-            }
-            let mut d = (1.0 - wsum) * cur[i];
-            for (&wj, &dj) in r[..n].iter().zip(&delta) {
-                d += wj * cur[(i as isize + dj) as usize];
-            }
-            nxt[i] = d;
-        }
-    }
-}
-
-/// [`step`] on an int8 map with the AVX2 run kernel for each row's interior pixels.
-#[cfg(target_arch = "x86_64")]
-#[allow(clippy::too_many_arguments)]
-fn step_i8_avx2(
-    isa: Isa,
-    a: &I8Map,
-    off: &[(isize, isize)],
-    g: &[f32],
-    h: usize,
-    w: usize,
-    cur: &[f32],
-    nxt: &mut [f32],
-) {
-    let n = off.len().min(48).min(g.len());
-    let rad = off
-        .iter()
-        .map(|&(dy, dx)| dy.unsigned_abs().max(dx.unsigned_abs()))
-        .max()
-        .unwrap_or(0);
-    let mut delta = [0isize; 48];
-    for (d, &(dy, dx)) in delta.iter_mut().zip(off) {
-        *d = dy * w as isize + dx;
-    }
-    for y in 0..h {
-        let (mut x0, mut x1) = (0, 0);
-        if y >= rad && y + rad < h && w > 2 * rad {
-            let wide = isa == Isa::Avx512Vnni && Isa::Avx512Vnni.available();
-            let lanes = if wide { 16 } else { 8 };
-            x0 = rad;
-            x1 = rad + (w - 2 * rad) / lanes * lanes;
-            // SAFETY: AVX2 (and AVX-512 F for `wide`) is available (the caller's match and the
-            // test above); `a` has ≥ n channels over ≥ h·w pixels and every window of x0..x1 in
-            // row y lies inside the image, so every `i + delta` is a pixel of `cur`.
-            unsafe {
-                let args = (a, &delta[..n], g, y * w, x0, x1);
-                if wide {
-                    super::x86_64::refine::step_run512(
-                        args.0, args.1, args.2, args.3, args.4, args.5, cur, nxt,
-                    )
-                } else {
-                    super::x86_64::refine::step_run(
-                        args.0, args.1, args.2, args.3, args.4, args.5, cur, nxt,
-                    )
-                }
-            };
-        }
-        if w < 8 {
-            for x in (0..x0).chain(x1..w) {
-                nxt[y * w + x] = step_pixel(a, off, g, h, w, cur, y, x);
-            }
-            continue;
-        }
-        // The rest of the row in masked chunks of 8 (a chunk may overlap the interior run or
-        // the previous chunk; it writes the same values, which depend on `cur` only).
-        for xc in (0..x0).step_by(8).chain((x1..w).step_by(8)) {
-            let xc = xc.min(w - 8);
-            // SAFETY: AVX2 is available (the caller's match); `a` has ≥ n channels over ≥ h·w
-            // pixels and xc + 8 ≤ w.
-            unsafe { super::x86_64::refine::step_masked(a, &off[..n], g, h, w, y, xc, cur, nxt) };
-        }
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn step_avx2<A: Map>(
-    a: &A,
-    off: &[(isize, isize)],
-    g: &[f32],
-    h: usize,
-    w: usize,
-    cur: &[f32],
-    nxt: &mut [f32],
-) {
-    step_lanes::<A, 8>(a, off, g, h, w, cur, nxt)
-}
-
-#[inline(always)]
-fn step_lanes<A: Map, const L: usize>(
-    a: &A,
-    off: &[(isize, isize)],
-    g: &[f32],
-    h: usize,
-    w: usize,
-    cur: &[f32],
-    nxt: &mut [f32],
-) {
-    let n = off.len().min(48);
-    let rad = off
-        .iter()
-        .map(|&(dy, dx)| dy.unsigned_abs().max(dx.unsigned_abs()))
-        .max()
-        .unwrap_or(0);
-    let mut delta = [0isize; 48];
-    for (d, &(dy, dx)) in delta.iter_mut().zip(off) {
-        *d = dy * w as isize + dx;
-    }
-    let mut r = [[0f32; L]; 48];
-    for y in 0..h {
-        let inner_row = y >= rad && y + rad < h;
-        let mut x = 0;
-        while x < w {
-            let i = y * w + x;
-            if inner_row && x >= rad && x + L - 1 + rad < w {
-                let mut s = [0f32; L];
-                for j in 0..n {
-                    let v = a.values::<L>(j, i);
-                    for l in 0..L {
-                        r[j][l] = relu(v[l]) * g[j];
-                        s[l] += r[j][l];
-                    }
-                }
-                let mut q = [0f32; L];
-                for l in 0..L {
-                    q[l] = 1.0 / (1.0 + s[l]);
-                }
-                let mut wsum = [0f32; L];
-                for rj in r[..n].iter_mut() {
-                    for l in 0..L {
-                        rj[l] *= q[l];
-                        wsum[l] += rj[l];
-                    }
-                }
-                let c: &[f32; L] = cur[i..i + L].try_into().unwrap_or(&[0.0; L]);
-                let mut d = [0f32; L];
-                for l in 0..L {
-                    d[l] = (1.0 - wsum[l]) * c[l];
-                }
-                for (rj, &dj) in r[..n].iter().zip(&delta) {
-                    let k = (i as isize + dj) as usize;
-                    let cn: &[f32; L] = cur[k..k + L].try_into().unwrap_or(&[0.0; L]);
-                    for l in 0..L {
-                        d[l] += rj[l] * cn[l];
-                    }
-                }
-                nxt[i..i + L].copy_from_slice(&d);
-                x += L;
-            } else {
-                nxt[i] = step_pixel(a, off, g, h, w, cur, y, x);
-                x += 1;
-            }
-        }
-    }
-}
-
-/// One pixel of [`step`] with per-neighbour bounds tests (neighbours outside get weight 0).
-#[allow(clippy::too_many_arguments)]
-#[inline]
-fn step_pixel<A: Map>(
-    a: &A,
-    off: &[(isize, isize)],
-    g: &[f32],
-    h: usize,
-    w: usize,
-    cur: &[f32],
-    y: usize,
-    x: usize,
-) -> f32 {
-    let i = y * w + x;
-    let mut r = [0f32; 48];
-    let mut idx = [0usize; 48];
-    let mut s = 0.0f32;
-    for (j, &(dy, dx)) in off.iter().enumerate().take(48) {
-        let (ny, nx) = (y as isize + dy, x as isize + dx);
-        if ny < 0 || nx < 0 || ny >= h as isize || nx >= w as isize {
-            r[j] = 0.0;
-            idx[j] = i;
-        } else {
-            r[j] = relu(a.value(j, i)) * g[j];
-            idx[j] = ny as usize * w + nx as usize;
-        }
-        s += r[j];
-    }
-    let n = off.len().min(48);
-    let q = 1.0 / (1.0 + s);
-    let mut wsum = 0.0f32;
-    for rj in r[..n].iter_mut() {
-        *rj *= q;
-        wsum += *rj;
-    }
-    let mut d = (1.0 - wsum) * cur[i];
-    for (&wj, &k) in r[..n].iter().zip(&idx[..n]) {
-        d += wj * cur[k];
-    }
-    d
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -667,7 +567,7 @@ mod tests {
             sigma: [1e6, 1.0, 1.0],
         };
         let mut out = std::vec![0f32; p];
-        let mut scratch = std::vec![0f32; 2 * p];
+        let mut scratch = std::vec![0f32; scratch_len(w, t)];
         float::refine(
             d0,
             h,
@@ -718,8 +618,8 @@ mod tests {
         assert!((mixed[0] - want).abs() < 1e-4, "{mixed:?} vs {want}");
     }
 
-    /// The driver of [`refine_with`] with every pixel through [`step_pixel`] and the scalar
-    /// [`softmax3`]: the per-pixel order the module doc specifies.
+    /// The whole-map order of the module doc: each iteration over the whole image with every
+    /// pixel through [`step_pixel`], the scalar [`softmax3`], ping-pong maps.
     fn refine_per_pixel<A: Map, B: Map>(
         d0: &[f32],
         h: usize,
@@ -734,18 +634,18 @@ mod tests {
         let times = [0, t_max / 2, t_max];
         let mut out = std::vec![0f32; p];
         for (k, (&a, &s)) in aff.iter().zip(&KERNELS).enumerate() {
-            let mut off = [(0isize, 0isize); 48];
-            let nn = offsets(s, &mut off);
-            let two_s2 = 2.0 * attrs.sigma[k] * attrs.sigma[k];
-            let g: Vec<f32> = off[..nn]
-                .iter()
-                .map(|&(dy, dx)| exp(-((dx * dx + dy * dy) as f32) / two_s2))
-                .collect();
+            let br = Branch::new(s, attrs.sigma[k], w);
             let mut cur = d0.to_vec();
             for t in 0..=t_max {
                 if t > 0 {
                     cur = (0..p)
-                        .map(|i| step_pixel(a, &off[..nn], &g, h, w, &cur, i / w, i % w))
+                        .map(|i| {
+                            let at = RowAt {
+                                aff: i / w * w,
+                                cur: i / w * w,
+                            };
+                            step_pixel(a, &br, h, w, i / w, i % w, at, &cur)
+                        })
                         .collect();
                 }
                 for (ti, &tt) in times.iter().enumerate() {
@@ -769,7 +669,15 @@ mod tests {
                 .wrapping_add(1442695040888963407);
             (seed >> 33) as u32
         };
-        for (h, w) in [(9usize, 23usize), (16, 40), (3, 5)] {
+        for (h, w, t) in [
+            (9usize, 23usize, 4usize),
+            (16, 40, 6),
+            (3, 5, 2),
+            (45, 19, 6),
+            (1, 9, 2),
+            (20, 8, 0),
+            (31, 33, 8),
+        ] {
             let p = h * w;
             let codes = |n: usize, next: &mut dyn FnMut() -> u32| -> Vec<i8> {
                 (0..n).map(|_| next() as i8).collect()
@@ -791,19 +699,19 @@ mod tests {
             }
             let (m3, m5, m7, kmx, tmx) = (m(&a3, 8), m(&a5, 24), m(&a7, 48), m(&km, 3), m(&tm, 3));
             let attrs = RefineAttrs {
-                iterations: 4,
+                iterations: t,
                 sigma: [1.0, 1.5, 2.0],
             };
             let want = refine_per_pixel(&d0, h, w, [&m3, &m5, &m7], &kmx, &tmx, &attrs);
             for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
                 let mut out = std::vec![0f32; p];
-                let mut scratch = std::vec![0f32; 2 * p];
+                let mut scratch = std::vec![0f32; scratch_len(w, attrs.iterations)];
                 refine_with(
                     isa,
                     &d0,
                     h,
                     w,
-                    [&m3, &m5, &m7],
+                    &mut WholeMaps::new([&m3, &m5, &m7], w),
                     &kmx,
                     &tmx,
                     &attrs,
@@ -848,7 +756,7 @@ mod tests {
         let a = std::vec![0f32; 48 * 4];
         let m = [0f32; 12];
         let mut o = [0f32; 4];
-        let mut s = [0f32; 8];
+        let mut s = [0f32; 30];
         let bad_t = RefineAttrs {
             iterations: 3,
             sigma: [1.0; 3],
@@ -862,7 +770,7 @@ mod tests {
             sigma: [1.0; 3],
         };
         assert_eq!(
-            float::refine(&d0, 2, 2, [&a, &a, &a], &m, &m, &ok, &mut o, &mut s[..7]),
+            float::refine(&d0, 2, 2, [&a, &a, &a], &m, &m, &ok, &mut o, &mut s[..29]),
             Err(KernelError::Shape)
         );
         assert_eq!(

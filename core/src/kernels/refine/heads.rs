@@ -1,0 +1,322 @@
+//! [`ConvRows`]: the refinement's affinities computed row by row by their own int8 convolution
+//! heads into a ring of [`super::ring_rows`] rows, so that no affinity map is stored whole
+//! (module doc of [`super`], "Streaming").
+
+use super::{ring_bytes, ring_rows, AffinityRows, I8Map, KERNELS};
+use crate::kernels::conv::{conv2d_rows_packed, Conv2d, OutRows};
+use crate::kernels::isa::Isa;
+use crate::kernels::requant::QParams;
+use crate::kernels::{KernelError, Shape};
+
+/// One branch's affinity head: the convolution, its input and its output quantisation.
+#[derive(Clone, Copy, Debug)]
+pub struct Head<'a> {
+    /// The head (stride 1, output `s² − 1` channels at the refinement's size).
+    pub conv: Conv2d<'a>,
+    /// Its int8 input.
+    pub input: &'a [i8],
+    /// Shape of `input`.
+    pub in_shape: Shape,
+    /// Quantisation of its output codes.
+    pub out_q: QParams,
+}
+
+/// [`AffinityRows`] that runs each branch's [`Head`] one output row at a time into `ring`.
+#[derive(Debug)]
+pub struct ConvRows<'a, 'r> {
+    isa: Isa,
+    heads: [Head<'a>; 3],
+    ring: &'r mut [i8],
+    scratch: &'r mut [i32],
+    w: usize,
+    iterations: usize,
+    /// The branch whose head's weights `scratch` holds packed.
+    packed: Option<usize>,
+}
+
+impl<'a, 'r> ConvRows<'a, 'r> {
+    /// Heads of kernels 3, 5, 7 for a `h × w` refinement of `iterations` steps; `ring` holds ≥
+    /// [`ring_bytes`] bytes and `scratch` ≥ every head's [`Conv2d::scratch_len`] i32.
+    /// `Err(Shape)` where a head's output is not `[s² − 1, h, w]` or a buffer is short.
+    pub fn new(
+        isa: Isa,
+        heads: [Head<'a>; 3],
+        h: usize,
+        w: usize,
+        iterations: usize,
+        ring: &'r mut [i8],
+        scratch: &'r mut [i32],
+    ) -> Result<Self, KernelError> {
+        if ring.len() < ring_bytes(w, iterations) {
+            return Err(KernelError::Shape);
+        }
+        for (head, s) in heads.iter().zip(KERNELS) {
+            let out = head.conv.check(head.in_shape)?;
+            if out != Shape::new(s * s - 1, h, w) {
+                return Err(KernelError::Shape);
+            }
+            if scratch.len() < Conv2d::scratch_len(&head.conv.geometry, head.in_shape, out) {
+                return Err(KernelError::Scratch);
+            }
+        }
+        Ok(ConvRows {
+            isa,
+            heads,
+            ring,
+            scratch,
+            w,
+            iterations,
+            packed: None,
+        })
+    }
+
+    /// Rows in branch `k`'s ring.
+    fn rows(&self, k: usize) -> usize {
+        ring_rows(k, self.iterations).max(1)
+    }
+}
+
+impl AffinityRows for ConvRows<'_, '_> {
+    type View<'v>
+        = I8Map<'v>
+    where
+        Self: 'v;
+
+    fn compute(&mut self, k: usize, y: usize) -> Result<(), KernelError> {
+        let rows = self.rows(k);
+        let head = self.heads.get(k).ok_or(KernelError::Shape)?;
+        let slot = y % rows;
+        let dst = OutRows {
+            rows: y..y + 1,
+            stride: rows * self.w,
+        };
+        let ring = self
+            .ring
+            .get_mut(slot * self.w..)
+            .ok_or(KernelError::Shape)?;
+        conv2d_rows_packed(
+            self.isa,
+            &head.conv,
+            head.input,
+            head.in_shape,
+            &dst,
+            ring,
+            self.scratch,
+            self.packed == Some(k),
+        )?;
+        self.packed = Some(k);
+        Ok(())
+    }
+
+    fn view(&self, k: usize, y: usize) -> Result<(I8Map<'_>, usize), KernelError> {
+        let rows = self.rows(k);
+        let head = self.heads.get(k).ok_or(KernelError::Shape)?;
+        let n = KERNELS[k] * KERNELS[k] - 1;
+        let map = I8Map::new(self.ring, head.out_q, n, rows * self.w)?;
+        Ok((map, (y % rows) * self.w))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kernels::conv::{conv2d_with, Activation, ChannelQuant, ConvGeometry, ConvQuant};
+    use crate::kernels::refine::{refine_with, scratch_len, RefineAttrs, WholeMaps};
+    use std::vec::Vec;
+
+    struct Rng(u64);
+    impl Rng {
+        fn next(&mut self) -> u32 {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (self.0 >> 33) as u32
+        }
+        fn codes(&mut self, n: usize) -> Vec<i8> {
+            (0..n).map(|_| self.next() as i8).collect()
+        }
+    }
+
+    /// Streamed heads give the bits of heads run whole, then refined from whole maps, for every
+    /// kernel set, 1×1 and 3×3 heads, images taller than a window and T up to 8.
+    #[test]
+    fn streamed_heads_equal_whole_maps() {
+        let mut rng = Rng(99);
+        for (h, w, t, k) in [
+            (17usize, 21usize, 6usize, 3usize),
+            (9, 8, 2, 1),
+            (40, 13, 8, 3),
+            (5, 30, 4, 1),
+        ] {
+            let cin = 6;
+            let in_shape = Shape::new(cin, h, w);
+            let input = rng.codes(cin * h * w);
+            let in_q = QParams {
+                scale: 0.04,
+                zero_point: 3,
+            };
+            let geometry = ConvGeometry {
+                kernel: [k, k],
+                stride: [1, 1],
+                dilation: [1, 1],
+                padding: [k / 2, k / 2],
+                groups: 1,
+            };
+            let mut weights = Vec::new();
+            let mut chans = Vec::new();
+            let mut qs = Vec::new();
+            for (b, s) in KERNELS.iter().enumerate() {
+                let n = s * s - 1;
+                weights.push(rng.codes(n * cin * k * k));
+                chans.push(
+                    (0..n)
+                        .map(|o| {
+                            ChannelQuant::new(
+                                o as i32 * 37 - 300,
+                                in_q.scale,
+                                0.003,
+                                0.05,
+                                Activation::None,
+                            )
+                        })
+                        .collect::<Vec<_>>(),
+                );
+                qs.push(QParams {
+                    scale: 0.05 + 0.01 * b as f32,
+                    zero_point: -10 + 5 * b as i32,
+                });
+            }
+            let convs: Vec<Conv2d> = (0..3)
+                .map(|b| Conv2d {
+                    geometry,
+                    quant: ConvQuant::new(in_q.zero_point, qs[b].zero_point, Activation::None),
+                    weights: &weights[b],
+                    channels: &chans[b],
+                })
+                .collect();
+            let d0: Vec<f32> = (0..h * w)
+                .map(|_| 0.5 + (rng.next() % 1000) as f32 * 0.006)
+                .collect();
+            let km = rng.codes(3 * h * w);
+            let tm = rng.codes(3 * h * w);
+            let mq = QParams {
+                scale: 0.03,
+                zero_point: 1,
+            };
+            let kmix = I8Map::new(&km, mq, 3, h * w).unwrap();
+            let tmix = I8Map::new(&tm, mq, 3, h * w).unwrap();
+            let attrs = RefineAttrs {
+                iterations: t,
+                sigma: [1.0, 1.4, 2.1],
+            };
+            let conv_scratch_len = (0..3)
+                .map(|b| {
+                    let out = convs[b].check(in_shape).unwrap();
+                    Conv2d::scratch_len(&geometry, in_shape, out)
+                })
+                .max()
+                .unwrap();
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                let mut scratch = std::vec![0i32; conv_scratch_len];
+                let maps: Vec<Vec<i8>> = (0..3)
+                    .map(|b| {
+                        let out = convs[b].check(in_shape).unwrap();
+                        let mut y = std::vec![0i8; out.len().unwrap()];
+                        conv2d_with(isa, &convs[b], &input, in_shape, &mut y, &mut scratch)
+                            .unwrap();
+                        y
+                    })
+                    .collect();
+                let views: Vec<I8Map> = (0..3)
+                    .map(|b| {
+                        I8Map::new(&maps[b], qs[b], KERNELS[b] * KERNELS[b] - 1, h * w).unwrap()
+                    })
+                    .collect();
+                let mut whole = std::vec![0f32; h * w];
+                let mut rs = std::vec![0f32; scratch_len(w, t)];
+                let mut rows = WholeMaps::new([&views[0], &views[1], &views[2]], w);
+                refine_with(
+                    isa, &d0, h, w, &mut rows, &kmix, &tmix, &attrs, &mut whole, &mut rs,
+                )
+                .unwrap();
+
+                let heads: [Head; 3] = core::array::from_fn(|b| Head {
+                    conv: convs[b],
+                    input: &input,
+                    in_shape,
+                    out_q: qs[b],
+                });
+                let mut ring = std::vec![0i8; ring_bytes(w, t)];
+                let mut streamed = std::vec![0f32; h * w];
+                let mut rows = ConvRows::new(isa, heads, h, w, t, &mut ring, &mut scratch).unwrap();
+                refine_with(
+                    isa,
+                    &d0,
+                    h,
+                    w,
+                    &mut rows,
+                    &kmix,
+                    &tmix,
+                    &attrs,
+                    &mut streamed,
+                    &mut rs,
+                )
+                .unwrap();
+                let same = whole
+                    .iter()
+                    .zip(&streamed)
+                    .all(|(a, b)| a.to_bits() == b.to_bits());
+                assert!(
+                    same,
+                    "{} {h}x{w} T{t} k{k}: streamed heads differ",
+                    isa.name()
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn short_buffers_are_errors() {
+        let w = [0i8; 8 * 2];
+        let ch = [ChannelQuant::new(0, 0.1, 0.1, 0.1, Activation::None); 8];
+        let geometry = ConvGeometry {
+            kernel: [1, 1],
+            stride: [1, 1],
+            dilation: [1, 1],
+            padding: [0, 0],
+            groups: 1,
+        };
+        let conv = Conv2d {
+            geometry,
+            quant: ConvQuant::new(0, 0, Activation::None),
+            weights: &w,
+            channels: &ch,
+        };
+        let input = [0i8; 2 * 4 * 4];
+        let head = Head {
+            conv,
+            input: &input,
+            in_shape: Shape::new(2, 4, 4),
+            out_q: QParams {
+                scale: 0.1,
+                zero_point: 0,
+            },
+        };
+        let mut ring = std::vec![0i8; ring_bytes(4, 2)];
+        let mut scratch = std::vec![0i32; 4096];
+        // The 8-channel head cannot stand for the 24- and 48-channel branches.
+        let r = ConvRows::new(Isa::Portable, [head; 3], 4, 4, 2, &mut ring, &mut scratch);
+        assert_eq!(r.err(), Some(KernelError::Shape));
+        let r = ConvRows::new(
+            Isa::Portable,
+            [head; 3],
+            4,
+            4,
+            2,
+            &mut ring[..3],
+            &mut scratch,
+        );
+        assert_eq!(r.err(), Some(KernelError::Shape));
+    }
+}

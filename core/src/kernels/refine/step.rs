@@ -1,0 +1,358 @@
+//! One propagation step of one refinement branch for one output row, in the order the module
+//! doc of [`super`] fixes, with a path per kernel set: AVX2 / AVX-512 runs of 8 or 16 pixels
+//! (x86), a table-driven scalar path for FPUs without vectors (Cortex-M), `L`-pixel lane groups
+//! elsewhere, and [`step_pixel`] with per-neighbour bounds tests at the borders. Every path adds
+//! the same terms in the same order per pixel, so the bits do not depend on which ran.
+
+use super::{I8Map, Map};
+use crate::kernels::float::{exp, relu};
+use crate::kernels::isa::Isa;
+use crate::kernels::requant::QParams;
+use crate::kernels::KernelError;
+
+/// Most neighbours of a branch (7×7 − 1).
+pub const MAX_NEIGHBOURS: usize = 48;
+
+/// Pixels per lane group of the portable path: 4 where the baseline has 4-wide vectors (SSE2,
+/// NEON), 1 on scalar FPUs (Cortex-M), where lane arrays only cost loads and stores.
+const PORTABLE_LANES: usize = if cfg!(any(target_arch = "x86_64", target_arch = "aarch64")) {
+    4
+} else {
+    1
+};
+
+/// The fixed tables of one branch at one image width: neighbour offsets in raster order
+/// (centre skipped), their Gaussians, and the offsets in a row-major buffer `w` wide.
+#[derive(Clone, Debug)]
+pub struct Branch {
+    off: [(isize, isize); MAX_NEIGHBOURS],
+    delta: [isize; MAX_NEIGHBOURS],
+    g: [f32; MAX_NEIGHBOURS],
+    n: usize,
+    rad: usize,
+    /// `relu(dequantise(code))` per code of the int8 affinities of this branch, for the scalar
+    /// path (`None` until [`Branch::set_quant`]).
+    lut: Option<(QParams, [f32; 256])>,
+}
+
+impl Branch {
+    /// Tables of the `size × size` window (odd, ≤ 7) with spatial σ `sigma`, `w` pixels wide.
+    pub fn new(size: usize, sigma: f32, w: usize) -> Branch {
+        let rad = (size / 2).min(3);
+        let mut b = Branch {
+            off: [(0, 0); MAX_NEIGHBOURS],
+            delta: [0; MAX_NEIGHBOURS],
+            g: [0.0; MAX_NEIGHBOURS],
+            n: 0,
+            rad,
+            lut: None,
+        };
+        let r = rad as isize;
+        let two_s2 = 2.0 * sigma * sigma;
+        for dy in -r..=r {
+            for dx in -r..=r {
+                if (dy, dx) != (0, 0) {
+                    b.off[b.n] = (dy, dx);
+                    b.delta[b.n] = dy * w as isize + dx;
+                    b.g[b.n] = exp(-((dx * dx + dy * dy) as f32) / two_s2);
+                    b.n += 1;
+                }
+            }
+        }
+        b
+    }
+
+    /// Neighbours (`size² − 1`).
+    pub fn neighbours(&self) -> usize {
+        self.n
+    }
+
+    /// Window radius.
+    pub fn radius(&self) -> usize {
+        self.rad
+    }
+
+    /// Prepares the scalar path's table for int8 affinities quantised with `q`.
+    pub fn set_quant(&mut self, q: QParams) {
+        if self.lut.is_some_and(|(have, _)| have == q) {
+            return;
+        }
+        let mut t = [0f32; 256];
+        for (code, v) in t.iter_mut().enumerate() {
+            *v = relu(q.dequantize(code as u8 as i8));
+        }
+        self.lut = Some((q, t));
+    }
+}
+
+/// Where row `y` lives: its affinities start at `aff` in the affinity map (channel `j` at
+/// `j · plane + aff`), the previous iteration's row at `cur` in the depth buffer (rows `w`
+/// apart, rows `y − r ..= y + r` that lie in the image present).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RowAt {
+    /// Index of `(y, x = 0)` in channel 0 of the affinity map.
+    pub aff: usize,
+    /// Index of `(y, x = 0)` in the depth buffer.
+    pub cur: usize,
+}
+
+/// Computes row `y` (of an `h × w` image) of one propagation step into `nxt[..w]`, from the
+/// previous iteration's rows in `cur` and the branch's affinities `a`, both located by `at`.
+/// `Err(Shape)` where a row, the window or an affinity channel is not where `at` says.
+#[allow(clippy::too_many_arguments)]
+pub fn step_row<A: Map>(
+    isa: Isa,
+    a: &A,
+    br: &Branch,
+    h: usize,
+    w: usize,
+    y: usize,
+    at: RowAt,
+    cur: &[f32],
+    nxt: &mut [f32],
+) -> Result<(), KernelError> {
+    let up = br.rad.min(y);
+    let down = br.rad.min(h.saturating_sub(y + 1));
+    let rows_ok = y < h
+        && at.cur >= up * w
+        && at
+            .cur
+            .checked_add((down + 1) * w)
+            .is_some_and(|e| e <= cur.len());
+    let aff_ok = a.channels() >= br.n && at.aff.checked_add(w).is_some_and(|e| e <= a.plane());
+    if !rows_ok || !aff_ok || nxt.len() < w {
+        return Err(KernelError::Shape);
+    }
+    let nxt = &mut nxt[..w];
+    match isa {
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2 | Isa::Avx512Vnni if Isa::Avx2.available() => match a.as_i8() {
+            Some(m) => row_i8_avx2(isa, m, br, h, w, y, at, cur, nxt),
+            // SAFETY: AVX2 is available (checked).
+            None => unsafe { row_avx2(a, br, h, w, y, at, cur, nxt) },
+        },
+        _ => match (a.as_i8(), &br.lut) {
+            (Some(m), Some((q, lut))) if PORTABLE_LANES == 1 && *q == m.q() => {
+                row_i8_scalar(m, lut, br, h, w, y, at, cur, nxt)
+            }
+            _ => row_lanes::<A, PORTABLE_LANES>(a, br, h, w, y, at, cur, nxt),
+        },
+    }
+    Ok(())
+}
+
+/// Row `y` on an int8 map for scalar FPUs: `relu(dequantise(q))` from the branch's table (the
+/// same f32 values), interior pixels without bounds tests, borders through [`step_pixel`].
+#[allow(clippy::too_many_arguments)]
+fn row_i8_scalar(
+    a: &I8Map,
+    lut: &[f32; 256],
+    br: &Branch,
+    h: usize,
+    w: usize,
+    y: usize,
+    at: RowAt,
+    cur: &[f32],
+    nxt: &mut [f32],
+) {
+    let (n, rad) = (br.n, br.rad);
+    let mut r = [0f32; MAX_NEIGHBOURS];
+    let (data, plane) = (a.data(), a.plane());
+    let inner_row = y >= rad && y + rad < h;
+    for (x, o) in nxt.iter_mut().enumerate() {
+        if !(inner_row && x >= rad && x + rad < w) {
+            *o = step_pixel(a, br, h, w, y, x, at, cur);
+            continue;
+        }
+        let (ia, ic) = (at.aff + x, at.cur + x);
+        let mut s = 0.0f32;
+        for (j, (rj, &gj)) in r[..n].iter_mut().zip(&br.g).enumerate() {
+            *rj = lut[data[j * plane + ia] as u8 as usize] * gj;
+            s += *rj;
+        }
+        let q = 1.0 / (1.0 + s);
+        let mut wsum = 0.0f32;
+        for rj in r[..n].iter_mut() {
+            *rj *= q;
+            wsum += *rj;
+        }
+        let mut d = (1.0 - wsum) * cur[ic];
+        for (&wj, &dj) in r[..n].iter().zip(&br.delta) {
+            d += wj * cur[(ic as isize + dj) as usize];
+        }
+        *o = d;
+    }
+}
+
+/// Row `y` on an int8 map with the AVX2 / AVX-512 run kernel for the interior pixels and
+/// masked 8-pixel chunks for the rest.
+#[cfg(target_arch = "x86_64")]
+#[allow(clippy::too_many_arguments)]
+fn row_i8_avx2(
+    isa: Isa,
+    a: &I8Map,
+    br: &Branch,
+    h: usize,
+    w: usize,
+    y: usize,
+    at: RowAt,
+    cur: &[f32],
+    nxt: &mut [f32],
+) {
+    use crate::kernels::x86_64::refine as simd;
+    let (n, rad) = (br.n, br.rad);
+    let (mut x0, mut x1) = (0, 0);
+    if y >= rad && y + rad < h && w > 2 * rad {
+        let wide = isa == Isa::Avx512Vnni && Isa::Avx512Vnni.available();
+        let lanes = if wide { 16 } else { 8 };
+        x0 = rad;
+        x1 = rad + (w - 2 * rad) / lanes * lanes;
+        let args = (&br.delta[..n], &br.g[..n]);
+        // SAFETY: AVX2 (and AVX-512 F for `wide`) is available (the caller's match and the test
+        // above); `step_row` checked that `a` has ≥ n channels holding `at.aff .. + w` and that
+        // rows y − rad ..= y + rad (all inside the image here) are in `cur` around `at.cur`, so
+        // every window of x0..x1 reads inside both.
+        unsafe {
+            if wide {
+                simd::step_run512(a, args.0, args.1, at, x0, x1, cur, nxt)
+            } else {
+                simd::step_run(a, args.0, args.1, at, x0, x1, cur, nxt)
+            }
+        };
+    }
+    if w < 8 {
+        for x in (0..x0).chain(x1..w) {
+            nxt[x] = step_pixel(a, br, h, w, y, x, at, cur);
+        }
+        return;
+    }
+    // The rest of the row in masked chunks of 8 (a chunk may overlap the interior run or the
+    // previous chunk; it writes the same values, which depend on `cur` only).
+    for xc in (0..x0).step_by(8).chain((x1..w).step_by(8)) {
+        let xc = xc.min(w - 8);
+        // SAFETY: AVX2 is available (the caller's match); `step_row` checked the affinity row
+        // and that the image rows around y are in `cur`; xc + 8 ≤ w.
+        unsafe { simd::step_masked(a, &br.off[..n], &br.g[..n], h, w, y, xc, at, cur, nxt) };
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn row_avx2<A: Map>(
+    a: &A,
+    br: &Branch,
+    h: usize,
+    w: usize,
+    y: usize,
+    at: RowAt,
+    cur: &[f32],
+    nxt: &mut [f32],
+) {
+    row_lanes::<A, 8>(a, br, h, w, y, at, cur, nxt)
+}
+
+/// Row `y`, `L` pixels at a time where their windows lie inside the image.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn row_lanes<A: Map, const L: usize>(
+    a: &A,
+    br: &Branch,
+    h: usize,
+    w: usize,
+    y: usize,
+    at: RowAt,
+    cur: &[f32],
+    nxt: &mut [f32],
+) {
+    let (n, rad) = (br.n, br.rad);
+    let mut r = [[0f32; L]; MAX_NEIGHBOURS];
+    let inner_row = y >= rad && y + rad < h;
+    let mut x = 0;
+    while x < w {
+        if !(inner_row && x >= rad && x + L - 1 + rad < w) {
+            nxt[x] = step_pixel(a, br, h, w, y, x, at, cur);
+            x += 1;
+            continue;
+        }
+        let (ia, ic) = (at.aff + x, at.cur + x);
+        let mut s = [0f32; L];
+        for (j, (rj, &gj)) in r[..n].iter_mut().zip(&br.g).enumerate() {
+            let v = a.values::<L>(j, ia);
+            for l in 0..L {
+                rj[l] = relu(v[l]) * gj;
+                s[l] += rj[l];
+            }
+        }
+        let mut q = [0f32; L];
+        for l in 0..L {
+            q[l] = 1.0 / (1.0 + s[l]);
+        }
+        let mut wsum = [0f32; L];
+        for rj in r[..n].iter_mut() {
+            for l in 0..L {
+                rj[l] *= q[l];
+                wsum[l] += rj[l];
+            }
+        }
+        let c: &[f32; L] = cur[ic..ic + L].try_into().unwrap_or(&[0.0; L]);
+        let mut d = [0f32; L];
+        for l in 0..L {
+            d[l] = (1.0 - wsum[l]) * c[l];
+        }
+        for (rj, &dj) in r[..n].iter().zip(&br.delta) {
+            let k = (ic as isize + dj) as usize;
+            let cn: &[f32; L] = cur[k..k + L].try_into().unwrap_or(&[0.0; L]);
+            for l in 0..L {
+                d[l] += rj[l] * cn[l];
+            }
+        }
+        nxt[x..x + L].copy_from_slice(&d);
+        x += L;
+    }
+}
+
+/// Pixel `(y, x)` of one step with per-neighbour bounds tests (neighbours outside the image get
+/// weight 0 and stand for the pixel itself).
+#[allow(clippy::too_many_arguments)]
+#[inline]
+pub fn step_pixel<A: Map>(
+    a: &A,
+    br: &Branch,
+    h: usize,
+    w: usize,
+    y: usize,
+    x: usize,
+    at: RowAt,
+    cur: &[f32],
+) -> f32 {
+    let (ia, ic) = (at.aff + x, at.cur + x);
+    let n = br.n;
+    let mut r = [0f32; MAX_NEIGHBOURS];
+    let mut idx = [0usize; MAX_NEIGHBOURS];
+    let mut s = 0.0f32;
+    #[allow(clippy::needless_range_loop)] // j indexes four tables of the branch in step
+    for j in 0..n {
+        let (dy, dx) = br.off[j];
+        let (ny, nx) = (y as isize + dy, x as isize + dx);
+        if ny < 0 || nx < 0 || ny >= h as isize || nx >= w as isize {
+            r[j] = 0.0;
+            idx[j] = ic;
+        } else {
+            r[j] = relu(a.value(j, ia)) * br.g[j];
+            idx[j] = (ic as isize + br.delta[j]) as usize;
+        }
+        s += r[j];
+    }
+    let q = 1.0 / (1.0 + s);
+    let mut wsum = 0.0f32;
+    for rj in r[..n].iter_mut() {
+        *rj *= q;
+        wsum += *rj;
+    }
+    let mut d = (1.0 - wsum) * cur[ic];
+    for (&wj, &k) in r[..n].iter().zip(&idx[..n]) {
+        d += wj * cur[k];
+    }
+    d
+}
