@@ -40,19 +40,6 @@ pub fn out_dir(out: &Path, overwrite: bool) -> Result<AtomicDir> {
     Ok(AtomicDir::create(out, existing(overwrite))?)
 }
 
-/// Refuses a non-empty `out` unless `overwrite`, before a long run (the staging folder checks
-/// again when it is created).
-pub fn refuse_non_empty(out: &Path, overwrite: bool) -> Result<()> {
-    let non_empty = std::fs::read_dir(out).is_ok_and(|mut d| d.next().is_some());
-    if non_empty && !overwrite {
-        bail!(
-            "{}: output: exists and is not empty (allowed: an absent or empty folder, or --overwrite)",
-            out.display()
-        );
-    }
-    Ok(())
-}
-
 /// Where a one-file command writes: `--out` is a folder and the file gets `name` in it. An
 /// `--out` ending in `.<ext>` (the older spelling, a file path) still names the file itself.
 pub struct OutFile {

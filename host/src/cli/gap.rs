@@ -42,7 +42,6 @@ pub struct Args {
 
 /// Runs `depthor gap`.
 pub fn handle(args: Args) -> anyhow::Result<()> {
-    super::common::refuse_non_empty(&args.out, args.overwrite)?;
     // The recording's errors name the file and field already.
     let header = depthor_host::recording::Recording::open(&args.real)?;
     let bar = super::progress(header.len() as u64, "reading");
