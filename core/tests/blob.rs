@@ -52,7 +52,7 @@ fn wrong_checksum() {
     let mut arena = vec![0u8; 1 << 16];
     assert!(matches!(
         Engine::new(&b, &mut arena),
-        Err(Error::BadChecksum { .. })
+        Err(Error::Blob(BlobError::BadChecksum { .. }))
     ));
 }
 

@@ -2,6 +2,7 @@
 //! `required_arena_bytes`, and runs frames. The default `mcu` model is embedded in the binary,
 //! so `depthor demo` works on a fresh clone with no files to fetch.
 
+use depthor_core::blob::BlobError;
 use depthor_core::engine::{required_arena_bytes, Engine, Error as EngineError, RunStats};
 use std::path::Path;
 
@@ -58,11 +59,11 @@ impl From<EngineError> for InferenceError {
 /// engine says them.
 pub fn engine_detail(e: &EngineError) -> String {
     match e {
-        EngineError::BadBlob { offset, what } => format!("byte {offset}: {what}"),
-        EngineError::BadChecksum { stored, computed } => format!(
+        EngineError::Blob(BlobError::Bad { offset, what }) => format!("byte {offset}: {what}"),
+        EngineError::Blob(BlobError::BadChecksum { stored, computed }) => format!(
             "byte 12: payload CRC-32 {computed:#010x} differs from the header's {stored:#010x}"
         ),
-        EngineError::UnsupportedVersion { found } => {
+        EngineError::Blob(BlobError::UnsupportedVersion { found }) => {
             format!("byte 4: format version {found} is not supported (allowed 1)")
         }
         other => other.to_string(),
@@ -96,14 +97,14 @@ impl Int8Model {
             Some(s) => s,
             None => depthor_core::blob::parse(&blob)
                 .map(|g| (g.height, g.width))
-                .map_err(depthor_core::engine::Error::from)?,
+                .map_err(EngineError::Blob)?,
         };
         // Bounded before planning, so a header claiming a huge input is refused at once.
         if height == 0 || width == 0 || height.saturating_mul(width) > MAX_INPUT_PIXELS {
-            return Err(InferenceError::Engine(EngineError::BadBlob {
+            return Err(InferenceError::Engine(EngineError::Blob(BlobError::Bad {
                 offset: 16,
                 what: "input height × width out of range (allowed 1 to 16 Mpx)",
-            }));
+            })));
         }
         let need = required_arena_bytes(&blob, height, width)?;
         if need as u64 > crate::sim::memory_limit_bytes() {

@@ -1,6 +1,5 @@
 //! The blob reader's error type: what [`parse()`](super::parse()) reports. `Copy`, so embedded
-//! callers can store and match it; the engine wraps it into its own error unchanged
-//! (`engine::Error::BadBlob`, `BadChecksum`, `UnsupportedVersion`).
+//! callers can store and match it; the engine reports it as `engine::Error::Blob`.
 
 /// Why a model blob was refused (layout: `docs/blob.md`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

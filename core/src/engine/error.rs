@@ -16,25 +16,9 @@ pub enum Error {
         /// Bytes the caller gave.
         have: usize,
     },
-    /// The blob is malformed at `offset`.
-    BadBlob {
-        /// Byte offset into the blob.
-        offset: usize,
-        /// What was wrong there.
-        what: &'static str,
-    },
-    /// The payload CRC-32 does not match the header.
-    BadChecksum {
-        /// CRC stored in the header.
-        stored: u32,
-        /// CRC computed over the payload.
-        computed: u32,
-    },
-    /// The blob's format version is not one this core reads.
-    UnsupportedVersion {
-        /// Version found in the header.
-        found: u16,
-    },
+    /// The blob was refused by the reader ([`crate::blob::parse()`]): malformed at an offset,
+    /// a checksum mismatch or an unsupported version.
+    Blob(BlobError),
     /// A caller buffer has the wrong length for the engine's input size.
     ShapeMismatch {
         /// Which buffer.
@@ -57,11 +41,7 @@ pub enum Error {
 
 impl From<BlobError> for Error {
     fn from(e: BlobError) -> Self {
-        match e {
-            BlobError::Bad { offset, what } => Error::BadBlob { offset, what },
-            BlobError::BadChecksum { stored, computed } => Error::BadChecksum { stored, computed },
-            BlobError::UnsupportedVersion { found } => Error::UnsupportedVersion { found },
-        }
+        Error::Blob(e)
     }
 }
 
@@ -77,16 +57,7 @@ impl core::fmt::Display for Error {
             Error::ArenaTooSmall { need, have } => {
                 write!(f, "arena too small: need {need} bytes, have {have}")
             }
-            Error::BadBlob { offset, what } => write!(f, "bad model blob at byte {offset}: {what}"),
-            Error::BadChecksum { stored, computed } => {
-                write!(
-                    f,
-                    "model blob checksum mismatch: header {stored:#010x}, payload {computed:#010x}"
-                )
-            }
-            Error::UnsupportedVersion { found } => {
-                write!(f, "unsupported model blob version {found}")
-            }
+            Error::Blob(e) => write!(f, "{e}"),
             Error::ShapeMismatch {
                 what,
                 expected,

@@ -23,7 +23,7 @@ use depthor_host::quantize::calibrate::simulated_frames;
 use depthor_host::quantize::check::sqnr_db;
 use depthor_host::reference::FloatReference;
 use depthor_host::scene::{camera_for, render_scene};
-use depthor_host::sim::{preset, simulate, SimInput};
+use depthor_host::sim::{preset, simulate};
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -129,16 +129,7 @@ fn bench_sim(frames: u64, preset_name: &str) -> Result<()> {
             let t0 = Instant::now();
             let scene = render_scene(&scene_cfg, s, camera_for(&scene_cfg, s, w, h));
             let t1 = Instant::now();
-            let input = SimInput {
-                width: w,
-                height: h,
-                depth_m: &scene.depth_m,
-                rgb: &scene.rgb,
-                labels: Some(&scene.labels),
-                reflectance: Some(&scene.reflectance),
-                second_depth_m: Some(&scene.second_depth_m),
-            };
-            simulate(&cfg, &input, s)?;
+            simulate(&cfg, &scene.sim_input(), s)?;
             let t2 = Instant::now();
             Ok(((t1 - t0).as_secs_f64(), (t2 - t1).as_secs_f64()))
         };

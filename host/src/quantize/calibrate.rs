@@ -12,7 +12,7 @@
 
 use super::net::{Net, OpKind, Storage, RGB, SPARSE};
 use crate::scene::{camera_for, render_scene, SceneConfig};
-use crate::sim::{preset, simulate, SimError, SimInput};
+use crate::sim::{preset, simulate, SimError};
 use depthor_core::calibration::{Calibration, DistanceKind, DtofGeometry, Extrinsics};
 use depthor_core::hal::ZoneView;
 use depthor_core::kernels::requant::QParams;
@@ -96,16 +96,7 @@ pub fn simulated_frames_in(
             let s = seed.wrapping_add(k);
             let cam = camera_for(cfg, s, w, h);
             let scene = render_scene(cfg, s, cam);
-            let input = SimInput {
-                width: w,
-                height: h,
-                depth_m: &scene.depth_m,
-                rgb: &scene.rgb,
-                labels: Some(&scene.labels),
-                reflectance: Some(&scene.reflectance),
-                second_depth_m: Some(&scene.second_depth_m),
-            };
-            let zones = simulate(&sim, &input, s)?;
+            let zones = simulate(&sim, &scene.sim_input(), s)?;
             let cal = Calibration {
                 camera: cam,
                 dtof: DtofGeometry {

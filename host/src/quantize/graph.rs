@@ -499,6 +499,228 @@ fn activation(
     })
 }
 
+/// One node's attributes and parameters, with errors that name their JSON path.
+struct NodeFields<'a> {
+    c: &'a Ctx<'a>,
+    attrs: &'a Map<String, Value>,
+    /// JSON path of `attrs`.
+    aat: String,
+    params: &'a Map<String, Value>,
+    /// JSON path of `params`.
+    pat: String,
+    tensors: &'a HashMap<String, Tensor>,
+}
+
+impl NodeFields<'_> {
+    fn param(&self, key: &str) -> Result<Tensor, GraphError> {
+        let tname = self.c.str(self.params, &self.pat, key)?;
+        self.tensors.get(tname).cloned().ok_or_else(|| {
+            self.c.err(
+                &join(&self.pat, key),
+                format!("tensor {tname:?} is not in `tensors`"),
+            )
+        })
+    }
+
+    fn opt_param(&self, key: &str) -> Result<Option<Tensor>, GraphError> {
+        if self.params.get(key).is_none_or(Value::is_null) {
+            Ok(None)
+        } else {
+            self.param(key).map(Some)
+        }
+    }
+
+    fn shape_err(&self, key: &str, what: String) -> GraphError {
+        self.c.err(&join(&self.pat, key), what)
+    }
+
+    /// An optional bias of `n` values.
+    fn bias(&self, n: usize) -> Result<Option<Tensor>, GraphError> {
+        let bias = self.opt_param("bias")?;
+        match &bias {
+            Some(b) if b.data.len() != n => {
+                Err(self.shape_err("bias", format!("{} values, expected {n}", b.data.len())))
+            }
+            _ => Ok(bias),
+        }
+    }
+
+    fn usize(&self, key: &str) -> Result<usize, GraphError> {
+        self.c.usize(self.attrs, &self.aat, key)
+    }
+
+    fn f32(&self, key: &str) -> Result<f32, GraphError> {
+        self.c.f32(self.attrs, &self.aat, key)
+    }
+
+    fn f32_or(&self, key: &str, default: f32) -> Result<f32, GraphError> {
+        self.c.f32_or(self.attrs, &self.aat, key, default)
+    }
+
+    fn conv2d(&self) -> Result<NodeOp, GraphError> {
+        let (c, attrs, aat) = (self.c, self.attrs, self.aat.as_str());
+        let kernel = c.pair(attrs, aat, "kernel")?;
+        let stride = self.usize("stride")?;
+        let dilation = self.usize("dilation")?;
+        let padding = c.pair(attrs, aat, "padding")?;
+        let groups = self.usize("groups")?;
+        let out_channels = self.usize("out_channels")?;
+        if kernel.contains(&0) || stride == 0 || dilation == 0 || groups == 0 || out_channels == 0 {
+            return Err(c.err(aat, "zero kernel, stride, dilation, groups or out_channels"));
+        }
+        if !out_channels.is_multiple_of(groups) {
+            return Err(c.err(&join(aat, "groups"), "does not divide out_channels"));
+        }
+        let weight = self.param("weight")?;
+        if weight.shape.len() != 4
+            || weight.shape[0] != out_channels
+            || weight.shape[2..] != kernel[..]
+        {
+            return Err(self.shape_err(
+                "weight",
+                format!(
+                    "shape {:?} does not match out_channels {out_channels}, kernel {kernel:?}",
+                    weight.shape
+                ),
+            ));
+        }
+        let bias = self.bias(out_channels)?;
+        Ok(NodeOp::Conv2d {
+            geometry: ConvGeometry {
+                kernel,
+                stride: [stride; 2],
+                dilation: [dilation; 2],
+                padding,
+                groups,
+            },
+            out_channels,
+            activation: activation(c, attrs, aat)?,
+            weight,
+            bias,
+        })
+    }
+
+    fn batch_norm(&self) -> Result<NodeOp, GraphError> {
+        let (gamma, beta, mean, var) = (
+            self.param("gamma")?,
+            self.param("beta")?,
+            self.param("mean")?,
+            self.param("var")?,
+        );
+        let n = gamma.data.len();
+        for (k, t) in [("beta", &beta), ("mean", &mean), ("var", &var)] {
+            if t.data.len() != n {
+                return Err(self.shape_err(k, format!("{} values, gamma has {n}", t.data.len())));
+            }
+        }
+        if var.data.iter().any(|&v| v < 0.0) {
+            return Err(self.shape_err("var", "negative variance".into()));
+        }
+        Ok(NodeOp::BatchNorm {
+            eps: self.f32("eps")?,
+            gamma,
+            beta,
+            mean,
+            var,
+        })
+    }
+
+    fn linear(&self) -> Result<NodeOp, GraphError> {
+        let weight = self.param("weight")?;
+        if weight.shape.len() != 2 {
+            return Err(self.shape_err(
+                "weight",
+                format!("shape {:?}, expected [O, I]", weight.shape),
+            ));
+        }
+        let bias = self.bias(weight.shape[0])?;
+        Ok(NodeOp::Linear {
+            activation: activation(self.c, self.attrs, &self.aat)?,
+            weight,
+            bias,
+        })
+    }
+
+    fn bins_head(&self) -> Result<NodeOp, GraphError> {
+        let n_bins = self.usize("n_bins")?;
+        let min_depth = self.f32("min_depth_m")?;
+        let max_depth = self.f32("max_depth_m")?;
+        if n_bins == 0 || min_depth >= max_depth {
+            return Err(self.c.err(
+                &self.aat,
+                "n_bins must be > 0 and min_depth_m < max_depth_m",
+            ));
+        }
+        let weight = self.param("weight")?;
+        if weight.shape.len() != 2 || weight.shape[0] != n_bins {
+            return Err(self.shape_err(
+                "weight",
+                format!("shape {:?}, expected [{n_bins}, C]", weight.shape),
+            ));
+        }
+        let bias = self.bias(n_bins)?;
+        Ok(NodeOp::BinsHead {
+            attrs: BinsAttrs {
+                n_bins,
+                min_depth,
+                max_depth,
+            },
+            weight,
+            bias,
+        })
+    }
+
+    fn refine(&self) -> Result<NodeOp, GraphError> {
+        let iterations = self.usize("iterations")?;
+        let s = self.c.arr(self.attrs, &self.aat, "sigma")?;
+        let sig: Vec<f32> = s
+            .iter()
+            .filter_map(|v| v.as_f64().map(|f| f as f32))
+            .collect();
+        if sig.len() != 3 || sig.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+            return Err(self
+                .c
+                .err(&join(&self.aat, "sigma"), "expected three positive numbers"));
+        }
+        if !iterations.is_multiple_of(2) {
+            return Err(self.c.err(&join(&self.aat, "iterations"), "must be even"));
+        }
+        Ok(NodeOp::Refine(RefineAttrs {
+            iterations,
+            sigma: [sig[0], sig[1], sig[2]],
+        }))
+    }
+
+    /// The op named `op_name` with its attributes and parameters.
+    fn op(&self, op_name: &str, at: &str) -> Result<NodeOp, GraphError> {
+        Ok(match op_name {
+            "conv2d" => self.conv2d()?,
+            "batch_norm" => self.batch_norm()?,
+            "relu" => NodeOp::Relu,
+            "leaky_relu" => NodeOp::LeakyRelu(self.f32_or("alpha", 0.1)?),
+            "sigmoid" => NodeOp::Sigmoid,
+            "add" => NodeOp::Add,
+            "mul" => NodeOp::Mul,
+            "concat" => NodeOp::Concat,
+            "upsample_bilinear" => NodeOp::UpsampleBilinear {
+                out_h: self.usize("out_h")?,
+                out_w: self.usize("out_w")?,
+            },
+            "pixel_shuffle" => NodeOp::PixelShuffle(self.usize("factor")?),
+            "global_avg_pool" => NodeOp::GlobalAvgPool,
+            "global_max_pool" => NodeOp::GlobalMaxPool,
+            "channel_mean" => NodeOp::ChannelMean,
+            "channel_max" => NodeOp::ChannelMax,
+            "linear" => self.linear()?,
+            "minmax_norm" => NodeOp::MinMaxNorm(self.f32_or("eps", 1e-6)?),
+            "reciprocal" => NodeOp::Reciprocal(self.f32_or("eps", 1e-3)?),
+            "bins_head" => self.bins_head()?,
+            "refine" => self.refine()?,
+            other => return Err(self.c.err(&join(at, "op"), format!("unknown op {other:?}"))),
+        })
+    }
+}
+
 fn parse_node(
     c: &Ctx,
     o: &Map<String, Value>,
@@ -529,180 +751,15 @@ fn parse_node(
         Some(v) => c.obj(v, &pat)?,
         None => &empty,
     };
-    let param = |key: &str| -> Result<Tensor, GraphError> {
-        let tname = c.str(params, &pat, key)?;
-        tensors.get(tname).cloned().ok_or_else(|| {
-            c.err(
-                &join(&pat, key),
-                format!("tensor {tname:?} is not in `tensors`"),
-            )
-        })
+    let fields = NodeFields {
+        c,
+        attrs,
+        aat,
+        params,
+        pat,
+        tensors,
     };
-    let opt_param = |key: &str| -> Result<Option<Tensor>, GraphError> {
-        if params.get(key).is_none_or(Value::is_null) {
-            Ok(None)
-        } else {
-            param(key).map(Some)
-        }
-    };
-    let shape_err = |key: &str, what: String| c.err(&join(&pat, key), what);
-    let op = match op_name {
-        "conv2d" => {
-            let kernel = c.pair(attrs, &aat, "kernel")?;
-            let stride = c.usize(attrs, &aat, "stride")?;
-            let dilation = c.usize(attrs, &aat, "dilation")?;
-            let padding = c.pair(attrs, &aat, "padding")?;
-            let groups = c.usize(attrs, &aat, "groups")?;
-            let out_channels = c.usize(attrs, &aat, "out_channels")?;
-            if kernel.contains(&0)
-                || stride == 0
-                || dilation == 0
-                || groups == 0
-                || out_channels == 0
-            {
-                return Err(c.err(
-                    &aat,
-                    "zero kernel, stride, dilation, groups or out_channels",
-                ));
-            }
-            if !out_channels.is_multiple_of(groups) {
-                return Err(c.err(&join(&aat, "groups"), "does not divide out_channels"));
-            }
-            let weight = param("weight")?;
-            if weight.shape.len() != 4
-                || weight.shape[0] != out_channels
-                || weight.shape[2..] != kernel[..]
-            {
-                return Err(shape_err(
-                    "weight",
-                    format!(
-                        "shape {:?} does not match out_channels {out_channels}, kernel {kernel:?}",
-                        weight.shape
-                    ),
-                ));
-            }
-            let bias = opt_param("bias")?;
-            check_bias(&bias, out_channels).map_err(|w| shape_err("bias", w))?;
-            NodeOp::Conv2d {
-                geometry: ConvGeometry {
-                    kernel,
-                    stride: [stride; 2],
-                    dilation: [dilation; 2],
-                    padding,
-                    groups,
-                },
-                out_channels,
-                activation: activation(c, attrs, &aat)?,
-                weight,
-                bias,
-            }
-        }
-        "batch_norm" => {
-            let (gamma, beta, mean, var) = (
-                param("gamma")?,
-                param("beta")?,
-                param("mean")?,
-                param("var")?,
-            );
-            let n = gamma.data.len();
-            for (k, t) in [("beta", &beta), ("mean", &mean), ("var", &var)] {
-                if t.data.len() != n {
-                    return Err(shape_err(
-                        k,
-                        format!("{} values, gamma has {n}", t.data.len()),
-                    ));
-                }
-            }
-            if var.data.iter().any(|&v| v < 0.0) {
-                return Err(shape_err("var", "negative variance".into()));
-            }
-            NodeOp::BatchNorm {
-                eps: c.f32(attrs, &aat, "eps")?,
-                gamma,
-                beta,
-                mean,
-                var,
-            }
-        }
-        "relu" => NodeOp::Relu,
-        "leaky_relu" => NodeOp::LeakyRelu(c.f32_or(attrs, &aat, "alpha", 0.1)?),
-        "sigmoid" => NodeOp::Sigmoid,
-        "add" => NodeOp::Add,
-        "mul" => NodeOp::Mul,
-        "concat" => NodeOp::Concat,
-        "upsample_bilinear" => NodeOp::UpsampleBilinear {
-            out_h: c.usize(attrs, &aat, "out_h")?,
-            out_w: c.usize(attrs, &aat, "out_w")?,
-        },
-        "pixel_shuffle" => NodeOp::PixelShuffle(c.usize(attrs, &aat, "factor")?),
-        "global_avg_pool" => NodeOp::GlobalAvgPool,
-        "global_max_pool" => NodeOp::GlobalMaxPool,
-        "channel_mean" => NodeOp::ChannelMean,
-        "channel_max" => NodeOp::ChannelMax,
-        "linear" => {
-            let weight = param("weight")?;
-            if weight.shape.len() != 2 {
-                return Err(shape_err(
-                    "weight",
-                    format!("shape {:?}, expected [O, I]", weight.shape),
-                ));
-            }
-            let bias = opt_param("bias")?;
-            check_bias(&bias, weight.shape[0]).map_err(|w| shape_err("bias", w))?;
-            NodeOp::Linear {
-                activation: activation(c, attrs, &aat)?,
-                weight,
-                bias,
-            }
-        }
-        "minmax_norm" => NodeOp::MinMaxNorm(c.f32_or(attrs, &aat, "eps", 1e-6)?),
-        "reciprocal" => NodeOp::Reciprocal(c.f32_or(attrs, &aat, "eps", 1e-3)?),
-        "bins_head" => {
-            let n_bins = c.usize(attrs, &aat, "n_bins")?;
-            let min_depth = c.f32(attrs, &aat, "min_depth_m")?;
-            let max_depth = c.f32(attrs, &aat, "max_depth_m")?;
-            if n_bins == 0 || min_depth >= max_depth {
-                return Err(c.err(&aat, "n_bins must be > 0 and min_depth_m < max_depth_m"));
-            }
-            let weight = param("weight")?;
-            if weight.shape.len() != 2 || weight.shape[0] != n_bins {
-                return Err(shape_err(
-                    "weight",
-                    format!("shape {:?}, expected [{n_bins}, C]", weight.shape),
-                ));
-            }
-            let bias = opt_param("bias")?;
-            check_bias(&bias, n_bins).map_err(|w| shape_err("bias", w))?;
-            NodeOp::BinsHead {
-                attrs: BinsAttrs {
-                    n_bins,
-                    min_depth,
-                    max_depth,
-                },
-                weight,
-                bias,
-            }
-        }
-        "refine" => {
-            let iterations = c.usize(attrs, &aat, "iterations")?;
-            let s = c.arr(attrs, &aat, "sigma")?;
-            let sig: Vec<f32> = s
-                .iter()
-                .filter_map(|v| v.as_f64().map(|f| f as f32))
-                .collect();
-            if sig.len() != 3 || sig.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
-                return Err(c.err(&join(&aat, "sigma"), "expected three positive numbers"));
-            }
-            if !iterations.is_multiple_of(2) {
-                return Err(c.err(&join(&aat, "iterations"), "must be even"));
-            }
-            NodeOp::Refine(RefineAttrs {
-                iterations,
-                sigma: [sig[0], sig[1], sig[2]],
-            })
-        }
-        other => return Err(c.err(&join(at, "op"), format!("unknown op {other:?}"))),
-    };
+    let op = fields.op(op_name, at)?;
     let ok = match op.arity() {
         Some(n) => inputs.len() == n,
         None => !inputs.is_empty(),
@@ -719,13 +776,6 @@ fn parse_node(
         output,
         op,
     })
-}
-
-fn check_bias(bias: &Option<Tensor>, n: usize) -> Result<(), String> {
-    match bias {
-        Some(b) if b.data.len() != n => Err(format!("{} values, expected {n}", b.data.len())),
-        _ => Ok(()),
-    }
 }
 
 #[cfg(test)]

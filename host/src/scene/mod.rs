@@ -60,6 +60,22 @@ pub struct SceneFrame {
     pub normals: Vec<[f32; 3]>,
 }
 
+impl SceneFrame {
+    /// The simulator input of this frame: every ground-truth map the scene renders (depth, RGB,
+    /// labels, reflectance, the surface behind glass or along a mirror).
+    pub fn sim_input(&self) -> crate::sim::SimInput<'_> {
+        crate::sim::SimInput {
+            width: self.width,
+            height: self.height,
+            depth_m: &self.depth_m,
+            rgb: &self.rgb,
+            labels: Some(&self.labels),
+            reflectance: Some(&self.reflectance),
+            second_depth_m: Some(&self.second_depth_m),
+        }
+    }
+}
+
 /// Renders scene `seed` drawn from `cfg` through `camera`.
 pub fn render_scene(cfg: &SceneConfig, seed: u64, camera: CameraIntrinsics) -> SceneFrame {
     let hfov = 2.0 * (camera.width as f32 / (2.0 * camera.fx.max(1e-3))).atan();
