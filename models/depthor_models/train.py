@@ -879,7 +879,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="train on a random HxW window of each batch (multiples of 32; "
                          "evaluation stays on whole frames)")
     ap.add_argument("--teacher", default=None, metavar="WEIGHTS",
-                    help="distil from these trained weights (e.g. runs/mcu_phase5/model_final.pt):"
+                    help="distil from these trained weights (e.g. mcu/train/model_final.pt):"
                          " SILog of the prediction against the teacher's dense depth, weight "
                          "--kd-weight, on top of the reference loss (depthor stage only)")
     ap.add_argument("--teacher-variant", default="mcu", choices=sorted(VARIANTS))
