@@ -9,7 +9,13 @@
 use std::path::{Path, PathBuf};
 
 /// Files the tools write into their output folders; a mention of one is not a cite.
-const WRITTEN: &[&str] = &["report.md", "table.md", "MODEL_CARD.md", "gap_bench.md", "bench/gap_bench.md"];
+const WRITTEN: &[&str] = &[
+    "report.md",
+    "table.md",
+    "MODEL_CARD.md",
+    "gap_bench.md",
+    "bench/gap_bench.md",
+];
 /// Folders that hold no source: build outputs, environments, VCS data.
 const SKIP_DIRS: &[&str] = &[
     "target",
