@@ -8,12 +8,15 @@
 //! are dequantised on the fly.
 //!
 //! **Fixed order.** Per kernel `k` ∈ {3, 5, 7} (in that order), per iteration, per pixel in
-//! raster order: `r_j = relu(aff_k[j]) · g_j` for neighbours `j` in raster order (0 outside the
-//! image), `S = Σ r_j` summed in that order, `q = 1/(1 + S)`, `w_j = r_j · q`,
-//! `w_c = 1 − Σ w_j` (in order), `D' = w_c·D + Σ w_j·D_j` (in order). The Gaussians
-//! `g_j = exp(−(dx²+dy²)/(2σ_k²))` are computed once per run with [`super::float::exp`]. After `t ∈ {0, T/2,
-//! T}` the output gains `(τ_t · σ_k) · D_{k,t}` with `σ`, `τ` per-pixel 3-way softmaxes of
-//! kmix / tmix. The output map is the accumulator.
+//! raster order: for neighbours `j` in raster order, `r_j = relu(aff_k[j]) · g_j` (0 outside
+//! the image, where `D_j` stands for the pixel's own `D`), `S += r_j` from `S = 0` and
+//! `A += r_j · D_j` from `A = D`, then `D' = A / (1 + S)`: one pass over the neighbours, one
+//! division. This is docs/graph.md's `w_c·D + Σ w_j·D_j` with `w_j = r_j/(1 + S)` and
+//! `w_c = 1/(1 + S)`, rounded differently. The Gaussians `g_j = exp(−(dx²+dy²)/(2σ_k²))` are
+//! computed once per run with [`super::float::exp`]. After `t ∈ {0, T/2, T}` the output gains
+//! `(τ_t · σ_k) · D_{k,t}` with `σ`, `τ` the per-pixel 3-way softmaxes of kmix / tmix
+//! ([`Mix`]: on int8 maps the exponentials come from a 256-entry table of the code distance).
+//! The output map is the accumulator.
 //!
 //! **Streaming (a wavefront over rows).** No iteration and no affinity map is ever held whole.
 //! Per branch of radius `r`, pass step `s` computes row `s − t·r` of iteration `t` for
@@ -272,14 +275,49 @@ pub fn ring_bytes(w: usize, iterations: usize) -> usize {
         .unwrap_or(0)
 }
 
-/// Per-pixel softmax over 3 channels of `m` at pixel `i`.
-#[inline]
-fn softmax3<M: Map>(m: &M, i: usize) -> [f32; 3] {
-    let v = [m.value(0, i), m.value(1, i), m.value(2, i)];
-    let mx = v[0].max(v[1]).max(v[2]);
-    let e = [exp(v[0] - mx), exp(v[1] - mx), exp(v[2] - mx)];
-    let s = e[0] + e[1] + e[2];
-    [e[0] / s, e[1] / s, e[2] / s]
+/// A 3-channel mixing map (kmix or tmix) with its per-pixel softmax. On int8 maps the
+/// exponentials come from a table made once per run, `E[d] = exp(−d·scale)` for the code
+/// distance `d = max code − code` (0..=255): `e_c = E[max − q_c]`; on f32 maps
+/// `e_c = exp(v_c − max v)`. Then `s = (e_0 + e_1) + e_2` and `p_c = e_c / s`.
+pub struct Mix<'m, B: Map> {
+    map: &'m B,
+    table: Option<[f32; 256]>,
+}
+
+impl<'m, B: Map> Mix<'m, B> {
+    /// The mix over `map` (its table made here when it is int8).
+    pub fn new(map: &'m B) -> Self {
+        let table = map.as_i8().map(|m| {
+            let scale = m.q().scale;
+            core::array::from_fn(|d| exp(-(d as f32) * scale))
+        });
+        Mix { map, table }
+    }
+
+    /// The softmax at pixel `i`.
+    #[inline]
+    pub fn at(&self, i: usize) -> [f32; 3] {
+        let e = match (self.map.as_i8(), &self.table) {
+            (Some(m), Some(t)) => {
+                let q = [0, 1, 2].map(|c| i32::from(m.data()[c * m.plane() + i]));
+                let mx = q[0].max(q[1]).max(q[2]);
+                q.map(|q| t[(mx - q) as usize & 255])
+            }
+            _ => {
+                let v = [0, 1, 2].map(|c| self.map.value(c, i));
+                let mx = v[0].max(v[1]).max(v[2]);
+                v.map(|v| exp(v - mx))
+            }
+        };
+        let s = e[0] + e[1] + e[2];
+        e.map(|e| e / s)
+    }
+
+    /// The int8 map and its table, where the map is int8 (for the vector paths).
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+    fn int8(&self) -> Option<(&I8Map<'_>, &[f32; 256])> {
+        Some((self.map.as_i8()?, self.table.as_ref()?))
+    }
 }
 
 /// Checks `T` and the σs.
@@ -375,6 +413,7 @@ pub fn refine_with<R: AffinityRows, B: Map>(
         return Err(KernelError::Shape);
     }
     let times = [0, t_max / 2, t_max];
+    let (tmix, kmix) = (Mix::new(tmix), Mix::new(kmix));
     let out = &mut out[..p];
     out.fill(0.0);
     let win_len = WINDOW_ROWS * w;
@@ -382,7 +421,7 @@ pub fn refine_with<R: AffinityRows, B: Map>(
         let mut br = Branch::new(size, attrs.sigma[k], w);
         let r = br.radius();
         for (ti, _) in times.iter().enumerate().filter(|(_, &t)| t == 0) {
-            accumulate(isa, out, &d0[..p], tmix, kmix, ti, k, 0);
+            accumulate(isa, out, &d0[..p], &tmix, &kmix, ti, k, 0);
         }
         if t_max == 0 {
             continue;
@@ -420,7 +459,7 @@ pub fn refine_with<R: AffinityRows, B: Map>(
                 step_row(isa, &map, &br, h, w, y, at, cur, dst)?;
                 for (ti, _) in times.iter().enumerate().filter(|(_, &tt)| tt == t) {
                     let o = &mut out[y * w..(y + 1) * w];
-                    accumulate(isa, o, dst, tmix, kmix, ti, k, y * w);
+                    accumulate(isa, o, dst, &tmix, &kmix, ti, k, y * w);
                 }
             }
         }
@@ -428,118 +467,36 @@ pub fn refine_with<R: AffinityRows, B: Map>(
     Ok(())
 }
 
-/// `out[i] += (softmax3(tmix)[ti] · softmax3(kmix)[k]) · cur[i]` for the values of `out` and
-/// `cur`, which are the map pixels `first ..`.
+/// `out[i] += (tmix.at(first + i)[ti] · kmix.at(first + i)[k]) · cur[i]` for the values of
+/// `out` and `cur` (map pixels `first ..`).
 #[allow(clippy::too_many_arguments)]
 fn accumulate<B: Map>(
     isa: Isa,
     out: &mut [f32],
     cur: &[f32],
-    tmix: &B,
-    kmix: &B,
+    tmix: &Mix<B>,
+    kmix: &Mix<B>,
     ti: usize,
     k: usize,
     first: usize,
 ) {
     let p = out.len().min(cur.len());
-    match isa {
-        #[cfg(target_arch = "x86_64")]
-        Isa::Avx2 | Isa::Avx512Vnni if Isa::Avx2.available() => {
-            if let (Some(t), Some(m)) = (tmix.as_i8(), kmix.as_i8()) {
-                if t.channels >= 3
-                    && m.channels >= 3
-                    && t.plane >= first + p
-                    && m.plane >= first + p
-                {
-                    // SAFETY: AVX2 is available; both maps hold 3 channels of ≥ first + p pixels.
-                    let done =
-                        unsafe { super::x86_64::refine::accumulate(out, cur, t, m, ti, k, first) };
-                    accumulate_lanes::<B, 1>(
-                        &mut out[done..p],
-                        &cur[done..p],
-                        tmix,
-                        kmix,
-                        ti,
-                        k,
-                        first + done,
-                    );
-                    return;
-                }
+    let mut done = 0;
+    #[cfg(target_arch = "x86_64")]
+    if matches!(isa, Isa::Avx2 | Isa::Avx512Vnni) && Isa::Avx2.available() {
+        if let (Some(t), Some(m)) = (tmix.int8(), kmix.int8()) {
+            let fits = |m: &I8Map| m.channels >= 3 && m.plane >= first + p;
+            if fits(t.0) && fits(m.0) {
+                // SAFETY: AVX2 is available; both maps hold 3 channels of ≥ first + p pixels.
+                done = unsafe { super::x86_64::refine::accumulate(out, cur, t, m, ti, k, first) };
             }
-            // SAFETY: AVX2 is available (checked).
-            unsafe { accumulate_avx2(out, cur, tmix, kmix, ti, k, first) }
         }
-        _ => accumulate_lanes::<B, PORTABLE_LANES>(out, cur, tmix, kmix, ti, k, first),
     }
-}
-
-/// Pixels per lane group of the portable accumulation (as the step's).
-const PORTABLE_LANES: usize = if cfg!(any(target_arch = "x86_64", target_arch = "aarch64")) {
-    4
-} else {
-    1
-};
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[allow(clippy::too_many_arguments)]
-unsafe fn accumulate_avx2<B: Map>(
-    out: &mut [f32],
-    cur: &[f32],
-    tmix: &B,
-    kmix: &B,
-    ti: usize,
-    k: usize,
-    first: usize,
-) {
-    accumulate_lanes::<B, 8>(out, cur, tmix, kmix, ti, k, first)
-}
-
-/// [`accumulate`] for `out`, `cur` covering map pixels `first..`, `L` pixels at a time.
-#[inline(always)]
-fn accumulate_lanes<B: Map, const L: usize>(
-    out: &mut [f32],
-    cur: &[f32],
-    tmix: &B,
-    kmix: &B,
-    ti: usize,
-    k: usize,
-    first: usize,
-) {
-    let p = out.len().min(cur.len());
-    let mut i = 0;
-    while i + L <= p {
-        let t = softmax3_lanes::<B, L>(tmix, first + i);
-        let m = softmax3_lanes::<B, L>(kmix, first + i);
-        for l in 0..L {
-            out[i + l] += (t[ti][l] * m[k][l]) * cur[i + l];
-        }
-        i += L;
-    }
-    for i in i..p {
-        let coef = softmax3(tmix, first + i)[ti] * softmax3(kmix, first + i)[k];
+    let _ = isa;
+    for i in done..p {
+        let coef = tmix.at(first + i)[ti] * kmix.at(first + i)[k];
         out[i] += coef * cur[i];
     }
-}
-
-/// [`softmax3`] of pixels `i..i + L`, channel-major.
-#[inline(always)]
-fn softmax3_lanes<M: Map, const L: usize>(m: &M, i: usize) -> [[f32; L]; 3] {
-    let v = [
-        m.values::<L>(0, i),
-        m.values::<L>(1, i),
-        m.values::<L>(2, i),
-    ];
-    let mut r = [[0f32; L]; 3];
-    for l in 0..L {
-        let mx = v[0][l].max(v[1][l]).max(v[2][l]);
-        let e = [exp(v[0][l] - mx), exp(v[1][l] - mx), exp(v[2][l] - mx)];
-        let s = e[0] + e[1] + e[2];
-        r[0][l] = e[0] / s;
-        r[1][l] = e[1] / s;
-        r[2][l] = e[2] / s;
-    }
-    r
 }
 
 #[cfg(test)]
@@ -619,7 +576,7 @@ mod tests {
     }
 
     /// The whole-map order of the module doc: each iteration over the whole image with every
-    /// pixel through [`step_pixel`], the scalar [`softmax3`], ping-pong maps.
+    /// pixel through [`step_pixel`], the scalar [`Mix::at`], ping-pong maps.
     fn refine_per_pixel<A: Map, B: Map>(
         d0: &[f32],
         h: usize,
@@ -633,6 +590,7 @@ mod tests {
         let t_max = attrs.iterations;
         let times = [0, t_max / 2, t_max];
         let mut out = std::vec![0f32; p];
+        let (tmix, kmix) = (Mix::new(tmix), Mix::new(kmix));
         for (k, (&a, &s)) in aff.iter().zip(&KERNELS).enumerate() {
             let br = Branch::new(s, attrs.sigma[k], w);
             let mut cur = d0.to_vec();
@@ -651,7 +609,7 @@ mod tests {
                 for (ti, &tt) in times.iter().enumerate() {
                     if tt == t {
                         for i in 0..p {
-                            out[i] += (softmax3(tmix, i)[ti] * softmax3(kmix, i)[k]) * cur[i];
+                            out[i] += (tmix.at(i)[ti] * kmix.at(i)[k]) * cur[i];
                         }
                     }
                 }
@@ -677,6 +635,7 @@ mod tests {
             (1, 9, 2),
             (20, 8, 0),
             (31, 33, 8),
+            (8, 150, 4), // rows wider than two portable chunks
         ] {
             let p = h * w;
             let codes = |n: usize, next: &mut dyn FnMut() -> u32| -> Vec<i8> {

@@ -1,8 +1,10 @@
 //! One propagation step of one refinement branch for one output row, in the order the module
 //! doc of [`super`] fixes, with a path per kernel set: AVX2 / AVX-512 runs of 8 or 16 pixels
-//! (x86), a table-driven scalar path for FPUs without vectors (Cortex-M), `L`-pixel lane groups
-//! elsewhere, and [`step_pixel`] with per-neighbour bounds tests at the borders. Every path adds
-//! the same terms in the same order per pixel, so the bits do not depend on which ran.
+//! (x86), neighbour-major chunks for the portable set (Cortex-M, aarch64, the reference),
+//! `L`-pixel lane groups for f32 maps, and [`step_pixel`] with per-neighbour bounds tests at
+//! the left and right borders. Neighbours outside the image are skipped; the rest add their
+//! terms in raster order. Every path adds the same terms in the same order per pixel, so the
+//! bits do not depend on which ran.
 
 use super::{I8Map, Map};
 use crate::kernels::float::{exp, relu};
@@ -72,6 +74,18 @@ impl Branch {
         self.rad
     }
 
+    /// The neighbours (a contiguous run in raster order) whose row lies inside an image `h`
+    /// rows high, for a pixel of row `y`.
+    pub fn inside_rows(&self, h: usize, y: usize) -> core::ops::Range<usize> {
+        let inside = |j: &usize| {
+            let ny = y as isize + self.off[*j].0;
+            ny >= 0 && ny < h as isize
+        };
+        let start = (0..self.n).find(inside).unwrap_or(self.n);
+        let end = (start..self.n).rev().find(inside).map_or(start, |j| j + 1);
+        start..end
+    }
+
     /// Prepares the scalar path's table for int8 affinities quantised with `q`.
     pub fn set_quant(&mut self, q: QParams) {
         if self.lut.is_some_and(|(have, _)| have == q) {
@@ -132,8 +146,8 @@ pub fn step_row<A: Map>(
             None => unsafe { row_avx2(a, br, h, w, y, at, cur, nxt) },
         },
         _ => match (a.as_i8(), &br.lut) {
-            (Some(m), Some((q, lut))) if PORTABLE_LANES == 1 && *q == m.q() => {
-                row_i8_scalar(m, lut, br, h, w, y, at, cur, nxt)
+            (Some(m), Some((q, lut))) if *q == m.q() => {
+                return row_i8_chunks(m, lut, br, h, w, y, at, cur, nxt)
             }
             _ => row_lanes::<A, PORTABLE_LANES>(a, br, h, w, y, at, cur, nxt),
         },
@@ -141,10 +155,17 @@ pub fn step_row<A: Map>(
     Ok(())
 }
 
-/// Row `y` on an int8 map for scalar FPUs: `relu(dequantise(q))` from the branch's table (the
-/// same f32 values), interior pixels without bounds tests, borders through [`step_pixel`].
+/// Pixels per chunk of [`row_i8_chunks`] (its two f32 accumulator rows live on the stack).
+const CHUNK: usize = 64;
+
+/// Row `y` on an int8 map for the portable kernel set: the columns whose windows lie inside
+/// the image in chunks of [`CHUNK`] pixels, four neighbours at a time over each chunk
+/// (`relu(dequantise(q))` from the branch's table, the same f32 values), so the inner loop has
+/// no bounds test and vectorises where the target has vectors; every pixel still adds its terms
+/// in neighbour order. Neighbour rows outside the image are skipped ([`Branch::inside_rows`]);
+/// the `r` columns at each side go through [`step_pixel`].
 #[allow(clippy::too_many_arguments)]
-fn row_i8_scalar(
+fn row_i8_chunks(
     a: &I8Map,
     lut: &[f32; 256],
     br: &Branch,
@@ -154,34 +175,61 @@ fn row_i8_scalar(
     at: RowAt,
     cur: &[f32],
     nxt: &mut [f32],
-) {
-    let (n, rad) = (br.n, br.rad);
-    let mut r = [0f32; MAX_NEIGHBOURS];
-    let (data, plane) = (a.data(), a.plane());
-    let inner_row = y >= rad && y + rad < h;
-    for (x, o) in nxt.iter_mut().enumerate() {
-        if !(inner_row && x >= rad && x + rad < w) {
-            *o = step_pixel(a, br, h, w, y, x, at, cur);
-            continue;
-        }
-        let (ia, ic) = (at.aff + x, at.cur + x);
-        let mut s = 0.0f32;
-        for (j, (rj, &gj)) in r[..n].iter_mut().zip(&br.g).enumerate() {
-            *rj = lut[data[j * plane + ia] as u8 as usize] * gj;
-            s += *rj;
-        }
-        let q = 1.0 / (1.0 + s);
-        let mut wsum = 0.0f32;
-        for rj in r[..n].iter_mut() {
-            *rj *= q;
-            wsum += *rj;
-        }
-        let mut d = (1.0 - wsum) * cur[ic];
-        for (&wj, &dj) in r[..n].iter().zip(&br.delta) {
-            d += wj * cur[(ic as isize + dj) as usize];
-        }
-        *o = d;
+) -> Result<(), KernelError> {
+    let rad = br.rad;
+    let (x0, x1) = if w > 2 * rad { (rad, w - rad) } else { (w, w) };
+    for x in (0..x0.min(w)).chain(x1.max(x0)..w) {
+        nxt[x] = step_pixel(a, br, h, w, y, x, at, cur);
     }
+    let inside = br.inside_rows(h, y);
+    let mut x = x0;
+    while x < x1 {
+        let len = (x1 - x).min(CHUNK);
+        let (mut s, mut acc) = ([0f32; CHUNK], [0f32; CHUNK]);
+        let (s, acc) = (&mut s[..len], &mut acc[..len]);
+        let ic = at.cur + x;
+        acc.copy_from_slice(cur.get(ic..ic + len).ok_or(KernelError::Shape)?);
+        // Neighbour j's codes and previous-iteration values over the chunk.
+        let terms = |j: usize| -> Result<(&[i8], &[f32], f32), KernelError> {
+            let ia = j * a.plane() + at.aff + x;
+            let codes = a.data().get(ia..ia + len).ok_or(KernelError::Shape)?;
+            let c0 = ic
+                .checked_add_signed(br.delta[j])
+                .ok_or(KernelError::Shape)?;
+            let nb = cur.get(c0..c0 + len).ok_or(KernelError::Shape)?;
+            Ok((codes, nb, br.g[j]))
+        };
+        let mut j = inside.start;
+        while j + 4 <= inside.end {
+            let [(q0, d0, g0), (q1, d1, g1), (q2, d2, g2), (q3, d3, g3)] =
+                [terms(j)?, terms(j + 1)?, terms(j + 2)?, terms(j + 3)?];
+            // Every slice is `len` long: the indexing below needs no bounds test.
+            let (q0, q1, q2, q3) = (&q0[..len], &q1[..len], &q2[..len], &q3[..len]);
+            let (d0, d1, d2, d3) = (&d0[..len], &d1[..len], &d2[..len], &d3[..len]);
+            for i in 0..len {
+                let r0 = lut[q0[i] as u8 as usize] * g0;
+                let r1 = lut[q1[i] as u8 as usize] * g1;
+                let r2 = lut[q2[i] as u8 as usize] * g2;
+                let r3 = lut[q3[i] as u8 as usize] * g3;
+                s[i] = (((s[i] + r0) + r1) + r2) + r3;
+                acc[i] = (((acc[i] + r0 * d0[i]) + r1 * d1[i]) + r2 * d2[i]) + r3 * d3[i];
+            }
+            j += 4;
+        }
+        for j in j..inside.end {
+            let (codes, nb, g) = terms(j)?;
+            for (((s, acc), &q), &d) in s.iter_mut().zip(acc.iter_mut()).zip(codes).zip(nb) {
+                let r = lut[q as u8 as usize] * g;
+                *s += r;
+                *acc += r * d;
+            }
+        }
+        for ((o, &s), &acc) in nxt[x..x + len].iter_mut().zip(s.iter()).zip(acc.iter()) {
+            *o = acc / (1.0 + s);
+        }
+        x += len;
+    }
+    Ok(())
 }
 
 /// Row `y` on an int8 map with the AVX2 / AVX-512 run kernel for the interior pixels and
@@ -202,21 +250,23 @@ fn row_i8_avx2(
     use crate::kernels::x86_64::refine as simd;
     let (n, rad) = (br.n, br.rad);
     let (mut x0, mut x1) = (0, 0);
-    if y >= rad && y + rad < h && w > 2 * rad {
+    if w > 2 * rad {
         let wide = isa == Isa::Avx512Vnni && Isa::Avx512Vnni.available();
         let lanes = if wide { 16 } else { 8 };
         x0 = rad;
         x1 = rad + (w - 2 * rad) / lanes * lanes;
-        let args = (&br.delta[..n], &br.g[..n]);
+        let inside = br.inside_rows(h, y);
+        let args = (inside.start, &br.delta[inside.clone()], &br.g[inside]);
         // SAFETY: AVX2 (and AVX-512 F for `wide`) is available (the caller's match and the test
         // above); `step_row` checked that `a` has ≥ n channels holding `at.aff .. + w` and that
-        // rows y − rad ..= y + rad (all inside the image here) are in `cur` around `at.cur`, so
-        // every window of x0..x1 reads inside both.
+        // the rows of y − rad ..= y + rad inside the image are in `cur` around `at.cur`; the
+        // neighbours passed are those whose row is inside, so every window of x0..x1 reads
+        // inside both.
         unsafe {
             if wide {
-                simd::step_run512(a, args.0, args.1, at, x0, x1, cur, nxt)
+                simd::step_run512(a, args, at, x0, x1, cur, nxt)
             } else {
-                simd::step_run(a, args.0, args.1, at, x0, x1, cur, nxt)
+                simd::step_run(a, args, at, x0, x1, cur, nxt)
             }
         };
     }
@@ -266,7 +316,6 @@ fn row_lanes<A: Map, const L: usize>(
     nxt: &mut [f32],
 ) {
     let (n, rad) = (br.n, br.rad);
-    let mut r = [[0f32; L]; MAX_NEIGHBOURS];
     let inner_row = y >= rad && y + rad < h;
     let mut x = 0;
     while x < w {
@@ -277,43 +326,29 @@ fn row_lanes<A: Map, const L: usize>(
         }
         let (ia, ic) = (at.aff + x, at.cur + x);
         let mut s = [0f32; L];
-        for (j, (rj, &gj)) in r[..n].iter_mut().zip(&br.g).enumerate() {
-            let v = a.values::<L>(j, ia);
-            for l in 0..L {
-                rj[l] = relu(v[l]) * gj;
-                s[l] += rj[l];
-            }
-        }
-        let mut q = [0f32; L];
-        for l in 0..L {
-            q[l] = 1.0 / (1.0 + s[l]);
-        }
-        let mut wsum = [0f32; L];
-        for rj in r[..n].iter_mut() {
-            for l in 0..L {
-                rj[l] *= q[l];
-                wsum[l] += rj[l];
-            }
-        }
         let c: &[f32; L] = cur[ic..ic + L].try_into().unwrap_or(&[0.0; L]);
-        let mut d = [0f32; L];
-        for l in 0..L {
-            d[l] = (1.0 - wsum[l]) * c[l];
-        }
-        for (rj, &dj) in r[..n].iter().zip(&br.delta) {
+        let mut acc = *c;
+        for (j, (&gj, &dj)) in br.g[..n].iter().zip(&br.delta).enumerate() {
+            let v = a.values::<L>(j, ia);
             let k = (ic as isize + dj) as usize;
             let cn: &[f32; L] = cur[k..k + L].try_into().unwrap_or(&[0.0; L]);
             for l in 0..L {
-                d[l] += rj[l] * cn[l];
+                let r = relu(v[l]) * gj;
+                s[l] += r;
+                acc[l] += r * cn[l];
             }
+        }
+        let mut d = [0f32; L];
+        for l in 0..L {
+            d[l] = acc[l] / (1.0 + s[l]);
         }
         nxt[x..x + L].copy_from_slice(&d);
         x += L;
     }
 }
 
-/// Pixel `(y, x)` of one step with per-neighbour bounds tests (neighbours outside the image get
-/// weight 0 and stand for the pixel itself).
+/// Pixel `(y, x)` of one step with per-neighbour bounds tests (neighbours outside the image are
+/// skipped).
 #[allow(clippy::too_many_arguments)]
 #[inline]
 pub fn step_pixel<A: Map>(
@@ -327,32 +362,17 @@ pub fn step_pixel<A: Map>(
     cur: &[f32],
 ) -> f32 {
     let (ia, ic) = (at.aff + x, at.cur + x);
-    let n = br.n;
-    let mut r = [0f32; MAX_NEIGHBOURS];
-    let mut idx = [0usize; MAX_NEIGHBOURS];
     let mut s = 0.0f32;
-    #[allow(clippy::needless_range_loop)] // j indexes four tables of the branch in step
-    for j in 0..n {
+    let mut acc = cur[ic];
+    for j in 0..br.n {
         let (dy, dx) = br.off[j];
         let (ny, nx) = (y as isize + dy, x as isize + dx);
         if ny < 0 || nx < 0 || ny >= h as isize || nx >= w as isize {
-            r[j] = 0.0;
-            idx[j] = ic;
-        } else {
-            r[j] = relu(a.value(j, ia)) * br.g[j];
-            idx[j] = (ic as isize + br.delta[j]) as usize;
+            continue;
         }
-        s += r[j];
+        let r = relu(a.value(j, ia)) * br.g[j];
+        s += r;
+        acc += r * cur[(ic as isize + br.delta[j]) as usize];
     }
-    let q = 1.0 / (1.0 + s);
-    let mut wsum = 0.0f32;
-    for rj in r[..n].iter_mut() {
-        *rj *= q;
-        wsum += *rj;
-    }
-    let mut d = (1.0 - wsum) * cur[ic];
-    for (&wj, &k) in r[..n].iter().zip(&idx[..n]) {
-        d += wj * cur[k];
-    }
-    d
+    acc / (1.0 + s)
 }

@@ -1,8 +1,7 @@
 //! AVX2 / AVX-512 refinement on int8 maps, 8 or 16 pixels per vector: [`crate::kernels::refine`]'s step and
 //! output accumulation with every pixel's operations in the module doc's order (IEEE
-//! multiply, add, divide, max; no FMA), so the bits equal the per-pixel path's.
+//! multiply, add, divide, max, table gather; no FMA), so the bits equal the per-pixel path's.
 
-use super::vmath::exp_ps;
 use crate::kernels::refine::I8Map;
 use crate::kernels::refine::RowAt;
 use core::arch::x86_64::*;
@@ -27,7 +26,6 @@ trait Lanes: Copy {
     unsafe fn dequant(p: *const i8, zp: i32, scale: f32) -> Self;
     unsafe fn max(a: Self, b: Self) -> Self;
     unsafe fn add(a: Self, b: Self) -> Self;
-    unsafe fn sub(a: Self, b: Self) -> Self;
     unsafe fn mul(a: Self, b: Self) -> Self;
     unsafe fn div(a: Self, b: Self) -> Self;
     unsafe fn load(p: *const f32) -> Self;
@@ -57,10 +55,6 @@ impl Lanes for __m256 {
     #[inline(always)]
     unsafe fn add(a: Self, b: Self) -> Self {
         _mm256_add_ps(a, b)
-    }
-    #[inline(always)]
-    unsafe fn sub(a: Self, b: Self) -> Self {
-        _mm256_sub_ps(a, b)
     }
     #[inline(always)]
     unsafe fn mul(a: Self, b: Self) -> Self {
@@ -105,10 +99,6 @@ impl Lanes for __m512 {
         _mm512_add_ps(a, b)
     }
     #[inline(always)]
-    unsafe fn sub(a: Self, b: Self) -> Self {
-        _mm512_sub_ps(a, b)
-    }
-    #[inline(always)]
     unsafe fn mul(a: Self, b: Self) -> Self {
         _mm512_mul_ps(a, b)
     }
@@ -126,14 +116,15 @@ impl Lanes for __m512 {
     }
 }
 
-/// The interior pixels `x0..x1` of a row located by `at` (every window inside, `x1 − x0` a
-/// multiple of `L`) of one propagation step into `nxt[x0..x1]`, `L` pixels per vector.
+/// Pixels `x0..x1` of a row located by `at` (`x1 − x0` a multiple of `L`) of one propagation
+/// step into `nxt[x0..x1]`, `L` pixels per vector, over the neighbours `j0 ..` whose offsets
+/// and Gaussians are `delta`, `g` (those whose row is inside the image; their columns inside
+/// for every pixel of `x0..x1`).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 unsafe fn step_lanes<V: Lanes>(
     a: &I8Map,
-    delta: &[isize],
-    g: &[f32],
+    (j0, delta, g): (usize, &[isize], &[f32]),
     at: RowAt,
     x0: usize,
     x1: usize,
@@ -146,36 +137,28 @@ unsafe fn step_lanes<V: Lanes>(
     let plane = a.plane();
     let zero = V::zero();
     let one = V::splat(1.0);
-    let mut r = [zero; 48];
+    let c = cur.as_ptr();
     let mut x = x0;
     while x + V::L <= x1 {
         let (ia, i) = (at.aff + x, at.cur + x);
         let mut s = zero;
-        for (j, (rj, &gj)) in r[..n].iter_mut().zip(g).enumerate() {
-            let v = V::max(V::dequant(data.add(j * plane + ia), zp, scale), zero);
-            *rj = V::mul(v, V::splat(gj));
-            s = V::add(s, *rj);
-        }
-        let q = V::div(one, V::add(one, s));
-        let mut wsum = zero;
-        for rj in r[..n].iter_mut() {
-            *rj = V::mul(*rj, q);
-            wsum = V::add(wsum, *rj);
-        }
-        let c = cur.as_ptr();
-        let mut d = V::mul(V::sub(one, wsum), V::load(c.add(i)));
-        for (rj, &dj) in r[..n].iter().zip(delta) {
+        let mut acc = V::load(c.add(i));
+        for (j, (&gj, &dj)) in g[..n].iter().zip(delta).enumerate() {
+            let v = V::max(V::dequant(data.add((j0 + j) * plane + ia), zp, scale), zero);
+            let r = V::mul(v, V::splat(gj));
+            s = V::add(s, r);
             let cn = V::load(c.offset(i as isize + dj));
-            d = V::add(d, V::mul(*rj, cn));
+            acc = V::add(acc, V::mul(r, cn));
         }
+        let d = V::div(acc, V::add(one, s));
         V::store(nxt.as_mut_ptr().add(x), d);
         x += V::L;
     }
 }
 
-/// [`step_lanes`] with 8 lanes. Callers check that `a` has `delta.len()` channels holding
-/// `at.aff + x` for `x < x1`, that every `at.cur + x + delta` of `x0..x1` lies in `cur`, and
-/// that `nxt` holds `x1` values.
+/// [`step_lanes`] with 8 lanes over `neighbours = (j0, delta, g)`. Callers check that `a` has
+/// `j0 + delta.len()` channels holding `at.aff + x` for `x < x1`, that every
+/// `at.cur + x + delta` of `x0..x1` lies in `cur`, and that `nxt` holds `x1` values.
 ///
 /// # Safety
 /// The CPU must have AVX2 and the conditions above must hold.
@@ -183,15 +166,14 @@ unsafe fn step_lanes<V: Lanes>(
 #[allow(clippy::too_many_arguments)]
 pub unsafe fn step_run(
     a: &I8Map,
-    delta: &[isize],
-    g: &[f32],
+    neighbours: (usize, &[isize], &[f32]),
     at: RowAt,
     x0: usize,
     x1: usize,
     cur: &[f32],
     nxt: &mut [f32],
 ) {
-    step_lanes::<__m256>(a, delta, g, at, x0, x1, cur, nxt)
+    step_lanes::<__m256>(a, neighbours, at, x0, x1, cur, nxt)
 }
 
 /// [`step_run`] with 16 lanes (`x1 − x0` a multiple of 16).
@@ -202,38 +184,38 @@ pub unsafe fn step_run(
 #[allow(clippy::too_many_arguments)]
 pub unsafe fn step_run512(
     a: &I8Map,
-    delta: &[isize],
-    g: &[f32],
+    neighbours: (usize, &[isize], &[f32]),
     at: RowAt,
     x0: usize,
     x1: usize,
     cur: &[f32],
     nxt: &mut [f32],
 ) {
-    step_lanes::<__m512>(a, delta, g, at, x0, x1, cur, nxt)
+    step_lanes::<__m512>(a, neighbours, at, x0, x1, cur, nxt)
 }
 
-/// `softmax3` of pixels `i..i + 8` of a 3-channel map.
+/// Codes `i..i + 8` of channel `c` as i32.
 #[target_feature(enable = "avx2")]
 #[inline]
-unsafe fn softmax3(m: &I8Map, i: usize) -> [__m256; 3] {
-    let v = [load8(m, 0, i), load8(m, 1, i), load8(m, 2, i)];
-    let mx = _mm256_max_ps(_mm256_max_ps(v[0], v[1]), v[2]);
-    let e = [
-        exp_ps(_mm256_sub_ps(v[0], mx)),
-        exp_ps(_mm256_sub_ps(v[1], mx)),
-        exp_ps(_mm256_sub_ps(v[2], mx)),
-    ];
-    let s = _mm256_add_ps(_mm256_add_ps(e[0], e[1]), e[2]);
-    [
-        _mm256_div_ps(e[0], s),
-        _mm256_div_ps(e[1], s),
-        _mm256_div_ps(e[2], s),
-    ]
+unsafe fn codes8(m: &I8Map, c: usize, i: usize) -> __m256i {
+    let p = m.data().as_ptr().add(c * m.plane() + i);
+    _mm256_cvtepi8_epi32(_mm_loadl_epi64(p as *const __m128i))
 }
 
-/// `out[i] += (softmax3(tmix)[ti] · softmax3(kmix)[k]) · cur[i]` for the first `⌊p/8⌋·8`
-/// values, which are the map pixels `first ..`; returns how many.
+/// `Mix::at` of pixels `i..i + 8` of a 3-channel int8 map with its exponential table `e`.
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn softmax3(m: &I8Map, e: &[f32; 256], i: usize) -> [__m256; 3] {
+    let q = [codes8(m, 0, i), codes8(m, 1, i), codes8(m, 2, i)];
+    let mx = _mm256_max_epi32(_mm256_max_epi32(q[0], q[1]), q[2]);
+    // max − q ∈ 0..=255 for int8 codes: inside the table.
+    let e = q.map(|q| _mm256_i32gather_ps::<4>(e.as_ptr(), _mm256_sub_epi32(mx, q)));
+    let s = _mm256_add_ps(_mm256_add_ps(e[0], e[1]), e[2]);
+    e.map(|e| _mm256_div_ps(e, s))
+}
+
+/// `out[i] += (tmix.at(first + i)[ti] · kmix.at(first + i)[k]) · cur[i]` (`refine::Mix`) for
+/// the first `⌊p/8⌋·8` values, which are the map pixels `first ..`; returns how many.
 ///
 /// # Safety
 /// The CPU must have AVX2 and both maps 3 channels over ≥ `first + p` pixels.
@@ -241,8 +223,8 @@ unsafe fn softmax3(m: &I8Map, i: usize) -> [__m256; 3] {
 pub unsafe fn accumulate(
     out: &mut [f32],
     cur: &[f32],
-    tmix: &I8Map,
-    kmix: &I8Map,
+    tmix: (&I8Map, &[f32; 256]),
+    kmix: (&I8Map, &[f32; 256]),
     ti: usize,
     k: usize,
     first: usize,
@@ -250,8 +232,8 @@ pub unsafe fn accumulate(
     let p = out.len().min(cur.len());
     let mut i = 0;
     while i + 8 <= p {
-        let t = softmax3(tmix, first + i)[ti.min(2)];
-        let m = softmax3(kmix, first + i)[k.min(2)];
+        let t = softmax3(tmix.0, tmix.1, first + i)[ti.min(2)];
+        let m = softmax3(kmix.0, kmix.1, first + i)[k.min(2)];
         let o = out.as_mut_ptr().add(i);
         let add = _mm256_mul_ps(_mm256_mul_ps(t, m), _mm256_loadu_ps(cur.as_ptr().add(i)));
         _mm256_storeu_ps(o, _mm256_add_ps(_mm256_loadu_ps(o), add));
@@ -261,8 +243,8 @@ pub unsafe fn accumulate(
 }
 
 /// Pixels `x0..x0 + 8` (`x0 + 8 ≤ w`) of row `y`, located by `at`, of one propagation step with
-/// neighbours outside the image masked per lane: weight `+0`, neighbour value the pixel's own,
-/// exactly what the per-pixel path adds for them. Callers check that `a` has `off.len()`
+/// neighbours outside the image skipped per lane (their sums keep the lane's previous value),
+/// as the per-pixel path skips them. Callers check that `a` has `off.len()`
 /// channels holding `at.aff .. + w`, that the image rows around `y` lie in `cur` around
 /// `at.cur`, and that `nxt` holds `w` values.
 ///
@@ -289,42 +271,28 @@ pub unsafe fn step_masked(
     let (ia, i) = (at.aff + x0, at.cur + x0);
     let c = cur.as_ptr();
     let own = _mm256_loadu_ps(c.add(i));
-    let mut r = [zero; 48];
-    let mut valid = [_mm256_setzero_si256(); 48];
     let mut s = zero;
+    let mut acc = own;
     for j in 0..n {
         let (dy, dx) = off[j];
         let ny = y as isize + dy;
-        let row_ok = ny >= 0 && ny < h as isize;
+        if ny < 0 || ny >= h as isize {
+            continue;
+        }
         let xs = _mm256_add_epi32(lane, _mm256_set1_epi32((x0 as isize + dx) as i32));
-        let col_ok = _mm256_and_si256(
+        let valid = _mm256_and_si256(
             _mm256_cmpgt_epi32(xs, _mm256_set1_epi32(-1)),
             _mm256_cmpgt_epi32(_mm256_set1_epi32(w as i32), xs),
         );
-        valid[j] = if row_ok {
-            col_ok
-        } else {
-            _mm256_setzero_si256()
-        };
+        let keep = _mm256_castsi256_ps(valid);
         let v = _mm256_max_ps(load8(a, j, ia), zero);
-        let rj = _mm256_mul_ps(v, _mm256_set1_ps(g[j]));
-        r[j] = _mm256_and_ps(rj, _mm256_castsi256_ps(valid[j]));
-        s = _mm256_add_ps(s, r[j]);
-    }
-    let q = _mm256_div_ps(one, _mm256_add_ps(one, s));
-    let mut wsum = zero;
-    for rj in r[..n].iter_mut() {
-        *rj = _mm256_mul_ps(*rj, q);
-        wsum = _mm256_add_ps(wsum, *rj);
-    }
-    let mut d = _mm256_mul_ps(_mm256_sub_ps(one, wsum), own);
-    for j in 0..n {
-        let (dy, dx) = off[j];
+        let r = _mm256_mul_ps(v, _mm256_set1_ps(g[j]));
+        s = _mm256_blendv_ps(s, _mm256_add_ps(s, r), keep);
         let k = i as isize + dy * w as isize + dx;
-        // Masked-off lanes are not read (maskload does not fault on them).
-        let nb = _mm256_maskload_ps(c.offset(k), valid[j]);
-        let cn = _mm256_blendv_ps(own, nb, _mm256_castsi256_ps(valid[j]));
-        d = _mm256_add_ps(d, _mm256_mul_ps(r[j], cn));
+        // Masked-off lanes are not read (maskload does not fault on them) and not added.
+        let cn = _mm256_maskload_ps(c.offset(k), valid);
+        acc = _mm256_blendv_ps(acc, _mm256_add_ps(acc, _mm256_mul_ps(r, cn)), keep);
     }
+    let d = _mm256_div_ps(acc, _mm256_add_ps(one, s));
     _mm256_storeu_ps(nxt.as_mut_ptr().add(x0), d);
 }
