@@ -130,6 +130,7 @@ pub(crate) fn tan_half_fov(x: f64) -> f64 {
 /// and a low part, so `k·LN2_HI` is exact for the `k` that occur), a degree-7 Taylor polynomial
 /// of `e^r` in Horner form (truncation below 3e-9 relative), then `2^k` applied through the
 /// exponent bits in two steps so that `k` down to −150 and up to 128 scale without overflow.
+#[inline(always)] // hot in the bins head and the mixing tables; not worth a call
 pub(crate) fn exp_f32(x: f32) -> f32 {
     const LOG2_E: f32 = core::f32::consts::LOG2_E;
     const LN2_HI: f32 = 0.693_145_75; // 0x3f31_7200, 16 significant bits: k·LN2_HI is exact

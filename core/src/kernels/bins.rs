@@ -68,7 +68,11 @@ pub fn bin_centres(
 
 /// Softmax expectation `Σ softmax(l)_i · c_i` in the fixed order described in the module doc.
 pub fn expected_depth(logits: &[f32], centres: &[f32]) -> f32 {
-    let m = logits.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
+    // `if b > a` rather than `f32::max`, which is a libm call on Cortex-M (same result: NaN
+    // logits are skipped either way, and ±0 give the same `exp(l − m)`).
+    let m = logits
+        .iter()
+        .fold(f32::NEG_INFINITY, |a, &b| if b > a { b } else { a });
     let (mut s, mut d) = (0.0f32, 0.0f32);
     for (&l, &c) in logits.iter().zip(centres) {
         let e = exp(l - m);
@@ -123,6 +127,31 @@ pub fn bins_head_i8(
     };
     let mut col = [0i32; MAX_BIN_FEATURES];
     let mut logits = [0f32; MAX_BINS];
+    #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+    if isa == Isa::ArmDsp {
+        use super::arm::dsp;
+        let mut words = [0u32; MAX_BIN_FEATURES / 2];
+        let mut sums = [0i32; MAX_BINS];
+        let mut done = lanes;
+        for (i, o) in out[..p].iter_mut().enumerate().skip(lanes) {
+            let x = (0..c).map(|k| features[k * p + i] as i32 - zp);
+            dsp::pack_pixel(x, &mut words[..c / 2]);
+            for (s, ch) in sums[..n].iter_mut().zip(channels) {
+                *s = ch.bias;
+            }
+            if !dsp::dot_rows(weights, c, &words[..c / 2], &mut sums[..n]) {
+                break;
+            }
+            for ((l, &s), ch) in logits[..n].iter_mut().zip(&sums[..n]).zip(channels) {
+                *l = s as f32 * ch.scale;
+            }
+            *o = expected_depth(&logits[..n], &centres[..n]);
+            done = i + 1;
+        }
+        if done == p {
+            return Ok(());
+        }
+    }
     for (i, o) in out[..p].iter_mut().enumerate().skip(lanes) {
         for (k, v) in col[..c].iter_mut().enumerate() {
             *v = features[k * p + i] as i32 - zp;

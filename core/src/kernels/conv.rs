@@ -769,6 +769,7 @@ fn run<F: Micro, S: Source>(
                         weights: &weights[b * dims.block_len..(b + 1) * dims.block_len],
                         steps,
                         ox0,
+                        pixels: n,
                     };
                     F::kernel(isa, &task, &mut acc);
                     let o0 = o_first + b * NB;

@@ -23,6 +23,9 @@ pub struct Task<'a, E, W> {
     pub steps: &'a [u32],
     /// First output column.
     pub ox0: usize,
+    /// Output columns of the block that are used (`1..=PB`; a kernel may leave the
+    /// accumulators of the others unset, as the Cortex-M one does at narrow layers).
+    pub pixels: usize,
 }
 
 impl<E, W> Task<'_, E, W> {

@@ -467,6 +467,34 @@ pub fn refine_with<R: AffinityRows, B: Map>(
     Ok(())
 }
 
+/// The vector part of [`accumulate`]: how many leading values it did (0 where the set has no
+/// vector path or a map is not int8).
+#[allow(clippy::too_many_arguments)]
+fn accumulate_vector<B: Map>(
+    isa: Isa,
+    out: &mut [f32],
+    cur: &[f32],
+    tmix: &Mix<B>,
+    kmix: &Mix<B>,
+    ti: usize,
+    k: usize,
+    first: usize,
+) -> usize {
+    #[cfg(target_arch = "x86_64")]
+    if matches!(isa, Isa::Avx2 | Isa::Avx512Vnni) && Isa::Avx2.available() {
+        if let (Some(t), Some(m)) = (tmix.int8(), kmix.int8()) {
+            let p = out.len().min(cur.len());
+            let fits = |m: &I8Map| m.channels >= 3 && m.plane >= first + p;
+            if fits(t.0) && fits(m.0) {
+                // SAFETY: AVX2 is available; both maps hold 3 channels of ≥ first + p pixels.
+                return unsafe { super::x86_64::refine::accumulate(out, cur, t, m, ti, k, first) };
+            }
+        }
+    }
+    let _ = (isa, out, cur, tmix, kmix, ti, k, first);
+    0
+}
+
 /// `out[i] += (tmix.at(first + i)[ti] · kmix.at(first + i)[k]) · cur[i]` for the values of
 /// `out` and `cur` (map pixels `first ..`).
 #[allow(clippy::too_many_arguments)]
@@ -481,18 +509,7 @@ fn accumulate<B: Map>(
     first: usize,
 ) {
     let p = out.len().min(cur.len());
-    let mut done = 0;
-    #[cfg(target_arch = "x86_64")]
-    if matches!(isa, Isa::Avx2 | Isa::Avx512Vnni) && Isa::Avx2.available() {
-        if let (Some(t), Some(m)) = (tmix.int8(), kmix.int8()) {
-            let fits = |m: &I8Map| m.channels >= 3 && m.plane >= first + p;
-            if fits(t.0) && fits(m.0) {
-                // SAFETY: AVX2 is available; both maps hold 3 channels of ≥ first + p pixels.
-                done = unsafe { super::x86_64::refine::accumulate(out, cur, t, m, ti, k, first) };
-            }
-        }
-    }
-    let _ = isa;
+    let done = accumulate_vector(isa, out, cur, tmix, kmix, ti, k, first);
     for i in done..p {
         let coef = tmix.at(first + i)[ti] * kmix.at(first + i)[k];
         out[i] += coef * cur[i];
