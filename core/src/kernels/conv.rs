@@ -330,24 +330,32 @@ pub struct RowQuant {
     pub max: i32,
 }
 
-/// `clamp(zp + MultiplyByQuantizedMultiplier(base + acc, M±))`, written without branches:
-/// [`Requant::apply`] for `shift ≤ 0` and a non-negative multiplier (then no left shift and no
-/// saturating case), bit for bit.
+/// `clamp(zp + MultiplyByQuantizedMultiplier(base + acc, M±))` for `shift ≤ 0` and a
+/// non-negative multiplier ([`Requant::apply`] bit for bit, then no left shift and no saturating
+/// case) in two roundings that each reduce to one add and one shift:
+/// - SaturatingRoundingDoublingHighMul `trunc((ab + nudge) / 2^31)` with
+///   `nudge = 2^30` for `ab ≥ 0` and `1 − 2^30` for `ab < 0` equals `floor((ab + 2^30) / 2^31)`
+///   for both signs (for `ab < 0`, `trunc(t / 2^31) = floor((t + 2^31 − 1) / 2^31)`);
+/// - RoundingDivideByPOT (half away from zero) by `2^e`, `e ≥ 1`, equals
+///   `floor((q + 2^(e−1) − [q < 0]) / 2^e)`.
 #[inline(always)]
 fn requant_one(k: &RowQuant, v: i32) -> i8 {
     let x = k.base.wrapping_add(v);
-    let neg = x < 0;
-    let m = if neg { k.neg_m } else { k.pos_m } as i64;
-    let e = if neg { k.neg_r } else { k.pos_r };
-    // SaturatingRoundingDoublingHighMul (a·b never saturates: b ≥ 0).
-    let ab = x as i64 * m;
-    let t = ab + if ab >= 0 { 1 << 30 } else { 1 - (1 << 30) };
-    let q = ((t >> 31) + i64::from(t < 0 && (t & 0x7FFF_FFFF) != 0)) as i32;
-    // RoundingDivideByPOT.
-    let mask = ((1i64 << e) - 1) as i32;
-    let rem = q & mask;
-    let threshold = (mask >> 1) + i32::from(q < 0);
-    let r = (q >> e) + i32::from(rem > threshold);
+    let (m, e) = if x < 0 {
+        (k.neg_m, k.neg_r)
+    } else {
+        (k.pos_m, k.pos_r)
+    };
+    let q = ((x as i64 * m as i64 + (1 << 30)) >> 31) as i32;
+    // In 32 bits: floor((q + c) / 2^e) = (q >> e) + floor((q mod 2^e + c) / 2^e), and
+    // q mod 2^e + 2^(e−1) − [q < 0] lies in 0 .. 2^31 + 2^30 (u32, e ≤ 31).
+    let r = if e <= 0 {
+        q
+    } else {
+        let e = e.min(31) as u32;
+        let low = (q as u32 & ((1u32 << e) - 1)) + (1u32 << (e - 1)) - u32::from(q < 0);
+        (q >> e) + (low >> e) as i32
+    };
     r.saturating_add(k.zp).clamp(k.min, k.max) as i8
 }
 
@@ -1319,6 +1327,36 @@ pub(crate) mod tests {
                 conv2d_parts_with(isa, &op, &parts, s, &dst, &mut got, &mut scratch).unwrap();
                 prop_assert_eq!(&got, &want, "{}", isa.name());
             }
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn requant_one_is_the_reference_requantisation(
+            x in any::<i32>(),
+            m in 0i32..=i32::MAX,
+            e in 0i32..=31,
+            zp in -128i32..=127,
+            edge in 0usize..8,
+            m_edge in 0usize..4,
+        ) {
+            // Exact halves at both roundings: m = 2^30 (×0.5) on odd x, small x, extremes.
+            let x = [x, 0, -1, i32::MIN, i32::MAX, x >> 16, x >> 24, (x >> 20) | 1][edge];
+            let m = [m, 1 << 30, (1 << 30) + 1, i32::MAX][m_edge];
+            let r = crate::kernels::requant::Requant { multiplier: m, shift: -e };
+            let k = RowQuant {
+                simple: true,
+                base: 0,
+                pos_m: m,
+                neg_m: m,
+                pos_r: e,
+                neg_r: e,
+                zp,
+                min: -128,
+                max: 127,
+            };
+            let want = r.apply(x).saturating_add(zp).clamp(-128, 127) as i8;
+            prop_assert_eq!(requant_one(&k, x), want);
         }
     }
 
