@@ -18,6 +18,52 @@ fn src(o: usize, n_in: usize, n_out: usize) -> (usize, i64, i64) {
     (num / den, (num % den) as i64, den as i64)
 }
 
+/// The source coordinates of outputs `0, 1, …` in order, as [`src`] gives them, by an exact
+/// running remainder instead of a division per output.
+struct Coords {
+    i0: usize,
+    f: i64,
+    step: i64,
+    den: i64,
+}
+
+impl Coords {
+    fn new(n_in: usize, n_out: usize) -> Coords {
+        let (step, den) = if n_out <= 1 || n_in <= 1 {
+            (0, 1)
+        } else {
+            ((n_in - 1) as i64, (n_out - 1) as i64)
+        };
+        Coords {
+            i0: 0,
+            f: 0,
+            step,
+            den,
+        }
+    }
+
+    /// `(i0, f, den)` of the current output, then moves to the next.
+    #[inline]
+    fn next(&mut self) -> (usize, i64, i64) {
+        let here = (self.i0, self.f, self.den);
+        self.f += self.step;
+        while self.f >= self.den {
+            self.f -= self.den;
+            self.i0 += 1;
+        }
+        here
+    }
+}
+
+#[inline]
+fn div_round_i32(n: i32, d: i32) -> i32 {
+    if n >= 0 {
+        (n + d / 2) / d
+    } else {
+        -((-n + d / 2) / d)
+    }
+}
+
 fn check<T>(input: &[T], in_shape: Shape, out: &[T], out_shape: Shape) -> Result<(), KernelError> {
     need(input, in_shape)?;
     need(out, out_shape)?;
@@ -90,12 +136,22 @@ pub fn upsample_bilinear(
             let (r0, r1) = (&chan[y0 * iw..(y0 + 1) * iw], &chan[y1 * iw..(y1 + 1) * iw]);
             let orow = &mut out
                 [(c * out_shape.h + oy) * out_shape.w..(c * out_shape.h + oy + 1) * out_shape.w];
-            for (ox, o) in orow.iter_mut().enumerate() {
-                let (x0, fx, dx) = src(ox, iw, out_shape.w);
+            let mut cols = Coords::new(iw, out_shape.w);
+            // |sum| ≤ 128·dx·dy: in 32 bits (a hardware divide on Cortex-M) unless huge.
+            let narrow = cols.den * dy <= 1 << 23;
+            for o in orow.iter_mut() {
+                let (x0, fx, dx) = cols.next();
                 let x1 = (x0 + 1).min(iw - 1);
-                let top = r0[x0] as i64 * (dx - fx) + r0[x1] as i64 * fx;
-                let bot = r1[x0] as i64 * (dx - fx) + r1[x1] as i64 * fx;
-                *o = div_round(top * (dy - fy) + bot * fy, dx * dy).clamp(-128, 127) as i8;
+                if narrow {
+                    let (fx, dx, fy, dy) = (fx as i32, dx as i32, fy as i32, dy as i32);
+                    let top = i32::from(r0[x0]) * (dx - fx) + i32::from(r0[x1]) * fx;
+                    let bot = i32::from(r1[x0]) * (dx - fx) + i32::from(r1[x1]) * fx;
+                    *o = div_round_i32(top * (dy - fy) + bot * fy, dx * dy).clamp(-128, 127) as i8;
+                } else {
+                    let top = r0[x0] as i64 * (dx - fx) + r0[x1] as i64 * fx;
+                    let bot = r1[x0] as i64 * (dx - fx) + r1[x1] as i64 * fx;
+                    *o = div_round(top * (dy - fy) + bot * fy, dx * dy).clamp(-128, 127) as i8;
+                }
             }
         }
     }
@@ -116,8 +172,9 @@ pub fn upsample_bilinear_f32(
             let (y0, fy, dy) = src(oy, ih, out_shape.h);
             let y1 = (y0 + 1).min(ih - 1);
             let wy = fy as f32 / dy as f32;
+            let mut cols = Coords::new(iw, out_shape.w);
             for ox in 0..out_shape.w {
-                let (x0, fx, dx) = src(ox, iw, out_shape.w);
+                let (x0, fx, dx) = cols.next();
                 let x1 = (x0 + 1).min(iw - 1);
                 let wx = fx as f32 / dx as f32;
                 let v = |y: usize, x: usize| input[(c * ih + y) * iw + x];
@@ -201,6 +258,18 @@ mod tests {
             let s = Shape::new(c, ih, iw);
             let x = (0..s.len().unwrap()).map(|i| ((i as u32).wrapping_mul(2654435761) ^ seed) as i8).collect();
             Case { x, s, o: Shape::new(c, oh, ow), expect: None }
+        }
+    }
+
+    #[test]
+    fn running_coordinates_equal_the_division() {
+        for n_in in 1..40 {
+            for n_out in 1..90 {
+                let mut c = Coords::new(n_in, n_out);
+                for o in 0..n_out {
+                    assert_eq!(c.next(), src(o, n_in, n_out), "{n_in} → {n_out} at {o}");
+                }
+            }
         }
     }
 
