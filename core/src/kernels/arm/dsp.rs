@@ -1,49 +1,133 @@
 //! Cortex-M4/M7 DSP [`crate::kernels::pack::Pairs`] kernel: `SMLAD` adds both 16-bit
 //! products of a packed word and a weight word to a 32-bit accumulator in one instruction.
-//! Block: 2 channels × 2 pixels (4 accumulators in registers); one hand-scheduled loop over all
-//! reduction steps (`LDR` step offset, `LDRD` pixels, `LDRD` weights with post-increment, four
-//! `SMLAD`): 10 instructions per 8 multiply-accumulates.
+//! Block: 2 channels × 2 pixels (4 accumulators in registers). Per call the reduction steps
+//! become a table of absolute pixel addresses (in chunks of [`CHUNK`] on the stack), and each
+//! pixel pair's offset from them is an immediate of the `LDRD` (one loop per pair position), so a
+//! step is `LDR` address, `LDRD` pixels, `LDRD` weights, four `SMLAD`: 16 instructions per two
+//! steps (16 multiply-accumulates) with the loop unrolled twice.
 
 use crate::kernels::dot::{Acc, Task};
 use crate::kernels::pack::{NB, PB};
+use core::mem::MaybeUninit;
 
-/// The 2×2 sums over `n` reduction steps. `px`: the two pixel words at step offset 0; `steps`:
-/// 16-bit-element offsets of each step from `px`; `w`: the two weight words of step 0 (the next step's
-/// are `4·NB` bytes on).
+/// Reduction steps per address table (1 KiB of stack).
+const CHUNK: usize = 256;
+
+/// Adds the 2×2 sums of the steps whose pixel-word addresses are `tab[..n]` to `a`; the pixel
+/// pair sits `OFF` bytes past each address, the weights of step `k` are the two words at
+/// `w + 4·NB·k` (words).
 ///
 /// # Safety
-/// `n ≥ 1`; `steps` holds `n` entries, and every `px + 2·steps[k]` (8 bytes) and `w + k·4·NB`
-/// (8 bytes) must be readable and 4-aligned.
+/// Every `tab[k] + OFF` (8 bytes) and `w + 4·NB·k` (8 bytes) for `k < n` must be readable and
+/// 4-aligned.
 #[inline(always)]
-unsafe fn block(px: *const u8, steps: *const u32, w: *const u32, n: usize) -> [i32; 4] {
-    let (mut a00, mut a01, mut a10, mut a11) = (0i32, 0i32, 0i32, 0i32);
-    core::arch::asm!(
-        "2:",
-        "ldr {p0}, [{steps}], #4",
-        "add {p0}, {px}, {p0}, lsl #1",
-        "ldrd {p0}, {p1}, [{p0}]",
-        "ldrd {w0}, {w1}, [{w}], #16",
-        "smlad {a00}, {p0}, {w0}, {a00}",
-        "smlad {a01}, {p1}, {w0}, {a01}",
-        "smlad {a10}, {p0}, {w1}, {a10}",
-        "smlad {a11}, {p1}, {w1}, {a11}",
-        "subs {n}, {n}, #1",
-        "bne 2b",
-        px = in(reg) px,
-        steps = inout(reg) steps => _,
-        w = inout(reg) w => _,
-        n = inout(reg) n => _,
-        p0 = out(reg) _,
-        p1 = out(reg) _,
-        w0 = out(reg) _,
-        w1 = out(reg) _,
-        a00 = inout(reg) a00,
-        a01 = inout(reg) a01,
-        a10 = inout(reg) a10,
-        a11 = inout(reg) a11,
-        options(nostack, readonly),
-    );
-    [a00, a01, a10, a11]
+unsafe fn block<const OFF: usize>(tab: *const u32, n: usize, w: *const u32, a: &mut [i32; 4]) {
+    let [mut a00, mut a01, mut a10, mut a11] = *a;
+    let pairs = n / 2;
+    let mut t = tab;
+    let mut w = w;
+    if pairs > 0 {
+        core::arch::asm!(
+            "2:",
+            "ldr {p0}, [{t}], #4",
+            "ldrd {p0}, {p1}, [{p0}, #{off}]",
+            "ldrd {w0}, {w1}, [{w}], #16",
+            "smlad {a00}, {p0}, {w0}, {a00}",
+            "smlad {a01}, {p1}, {w0}, {a01}",
+            "smlad {a10}, {p0}, {w1}, {a10}",
+            "smlad {a11}, {p1}, {w1}, {a11}",
+            "ldr {p0}, [{t}], #4",
+            "ldrd {p0}, {p1}, [{p0}, #{off}]",
+            "ldrd {w0}, {w1}, [{w}], #16",
+            "smlad {a00}, {p0}, {w0}, {a00}",
+            "smlad {a01}, {p1}, {w0}, {a01}",
+            "smlad {a10}, {p0}, {w1}, {a10}",
+            "smlad {a11}, {p1}, {w1}, {a11}",
+            "cmp {t}, {end}",
+            "bne 2b",
+            off = const OFF,
+            t = inout(reg) t,
+            end = in(reg) tab.add(2 * pairs),
+            w = inout(reg) w,
+            p0 = out(reg) _,
+            p1 = out(reg) _,
+            w0 = out(reg) _,
+            w1 = out(reg) _,
+            a00 = inout(reg) a00,
+            a01 = inout(reg) a01,
+            a10 = inout(reg) a10,
+            a11 = inout(reg) a11,
+            options(nostack, readonly),
+        );
+    }
+    if n % 2 == 1 {
+        core::arch::asm!(
+            "ldr {p0}, [{t}]",
+            "ldrd {p0}, {p1}, [{p0}, #{off}]",
+            "ldrd {w0}, {w1}, [{w}]",
+            "smlad {a00}, {p0}, {w0}, {a00}",
+            "smlad {a01}, {p1}, {w0}, {a01}",
+            "smlad {a10}, {p0}, {w1}, {a10}",
+            "smlad {a11}, {p1}, {w1}, {a11}",
+            off = const OFF,
+            t = in(reg) t,
+            w = in(reg) w,
+            p0 = out(reg) _,
+            p1 = out(reg) _,
+            w0 = out(reg) _,
+            w1 = out(reg) _,
+            a00 = inout(reg) a00,
+            a01 = inout(reg) a01,
+            a10 = inout(reg) a10,
+            a11 = inout(reg) a11,
+            options(nostack, readonly),
+        );
+    }
+    *a = [a00, a01, a10, a11];
+}
+
+/// Both channel pairs of the weight block (`jb` = 0 and 2) at the pixel pair `pb`: the sums
+/// `acc[j·PB + pb ..= pb + 1]` of all four channels.
+///
+/// # Safety
+/// As [`block`] with `OFF = 4·pb`, for `w` and `w + 2`; `acc` holds `NB·PB` sums.
+#[inline(always)]
+unsafe fn both<const OFF: usize>(tab: *const u32, n: usize, w: *const u32, acc: *mut i32) {
+    let p = OFF / 4;
+    for jb in [0, 2] {
+        let (lo, hi) = (acc.add(jb * PB + p), acc.add((jb + 1) * PB + p));
+        let mut a = [*lo, *lo.add(1), *hi, *hi.add(1)];
+        block::<OFF>(tab, n, w.add(jb), &mut a);
+        (*lo, *lo.add(1), *hi, *hi.add(1)) = (a[0], a[1], a[2], a[3]);
+    }
+}
+
+/// [`both`] for the pixel pair at `pb` (`0, 2, …, PB − 2`): the byte offset `4·pb` as an
+/// immediate.
+///
+/// # Safety
+/// As [`both`] with `OFF = 4·pb`.
+#[inline(always)]
+unsafe fn both_at(pb: usize, tab: *const u32, n: usize, w: *const u32, acc: *mut i32) {
+    const _: () = assert!(PB == 32);
+    match pb {
+        0 => both::<0>(tab, n, w, acc),
+        2 => both::<8>(tab, n, w, acc),
+        4 => both::<16>(tab, n, w, acc),
+        6 => both::<24>(tab, n, w, acc),
+        8 => both::<32>(tab, n, w, acc),
+        10 => both::<40>(tab, n, w, acc),
+        12 => both::<48>(tab, n, w, acc),
+        14 => both::<56>(tab, n, w, acc),
+        16 => both::<64>(tab, n, w, acc),
+        18 => both::<72>(tab, n, w, acc),
+        20 => both::<80>(tab, n, w, acc),
+        22 => both::<88>(tab, n, w, acc),
+        24 => both::<96>(tab, n, w, acc),
+        26 => both::<104>(tab, n, w, acc),
+        28 => both::<112>(tab, n, w, acc),
+        _ => both::<120>(tab, n, w, acc),
+    }
 }
 
 /// Same contract as [`crate::kernels::dot::portable`] for pairs; `false` if a read would
@@ -51,29 +135,43 @@ unsafe fn block(px: *const u8, steps: *const u32, w: *const u32, n: usize) -> [i
 pub fn pairs(t: &Task<i16, i16>, acc: &mut Acc) -> bool {
     const _: () = assert!(NB == 4 && PB.is_multiple_of(2));
     let n = t.steps.len();
-    if !t.in_bounds(2)
-        || n == 0
+    if n == 0
+        || n.checked_mul(NB * 2).is_none_or(|l| l > t.weights.len())
         || !(t.rows.as_ptr() as usize).is_multiple_of(4)
         || !(t.weights.as_ptr() as usize).is_multiple_of(4)
-        || t.steps.iter().any(|&o| o % 2 != 0)
     {
         return false;
     }
-    let w = t.weights.as_ptr() as *const u32;
     // Only the blocks the row uses: the narrow layers of the encoder use a fraction of PB.
     let pixels = t.pixels.clamp(1, PB);
-    for jb in (0..NB).step_by(2) {
+    // Every pixel word read lies below `limit` (elements): ox0 + PB words past the step.
+    let Some(limit) = t.rows.len().checked_sub((t.ox0 + PB) * 2) else {
+        return false;
+    };
+    let base = t.rows.as_ptr() as usize + 4 * t.ox0;
+    acc.fill(0);
+    let w = t.weights.as_ptr() as *const u32;
+    let mut tab = [MaybeUninit::<u32>::uninit(); CHUNK];
+    for (c, steps) in t.steps.chunks(CHUNK).enumerate() {
+        // Absolute addresses; an odd offset (unaligned word) or one past `limit` refuses the
+        // call before anything is read.
+        let mut bad = 0u32;
+        let mut top = 0u32;
+        for (a, &s) in tab.iter_mut().zip(steps) {
+            bad |= s;
+            top = top.max(s);
+            a.write((base + 2 * s as usize) as u32);
+        }
+        if !bad.is_multiple_of(2) || top as usize > limit {
+            return false;
+        }
+        let wc = w.wrapping_add(c * CHUNK * NB);
         for pb in (0..pixels).step_by(2) {
-            // SAFETY: `in_bounds` covers every pixel word up to ox0 + PB of every step and
-            // every weight word of the block; all are 4-aligned (checked).
-            let a = unsafe {
-                let px = (t.rows.as_ptr() as *const u8).add(4 * (t.ox0 + pb));
-                block(px, t.steps.as_ptr(), w.add(jb), n)
-            };
-            acc[jb * PB + pb] = a[0];
-            acc[jb * PB + pb + 1] = a[1];
-            acc[(jb + 1) * PB + pb] = a[2];
-            acc[(jb + 1) * PB + pb + 1] = a[3];
+            // SAFETY: the first `steps.len()` entries of `tab` were written just above; every
+            // address plus 4·pb + 8 ≤ 4·PB bytes stays below rows' end (`limit`, checked), all
+            // are 4-aligned (even element offsets of a 4-aligned base); the chunk's weights lie
+            // in `weights` (length checked); `acc` holds NB·PB sums.
+            unsafe { both_at(pb, tab.as_ptr().cast(), steps.len(), wc, acc.as_mut_ptr()) };
         }
     }
     true
