@@ -374,6 +374,10 @@ fn requant_row(k: &RowQuant, acc: &[i32], dst: &mut [i8]) {
         }
         return;
     }
+    #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+    if super::arm::dsp::requant_row(acc, dst, base, k.pos_m, k.pos_r, zp, k.min, k.max) {
+        return;
+    }
     let (m, e) = (k.pos_m, k.pos_r.clamp(0, 31) as u32);
     if e == 0 {
         for (d, &v) in dst.iter_mut().zip(acc) {

@@ -346,10 +346,13 @@ fn interleave4<F: Layout>(src: [Run; 4], zp: i32, out: &mut [F::Elem]) {
         }
         return;
     }
-    for (li, (run, table)) in src.into_iter().enumerate() {
-        for (d, &x) in out.iter_mut().skip(li).step_by(4).zip(run) {
-            *d = F::elem(mapped(x, table), zp);
-        }
+    let t = src.map(|s| s.1.unwrap_or(&IDENTITY));
+    let it = src[0].0.iter().zip(src[1].0).zip(src[2].0).zip(src[3].0);
+    for (d, (((&a, &b), &c), &e)) in out.chunks_exact_mut(4).zip(it) {
+        d[0] = F::elem(t[0][a as u8 as usize], zp);
+        d[1] = F::elem(t[1][b as u8 as usize], zp);
+        d[2] = F::elem(t[2][c as u8 as usize], zp);
+        d[3] = F::elem(t[3][e as u8 as usize], zp);
     }
 }
 
@@ -363,12 +366,24 @@ fn interleave2<F: Layout>(src: [Run; 2], zp: i32, out: &mut [F::Elem]) {
         }
         return;
     }
-    for (li, (run, table)) in src.into_iter().enumerate() {
-        for (d, &x) in out.iter_mut().skip(li).step_by(2).zip(run) {
-            *d = F::elem(mapped(x, table), zp);
-        }
+    // Some part is requantised: a table per lane (the identity for the others), one pass.
+    let (ta, tb) = (src[0].1.unwrap_or(&IDENTITY), src[1].1.unwrap_or(&IDENTITY));
+    for (d, (&a, &b)) in out.chunks_exact_mut(2).zip(src[0].0.iter().zip(src[1].0)) {
+        d[0] = F::elem(ta[a as u8 as usize], zp);
+        d[1] = F::elem(tb[b as u8 as usize], zp);
     }
 }
+
+/// The table that maps every code to itself.
+static IDENTITY: [i8; 256] = {
+    let mut t = [0i8; 256];
+    let mut i = 0;
+    while i < 256 {
+        t[i] = i as u8 as i8;
+        i += 1;
+    }
+    t
+};
 
 /// Packs the weights of the group's `ocg` output channels (`[ocg][icg][kh][kw]`, row-major) into
 /// `dims.n_blocks` blocks; `sums[o]` receives `Σw` of output `o`.

@@ -287,3 +287,67 @@ pub fn pack_pixel(x: impl Iterator<Item = i32>, out: &mut [u32]) {
         }
     }
 }
+
+/// `requant_one` of the conv over a row for one multiplier `m ≥ 0` and right shift `e`
+/// (`1 ..= 22`), `max` 127: `dst[i] = max(min, sat8(zp + rdbpot(srdhm(base + acc[i], m), e)))`
+/// in 19 instructions per element (`SMLAL` for the doubling high multiply, `SSAT` for both the
+/// 31-bit pre-clamp and the int8 saturation). `false` (nothing written) outside those cases.
+///
+/// The pre-clamp of the high product `q` to `[−2^30, 2^30 − 1]` keeps `q + 2^(e−1)` in i32 and
+/// changes no result: beyond it `|q| / 2^e ≥ 2^30 / 2^22 = 256`, which saturates either way.
+#[allow(clippy::too_many_arguments)]
+pub fn requant_row(
+    acc: &[i32],
+    dst: &mut [i8],
+    base: i32,
+    m: i32,
+    e: i32,
+    zp: i32,
+    min: i32,
+    max: i32,
+) -> bool {
+    let n = acc.len().min(dst.len());
+    if !(1..=22).contains(&e) || m < 0 || max != 127 || !(-128..=127).contains(&min) || n == 0 {
+        return n == 0;
+    }
+    let half = 1i32 << (e - 1);
+    // SAFETY: `n` words of `acc` and `n` bytes of `dst` exist (n ≤ both lengths).
+    unsafe {
+        core::arch::asm!(
+            "2:",
+            "ldr {x}, [{a}], #4",
+            "add {x}, {x}, {base}",
+            "mov {lo}, #0x40000000",
+            "mov {hi}, #0",
+            "smlal {lo}, {hi}, {x}, {m}",
+            "lsr {lo}, {lo}, #31",
+            "orr {x}, {lo}, {hi}, lsl #1",
+            "ssat {x}, #31, {x}",
+            "add {lo}, {x}, {half}",
+            "sub {lo}, {lo}, {x}, lsr #31",
+            "asr {lo}, {lo}, {e}",
+            "add {lo}, {lo}, {zp}",
+            "ssat {lo}, #8, {lo}",
+            "cmp {lo}, {min}",
+            "it lt",
+            "movlt {lo}, {min}",
+            "strb {lo}, [{d}], #1",
+            "subs {n}, {n}, #1",
+            "bne 2b",
+            a = inout(reg) acc.as_ptr() => _,
+            d = inout(reg) dst.as_mut_ptr() => _,
+            n = inout(reg) n => _,
+            base = in(reg) base,
+            m = in(reg) m,
+            half = in(reg) half,
+            e = in(reg) e,
+            zp = in(reg) zp,
+            min = in(reg) min,
+            x = out(reg) _,
+            lo = out(reg) _,
+            hi = out(reg) _,
+            options(nostack),
+        );
+    }
+    true
+}
