@@ -87,16 +87,26 @@ unsafe fn block<const OFF: usize>(tab: *const u32, n: usize, w: *const u32, a: &
 }
 
 /// Both channel pairs of the weight block (`jb` = 0 and 2) at the pixel pair `pb`: the sums
-/// `acc[j·PB + pb ..= pb + 1]` of all four channels.
+/// `acc[j·PB + pb ..= pb + 1]` of all four channels, from zero if `first`, else added to.
 ///
 /// # Safety
 /// As [`block`] with `OFF = 4·pb`, for `w` and `w + 2`; `acc` holds `NB·PB` sums.
 #[inline(always)]
-unsafe fn both<const OFF: usize>(tab: *const u32, n: usize, w: *const u32, acc: *mut i32) {
+unsafe fn both<const OFF: usize>(
+    tab: *const u32,
+    n: usize,
+    w: *const u32,
+    acc: *mut i32,
+    first: bool,
+) {
     let p = OFF / 4;
     for jb in [0, 2] {
         let (lo, hi) = (acc.add(jb * PB + p), acc.add((jb + 1) * PB + p));
-        let mut a = [*lo, *lo.add(1), *hi, *hi.add(1)];
+        let mut a = if first {
+            [0; 4]
+        } else {
+            [*lo, *lo.add(1), *hi, *hi.add(1)]
+        };
         block::<OFF>(tab, n, w.add(jb), &mut a);
         (*lo, *lo.add(1), *hi, *hi.add(1)) = (a[0], a[1], a[2], a[3]);
     }
@@ -108,25 +118,25 @@ unsafe fn both<const OFF: usize>(tab: *const u32, n: usize, w: *const u32, acc: 
 /// # Safety
 /// As [`both`] with `OFF = 4·pb`.
 #[inline(always)]
-unsafe fn both_at(pb: usize, tab: *const u32, n: usize, w: *const u32, acc: *mut i32) {
+unsafe fn both_at(pb: usize, tab: *const u32, n: usize, w: *const u32, acc: *mut i32, first: bool) {
     const _: () = assert!(PB == 32);
     match pb {
-        0 => both::<0>(tab, n, w, acc),
-        2 => both::<8>(tab, n, w, acc),
-        4 => both::<16>(tab, n, w, acc),
-        6 => both::<24>(tab, n, w, acc),
-        8 => both::<32>(tab, n, w, acc),
-        10 => both::<40>(tab, n, w, acc),
-        12 => both::<48>(tab, n, w, acc),
-        14 => both::<56>(tab, n, w, acc),
-        16 => both::<64>(tab, n, w, acc),
-        18 => both::<72>(tab, n, w, acc),
-        20 => both::<80>(tab, n, w, acc),
-        22 => both::<88>(tab, n, w, acc),
-        24 => both::<96>(tab, n, w, acc),
-        26 => both::<104>(tab, n, w, acc),
-        28 => both::<112>(tab, n, w, acc),
-        _ => both::<120>(tab, n, w, acc),
+        0 => both::<0>(tab, n, w, acc, first),
+        2 => both::<8>(tab, n, w, acc, first),
+        4 => both::<16>(tab, n, w, acc, first),
+        6 => both::<24>(tab, n, w, acc, first),
+        8 => both::<32>(tab, n, w, acc, first),
+        10 => both::<40>(tab, n, w, acc, first),
+        12 => both::<48>(tab, n, w, acc, first),
+        14 => both::<56>(tab, n, w, acc, first),
+        16 => both::<64>(tab, n, w, acc, first),
+        18 => both::<72>(tab, n, w, acc, first),
+        20 => both::<80>(tab, n, w, acc, first),
+        22 => both::<88>(tab, n, w, acc, first),
+        24 => both::<96>(tab, n, w, acc, first),
+        26 => both::<104>(tab, n, w, acc, first),
+        28 => both::<112>(tab, n, w, acc, first),
+        _ => both::<120>(tab, n, w, acc, first),
     }
 }
 
@@ -149,7 +159,6 @@ pub fn pairs(t: &Task<i16, i16>, acc: &mut Acc) -> bool {
         return false;
     };
     let base = t.rows.as_ptr() as usize + 4 * t.ox0;
-    acc.fill(0);
     let w = t.weights.as_ptr() as *const u32;
     let mut tab = [MaybeUninit::<u32>::uninit(); CHUNK];
     for (c, steps) in t.steps.chunks(CHUNK).enumerate() {
@@ -171,7 +180,9 @@ pub fn pairs(t: &Task<i16, i16>, acc: &mut Acc) -> bool {
             // address plus 4·pb + 8 ≤ 4·PB bytes stays below rows' end (`limit`, checked), all
             // are 4-aligned (even element offsets of a 4-aligned base); the chunk's weights lie
             // in `weights` (length checked); `acc` holds NB·PB sums.
-            unsafe { both_at(pb, tab.as_ptr().cast(), steps.len(), wc, acc.as_mut_ptr()) };
+            // The first chunk starts the sums; those of unused pixels stay unset.
+            let (tab, n, acc) = (tab.as_ptr().cast(), steps.len(), acc.as_mut_ptr());
+            unsafe { both_at(pb, tab, n, wc, acc, c == 0) };
         }
     }
     true
