@@ -369,6 +369,13 @@ fn requant_row(k: &RowQuant, acc: &[i32], dst: &mut [i8]) {
     let high_mul = |x: i32, m: i32| ((x as i64 * m as i64 + (1 << 30)) >> 31) as i32;
     let fin = |r: i32| (r.max(lo).min(hi) + zp) as i8;
     if k.pos_m != k.neg_m || k.pos_r != k.neg_r {
+        #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+        {
+            let (pos, neg) = ((k.pos_m, k.pos_r), (k.neg_m, k.neg_r));
+            if super::arm::dsp::requant_row_signed(acc, dst, base, pos, neg, zp, k.min, k.max) {
+                return;
+            }
+        }
         for (d, &v) in dst.iter_mut().zip(acc) {
             *d = requant_one(k, v);
         }
@@ -1378,19 +1385,22 @@ pub(crate) mod tests {
             let x = [x, 0, -1, i32::MIN, i32::MAX, x >> 16, x >> 24, (x >> 20) | 1][edge];
             let m = [m, 1 << 30, (1 << 30) + 1, i32::MAX][m_edge];
             let r = crate::kernels::requant::Requant { multiplier: m, shift: -e };
+            // A leaky ReLU's second slope (multiplier and shift below zero) on a quarter.
+            let (neg_m, neg_e) = if edge % 4 == 3 { (m / 10, (e + 3).min(31)) } else { (m, e) };
+            let rn = crate::kernels::requant::Requant { multiplier: neg_m, shift: -neg_e };
             let k = RowQuant {
                 simple: true,
                 base: 0,
                 pos_m: m,
-                neg_m: m,
+                neg_m,
                 pos_r: e,
-                neg_r: e,
+                neg_r: neg_e,
                 zp,
                 // A ReLU's floor (the zero point) on half the cases.
                 min: if m_edge % 2 == 1 { zp } else { -128 },
                 max: 127,
             };
-            let want = r.apply(x).saturating_add(zp).clamp(k.min, 127) as i8;
+            let want = if x < 0 { rn } else { r }.apply(x).saturating_add(zp).clamp(k.min, 127) as i8;
             prop_assert_eq!(requant_one(&k, x), want);
             let mut row = [0i8; 1];
             requant_row(&k, &[x], &mut row);

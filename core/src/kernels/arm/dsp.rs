@@ -362,3 +362,85 @@ pub fn requant_row(
     }
     true
 }
+
+/// One sign's constants of [`requant_row_signed`]: multiplier, right shift, `2^(shift − 1)`.
+#[repr(C)]
+struct SignQuant {
+    m: i32,
+    e: i32,
+    half: i32,
+}
+
+/// [`requant_row`] with a multiplier and shift per sign of `base + acc[i]` (`pos` for ≥ 0,
+/// `neg` below: the leaky ReLU's two slopes), 26 instructions per element. `false` (nothing
+/// written) unless both shifts are `1 ..= 22`, both multipliers ≥ 0 and `max` is 127.
+#[allow(clippy::too_many_arguments)]
+pub fn requant_row_signed(
+    acc: &[i32],
+    dst: &mut [i8],
+    base: i32,
+    pos: (i32, i32),
+    neg: (i32, i32),
+    zp: i32,
+    min: i32,
+    max: i32,
+) -> bool {
+    let n = acc.len().min(dst.len());
+    let ok = |(m, e): (i32, i32)| m >= 0 && (1..=22).contains(&e);
+    if !ok(pos) || !ok(neg) || max != 127 || !(-128..=127).contains(&min) || n == 0 {
+        return n == 0;
+    }
+    let k = |(m, e): (i32, i32)| SignQuant {
+        m,
+        e,
+        half: 1 << (e - 1),
+    };
+    let table = [k(pos), k(neg)];
+    // SAFETY: `n` words of `acc` and `n` bytes of `dst` exist (n ≤ both lengths); `table` holds
+    // the 12-byte constants of both signs (`neg` at byte 12).
+    unsafe {
+        core::arch::asm!(
+            "2:",
+            "ldr {x}, [{a}], #4",
+            "add {x}, {x}, {base}",
+            "mov {k}, {kp}",
+            "cmp {x}, #0",
+            "it lt",
+            "addlt {k}, {kp}, #12",
+            "ldr {m}, [{k}]",
+            "mov {lo}, #0x40000000",
+            "mov {hi}, #0",
+            "smlal {lo}, {hi}, {x}, {m}",
+            "lsr {lo}, {lo}, #31",
+            "orr {x}, {lo}, {hi}, lsl #1",
+            "ssat {x}, #31, {x}",
+            "ldr {hi}, [{k}, #8]",
+            "add {lo}, {x}, {hi}",
+            "sub {lo}, {lo}, {x}, lsr #31",
+            "ldr {hi}, [{k}, #4]",
+            "asr {lo}, {lo}, {hi}",
+            "add {lo}, {lo}, {zp}",
+            "ssat {lo}, #8, {lo}",
+            "cmp {lo}, {min}",
+            "it lt",
+            "movlt {lo}, {min}",
+            "strb {lo}, [{d}], #1",
+            "subs {n}, {n}, #1",
+            "bne 2b",
+            a = inout(reg) acc.as_ptr() => _,
+            d = inout(reg) dst.as_mut_ptr() => _,
+            n = inout(reg) n => _,
+            base = in(reg) base,
+            kp = in(reg) table.as_ptr(),
+            zp = in(reg) zp,
+            min = in(reg) min,
+            x = out(reg) _,
+            lo = out(reg) _,
+            hi = out(reg) _,
+            k = out(reg) _,
+            m = out(reg) _,
+            options(nostack),
+        );
+    }
+    true
+}
