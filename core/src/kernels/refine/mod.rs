@@ -294,6 +294,29 @@ impl<'m, B: Map> Mix<'m, B> {
         Mix { map, table }
     }
 
+    /// Component `c` (`< 3`) of the softmax at pixel `i`: [`Mix::at`]`(i)[c]`, the same bits,
+    /// with one division instead of three.
+    #[inline(always)]
+    pub fn one(&self, i: usize, c: usize) -> f32 {
+        let e = match (self.map.as_i8(), &self.table) {
+            (Some(m), Some(t)) => {
+                let (d, p) = (m.data(), m.plane());
+                let q0 = i32::from(d[i]);
+                let q1 = i32::from(d[p + i]);
+                let q2 = i32::from(d[2 * p + i]);
+                let mx = q0.max(q1).max(q2);
+                let e = |q: i32| t[(mx - q) as usize & 255];
+                [e(q0), e(q1), e(q2)]
+            }
+            _ => {
+                let v = [0, 1, 2].map(|c| self.map.value(c, i));
+                let mx = v[0].max(v[1]).max(v[2]);
+                v.map(|v| exp(v - mx))
+            }
+        };
+        e[c] / (e[0] + e[1] + e[2])
+    }
+
     /// The softmax at pixel `i`.
     #[inline]
     pub fn at(&self, i: usize) -> [f32; 3] {
@@ -511,7 +534,7 @@ fn accumulate<B: Map>(
     let p = out.len().min(cur.len());
     let done = accumulate_vector(isa, out, cur, tmix, kmix, ti, k, first);
     for i in done..p {
-        let coef = tmix.at(first + i)[ti] * kmix.at(first + i)[k];
+        let coef = tmix.one(first + i, ti) * kmix.one(first + i, k);
         out[i] += coef * cur[i];
     }
 }
@@ -626,7 +649,7 @@ mod tests {
                 for (ti, &tt) in times.iter().enumerate() {
                     if tt == t {
                         for i in 0..p {
-                            out[i] += (tmix.at(i)[ti] * kmix.at(i)[k]) * cur[i];
+                            out[i] += (tmix.one(i, ti) * kmix.one(i, k)) * cur[i];
                         }
                     }
                 }
