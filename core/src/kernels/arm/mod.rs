@@ -1,3 +1,4 @@
 //! Cortex-M micro-kernels (stable `asm!`, built with core's `arm-dsp` feature).
 
 pub mod dsp;
+pub mod refine;

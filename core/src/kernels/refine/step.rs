@@ -185,7 +185,9 @@ fn row_i8_chunks(
     let mut x = x0;
     while x < x1 {
         let len = (x1 - x).min(CHUNK);
-        let (mut s, mut acc) = ([0f32; CHUNK], [0f32; CHUNK]);
+        // The sums, then the accumulators, `CHUNK` apart (the Cortex-M loop's layout).
+        let mut sums = [0f32; 2 * CHUNK];
+        let (s, acc) = sums.split_at_mut(CHUNK);
         let (s, acc) = (&mut s[..len], &mut acc[..len]);
         let ic = at.cur + x;
         acc.copy_from_slice(cur.get(ic..ic + len).ok_or(KernelError::Shape)?);
@@ -206,6 +208,19 @@ fn row_i8_chunks(
             // Every slice is `len` long: the indexing below needs no bounds test.
             let (q0, q1, q2, q3) = (&q0[..len], &q1[..len], &q2[..len], &q3[..len]);
             let (d0, d1, d2, d3) = (&d0[..len], &d1[..len], &d2[..len], &d3[..len]);
+            #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+            {
+                use crate::kernels::arm::refine as arm;
+                const _: () = assert!(arm::CHUNK == CHUNK);
+                let q = [q0.as_ptr(), q1.as_ptr(), q2.as_ptr(), q3.as_ptr()];
+                let d = [d0.as_ptr(), d1.as_ptr(), d2.as_ptr(), d3.as_ptr()];
+                // SAFETY: the eight slices hold `len` ≥ 1 elements each; `s` starts `sums`,
+                // whose accumulators lie CHUNK on; len ≤ CHUNK.
+                unsafe { arm::four(q, d, [g0, g1, g2, g3], lut, s.as_mut_ptr(), len) };
+                j += 4;
+                continue;
+            }
+            #[allow(unreachable_code)]
             for i in 0..len {
                 let r0 = lut[q0[i] as u8 as usize] * g0;
                 let r1 = lut[q1[i] as u8 as usize] * g1;
