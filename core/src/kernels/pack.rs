@@ -236,15 +236,6 @@ impl Source for Parts<'_> {
     }
 }
 
-/// `code` through `table`, if any.
-#[inline(always)]
-fn mapped(x: i8, table: Option<&[i8; 256]>) -> i8 {
-    match table {
-        Some(t) => t[x as u8 as usize],
-        None => x,
-    }
-}
-
 /// Packs the rows output row `oy` reads from channels `c0 .. c0 + in_shape.c` of `input` (the
 /// group's channels).
 #[allow(clippy::too_many_arguments)]
@@ -308,25 +299,50 @@ pub fn pack_rows<F: Layout, S: Source>(
                 }
                 for li in 0..l {
                     let c = cg * l + li;
-                    let words = dst[lo * l..hi.max(lo) * l].iter_mut().skip(li).step_by(l);
+                    let words = &mut dst[lo * l..hi.max(lo) * l];
                     let src = if c < in_shape.c {
                         input.run(c0 + c, iy as usize * iw, iw)
                     } else {
                         None
                     };
-                    let Some((src, table)) = src else {
-                        for d in words {
-                            *d = pad;
-                        }
-                        continue;
-                    };
-                    let ix0 = lo * sw + phase - pw;
-                    for (d, &x) in words.zip(src[ix0.min(iw)..].iter().step_by(sw)) {
-                        *d = F::elem(mapped(x, table), zp);
-                    }
+                    let ix0 = (lo * sw + phase - pw).min(iw);
+                    let run = src.map(|(src, table)| (&src[ix0..], table));
+                    fill_lane::<F>(words, l, li, run, sw, zp);
                 }
             }
         }
+    }
+}
+
+/// Lane `li` of every `l`-element word of `out`: from every `sw`-th code of the run (as many as
+/// both hold), or padding where there is no run.
+#[inline(always)]
+fn fill_lane<F: Layout>(
+    out: &mut [F::Elem],
+    l: usize,
+    li: usize,
+    run: Option<Run>,
+    sw: usize,
+    zp: i32,
+) {
+    let words = out.chunks_exact_mut(l);
+    let Some((src, table)) = run else {
+        let pad = F::pad(zp);
+        for d in words {
+            d[li] = pad;
+        }
+        return;
+    };
+    let t = table.unwrap_or(&IDENTITY);
+    let elem = |x: i8| F::elem(t[x as u8 as usize], zp);
+    match sw {
+        1 => words.zip(src).for_each(|(d, &x)| d[li] = elem(x)),
+        2 => words
+            .zip(src.chunks(2))
+            .for_each(|(d, x)| d[li] = elem(x[0])),
+        _ => words
+            .zip(src.iter().step_by(sw))
+            .for_each(|(d, &x)| d[li] = elem(x)),
     }
 }
 

@@ -1,58 +1,56 @@
 //! Cortex-M4/M7 DSP [`crate::kernels::pack::Pairs`] kernel: `SMLAD` adds both 16-bit
 //! products of a packed word and a weight word to a 32-bit accumulator in one instruction.
-//! Block: 2 channels × 2 pixels (4 accumulators in registers). Per call the reduction steps
-//! become a table of absolute pixel addresses (in chunks of [`CHUNK`] on the stack), and each
-//! pixel pair's offset from them is an immediate of the `LDRD` (one loop per pair position), so a
-//! step is `LDR` address, `LDRD` pixels, `LDRD` weights, four `SMLAD`: 16 instructions per two
-//! steps (16 multiply-accumulates) with the loop unrolled twice.
+//! Block: 2 channels × 2 pixels (4 accumulators in registers). Per call and channel pair the
+//! reduction steps become a stream on the stack (in chunks of [`CHUNK`]) of three words per
+//! step: the step's absolute pixel address and the pair's two weight words, so one `LDM` reads
+//! them; each pixel pair's offset from the address is an immediate of the `LDRD` (one loop per
+//! pair position). A step is `LDM`, `LDRD` pixels, four `SMLAD`: 14 instructions per two steps
+//! (16 multiply-accumulates) with the loop unrolled twice.
 
 use crate::kernels::dot::{Acc, Task};
 use crate::kernels::pack::{NB, PB};
 use core::mem::MaybeUninit;
 
-/// Reduction steps per address table (1 KiB of stack).
-const CHUNK: usize = 256;
+/// Reduction steps per stream (1.5 KiB of stack).
+const CHUNK: usize = 128;
 
-/// Adds the 2×2 sums of the steps whose pixel-word addresses are `tab[..n]` to `a`; the pixel
-/// pair sits `OFF` bytes past each address, the weights of step `k` are the two words at
-/// `w + 4·NB·k` (words).
+/// Adds to `a` the 2×2 sums of the `n` steps of `stream` (`[address, w_j, w_j+1]` per step);
+/// the pixel pair sits `OFF` bytes past each address.
 ///
 /// # Safety
-/// Every `tab[k] + OFF` (8 bytes) and `w + 4·NB·k` (8 bytes) for `k < n` must be readable and
-/// 4-aligned.
+/// `stream` holds `3·n` words; every `address + OFF` (8 bytes) must be readable and 4-aligned.
 #[inline(always)]
-unsafe fn block<const OFF: usize>(tab: *const u32, n: usize, w: *const u32, a: &mut [i32; 4]) {
+unsafe fn block<const OFF: usize>(stream: *const u32, n: usize, a: &mut [i32; 4]) {
     let [mut a00, mut a01, mut a10, mut a11] = *a;
     let pairs = n / 2;
-    let mut t = tab;
-    let mut w = w;
+    let mut t = stream;
+    // LDM fills registers in number order, so the three it loads are named: r0 address,
+    // r1 / r2 the weight words; r3 / r4 take the pixel words.
     if pairs > 0 {
         core::arch::asm!(
             "2:",
-            "ldr {p0}, [{t}], #4",
-            "ldrd {p0}, {p1}, [{p0}, #{off}]",
-            "ldrd {w0}, {w1}, [{w}], #16",
-            "smlad {a00}, {p0}, {w0}, {a00}",
-            "smlad {a01}, {p1}, {w0}, {a01}",
-            "smlad {a10}, {p0}, {w1}, {a10}",
-            "smlad {a11}, {p1}, {w1}, {a11}",
-            "ldr {p0}, [{t}], #4",
-            "ldrd {p0}, {p1}, [{p0}, #{off}]",
-            "ldrd {w0}, {w1}, [{w}], #16",
-            "smlad {a00}, {p0}, {w0}, {a00}",
-            "smlad {a01}, {p1}, {w0}, {a01}",
-            "smlad {a10}, {p0}, {w1}, {a10}",
-            "smlad {a11}, {p1}, {w1}, {a11}",
+            "ldm {t}!, {{r0, r1, r2}}",
+            "ldrd r3, r4, [r0, #{off}]",
+            "smlad {a00}, r3, r1, {a00}",
+            "smlad {a01}, r4, r1, {a01}",
+            "smlad {a10}, r3, r2, {a10}",
+            "smlad {a11}, r4, r2, {a11}",
+            "ldm {t}!, {{r0, r1, r2}}",
+            "ldrd r3, r4, [r0, #{off}]",
+            "smlad {a00}, r3, r1, {a00}",
+            "smlad {a01}, r4, r1, {a01}",
+            "smlad {a10}, r3, r2, {a10}",
+            "smlad {a11}, r4, r2, {a11}",
             "cmp {t}, {end}",
             "bne 2b",
             off = const OFF,
             t = inout(reg) t,
-            end = in(reg) tab.add(2 * pairs),
-            w = inout(reg) w,
-            p0 = out(reg) _,
-            p1 = out(reg) _,
-            w0 = out(reg) _,
-            w1 = out(reg) _,
+            end = in(reg) stream.add(6 * pairs),
+            out("r0") _,
+            out("r1") _,
+            out("r2") _,
+            out("r3") _,
+            out("r4") _,
             a00 = inout(reg) a00,
             a01 = inout(reg) a01,
             a10 = inout(reg) a10,
@@ -62,20 +60,19 @@ unsafe fn block<const OFF: usize>(tab: *const u32, n: usize, w: *const u32, a: &
     }
     if n % 2 == 1 {
         core::arch::asm!(
-            "ldr {p0}, [{t}]",
-            "ldrd {p0}, {p1}, [{p0}, #{off}]",
-            "ldrd {w0}, {w1}, [{w}]",
-            "smlad {a00}, {p0}, {w0}, {a00}",
-            "smlad {a01}, {p1}, {w0}, {a01}",
-            "smlad {a10}, {p0}, {w1}, {a10}",
-            "smlad {a11}, {p1}, {w1}, {a11}",
+            "ldm {t}, {{r0, r1, r2}}",
+            "ldrd r3, r4, [r0, #{off}]",
+            "smlad {a00}, r3, r1, {a00}",
+            "smlad {a01}, r4, r1, {a01}",
+            "smlad {a10}, r3, r2, {a10}",
+            "smlad {a11}, r4, r2, {a11}",
             off = const OFF,
             t = in(reg) t,
-            w = in(reg) w,
-            p0 = out(reg) _,
-            p1 = out(reg) _,
-            w0 = out(reg) _,
-            w1 = out(reg) _,
+            out("r0") _,
+            out("r1") _,
+            out("r2") _,
+            out("r3") _,
+            out("r4") _,
             a00 = inout(reg) a00,
             a01 = inout(reg) a01,
             a10 = inout(reg) a10,
@@ -86,57 +83,48 @@ unsafe fn block<const OFF: usize>(tab: *const u32, n: usize, w: *const u32, a: &
     *a = [a00, a01, a10, a11];
 }
 
-/// Both channel pairs of the weight block (`jb` = 0 and 2) at the pixel pair `pb`: the sums
-/// `acc[j·PB + pb ..= pb + 1]` of all four channels, from zero if `first`, else added to.
+/// The sums `acc[j·PB + pb ..= pb + 1]` of the channel pair `j = jb, jb + 1` over the stream,
+/// from zero if `first`, else added to.
 ///
 /// # Safety
-/// As [`block`] with `OFF = 4·pb`, for `w` and `w + 2`; `acc` holds `NB·PB` sums.
+/// As [`block`] with `OFF = 4·pb`; `acc` holds `NB·PB` sums and `jb + 1 < NB`.
 #[inline(always)]
-unsafe fn both<const OFF: usize>(
-    tab: *const u32,
-    n: usize,
-    w: *const u32,
-    acc: *mut i32,
-    first: bool,
-) {
-    let p = OFF / 4;
-    for jb in [0, 2] {
-        let (lo, hi) = (acc.add(jb * PB + p), acc.add((jb + 1) * PB + p));
-        let mut a = if first {
-            [0; 4]
-        } else {
-            [*lo, *lo.add(1), *hi, *hi.add(1)]
-        };
-        block::<OFF>(tab, n, w.add(jb), &mut a);
-        (*lo, *lo.add(1), *hi, *hi.add(1)) = (a[0], a[1], a[2], a[3]);
-    }
+unsafe fn pair<const OFF: usize>(stream: *const u32, n: usize, acc: *mut i32, first: bool) {
+    let (lo, hi) = (acc.add(OFF / 4), acc.add(PB + OFF / 4));
+    let mut a = if first {
+        [0; 4]
+    } else {
+        [*lo, *lo.add(1), *hi, *hi.add(1)]
+    };
+    block::<OFF>(stream, n, &mut a);
+    (*lo, *lo.add(1), *hi, *hi.add(1)) = (a[0], a[1], a[2], a[3]);
 }
 
-/// [`both`] for the pixel pair at `pb` (`0, 2, …, PB − 2`): the byte offset `4·pb` as an
-/// immediate.
+/// [`pair`] for the pixel pair at `pb` (`0, 2, …, PB − 2`): the byte offset `4·pb` as an
+/// immediate. `acc` points at the pair's first channel row.
 ///
 /// # Safety
-/// As [`both`] with `OFF = 4·pb`.
+/// As [`pair`] with `OFF = 4·pb`.
 #[inline(always)]
-unsafe fn both_at(pb: usize, tab: *const u32, n: usize, w: *const u32, acc: *mut i32, first: bool) {
+unsafe fn pair_at(pb: usize, stream: *const u32, n: usize, acc: *mut i32, first: bool) {
     const _: () = assert!(PB == 32);
     match pb {
-        0 => both::<0>(tab, n, w, acc, first),
-        2 => both::<8>(tab, n, w, acc, first),
-        4 => both::<16>(tab, n, w, acc, first),
-        6 => both::<24>(tab, n, w, acc, first),
-        8 => both::<32>(tab, n, w, acc, first),
-        10 => both::<40>(tab, n, w, acc, first),
-        12 => both::<48>(tab, n, w, acc, first),
-        14 => both::<56>(tab, n, w, acc, first),
-        16 => both::<64>(tab, n, w, acc, first),
-        18 => both::<72>(tab, n, w, acc, first),
-        20 => both::<80>(tab, n, w, acc, first),
-        22 => both::<88>(tab, n, w, acc, first),
-        24 => both::<96>(tab, n, w, acc, first),
-        26 => both::<104>(tab, n, w, acc, first),
-        28 => both::<112>(tab, n, w, acc, first),
-        _ => both::<120>(tab, n, w, acc, first),
+        0 => pair::<0>(stream, n, acc, first),
+        2 => pair::<8>(stream, n, acc, first),
+        4 => pair::<16>(stream, n, acc, first),
+        6 => pair::<24>(stream, n, acc, first),
+        8 => pair::<32>(stream, n, acc, first),
+        10 => pair::<40>(stream, n, acc, first),
+        12 => pair::<48>(stream, n, acc, first),
+        14 => pair::<56>(stream, n, acc, first),
+        16 => pair::<64>(stream, n, acc, first),
+        18 => pair::<72>(stream, n, acc, first),
+        20 => pair::<80>(stream, n, acc, first),
+        22 => pair::<88>(stream, n, acc, first),
+        24 => pair::<96>(stream, n, acc, first),
+        26 => pair::<104>(stream, n, acc, first),
+        28 => pair::<112>(stream, n, acc, first),
+        _ => pair::<120>(stream, n, acc, first),
     }
 }
 
@@ -158,31 +146,43 @@ pub fn pairs(t: &Task<i16, i16>, acc: &mut Acc) -> bool {
     let Some(limit) = t.rows.len().checked_sub((t.ox0 + PB) * 2) else {
         return false;
     };
+    // An odd offset (an unaligned word) or one past `limit` refuses the call before anything
+    // is read.
+    let (bad, top) = t
+        .steps
+        .iter()
+        .fold((0u32, 0u32), |(b, m), &s| (b | s, m.max(s)));
+    if !bad.is_multiple_of(2) || top as usize > limit {
+        return false;
+    }
     let base = t.rows.as_ptr() as usize + 4 * t.ox0;
-    let w = t.weights.as_ptr() as *const u32;
-    let mut tab = [MaybeUninit::<u32>::uninit(); CHUNK];
+    // The weight words of step k: NB per step, one per channel.
+    let words: &[u32] = {
+        // SAFETY: the weights are 4-aligned (checked) i16 pairs, n·NB words long (checked).
+        unsafe { core::slice::from_raw_parts(t.weights.as_ptr().cast(), n * NB) }
+    };
+    let mut stream = [MaybeUninit::<u32>::uninit(); 3 * CHUNK];
     for (c, steps) in t.steps.chunks(CHUNK).enumerate() {
-        // Absolute addresses; an odd offset (unaligned word) or one past `limit` refuses the
-        // call before anything is read.
-        let mut bad = 0u32;
-        let mut top = 0u32;
-        for (a, &s) in tab.iter_mut().zip(steps) {
-            bad |= s;
-            top = top.max(s);
-            a.write((base + 2 * s as usize) as u32);
-        }
-        if !bad.is_multiple_of(2) || top as usize > limit {
-            return false;
-        }
-        let wc = w.wrapping_add(c * CHUNK * NB);
-        for pb in (0..pixels).step_by(2) {
-            // SAFETY: the first `steps.len()` entries of `tab` were written just above; every
-            // address plus 4·pb + 8 ≤ 4·PB bytes stays below rows' end (`limit`, checked), all
-            // are 4-aligned (even element offsets of a 4-aligned base); the chunk's weights lie
-            // in `weights` (length checked); `acc` holds NB·PB sums.
-            // The first chunk starts the sums; those of unused pixels stay unset.
-            let (tab, n, acc) = (tab.as_ptr().cast(), steps.len(), acc.as_mut_ptr());
-            unsafe { both_at(pb, tab, n, wc, acc, c == 0) };
+        for jb in (0..NB).step_by(2) {
+            let w = &words[c * CHUNK * NB..];
+            for ((e, &s), wk) in stream
+                .chunks_exact_mut(3)
+                .zip(steps)
+                .zip(w.chunks_exact(NB))
+            {
+                e[0].write((base + 2 * s as usize) as u32);
+                e[1].write(wk[jb]);
+                e[2].write(wk[jb + 1]);
+            }
+            let rows = acc[jb * PB..].as_mut_ptr();
+            for pb in (0..pixels).step_by(2) {
+                // SAFETY: the first 3·steps.len() words of `stream` were written just above;
+                // every address plus 4·pb + 8 ≤ 4·PB bytes stays below rows' end (`limit`,
+                // checked), all are 4-aligned (even element offsets of a 4-aligned base);
+                // `rows` has the two channel rows of PB sums. The first chunk starts the sums;
+                // those of unused pixels stay unset.
+                unsafe { pair_at(pb, stream.as_ptr().cast(), steps.len(), rows, c == 0) };
+            }
         }
     }
     true
