@@ -105,8 +105,24 @@ impl AddQuant {
 
     #[inline]
     fn apply(&self, a: i8, b: i8) -> i8 {
-        let xa = self.ma.apply((a as i32 - self.zp[0]) << ADD_LEFT_SHIFT);
-        let xb = self.mb.apply((b as i32 - self.zp[1]) << ADD_LEFT_SHIFT);
+        self.finish(self.rescale_a(a), self.rescale_b(b))
+    }
+
+    /// Input `a`'s code on the common scale.
+    #[inline]
+    fn rescale_a(&self, a: i8) -> i32 {
+        self.ma.apply((a as i32 - self.zp[0]) << ADD_LEFT_SHIFT)
+    }
+
+    /// Input `b`'s code on the common scale.
+    #[inline]
+    fn rescale_b(&self, b: i8) -> i32 {
+        self.mb.apply((b as i32 - self.zp[1]) << ADD_LEFT_SHIFT)
+    }
+
+    /// The output code of two rescaled inputs.
+    #[inline]
+    fn finish(&self, xa: i32, xb: i32) -> i8 {
         clamp_i8(
             self.mo
                 .apply(xa.saturating_add(xb))
@@ -133,8 +149,18 @@ pub fn add(q: &AddQuant, a: &[i8], b: &[i8], out: &mut [i8]) -> Result<(), Kerne
     if a.len() != b.len() || out.len() < a.len() {
         return Err(KernelError::Shape);
     }
+    // The two input rescales depend on one code each: 256-entry tables (the same function, so
+    // the same bits) where there are more elements than codes, then one requantisation each.
+    if a.len() <= 256 {
+        for ((o, &x), &y) in out.iter_mut().zip(a).zip(b) {
+            *o = q.apply(x, y);
+        }
+        return Ok(());
+    }
+    let ta: [i32; 256] = core::array::from_fn(|c| q.rescale_a(c as u8 as i8));
+    let tb: [i32; 256] = core::array::from_fn(|c| q.rescale_b(c as u8 as i8));
     for ((o, &x), &y) in out.iter_mut().zip(a).zip(b) {
-        *o = q.apply(x, y);
+        *o = q.finish(ta[x as u8 as usize], tb[y as u8 as usize]);
     }
     Ok(())
 }
@@ -223,9 +249,18 @@ pub fn mul(
                 }
             }
             Broadcast::OverSpace => {
+                // One factor per plane: a table of the other's 256 codes when the plane is
+                // larger than it (the same function, so the same bits).
                 let y = b[c];
-                for (o, &x) in oc.iter_mut().zip(ac) {
-                    *o = q.apply(x, y);
+                if p > 256 {
+                    let t: [i8; 256] = core::array::from_fn(|x| q.apply(x as u8 as i8, y));
+                    for (o, &x) in oc.iter_mut().zip(ac) {
+                        *o = t[x as u8 as usize];
+                    }
+                } else {
+                    for (o, &x) in oc.iter_mut().zip(ac) {
+                        *o = q.apply(x, y);
+                    }
                 }
             }
         }
@@ -253,6 +288,12 @@ pub fn concat_part(
     let dst = &mut out[c_offset * p..c_offset * p + n];
     if rescale.is_identity() {
         dst.copy_from_slice(&input[..n]);
+    } else if n > 256 {
+        // A table of the 256 codes (the same function, so the same bits).
+        let t: [i8; 256] = core::array::from_fn(|x| rescale.apply(x as u8 as i8));
+        for (o, &x) in dst.iter_mut().zip(input) {
+            *o = t[x as u8 as usize];
+        }
     } else {
         for (o, &x) in dst.iter_mut().zip(input) {
             *o = rescale.apply(x);
@@ -447,6 +488,35 @@ mod tests {
         arb: arb_bin([Broadcast::None; 3]), check: check_add);
     kernel_tests!(mul_suite, ref: mul_ref, fast: mul, golden: golden_mul,
         arb: arb_bin([Broadcast::None, Broadcast::OverChannels, Broadcast::OverSpace]), check: check_mul);
+
+    proptest! {
+        /// Planes past 256 pixels take the fast kernels' 256-entry tables: the same bits as
+        /// the per-element reference.
+        #[test]
+        fn tables_on_large_planes_equal_the_reference(
+            c in arb_bin([Broadcast::None, Broadcast::OverChannels, Broadcast::OverSpace]),
+            w in 52usize..90,
+        ) {
+            let shape = Shape::new(c.shape.c, 5, w);
+            let n = shape.len().unwrap();
+            let a: Vec<i8> = (0..n).map(|i| c.a[i % c.a.len()] ^ (i as i8)).collect();
+            let b: Vec<i8> = (0..broadcast_len(c.bc, shape).unwrap()).map(|i| c.b[i % c.b.len()].wrapping_add(i as i8)).collect();
+            let (mut y1, mut y2) = (std::vec![0i8; n], std::vec![0i8; n]);
+            let mq = MulQuant::new(c.qa, c.qb, c.qo);
+            mul_ref(&mq, &a, shape, &b, c.bc, &mut y1).unwrap();
+            mul(&mq, &a, shape, &b, c.bc, &mut y2).unwrap();
+            prop_assert_eq!(&y1, &y2, "mul");
+            let aq = AddQuant::new(c.qa, c.qb, c.qo);
+            let b2: Vec<i8> = (0..n).map(|i| b[i % b.len()]).collect();
+            add_ref(&aq, &a, &b2, &mut y1).unwrap();
+            add(&aq, &a, &b2, &mut y2).unwrap();
+            prop_assert_eq!(&y1, &y2, "add");
+            let r = Rescale::new(c.qa, c.qo);
+            concat_part(&a, shape, &r, &mut y2, shape, 0).unwrap();
+            let want: Vec<i8> = a.iter().map(|&x| r.apply(x)).collect();
+            prop_assert_eq!(&want, &y2, "concat");
+        }
+    }
 
     #[test]
     fn mul_fast_equals_ref_bits() {
