@@ -9,6 +9,7 @@
 
 use image::{Rgb, RgbImage};
 use plotters::coord::Shift;
+use plotters::element::DashedPathElement;
 use plotters::prelude::*;
 use plotters::style::colors::colormaps::ViridisRGB;
 use std::path::Path;
@@ -369,6 +370,22 @@ pub const PALETTE: [Rgb<u8>; 4] = [
     Rgb([44, 160, 44]),
 ];
 
+/// Dash and gap of dashed lines, pixels (the series and their legend samples alike).
+const DASH: (i32, i32) = (6, 4);
+/// Length of a line's legend sample, pixels: two dashes and a gap when dashed.
+const LEGEND_LINE: i32 = 16;
+
+/// The legend sample of a line at backend pixel `(x, y)`: a short segment in `style`, dashed like
+/// the line (solid: one dash as long as the sample).
+fn legend_line(
+    (x, y): (i32, i32),
+    style: ShapeStyle,
+    dashed: bool,
+) -> DashedPathElement<std::vec::IntoIter<(i32, i32)>, i32> {
+    let (on, off) = if dashed { DASH } else { (LEGEND_LINE, 0) };
+    DashedPathElement::new(vec![(x, y), (x + LEGEND_LINE, y)], on, off, style)
+}
+
 fn span(v: impl Iterator<Item = f64>) -> (f64, f64) {
     let (lo, hi) = v
         .filter(|x| x.is_finite())
@@ -432,16 +449,21 @@ pub fn line_chart(
             .map_err(e)?;
         for s in series {
             let c = RGBColor(s.colour[0], s.colour[1], s.colour[2]);
-            let style = c.stroke_width(2);
-            let drawn = if s.dashed {
-                chart.draw_series(DashedLineSeries::new(s.points.iter().copied(), 6, 4, style))
+            let (style, dashed) = (c.stroke_width(2), s.dashed);
+            let drawn = if dashed {
+                chart.draw_series(DashedLineSeries::new(
+                    s.points.iter().copied(),
+                    DASH.0,
+                    DASH.1,
+                    style,
+                ))
             } else {
                 chart.draw_series(LineSeries::new(s.points.iter().copied(), style))
             };
             drawn
                 .map_err(e)?
                 .label(s.label.clone())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], style));
+                .legend(move |p| legend_line(p, style, dashed));
             chart
                 .draw_series(s.points.iter().map(|p| Circle::new(*p, 3, c.filled())))
                 .map_err(e)?;
@@ -521,13 +543,13 @@ pub fn bar_chart(
         chart
             .draw_series(DashedLineSeries::new(
                 [(x0, reference.0), (x1, reference.0)],
-                6,
-                4,
+                DASH.0,
+                DASH.1,
                 red,
             ))
             .map_err(e)?
             .label(reference.1.to_string())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], red));
+            .legend(move |p| legend_line(p, red, true));
         chart
             .configure_series_labels()
             .label_font(font(12))
@@ -659,6 +681,61 @@ mod tests {
             &[0.0, 0.2, 0.4, 0.6, 0.8, 1.0]
         ));
         assert_eq!(tick_digits(&[1.75, 2.0]), 2);
+    }
+
+    /// Runs of pixels of colour `c` along the row of the upper right quarter (where the legend
+    /// is) that holds the most of them.
+    fn legend_runs(img: &RgbImage, c: Rgb<u8>) -> usize {
+        let (w, h) = img.dimensions();
+        let row = (0..h / 2)
+            .max_by_key(|&y| (w / 2..w).filter(|&x| *img.get_pixel(x, y) == c).count())
+            .unwrap();
+        let on: Vec<bool> = (w / 2..w).map(|x| *img.get_pixel(x, row) == c).collect();
+        on.windows(2).filter(|p| p[1] && !p[0]).count() + usize::from(on[0])
+    }
+
+    #[test]
+    fn dashed_series_have_dashed_legend_samples() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("lines.png");
+        // Both lines low in the chart, away from the legend in the upper right corner.
+        let series = [
+            Series {
+                label: "before".into(),
+                points: vec![(0.0, -1.0), (1.0, -0.9)],
+                colour: PALETTE[1],
+                dashed: false,
+            },
+            Series {
+                label: "after".into(),
+                points: vec![(0.0, -0.8), (1.0, -1.0)],
+                colour: PALETTE[0],
+                dashed: true,
+            },
+        ];
+        line_chart(&path, "t", "x", "y", &series).unwrap();
+        let img = image::open(&path).unwrap().to_rgb8();
+        assert_eq!(legend_runs(&img, PALETTE[1]), 1, "solid sample");
+        assert_eq!(
+            legend_runs(&img, PALETTE[0]),
+            2,
+            "dashed sample: two dashes"
+        );
+
+        let path = dir.path().join("bars.png");
+        // The dashed reference level low in the chart, below the legend.
+        bar_chart(
+            &path,
+            "t",
+            (0.0, 1.0),
+            "x",
+            "y",
+            &[0.05; 4],
+            (0.01, "level"),
+        )
+        .unwrap();
+        let img = image::open(&path).unwrap().to_rgb8();
+        assert_eq!(legend_runs(&img, PALETTE[0]), 2, "dashed reference sample");
     }
 
     #[test]
