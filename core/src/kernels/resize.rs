@@ -139,6 +139,10 @@ pub fn upsample_bilinear(
             let mut cols = Coords::new(iw, out_shape.w);
             // |sum| ≤ 128·dx·dy: in 32 bits (a hardware divide on Cortex-M) unless huge.
             let narrow = cols.den * dy <= 1 << 23;
+            if narrow && iw <= ROW {
+                narrow_row(r0, r1, fy as i32, dy as i32, &cols, orow);
+                continue;
+            }
             for o in orow.iter_mut() {
                 let (x0, fx, dx) = cols.next();
                 let x1 = (x0 + 1).min(iw - 1);
@@ -156,6 +160,37 @@ pub fn upsample_bilinear(
         }
     }
     Ok(())
+}
+
+/// Widest input row of [`narrow_row`] (its column blend lives on the stack).
+const ROW: usize = 256;
+
+/// One output row in 32 bits: the two input rows blended once per input column,
+/// `v[x] = r0[x]·(dy − fy) + r1[x]·fy`, then `v[x0]·(dx − fx) + v[x1]·fx` per output column,
+/// the same integer as the reference's `top·(dy − fy) + bot·fy` (exact), so the same bits.
+/// `cols` is at its first column; `|sum| ≤ 128·dx·dy < 2^31` and `r0.len() ≤ ROW`.
+fn narrow_row(r0: &[i8], r1: &[i8], fy: i32, dy: i32, cols: &Coords, orow: &mut [i8]) {
+    let iw = r0.len().min(r1.len()).min(ROW);
+    if iw == 0 {
+        return;
+    }
+    let mut v = [0i32; ROW];
+    for ((v, &a), &b) in v.iter_mut().zip(r0).zip(r1) {
+        *v = i32::from(a) * (dy - fy) + i32::from(b) * fy;
+    }
+    let (step, den) = (cols.step as i32, cols.den as i32);
+    let d = den * dy;
+    let (mut x0, mut f) = (0usize, 0i32);
+    for o in orow.iter_mut() {
+        let x1 = (x0 + 1).min(iw - 1);
+        let n = v[x0.min(iw - 1)] * (den - f) + v[x1] * f;
+        *o = div_round_i32(n, d).clamp(-128, 127) as i8;
+        f += step;
+        while f >= den {
+            f -= den;
+            x0 += 1;
+        }
+    }
 }
 
 /// f32 bilinear resize (`align_corners = true`); used for depth maps and as the float reference.
