@@ -4,8 +4,8 @@
 //! reduction steps become a stream on the stack (in chunks of [`CHUNK`]) of three words per
 //! step: the step's absolute pixel address and the pair's two weight words, so one `LDM` reads
 //! them; each pixel pair's offset from the address is an immediate of the `LDRD` (one loop per
-//! pair position). A step is `LDM`, `LDRD` pixels, four `SMLAD`: 14 instructions per two steps
-//! (16 multiply-accumulates) with the loop unrolled twice.
+//! pair position). A step is `LDM`, `LDRD` pixels, four `SMLAD`: 26 instructions per four steps
+//! (32 multiply-accumulates) with the loop unrolled four times.
 
 use crate::kernels::dot::{Acc, Task};
 use crate::kernels::pack::{NB, PB};
@@ -22,30 +22,35 @@ const CHUNK: usize = 128;
 #[inline(always)]
 unsafe fn block<const OFF: usize>(stream: *const u32, n: usize, a: &mut [i32; 4]) {
     let [mut a00, mut a01, mut a10, mut a11] = *a;
-    let pairs = n / 2;
     let mut t = stream;
     // LDM fills registers in number order, so the three it loads are named: r0 address,
-    // r1 / r2 the weight words; r3 / r4 take the pixel words.
-    if pairs > 0 {
+    // r1 / r2 the weight words; r3 / r4 take the pixel words. Four steps per loop, then the
+    // last two and the last one.
+    macro_rules! step {
+        () => {
+            concat!(
+                "ldm {t}!, {{r0, r1, r2}}\n",
+                "ldrd r3, r4, [r0, #{off}]\n",
+                "smlad {a00}, r3, r1, {a00}\n",
+                "smlad {a01}, r4, r1, {a01}\n",
+                "smlad {a10}, r3, r2, {a10}\n",
+                "smlad {a11}, r4, r2, {a11}\n",
+            )
+        };
+    }
+    let quads = n / 4;
+    if quads > 0 {
         core::arch::asm!(
             "2:",
-            "ldm {t}!, {{r0, r1, r2}}",
-            "ldrd r3, r4, [r0, #{off}]",
-            "smlad {a00}, r3, r1, {a00}",
-            "smlad {a01}, r4, r1, {a01}",
-            "smlad {a10}, r3, r2, {a10}",
-            "smlad {a11}, r4, r2, {a11}",
-            "ldm {t}!, {{r0, r1, r2}}",
-            "ldrd r3, r4, [r0, #{off}]",
-            "smlad {a00}, r3, r1, {a00}",
-            "smlad {a01}, r4, r1, {a01}",
-            "smlad {a10}, r3, r2, {a10}",
-            "smlad {a11}, r4, r2, {a11}",
+            step!(),
+            step!(),
+            step!(),
+            step!(),
             "cmp {t}, {end}",
             "bne 2b",
             off = const OFF,
             t = inout(reg) t,
-            end = in(reg) stream.add(6 * pairs),
+            end = in(reg) stream.add(12 * quads),
             out("r0") _,
             out("r1") _,
             out("r2") _,
@@ -58,16 +63,11 @@ unsafe fn block<const OFF: usize>(stream: *const u32, n: usize, a: &mut [i32; 4]
             options(nostack, readonly),
         );
     }
-    if n % 2 == 1 {
+    for _ in 0..n % 4 {
         core::arch::asm!(
-            "ldm {t}, {{r0, r1, r2}}",
-            "ldrd r3, r4, [r0, #{off}]",
-            "smlad {a00}, r3, r1, {a00}",
-            "smlad {a01}, r4, r1, {a01}",
-            "smlad {a10}, r3, r2, {a10}",
-            "smlad {a11}, r4, r2, {a11}",
+            step!(),
             off = const OFF,
-            t = in(reg) t,
+            t = inout(reg) t,
             out("r0") _,
             out("r1") _,
             out("r2") _,
