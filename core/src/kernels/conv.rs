@@ -237,6 +237,12 @@ impl Conv2d<'_> {
             zp: self.quant.output_zero_point,
             min: self.quant.act_min.max(-128),
             max: self.quant.act_max.min(127),
+            narrow: {
+                // |x − zp| ≤ 255 and |w| ≤ 128 per tap.
+                let taps = self.weights.len() / self.channels.len().max(1);
+                let bound = (taps as u64) * 255 * 128 + u64::from(base.unsigned_abs());
+                bound < 1 << 30
+            },
         }
     }
 
@@ -326,6 +332,9 @@ pub struct RowQuant {
     pub min: i32,
     /// Highest output code.
     pub max: i32,
+    /// Whether every `base + acc` the conv can produce has `|·| < 2^30` (taps · 255 · 128 +
+    /// |base| below it), which lets the Cortex-M path double it and use `SMMULR`.
+    pub narrow: bool,
 }
 
 /// `clamp(zp + MultiplyByQuantizedMultiplier(base + acc, M±))` for `shift ≤ 0` and a
@@ -382,7 +391,16 @@ fn requant_row(k: &RowQuant, acc: &[i32], dst: &mut [i8]) {
         return;
     }
     #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
-    if super::arm::dsp::requant_row(acc, dst, base, k.pos_m, k.pos_r, zp, k.min, k.max) {
+    if super::arm::dsp::requant_row(
+        acc,
+        dst,
+        base,
+        (k.pos_m, k.pos_r),
+        zp,
+        k.min,
+        k.max,
+        k.narrow,
+    ) {
         return;
     }
     let (m, e) = (k.pos_m, k.pos_r.clamp(0, 31) as u32);
@@ -1380,9 +1398,12 @@ pub(crate) mod tests {
             zp in -128i32..=127,
             edge in 0usize..8,
             m_edge in 0usize..4,
+            e_edge in 0usize..4,
         ) {
-            // Exact halves at both roundings: m = 2^30 (×0.5) on odd x, small x, extremes.
+            // Exact halves at both roundings: m = 2^30 (×0.5) on odd x, small x, extremes;
+            // small shifts often (where one unit of the high product shows in the result).
             let x = [x, 0, -1, i32::MIN, i32::MAX, x >> 16, x >> 24, (x >> 20) | 1][edge];
+            let e = [e, 1, 2, e % 4][e_edge];
             let m = [m, 1 << 30, (1 << 30) + 1, i32::MAX][m_edge];
             let r = crate::kernels::requant::Requant { multiplier: m, shift: -e };
             // A leaky ReLU's second slope (multiplier and shift below zero) on a quarter.
@@ -1399,6 +1420,7 @@ pub(crate) mod tests {
                 // A ReLU's floor (the zero point) on half the cases.
                 min: if m_edge % 2 == 1 { zp } else { -128 },
                 max: 127,
+                narrow: x.unsigned_abs() < 1 << 30,
             };
             let want = if x < 0 { rn } else { r }.apply(x).saturating_add(zp).clamp(k.min, 127) as i8;
             prop_assert_eq!(requant_one(&k, x), want);

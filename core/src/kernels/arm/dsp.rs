@@ -300,29 +300,66 @@ pub fn pack_pixel(x: impl Iterator<Item = i32>, out: &mut [u32]) {
 }
 
 /// `requant_one` of the conv over a row for one multiplier `m ≥ 0` and right shift `e`
-/// (`1 ..= 22`), `max` 127: `dst[i] = max(min, sat8(zp + rdbpot(srdhm(base + acc[i], m), e)))`
-/// in 19 instructions per element (`SMLAL` for the doubling high multiply, `SSAT` for both the
-/// 31-bit pre-clamp and the int8 saturation). `false` (nothing written) outside those cases.
+/// (`1 ..= 22`), `max` 127: `dst[i] = max(min, sat8(zp + rdbpot(srdhm(base + acc[i], m), e)))`.
+/// `narrow` (every `|base + acc[i]| < 2^30`): `SMMULR` of the doubled sum is the doubling high
+/// multiply, `(2x·m + 2^31) >> 32 = ⌊(x·m + 2^30) / 2^31⌋`, 14 instructions per element;
+/// otherwise `SMLAL` and an `SSAT` pre-clamp, 19. `false` (nothing written) outside those cases.
 ///
 /// The pre-clamp of the high product `q` to `[−2^30, 2^30 − 1]` keeps `q + 2^(e−1)` in i32 and
-/// changes no result: beyond it `|q| / 2^e ≥ 2^30 / 2^22 = 256`, which saturates either way.
+/// changes no result: beyond it `|q| / 2^e ≥ 2^30 / 2^22 = 256`, which saturates either way
+/// (with `narrow`, `|q| ≤ |x| < 2^30` already).
 #[allow(clippy::too_many_arguments)]
 pub fn requant_row(
     acc: &[i32],
     dst: &mut [i8],
     base: i32,
-    m: i32,
-    e: i32,
+    (m, e): (i32, i32),
     zp: i32,
     min: i32,
     max: i32,
+    narrow: bool,
 ) -> bool {
     let n = acc.len().min(dst.len());
     if !(1..=22).contains(&e) || m < 0 || max != 127 || !(-128..=127).contains(&min) || n == 0 {
         return n == 0;
     }
     let half = 1i32 << (e - 1);
-    // SAFETY: `n` words of `acc` and `n` bytes of `dst` exist (n ≤ both lengths).
+    if narrow {
+        // SAFETY: `n` words of `acc` and `n` bytes of `dst` exist (n ≤ both lengths).
+        unsafe {
+            core::arch::asm!(
+                "2:",
+                "ldr {x}, [{a}], #4",
+                "add {x}, {base2}, {x}, lsl #1",
+                "smmulr {x}, {x}, {m}",
+                "add {lo}, {x}, {half}",
+                "sub {lo}, {lo}, {x}, lsr #31",
+                "asr {lo}, {lo}, {e}",
+                "add {lo}, {lo}, {zp}",
+                "ssat {lo}, #8, {lo}",
+                "cmp {lo}, {min}",
+                "it lt",
+                "movlt {lo}, {min}",
+                "strb {lo}, [{d}], #1",
+                "subs {n}, {n}, #1",
+                "bne 2b",
+                a = inout(reg) acc.as_ptr() => _,
+                d = inout(reg) dst.as_mut_ptr() => _,
+                n = inout(reg) n => _,
+                base2 = in(reg) base.wrapping_mul(2),
+                m = in(reg) m,
+                half = in(reg) half,
+                e = in(reg) e,
+                zp = in(reg) zp,
+                min = in(reg) min,
+                x = out(reg) _,
+                lo = out(reg) _,
+                options(nostack),
+            );
+        }
+        return true;
+    }
+    // SAFETY: as above.
     unsafe {
         core::arch::asm!(
             "2:",

@@ -178,10 +178,10 @@ fn row_i8_chunks(
 ) -> Result<(), KernelError> {
     let rad = br.rad;
     let (x0, x1) = if w > 2 * rad { (rad, w - rad) } else { (w, w) };
-    for x in (0..x0.min(w)).chain(x1.max(x0)..w) {
-        nxt[x] = step_pixel(a, br, h, w, y, x, at, cur);
-    }
     let inside = br.inside_rows(h, y);
+    for x in (0..x0.min(w)).chain(x1.max(x0)..w) {
+        nxt[x] = border_pixel(a, lut, br, &inside, w, x, at, cur)?;
+    }
     let mut x = x0;
     while x < x1 {
         let len = (x1 - x).min(CHUNK);
@@ -245,6 +245,42 @@ fn row_i8_chunks(
         x += len;
     }
     Ok(())
+}
+
+/// [`step_pixel`] on an int8 map through the branch's table (`lut[q] = relu(dequantise(q))`, the
+/// same f32 value), with the row test done once by `inside` ([`Branch::inside_rows`]): the `r`
+/// border columns of [`row_i8_chunks`].
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn border_pixel(
+    a: &I8Map,
+    lut: &[f32; 256],
+    br: &Branch,
+    inside: &core::ops::Range<usize>,
+    w: usize,
+    x: usize,
+    at: RowAt,
+    cur: &[f32],
+) -> Result<f32, KernelError> {
+    let (ia, ic) = (at.aff + x, at.cur + x);
+    let (codes, plane) = (a.data(), a.plane());
+    let mut s = 0.0f32;
+    let mut acc = *cur.get(ic).ok_or(KernelError::Shape)?;
+    for j in inside.clone() {
+        let nx = x as isize + br.off[j].1;
+        if nx < 0 || nx >= w as isize {
+            continue;
+        }
+        let q = *codes.get(j * plane + ia).ok_or(KernelError::Shape)?;
+        let d = ic
+            .checked_add_signed(br.delta[j])
+            .and_then(|i| cur.get(i))
+            .ok_or(KernelError::Shape)?;
+        let r = lut[q as u8 as usize] * br.g[j];
+        s += r;
+        acc += r * d;
+    }
+    Ok(acc / (1.0 + s))
 }
 
 /// Row `y` on an int8 map with the AVX2 / AVX-512 run kernel for the interior pixels and

@@ -265,6 +265,7 @@ mod tests {
                 zp: (next() % 256) as i32 - 128,
                 min: -128 + (next() % 64) as i32,
                 max: 127,
+                narrow: false,
             };
             let mut acc: std::vec::Vec<i32> =
                 (0..64).map(|_| (next() as i32) >> (next() % 32)).collect();
