@@ -828,9 +828,19 @@ fn run<F: Micro, S: Source>(
 
         for oy in dst.rows.clone() {
             pack::pack_rows::<F, S>(g, input, grp * icg, group_shape, out.w, oy, zp, &dims, rows);
-            for ox0 in (0..out.w).step_by(PB) {
-                let n = PB.min(out.w - ox0);
-                for b in 0..dims.n_blocks {
+            // Blocks outermost: a block's requantisation constants once per row.
+            for b in 0..dims.n_blocks {
+                let o0 = o_first + b * NB;
+                let nb = NB.min(ocg - b * NB);
+                let mut rq = [RowQuant::default(); NB];
+                for (j, q) in rq.iter_mut().enumerate().take(nb) {
+                    let base = op.channels[o0 + j]
+                        .bias
+                        .wrapping_sub(F::bias_term(zp, sums[b * NB + j]));
+                    *q = op.row_quant(o0 + j, base);
+                }
+                for ox0 in (0..out.w).step_by(PB) {
+                    let n = PB.min(out.w - ox0);
                     let task = Task {
                         rows,
                         weights: &weights[b * dims.block_len..(b + 1) * dims.block_len],
@@ -839,16 +849,7 @@ fn run<F: Micro, S: Source>(
                         pixels: n,
                     };
                     F::kernel(isa, &task, &mut acc);
-                    let o0 = o_first + b * NB;
                     let at = o0 * dst.stride + (oy - dst.rows.start) * out.w + ox0;
-                    let nb = NB.min(ocg - b * NB);
-                    let mut rq = [RowQuant::default(); NB];
-                    for (j, q) in rq.iter_mut().enumerate().take(nb) {
-                        let base = op.channels[o0 + j]
-                            .bias
-                            .wrapping_sub(F::bias_term(zp, sums[b * NB + j]));
-                        *q = op.row_quant(o0 + j, base);
-                    }
                     op.finish_block(isa, &rq[..nb], o0, &acc, n, output, at, dst.stride);
                 }
             }
