@@ -336,8 +336,7 @@ impl<'m, B: Map> Mix<'m, B> {
         e.map(|e| e / s)
     }
 
-    /// The int8 map and its table, where the map is int8 (for the vector paths).
-    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+    /// The int8 map and its table, where the map is int8.
     fn int8(&self) -> Option<(&I8Map<'_>, &[f32; 256])> {
         Some((self.map.as_i8()?, self.table.as_ref()?))
     }
@@ -490,6 +489,50 @@ pub fn refine_with<R: AffinityRows, B: Map>(
     Ok(())
 }
 
+/// [`accumulate`] on int8 mixing maps, scalar: the three channel rows sliced once, so the
+/// loop has no index arithmetic or bounds test, and the [`Mix::one`] arithmetic inline (the
+/// same operations, so the same bits). `false` (nothing done) if a map is short or `ti`, `k` ≥ 3.
+fn accumulate_i8(
+    out: &mut [f32],
+    cur: &[f32],
+    (tm, tt): (&I8Map, &[f32; 256]),
+    (km, kt): (&I8Map, &[f32; 256]),
+    ti: usize,
+    k: usize,
+    first: usize,
+) -> bool {
+    let p = out.len().min(cur.len());
+    fn rows<'m>(m: &'m I8Map, first: usize, p: usize) -> Option<[&'m [i8]; 3]> {
+        let row = |c: usize| m.data().get(c * m.plane() + first..)?.get(..p);
+        (m.channels() >= 3 && first + p <= m.plane()).then_some([row(0)?, row(1)?, row(2)?])
+    }
+    let (Some(t), Some(m)) = (rows(tm, first, p), rows(km, first, p)) else {
+        return false;
+    };
+    if ti >= 3 || k >= 3 {
+        return false;
+    }
+    // The softmax component of codes `q0..q2` with numerator code `qc` through table `e`
+    // (Mix::one; scalars, as array adapters stay loops at opt-level "s").
+    #[inline(always)]
+    fn one(q0: i8, q1: i8, q2: i8, qc: i8, e: &[f32; 256]) -> f32 {
+        let (q0, q1, q2, qc) = (i32::from(q0), i32::from(q1), i32::from(q2), i32::from(qc));
+        let mx = q0.max(q1).max(q2);
+        let at = |q: i32| e[(mx - q) as usize & 255];
+        at(qc) / (at(q0) + at(q1) + at(q2))
+    }
+    // Every slice exactly `p` long here, so the loop below has no bounds test.
+    let (t0, t1, t2, tc) = (&t[0][..p], &t[1][..p], &t[2][..p], &t[ti][..p]);
+    let (k0, k1, k2, kc) = (&m[0][..p], &m[1][..p], &m[2][..p], &m[k][..p]);
+    let (out, cur) = (&mut out[..p], &cur[..p]);
+    for i in 0..p {
+        let ct = one(t0[i], t1[i], t2[i], tc[i], tt);
+        let ck = one(k0[i], k1[i], k2[i], kc[i], kt);
+        out[i] += (ct * ck) * cur[i];
+    }
+    true
+}
+
 /// The vector part of [`accumulate`]: how many leading values it did (0 where the set has no
 /// vector path or a map is not int8).
 #[allow(clippy::too_many_arguments)]
@@ -533,6 +576,13 @@ fn accumulate<B: Map>(
 ) {
     let p = out.len().min(cur.len());
     let done = accumulate_vector(isa, out, cur, tmix, kmix, ti, k, first);
+    if done == 0 {
+        if let (Some(t), Some(m)) = (tmix.int8(), kmix.int8()) {
+            if accumulate_i8(&mut out[..p], &cur[..p], t, m, ti, k, first) {
+                return;
+            }
+        }
+    }
     for i in done..p {
         let coef = tmix.one(first + i, ti) * kmix.one(first + i, k);
         out[i] += coef * cur[i];
