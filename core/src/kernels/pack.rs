@@ -422,16 +422,19 @@ pub fn pack_weights<F: Layout>(
     let taps = icg * kh * kw;
     let l = F::L;
     out[..dims.n_blocks * dims.block_len].fill(F::W::default());
+    // Consecutive taps of one input channel are `n_cg · NB · l` elements apart.
+    let stride = dims.n_cg * NB * l;
     for o in 0..ocg {
         let (b, j) = (o / NB, o % NB);
         let row = &weights[o * taps..(o + 1) * taps];
         let mut s = 0i32;
-        for c in 0..icg {
+        for (c, taps_c) in row.chunks_exact((kh * kw).max(1)).enumerate() {
             let (cg, li) = (c / l, c % l);
-            for t in 0..kh * kw {
-                let w = row[c * kh * kw + t];
+            let mut at = b * dims.block_len + (cg * NB + j) * l + li;
+            for &w in taps_c {
                 s += w as i32;
-                out[b * dims.block_len + ((t * dims.n_cg + cg) * NB + j) * l + li] = F::weight(w);
+                out[at] = F::weight(w);
+                at += stride;
             }
         }
         sums[o] = s;
