@@ -18,6 +18,9 @@ import json
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
+ARCHITECTURE = ("RGB encoder (BasicBlock stages 1/2…1/32), monocular prior (D_inv, F_mde), depth encoder over "
+                "cat(D_inv, D_rel, S) (5×5 dilation-2 stem, CBAM on the deepest stage), fusing decoder, 128-bin adaptive "
+                "depth head at 1/2 resolution, mixed-affinity refinement (3/5/7 kernels, fixed iterations, t ∈ {0, T/2, T}).")
 ORDER = ["int8", "float", "nearest", "bilinear", "joint_bilateral", "prior_fit"]
 METRICS = [("delta1", "δ1"), ("delta2", "δ2"), ("delta3", "δ3"), ("abs_rel", "Rel"),
            ("rmse", "RMSE"), ("log10", "log10"), ("ewmae", "EWMAE")]
@@ -119,6 +122,7 @@ def main() -> None:
     ap.add_argument("--regression", type=Path, help="depthor eval summary.json on the card's regression set")
     ap.add_argument("--discussion", default="",
                     help="a paragraph after the real sets: why the model loses where it does")
+    ap.add_argument("--architecture", default=ARCHITECTURE, help="the Model section's architecture line (default: the mcu/phone network)")
     ap.add_argument("--note", default="", help="a paragraph placed under the status line (e.g. where trained weights are)")
     a = ap.parse_args()
 
@@ -148,9 +152,7 @@ def main() -> None:
          f"- Weights: {summary.get('weights')}" + (f" (`{summary['weights_path']}`)" if summary.get("weights_path") else ""),
          f"- Files: `depthor.nnef.tgz` (float, tract), `prior.nnef.tgz`, `graph.json` + `weights.bin`, "
          f"`depthor.dblob` (int8, {blob:,} B, the core's).",
-         "- Architecture: RGB encoder (BasicBlock stages 1/2…1/32), monocular prior (D_inv, F_mde), depth encoder over "
-         "cat(D_inv, D_rel, S) (5×5 dilation-2 stem, CBAM on the deepest stage), fusing decoder, 128-bin adaptive "
-         "depth head at 1/2 resolution, mixed-affinity refinement (3/5/7 kernels, fixed iterations, t ∈ {0, T/2, T}).",
+         f"- Architecture: {a.architecture}",
          ""]
     if a.run:
         L += ["## Training", ""] + training_section(a.run) + [""]
