@@ -299,6 +299,27 @@ pub fn pack_pixel(x: impl Iterator<Item = i32>, out: &mut [u32]) {
     }
 }
 
+/// The end of every requantisation loop: from the high product `{x}`, the rounding right shift
+/// by `{e}` (`{half}` = 2^(e−1)), the zero point, int8 saturation, the activation floor `{min}`,
+/// the store, and the loop back to `2:`.
+macro_rules! requant_tail {
+    () => {
+        concat!(
+            "add {lo}, {x}, {half}\n",
+            "sub {lo}, {lo}, {x}, lsr #31\n",
+            "asr {lo}, {lo}, {e}\n",
+            "add {lo}, {lo}, {zp}\n",
+            "ssat {lo}, #8, {lo}\n",
+            "cmp {lo}, {min}\n",
+            "it lt\n",
+            "movlt {lo}, {min}\n",
+            "strb {lo}, [{d}], #1\n",
+            "subs {n}, {n}, #1\n",
+            "bne 2b\n",
+        )
+    };
+}
+
 /// `requant_one` of the conv over a row for one multiplier `m ≥ 0` and right shift `e`
 /// (`1 ..= 22`), `max` 127: `dst[i] = max(min, sat8(zp + rdbpot(srdhm(base + acc[i], m), e)))`.
 /// `narrow` (every `|base + acc[i]| < 2^30`): `SMMULR` of the doubled sum is the doubling high
@@ -332,17 +353,7 @@ pub fn requant_row(
                 "ldr {x}, [{a}], #4",
                 "add {x}, {base2}, {x}, lsl #1",
                 "smmulr {x}, {x}, {m}",
-                "add {lo}, {x}, {half}",
-                "sub {lo}, {lo}, {x}, lsr #31",
-                "asr {lo}, {lo}, {e}",
-                "add {lo}, {lo}, {zp}",
-                "ssat {lo}, #8, {lo}",
-                "cmp {lo}, {min}",
-                "it lt",
-                "movlt {lo}, {min}",
-                "strb {lo}, [{d}], #1",
-                "subs {n}, {n}, #1",
-                "bne 2b",
+                requant_tail!(),
                 a = inout(reg) acc.as_ptr() => _,
                 d = inout(reg) dst.as_mut_ptr() => _,
                 n = inout(reg) n => _,
@@ -371,17 +382,7 @@ pub fn requant_row(
             "lsr {lo}, {lo}, #31",
             "orr {x}, {lo}, {hi}, lsl #1",
             "ssat {x}, #31, {x}",
-            "add {lo}, {x}, {half}",
-            "sub {lo}, {lo}, {x}, lsr #31",
-            "asr {lo}, {lo}, {e}",
-            "add {lo}, {lo}, {zp}",
-            "ssat {lo}, #8, {lo}",
-            "cmp {lo}, {min}",
-            "it lt",
-            "movlt {lo}, {min}",
-            "strb {lo}, [{d}], #1",
-            "subs {n}, {n}, #1",
-            "bne 2b",
+            requant_tail!(),
             a = inout(reg) acc.as_ptr() => _,
             d = inout(reg) dst.as_mut_ptr() => _,
             n = inout(reg) n => _,
