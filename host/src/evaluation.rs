@@ -7,23 +7,79 @@
 //! RGB, and the monocular prior fitted to the points by least-squares scale and shift in inverse
 //! depth (the paper's "DAv2-RS" protocol with our prior).
 
-use anyhow::{Context, Result};
 use depthor_core::calibration::CameraIntrinsics;
 use depthor_core::metrics::{Metrics, MetricsAccumulator};
-use depthor_core::projection::{for_each_point, ProjectedPoint};
+use depthor_core::projection::{for_each_point, ProjectedPoint, ProjectionError};
 use image::RgbImage;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::baselines::{self, SparseFrame};
 use crate::dataset::{dtof_frame, dtof_meta, resample_frame, scene_config_for, synth_frame};
-use crate::inference::Int8Model;
+use crate::inference::{InferenceError, Int8Model};
 use crate::models::ModelFiles;
-use crate::recording::{CalibrationData, Recording};
+use crate::plot::PlotError;
+use crate::recording::{CalibrationData, Recording, RecordingError};
 use crate::reference::prior::{fit_scale_shift, PriorReference};
-use crate::reference::FloatReference;
-use crate::sim::{preset, simulate, SimConfig, SimInput, SimOutput};
+use crate::reference::{FloatReference, ReferenceError};
+use crate::sim::{preset, simulate, SimConfig, SimError, SimInput, SimOutput};
 use crate::viz::{depth_image, draw_points, Overlay};
+
+pub mod output;
+
+/// Why frames could not be made, a model not loaded or run, or a figure not written. The
+/// wrapped errors keep their own message and source chain.
+#[derive(Debug, thiserror::Error)]
+pub enum EvalError {
+    /// The simulator or its preset.
+    #[error(transparent)]
+    Sim(#[from] SimError),
+    /// Reading a recording.
+    #[error(transparent)]
+    Recording(#[from] RecordingError),
+    /// Projecting the zones.
+    #[error(transparent)]
+    Projection(#[from] ProjectionError),
+    /// Loading or running the int8 model.
+    #[error(transparent)]
+    Inference(#[from] InferenceError),
+    /// Loading or running the float network or the prior.
+    #[error(transparent)]
+    Reference(#[from] ReferenceError),
+    /// Drawing a figure.
+    #[error(transparent)]
+    Plot(#[from] PlotError),
+    /// A rendered scene's RGB does not have `width × height` pixels.
+    #[error("scene size")]
+    SceneSize,
+    /// The float network was asked of the embedded `mcu` model, which has none.
+    #[error(
+        "model mcu: no models/mcu folder found (looked in {looked}); the embedded int8 blob has \
+         no float network: pass --no-float, or --models-dir DIR (or DEPTHOR_MODELS) with mcu/"
+    )]
+    NoFloat {
+        /// The model folders searched, comma-separated.
+        looked: String,
+    },
+    /// An image could not be written.
+    #[error("{}: cannot write", path.display())]
+    WriteImage {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: image::ImageError,
+    },
+    /// A text file could not be written.
+    #[error("{}: cannot write", path.display())]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+}
+
+type Result<T, E = EvalError> = std::result::Result<T, E>;
 
 /// One input frame at the model's size.
 #[derive(Clone, Debug)]
@@ -148,7 +204,7 @@ pub fn rendered_frame(
         width,
         height,
     )?;
-    let rgb = RgbImage::from_raw(width, height, f.scene.rgb.clone()).context("scene size")?;
+    let rgb = RgbImage::from_raw(width, height, f.scene.rgb.clone()).ok_or(EvalError::SceneSize)?;
     let points = sim_points(&cfg, &f.sim, &f.scene.camera)?;
     Ok(EvalFrame {
         id: format!("{index:06}"),
@@ -369,15 +425,13 @@ impl Evaluator {
     /// Loads a model's int8 blob and, when `with_float`, its float network and prior (tract).
     pub fn load(files: &ModelFiles, with_float: bool, depth_range_m: (f32, f32)) -> Result<Self> {
         if files.embedded && with_float {
-            anyhow::bail!(
-                "model mcu: no models/mcu folder found (looked in {}); the embedded int8 blob has \
-                 no float network: pass --no-float, or --models-dir DIR (or DEPTHOR_MODELS) with mcu/",
-                crate::models::search_dirs()
+            return Err(EvalError::NoFloat {
+                looked: crate::models::search_dirs()
                     .iter()
                     .map(|d| d.display().to_string())
                     .collect::<Vec<_>>()
-                    .join(", ")
-            );
+                    .join(", "),
+            });
         }
         let int8 = if files.embedded {
             Int8Model::embedded_mcu()?
@@ -564,10 +618,15 @@ pub fn write_mosaic(
     extra: Option<(&str, &[f32])>,
 ) -> Result<()> {
     let (img, csv) = comparison_mosaic(f, pred, extra)?;
-    img.save(path)
-        .with_context(|| format!("{}: cannot write", path.display()))?;
+    img.save(path).map_err(|source| EvalError::WriteImage {
+        path: path.to_path_buf(),
+        source,
+    })?;
     let csv_path = path.with_extension("csv");
-    std::fs::write(&csv_path, csv).with_context(|| format!("{}: cannot write", csv_path.display()))
+    std::fs::write(&csv_path, csv).map_err(|source| EvalError::Write {
+        path: csv_path,
+        source,
+    })
 }
 
 /// How metrics over several frames are combined (docs/eval.md).

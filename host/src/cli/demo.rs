@@ -61,7 +61,7 @@ pub fn handle(args: Args) -> Result<()> {
     let frames: Vec<EvalFrame> = match &args.recording {
         None => (0..args.frames.max(1) as u64)
             .map(|i| rendered_frame(&preset, args.seed, i, w as u32, h as u32))
-            .collect::<Result<_>>()?,
+            .collect::<Result<_, _>>()?,
         Some(dir) => {
             let rec = RecordingFrames::open(dir, &preset)?;
             if !rec.has_rgb() {
@@ -76,7 +76,7 @@ pub fn handle(args: Args) -> Result<()> {
             };
             (0..n)
                 .map(|i| rec.frame(i, w as u32, h as u32))
-                .collect::<Result<_>>()?
+                .collect::<Result<_, _>>()?
         }
     };
     // Everything goes into `<out>.partial-<pid>`; an error anywhere leaves `<out>` untouched.
@@ -109,7 +109,12 @@ pub fn handle(args: Args) -> Result<()> {
     if args.json {
         let methods: serde_json::Map<_, _> = rows
             .iter()
-            .map(|(m, x)| (m.key().to_string(), super::eval::metrics_json(x)))
+            .map(|(m, x)| {
+                (
+                    m.key().to_string(),
+                    depthor_host::evaluation::output::metrics_json(x),
+                )
+            })
             .collect();
         return super::common::print_json(&json!({
             "model": files.variant, "model_files": files.describe(),
@@ -154,5 +159,6 @@ fn write_outputs(out: &Path, f: &EvalFrame, pred: &[f32], jbu: Option<&[f32]>) -
         f,
         ("int8 model", pred),
         jbu.map(|d| ("joint bilateral", d)),
-    )
+    )?;
+    Ok(())
 }

@@ -9,13 +9,15 @@
 
 use anyhow::{bail, Context, Result};
 use depthor_core::metrics::{Metrics, MetricsAccumulator};
+use depthor_host::evaluation::output::{
+    comparison_json, csv_row, relative, summary_json, SummaryInfo, Totals, CSV_HEADER,
+};
 use depthor_host::evaluation::{
     metrics_table, resize_bilinear, write_mosaic, Aggregate, EvalFrame, Evaluator, Method,
-    MetricsSet, RecordingFrames,
+    RecordingFrames,
 };
 use depthor_host::models::ModelFiles;
 use depthor_host::recording::depth_m_to_mm;
-use serde_json::json;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -70,77 +72,10 @@ pub struct Args {
     json: bool,
 }
 
-const CSV_HEADER: &str =
-    "recording,frame,method,pixels,delta1,delta2,delta3,abs_rel,rmse,log10,mae,ewmae,invalid_pred,ms";
-
-/// Metrics of every method over a set of frames, and their time.
-struct Totals {
-    sets: Vec<MetricsSet>,
-    seconds: Vec<f64>,
-    frames: usize,
-}
-
-impl Totals {
-    fn new(methods: usize, max_depth: f32) -> Self {
-        Totals {
-            sets: (0..methods).map(|_| MetricsSet::new(max_depth)).collect(),
-            seconds: vec![0.0; methods],
-            frames: 0,
-        }
-    }
-
-    fn merge(&mut self, other: &Totals) {
-        for (a, b) in self.sets.iter_mut().zip(&other.sets) {
-            a.merge(b);
-        }
-        for (a, b) in self.seconds.iter_mut().zip(&other.seconds) {
-            *a += b;
-        }
-        self.frames += other.frames;
-    }
-
-    fn results(&self, methods: &[Method], how: Aggregate) -> Vec<(Method, Metrics, f64)> {
-        methods
-            .iter()
-            .zip(&self.sets)
-            .zip(&self.seconds)
-            .map(|((m, a), s)| (*m, a.finish(how), 1e3 * s / self.frames.max(1) as f64))
-            .collect()
-    }
-}
-
 /// A recording's name for file names and tables (its directory name).
 fn name_of(dir: &Path) -> String {
     dir.file_name()
         .map_or_else(|| "recording".into(), |s| s.to_string_lossy().into_owned())
-}
-
-/// `p` relative to the current folder when it is inside it, else as given.
-fn relative(p: &Path) -> String {
-    let rel = std::env::current_dir()
-        .ok()
-        .and_then(|cwd| p.strip_prefix(&cwd).ok().map(Path::to_path_buf));
-    rel.unwrap_or_else(|| p.to_path_buf()).display().to_string()
-}
-
-/// The source tree's commit (`git rev-parse HEAD`, `-dirty` with uncommitted changes to tracked
-/// files) when the tree this binary was built from is still there; else `None`.
-fn git_commit() -> Option<String> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let git = |args: &[&str]| {
-        std::process::Command::new("git")
-            .arg("-C")
-            .arg(dir)
-            .args(args)
-            .output()
-            .ok()
-            .filter(|o| o.status.success())
-            .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
-    };
-    let head = git(&["rev-parse", "HEAD"])?;
-    let dirty =
-        git(&["status", "--porcelain", "--untracked-files=no"]).is_some_and(|s| !s.is_empty());
-    Some(if dirty { format!("{head}-dirty") } else { head })
 }
 
 /// The prediction and reference a frame is scored on: the model's size, or with `native` the
@@ -235,9 +170,12 @@ pub fn handle(args: Args) -> Result<()> {
                 acc.add_map(&pred, reference, sw as usize, sh as usize)?;
                 totals.sets[k].add_image(&acc);
                 totals.seconds[k] += p.seconds;
-                csv.push(format!(
-                    "{name},{}",
-                    csv_row(&frame.id, p.method, &acc.finish(), p.seconds)
+                csv.push(csv_row(
+                    &name,
+                    &frame.id,
+                    p.method,
+                    &acc.finish(),
+                    p.seconds,
                 ));
                 if args.save_depth && matches!(p.method, Method::Int8 | Method::Float) {
                     save_depth(&out, &name, p.method, &frame.id, &pred, sw, sh)?;
@@ -263,37 +201,21 @@ pub fn handle(args: Args) -> Result<()> {
 
     let how = args.aggregate;
     let union_results = union.results(&methods, how);
-    let mut summary = comparison_json(&union_results);
-    summary["depthor_version"] = json!(env!("CARGO_PKG_VERSION"));
-    summary["git_commit"] = json!(git_commit());
-    summary["model"] = json!(files.variant);
-    summary["model_dir"] = if files.embedded {
-        json!(null)
-    } else {
-        json!(relative(&files.dir))
+    let info = SummaryInfo {
+        model: &files.variant,
+        model_dir: (!files.embedded).then(|| relative(&files.dir)),
+        blob_sha256: eval.int8().blob_sha256(),
+        aggregate: how,
+        native: args.native,
+        first_native_crop: native_size,
+        model_size: (h, w),
+        max_depth_m: args.max_depth,
     };
-    summary["model_embedded"] = json!(files.embedded);
-    summary["blob_sha256"] = json!(eval.int8().blob_sha256());
-    summary["aggregate"] = json!(how.key());
-    summary["aggregate_note"] = json!(how.describe());
-    summary["scored_at"] = json!(if args.native { "native" } else { "model" });
-    summary["frames"] = json!(union.frames);
-    summary["height"] = json!(h);
-    summary["width"] = json!(w);
-    if args.native {
-        summary["first_native_crop"] =
-            json!(native_size.map(|(h, w)| json!({"height": h, "width": w})));
-    }
-    summary["max_depth_m"] = json!(args.max_depth);
-    summary["recordings"] = per_recording
+    let recordings: Vec<(&Path, &Totals)> = per_recording
         .iter()
-        .map(|(dir, t)| {
-            let mut r = comparison_json(&t.results(&methods, how));
-            r["recording"] = json!(relative(dir));
-            r["frames"] = json!(t.frames);
-            r
-        })
+        .map(|(dir, t)| (dir.as_path(), t))
         .collect();
+    let summary = summary_json(&info, &methods, &union, &recordings);
     write_text(
         &out.join("summary.json"),
         &(serde_json::to_string_pretty(&summary)? + "\n"),
@@ -371,71 +293,6 @@ fn print_results(results: &[(Method, Metrics, f64)]) {
             c["delta1_diff"].as_f64().unwrap_or(f64::NAN)
         );
     }
-}
-
-fn csv_row(id: &str, m: Method, x: &Metrics, seconds: f64) -> String {
-    format!(
-        "{id},{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{},{:.3}",
-        m.key(),
-        x.count,
-        x.delta1,
-        x.delta2,
-        x.delta3,
-        x.abs_rel,
-        x.rmse,
-        x.log10,
-        x.mae,
-        x.ewmae,
-        x.invalid_pred,
-        seconds * 1e3
-    )
-}
-
-/// One method's metrics as JSON (the keys of docs/eval.md).
-pub fn metrics_json(x: &Metrics) -> serde_json::Value {
-    json!({
-        "pixels": x.count, "delta1": x.delta1, "delta2": x.delta2, "delta3": x.delta3,
-        "abs_rel": x.abs_rel, "rmse": x.rmse, "log10": x.log10, "mae": x.mae, "ewmae": x.ewmae,
-        "invalid_pred": x.invalid_pred,
-    })
-}
-
-/// Per-method metrics and the comparisons the model cards quote (best baseline by RMSE and by
-/// δ1, int8 against it and against float).
-fn comparison_json(results: &[(Method, Metrics, f64)]) -> serde_json::Value {
-    let methods: serde_json::Map<String, serde_json::Value> = results
-        .iter()
-        .map(|(m, x, ms)| {
-            let mut v = metrics_json(x);
-            v["label"] = json!(m.label());
-            v["ms_per_frame"] = json!(ms);
-            (m.key().to_string(), v)
-        })
-        .collect();
-    let get = |k: Method| results.iter().find(|r| r.0 == k).map(|r| r.1);
-    let baselines = results.iter().filter(|r| r.0.is_baseline());
-    let best_rmse = baselines
-        .clone()
-        .min_by(|a, b| a.1.rmse.total_cmp(&b.1.rmse));
-    let best_d1 = baselines.max_by(|a, b| a.1.delta1.total_cmp(&b.1.delta1));
-    let mut s = json!({ "methods": methods });
-    if let (Some(i8m), Some(br), Some(bd)) = (get(Method::Int8), best_rmse, best_d1) {
-        s["best_baseline"] = json!({
-            "rmse": {"method": br.0.key(), "value": br.1.rmse},
-            "delta1": {"method": bd.0.key(), "value": bd.1.delta1},
-        });
-        s["int8_vs_best_baseline"] = json!({
-            "rmse_ratio": i8m.rmse / br.1.rmse,
-            "delta1_gain": i8m.delta1 - bd.1.delta1,
-        });
-    }
-    if let (Some(q), Some(f)) = (get(Method::Int8), get(Method::Float)) {
-        s["int8_vs_float"] = json!({
-            "rmse_rel_diff": (q.rmse - f.rmse) / f.rmse,
-            "delta1_diff": q.delta1 - f.delta1,
-        });
-    }
-    s
 }
 
 fn write_text(path: &Path, text: &str) -> Result<()> {
