@@ -6,8 +6,7 @@
 //! does not depend on the number of threads.
 
 use crate::recording::{
-    CameraMeta, DistanceMeta, DtofFrame, DtofMeta, Frame, FrameMeta, Recording, RecordingError,
-    RecordingMeta,
+    DistanceMeta, DtofFrame, DtofMeta, Frame, FrameMeta, Recording, RecordingError, RecordingMeta,
 };
 use crate::rng::Rng;
 use crate::scene::{camera_for, render_scene, SceneConfig, SceneFrame};
@@ -110,11 +109,7 @@ pub fn max_range_m(cfg: &SimConfig) -> f32 {
 
 /// A recording header (no frames yet) for frames of `camera`'s size simulated under `cfg`.
 pub fn recording_meta(cfg: &SimConfig, camera: &CameraIntrinsics) -> RecordingMeta {
-    RecordingMeta::new(
-        CameraMeta::from(*camera),
-        Some(dtof_meta(cfg, camera)),
-        None,
-    )
+    RecordingMeta::new(*camera, Some(dtof_meta(cfg, camera)), None)
 }
 
 /// The zones of a simulator output as a `dtof.json` frame.
@@ -142,7 +137,7 @@ pub fn to_recording_frame(id: &str, f: &SynthFrame) -> (FrameMeta, Frame) {
         FrameMeta {
             id: id.to_string(),
             t_s: 0.0,
-            camera: Some(CameraMeta::from(cam)),
+            camera: Some(cam),
         },
         Frame {
             id: id.to_string(),

@@ -180,7 +180,7 @@ pub fn sim_points(
     camera: &CameraIntrinsics,
 ) -> Result<Vec<ProjectedPoint>> {
     let meta = dtof_meta(cfg, camera);
-    let cal = CalibrationData::new(&(*camera).into(), &meta, None);
+    let cal = CalibrationData::new(camera, &meta, None);
     let frame = dtof_frame(sim);
     let mut points = Vec::new();
     for_each_point(&cal.as_core(), &frame.view(&meta), |p| points.push(p))?;

@@ -161,7 +161,7 @@ impl RgbCamera for ReplayCamera {
         let cam = if self.next < self.rec.len() {
             self.rec.camera(self.next)
         } else {
-            self.rec.meta().camera.into()
+            self.rec.meta().camera
         };
         (cam.width, cam.height)
     }

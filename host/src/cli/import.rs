@@ -5,9 +5,7 @@
 
 use anyhow::{Context, Result};
 use depthor_host::import::{self, ImportKind, ImportedSet};
-use depthor_host::recording::{
-    CameraMeta, Frame, FrameMeta, RecordingMeta, RecordingWriter, WriteOptions,
-};
+use depthor_host::recording::{Frame, FrameMeta, RecordingMeta, RecordingWriter, WriteOptions};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `depthor import`.
@@ -83,13 +81,13 @@ pub fn write_set(set: &ImportedSet, out: &Path, overwrite: bool) -> Result<PathB
         .frames
         .first()
         .with_context(|| format!("{}: no frames to import", set.name))?;
-    let base = CameraMeta::from(first.camera);
+    let base = first.camera;
     let mut meta = RecordingMeta::new(base, set.dtof.as_ref().map(|d| d.meta.clone()), None);
     meta.rgb = set.has_rgb;
     let mut writer = RecordingWriter::create_with(out, meta, WriteOptions { overwrite })?;
     let bar = super::progress(set.frames.len() as u64, "writing frames");
     for (i, f) in set.frames.iter().enumerate() {
-        let camera = CameraMeta::from(f.camera);
+        let camera = f.camera;
         let frame_meta = FrameMeta {
             id: f.id.clone(),
             t_s: f.t_s,

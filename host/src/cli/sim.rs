@@ -17,9 +17,7 @@ use depthor_host::dataset::{
     to_recording_frame, SynthFrame,
 };
 use depthor_host::plot::{figure, robust_range, ColourMap, Panel};
-use depthor_host::recording::{
-    CameraMeta, Frame, FrameMeta, Recording, RecordingWriter, Shard, WriteOptions,
-};
+use depthor_host::recording::{Frame, FrameMeta, Recording, RecordingWriter, Shard, WriteOptions};
 use depthor_host::sim::{preset, SimConfig};
 use depthor_host::viz::{
     depth_image, draw_points, labels_image, points_csv, Overlay, LABEL_COLOURS,
@@ -235,11 +233,11 @@ fn from_recording(
     )?;
     for (&i, (r, sim)) in mine.iter().zip(&frames) {
         let src = &rec.meta().frames[i];
-        let camera = CameraMeta::from(r.camera);
+        let camera = r.camera;
         let fm = FrameMeta {
             id: src.id.clone(),
             t_s: src.t_s,
-            camera: (camera != CameraMeta::from(*first)).then_some(camera),
+            camera: (camera != *first).then_some(camera),
         };
         let frame = Frame {
             id: src.id.clone(),

@@ -129,8 +129,22 @@ fn slice_line(s: &Slice) -> String {
     )
 }
 
+/// Why the report could not be written (each keeps the underlying message).
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    /// Creating the folder or writing a file.
+    #[error(transparent)]
+    Io(#[from] std::io::Error),
+    /// Serialising `report.json`.
+    #[error(transparent)]
+    Json(#[from] serde_json::Error),
+    /// Drawing a plot.
+    #[error(transparent)]
+    Plot(#[from] crate::plot::PlotError),
+}
+
 /// Writes `report.json`, `report.md`, `sim_config.json` and the plots into `out`.
-pub fn write(a: &Analysis, out: &Path) -> anyhow::Result<()> {
+pub fn write(a: &Analysis, out: &Path) -> Result<(), ReportError> {
     std::fs::create_dir_all(out)?;
     let report = Report::of(a);
     std::fs::write(

@@ -33,6 +33,7 @@ pub struct RecordingMeta {
     pub format: String,
     /// The RGB camera (frames may override it). In a recording without colour images
     /// (`rgb: false`) it is the virtual camera the zones are projected into.
+    #[serde(serialize_with = "serialize_camera")]
     pub camera: CameraMeta,
     /// Whether the frames have `rgb.png` (`"rgb": false` only in zone-only recordings such as
     /// imported VL53L5CX logs; absent = true). Readers then hand out a black image of the
@@ -49,21 +50,37 @@ pub struct RecordingMeta {
     pub frames: Vec<FrameMeta>,
 }
 
-/// The `camera` object: pinhole intrinsics in pixels.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct CameraMeta {
-    /// Width in pixels.
-    pub width: u32,
-    /// Height in pixels.
-    pub height: u32,
-    /// Focal length x, pixels.
-    pub fx: f32,
-    /// Focal length y, pixels.
-    pub fy: f32,
-    /// Principal point x, pixels.
-    pub cx: f32,
-    /// Principal point y, pixels.
-    pub cy: f32,
+/// The `camera` object: pinhole intrinsics in pixels, the core's own struct (one type from the
+/// file to the projection; its fields are the object's keys).
+pub type CameraMeta = CameraIntrinsics;
+
+/// The `camera` object as serde writes it: the fields of [`CameraIntrinsics`] in their order.
+struct CameraJson<'a>(&'a CameraIntrinsics);
+
+impl Serialize for CameraJson<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        let c = self.0;
+        let mut o = s.serialize_struct("CameraMeta", 6)?;
+        o.serialize_field("width", &c.width)?;
+        o.serialize_field("height", &c.height)?;
+        o.serialize_field("fx", &c.fx)?;
+        o.serialize_field("fy", &c.fy)?;
+        o.serialize_field("cx", &c.cx)?;
+        o.serialize_field("cy", &c.cy)?;
+        o.end()
+    }
+}
+
+fn serialize_camera<S: serde::Serializer>(c: &CameraMeta, s: S) -> Result<S::Ok, S::Error> {
+    CameraJson(c).serialize(s)
+}
+
+fn serialize_frame_camera<S: serde::Serializer>(
+    c: &Option<CameraMeta>,
+    s: S,
+) -> Result<S::Ok, S::Error> {
+    c.as_ref().map(CameraJson).serialize(s)
 }
 
 /// `"distance"`: how the sensor measures.
@@ -110,7 +127,10 @@ pub struct FrameMeta {
     /// Capture time, seconds.
     pub t_s: f64,
     /// Per-frame camera overriding the recording's.
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(
+        skip_serializing_if = "Option::is_none",
+        serialize_with = "serialize_frame_camera"
+    )]
     pub camera: Option<CameraMeta>,
 }
 
@@ -135,18 +155,17 @@ pub struct DtofFrame {
 // ---------------------------------------------------------------------------------------------
 // Parsing (types only; semantic checks are in `validate`).
 
-impl CameraMeta {
-    fn parse(at: At<'_>) -> Result<Self, Invalid> {
-        at.object(&["width", "height", "fx", "fy", "cx", "cy"])?;
-        Ok(CameraMeta {
-            width: at.req("width")?.at().uint(u32::MAX as u64)? as u32,
-            height: at.req("height")?.at().uint(u32::MAX as u64)? as u32,
-            fx: at.req("fx")?.at().f32()?,
-            fy: at.req("fy")?.at().f32()?,
-            cx: at.req("cx")?.at().f32()?,
-            cy: at.req("cy")?.at().f32()?,
-        })
-    }
+/// Reads a `camera` object.
+fn parse_camera(at: At<'_>) -> Result<CameraMeta, Invalid> {
+    at.object(&["width", "height", "fx", "fy", "cx", "cy"])?;
+    Ok(CameraMeta {
+        width: at.req("width")?.at().uint(u32::MAX as u64)? as u32,
+        height: at.req("height")?.at().uint(u32::MAX as u64)? as u32,
+        fx: at.req("fx")?.at().f32()?,
+        fy: at.req("fy")?.at().f32()?,
+        cx: at.req("cx")?.at().f32()?,
+        cy: at.req("cy")?.at().f32()?,
+    })
 }
 
 impl DtofMeta {
@@ -209,10 +228,7 @@ impl FrameMeta {
         Ok(FrameMeta {
             id: at.req("id")?.at().str()?.to_string(),
             t_s: at.req("t_s")?.at().f64()?,
-            camera: at
-                .get("camera")
-                .map(|c| CameraMeta::parse(c.at()))
-                .transpose()?,
+            camera: at.get("camera").map(|c| parse_camera(c.at())).transpose()?,
         })
     }
 }
@@ -231,7 +247,7 @@ impl RecordingMeta {
         ])?;
         let meta = RecordingMeta {
             format: at.req("format")?.at().str()?.to_string(),
-            camera: CameraMeta::parse(at.req("camera")?.at())?,
+            camera: parse_camera(at.req("camera")?.at())?,
             rgb: at
                 .get("rgb")
                 .map(|c| c.at().bool())
@@ -330,25 +346,19 @@ pub fn frame_id_is_valid(id: &str) -> bool {
             .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-' || b == b'.')
 }
 
-impl CameraMeta {
-    /// Checks sizes are positive and intrinsics finite (focal lengths positive).
-    pub fn validate(&self, field: &str) -> Result<(), Invalid> {
-        if self.width == 0 {
-            return Err(Invalid::new(format!("{field}.width"), "must be > 0"));
-        }
-        if self.height == 0 {
-            return Err(Invalid::new(format!("{field}.height"), "must be > 0"));
-        }
-        positive(|| format!("{field}.fx"), self.fx as f64)?;
-        positive(|| format!("{field}.fy"), self.fy as f64)?;
-        finite(|| format!("{field}.cx"), self.cx as f64)?;
-        finite(|| format!("{field}.cy"), self.cy as f64)
+/// Checks a camera's sizes are positive and intrinsics finite (focal lengths positive); errors
+/// name `field`.
+pub fn validate_camera(c: &CameraMeta, field: &str) -> Result<(), Invalid> {
+    if c.width == 0 {
+        return Err(Invalid::new(format!("{field}.width"), "must be > 0"));
     }
-
-    /// Number of pixels.
-    pub fn pixels(&self) -> usize {
-        self.width as usize * self.height as usize
+    if c.height == 0 {
+        return Err(Invalid::new(format!("{field}.height"), "must be > 0"));
     }
+    positive(|| format!("{field}.fx"), c.fx as f64)?;
+    positive(|| format!("{field}.fy"), c.fy as f64)?;
+    finite(|| format!("{field}.cx"), c.cx as f64)?;
+    finite(|| format!("{field}.cy"), c.cy as f64)
 }
 
 impl DtofMeta {
@@ -439,7 +449,7 @@ impl RecordingMeta {
                 format_args!("expected {FORMAT:?}, found {:?}", self.format),
             ));
         }
-        self.camera.validate("camera")?;
+        validate_camera(&self.camera, "camera")?;
         if let Some(d) = &self.dtof {
             d.validate("dtof")?;
         }
@@ -479,7 +489,7 @@ impl FrameMeta {
         }
         finite(|| format!("{field}.t_s"), self.t_s)?;
         if let Some(c) = &self.camera {
-            c.validate(&format!("{field}.camera"))?;
+            validate_camera(c, &format!("{field}.camera"))?;
         }
         Ok(())
     }
@@ -552,32 +562,6 @@ impl DtofFrame {
 
 // ---------------------------------------------------------------------------------------------
 // Conversions to and from the core.
-
-impl From<CameraMeta> for CameraIntrinsics {
-    fn from(c: CameraMeta) -> Self {
-        CameraIntrinsics {
-            width: c.width,
-            height: c.height,
-            fx: c.fx,
-            fy: c.fy,
-            cx: c.cx,
-            cy: c.cy,
-        }
-    }
-}
-
-impl From<CameraIntrinsics> for CameraMeta {
-    fn from(c: CameraIntrinsics) -> Self {
-        CameraMeta {
-            width: c.width,
-            height: c.height,
-            fx: c.fx,
-            fy: c.fy,
-            cx: c.cx,
-            cy: c.cy,
-        }
-    }
-}
 
 impl From<DistanceMeta> for DistanceKind {
     fn from(d: DistanceMeta) -> Self {
@@ -663,7 +647,7 @@ impl CalibrationData {
         dtof_to_camera: Option<&ExtrinsicsMeta>,
     ) -> Self {
         CalibrationData {
-            camera: (*camera).into(),
+            camera: *camera,
             dtof: dtof.into(),
             dtof_to_camera: dtof_to_camera.map_or(Extrinsics::IDENTITY, |&e| e.into()),
             zone_rects_px: dtof.zone_rects_px.clone(),

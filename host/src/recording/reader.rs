@@ -118,7 +118,7 @@ impl Recording {
 
     /// Camera of frame `i` (its own or the recording's). Panics if `i >= len()`.
     pub fn camera(&self, i: usize) -> CameraIntrinsics {
-        (*self.meta.frame_camera(i)).into()
+        *self.meta.frame_camera(i)
     }
 
     /// Calibration of frame `i`, `None` when the recording has no dToF. Panics if `i >= len()`.

@@ -127,9 +127,8 @@ impl RecordingWriter {
                 format_args!("duplicate frame id {:?}", frame.id),
             )));
         }
-        let cam_meta = *frame_meta.camera.as_ref().unwrap_or(&self.meta.camera);
-        let cam: CameraIntrinsics = cam_meta.into();
-        let n = cam_meta.pixels();
+        let cam: CameraIntrinsics = *frame_meta.camera.as_ref().unwrap_or(&self.meta.camera);
+        let n = cam.width as usize * cam.height as usize;
         let dir = self.out_dir.join(files::FRAMES).join(&frame.id);
 
         // Validate everything before writing anything.
