@@ -62,19 +62,7 @@ pub fn synth_frame(
     let s = frame_seed(seed, index);
     let camera = camera_for(scene_cfg, s, width, height);
     let scene = render_scene(scene_cfg, s, camera);
-    let sim = simulate(
-        sim_cfg,
-        &SimInput {
-            width,
-            height,
-            depth_m: &scene.depth_m,
-            rgb: &scene.rgb,
-            labels: Some(&scene.labels),
-            reflectance: Some(&scene.reflectance),
-            second_depth_m: Some(&scene.second_depth_m),
-        },
-        s ^ 0x5EED_D70F,
-    )?;
+    let sim = simulate(sim_cfg, &scene.sim_input(), s ^ 0x5EED_D70F)?;
     Ok(SynthFrame { scene, sim })
 }
 
@@ -162,6 +150,19 @@ pub struct Resampled {
     pub depth_m: Vec<f32>,
     /// Material labels, when the source had them.
     pub labels: Option<Vec<u8>>,
+}
+
+impl Resampled {
+    /// The simulator input of this frame at its new size.
+    pub fn sim_input(&self) -> SimInput<'_> {
+        SimInput::observed(
+            self.rgb.width(),
+            self.rgb.height(),
+            &self.depth_m,
+            self.rgb.as_raw(),
+            self.labels.as_deref(),
+        )
+    }
 }
 
 /// The centred crop `(x0, y0, width, height)` of a `sw × sh` image with the aspect ratio of
@@ -255,19 +256,7 @@ pub fn simulate_recording_frame(
         width,
         height,
     );
-    let sim = simulate(
-        cfg,
-        &SimInput {
-            width,
-            height,
-            depth_m: &r.depth_m,
-            rgb: r.rgb.as_raw(),
-            labels: r.labels.as_deref(),
-            reflectance: None,
-            second_depth_m: None,
-        },
-        frame_seed(seed, i as u64),
-    )?;
+    let sim = simulate(cfg, &r.sim_input(), frame_seed(seed, i as u64))?;
     Ok((r, sim))
 }
 

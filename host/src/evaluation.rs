@@ -22,7 +22,7 @@ use crate::plot::PlotError;
 use crate::recording::{CalibrationData, Recording, RecordingError};
 use crate::reference::prior::{fit_scale_shift, PriorReference};
 use crate::reference::{FloatReference, ReferenceError};
-use crate::sim::{preset, simulate, SimConfig, SimError, SimInput, SimOutput};
+use crate::sim::{preset, simulate, SimConfig, SimError, SimOutput};
 use crate::viz::{depth_image, draw_points, Overlay};
 
 pub mod output;
@@ -298,19 +298,7 @@ impl RecordingFrames {
                 (pts, meta.rows, meta.cols)
             }
             _ => {
-                let sim = simulate(
-                    &self.cfg,
-                    &SimInput {
-                        width: w,
-                        height: h,
-                        depth_m: &r.depth_m,
-                        rgb: r.rgb.as_raw(),
-                        labels: r.labels.as_deref(),
-                        reflectance: None,
-                        second_depth_m: None,
-                    },
-                    i as u64,
-                )?;
+                let sim = simulate(&self.cfg, &r.sim_input(), i as u64)?;
                 let pts = sim_points(&self.cfg, &sim, &r.camera)?;
                 (pts, self.cfg.grid.rows, self.cfg.grid.cols)
             }

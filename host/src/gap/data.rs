@@ -84,15 +84,13 @@ pub struct GapFrame {
 impl GapFrame {
     /// The simulator input of this frame.
     pub fn sim_input(&self) -> SimInput<'_> {
-        SimInput {
-            width: self.width,
-            height: self.height,
-            depth_m: &self.depth_m,
-            rgb: &self.rgb,
-            labels: self.labels.as_deref(),
-            reflectance: None,
-            second_depth_m: None,
-        }
+        SimInput::observed(
+            self.width,
+            self.height,
+            &self.depth_m,
+            &self.rgb,
+            self.labels.as_deref(),
+        )
     }
 }
 

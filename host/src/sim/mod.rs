@@ -81,7 +81,28 @@ pub struct SimInput<'a> {
     pub second_depth_m: Option<&'a [f32]>,
 }
 
-impl SimInput<'_> {
+impl<'a> SimInput<'a> {
+    /// The input of a measured frame (a recording's or a resampled one): depth, RGB and
+    /// optional labels, with no reflectance and no second surface, which only rendered scenes
+    /// have (theirs is [`crate::scene::SceneFrame::sim_input`]).
+    pub fn observed(
+        width: u32,
+        height: u32,
+        depth_m: &'a [f32],
+        rgb: &'a [u8],
+        labels: Option<&'a [u8]>,
+    ) -> Self {
+        SimInput {
+            width,
+            height,
+            depth_m,
+            rgb,
+            labels,
+            reflectance: None,
+            second_depth_m: None,
+        }
+    }
+
     /// Checks that every array matches the image size.
     pub fn validate(&self) -> Result<(), SimError> {
         if self.width == 0 || self.height == 0 {
