@@ -1,10 +1,14 @@
-//! Test helpers: a blob writer for format v1, a tiny float network in the blob's op vocabulary,
-//! and a calibration-based quantizer turning it into a blob (a miniature of the host quantizer).
+//! Test helpers: a tiny float network in the blob's op vocabulary, and a calibration-based
+//! quantizer turning it into a blob (a miniature of the host quantizer: min/max ranges, plain
+//! per-channel rounding) written through the core's own `blob::write`. The core's tests cannot
+//! use the host's quantizer: `depthor-host` depends on `depthor-core`.
 #![allow(dead_code)]
 
 use depthor_core::blob::checksum::crc32;
-use depthor_core::blob::format::{
-    activation, dtype, opcode, upsample_mode, HEADER_LEN, NONE, VERSION,
+use depthor_core::blob::format::{dtype, opcode, upsample_mode, HEADER_LEN, NONE};
+pub use depthor_core::blob::write::BlobWriter;
+use depthor_core::blob::write::{
+    bins_head_attrs, conv_attrs, pixel_shuffle_attrs, refine_attrs, upsample_attrs,
 };
 use depthor_core::kernels::bins::BinsAttrs;
 use depthor_core::kernels::conv::{Activation, ConvGeometry};
@@ -15,91 +19,6 @@ use depthor_core::kernels::requant::QParams;
 use depthor_core::kernels::resize::upsample_bilinear_f32;
 use depthor_core::kernels::Shape;
 
-/// Low-level writer of the blob byte format.
-#[derive(Default)]
-pub struct BlobWriter {
-    pub height: u16,
-    pub width: u16,
-    pub tensors: Vec<[u8; 16]>,
-    pub ops: Vec<Vec<u8>>,
-    pub data: Vec<u8>,
-    pub io: [u16; 3],
-}
-
-impl BlobWriter {
-    pub fn new(height: u16, width: u16) -> Self {
-        BlobWriter {
-            height,
-            width,
-            ..Default::default()
-        }
-    }
-    pub fn tensor(&mut self, dt: u8, channels: u16, q: QParams) -> u16 {
-        let mut e = [0u8; 16];
-        e[0] = dt;
-        e[2..4].copy_from_slice(&channels.to_le_bytes());
-        e[4..8].copy_from_slice(&q.scale.to_le_bytes());
-        e[8..12].copy_from_slice(&q.zero_point.to_le_bytes());
-        self.tensors.push(e);
-        (self.tensors.len() - 1) as u16
-    }
-    pub fn param(&mut self, bytes: &[u8]) -> u32 {
-        while !self.data.len().is_multiple_of(16) {
-            self.data.push(0);
-        }
-        let off = self.data.len() as u32;
-        self.data.extend_from_slice(bytes);
-        off
-    }
-    pub fn op(&mut self, code: u8, inputs: &[u16], output: u16, attrs: &[u8]) {
-        let mut r = vec![code, inputs.len() as u8];
-        r.extend_from_slice(&output.to_le_bytes());
-        r.extend_from_slice(&(attrs.len() as u16).to_le_bytes());
-        r.extend_from_slice(&[0, 0]);
-        for i in inputs {
-            r.extend_from_slice(&i.to_le_bytes());
-        }
-        while !r.len().is_multiple_of(4) {
-            r.push(0);
-        }
-        r.extend_from_slice(attrs);
-        self.ops.push(r);
-    }
-    pub fn finish(&self) -> Vec<u8> {
-        let mut payload = Vec::new();
-        for t in &self.tensors {
-            payload.extend_from_slice(t);
-        }
-        for o in &self.ops {
-            payload.extend_from_slice(o); // records are multiples of 4 and start 4-aligned
-        }
-        while !(HEADER_LEN + payload.len()).is_multiple_of(16) {
-            payload.push(0);
-        }
-        payload.extend_from_slice(&self.data);
-        let mut b = Vec::new();
-        b.extend_from_slice(b"DPTH");
-        b.extend_from_slice(&VERSION.to_le_bytes());
-        b.extend_from_slice(&0u16.to_le_bytes());
-        b.extend_from_slice(&(payload.len() as u32).to_le_bytes());
-        b.extend_from_slice(&crc32(&payload).to_le_bytes());
-        for v in [
-            self.height,
-            self.width,
-            self.tensors.len() as u16,
-            self.ops.len() as u16,
-            self.io[0],
-            self.io[1],
-            self.io[2],
-            0,
-        ] {
-            b.extend_from_slice(&v.to_le_bytes());
-        }
-        b.extend_from_slice(&payload);
-        b
-    }
-}
-
 /// Re-computes the header CRC after a test mutated the payload.
 pub fn fix_crc(blob: &mut [u8]) {
     if blob.len() < HEADER_LEN {
@@ -109,10 +28,6 @@ pub fn fix_crc(blob: &mut [u8]) {
     let end = (HEADER_LEN + len).min(blob.len());
     let c = crc32(&blob[HEADER_LEN..end]);
     blob[12..16].copy_from_slice(&c.to_le_bytes());
-}
-
-fn le16(v: &[u16]) -> Vec<u8> {
-    v.iter().flat_map(|x| x.to_le_bytes()).collect()
 }
 
 /// One op of the float test network (blob vocabulary, f32 weights).
@@ -405,7 +320,7 @@ impl Net {
             bw.tensor(dt, s.c as u16, q);
         }
         let n = calib.len();
-        bw.io = [0, 1, (n - 1) as u16];
+        bw.io(0, 1, (n - 1) as u16);
         for (k, op) in self.ops.iter().enumerate() {
             let out = (k + 2) as u16;
             match op {
@@ -418,61 +333,9 @@ impl Net {
                     b,
                     linear,
                 } => {
-                    let per = w.len() / out_c;
-                    let mut wq = Vec::new();
-                    let mut scales = Vec::new();
-                    let mut bias = Vec::new();
-                    for o in 0..*out_c {
-                        let m = w[o * per..(o + 1) * per]
-                            .iter()
-                            .fold(0f32, |a, &v| a.max(v.abs()))
-                            .max(1e-8);
-                        let s = m / 127.0;
-                        scales.push(s);
-                        wq.extend(
-                            w[o * per..(o + 1) * per]
-                                .iter()
-                                .map(|&v| (v / s).round() as i8 as u8),
-                        );
-                        bias.push((b[o] / (qs[*x].scale * s)).round() as i32);
-                    }
-                    let mut a = le16(
-                        &[
-                            g.kernel[0],
-                            g.kernel[1],
-                            g.stride[0],
-                            g.stride[1],
-                            g.dilation[0],
-                            g.dilation[1],
-                            g.padding[0],
-                            g.padding[1],
-                            g.groups,
-                        ]
-                        .map(|v| v as u16),
-                    );
-                    let (code, alpha) = match act {
-                        Activation::None => (activation::NONE, 0.0f32),
-                        Activation::Relu => (activation::RELU, 0.0),
-                        Activation::LeakyRelu(a) => (activation::LEAKY_RELU, *a),
-                    };
-                    a.extend_from_slice(&[code, 0]);
-                    a.extend_from_slice(&alpha.to_le_bytes());
-                    let wr = bw.param(&wq);
-                    let br = bw.param(
-                        &bias
-                            .iter()
-                            .flat_map(|v| v.to_le_bytes())
-                            .collect::<Vec<_>>(),
-                    );
-                    let sr = bw.param(
-                        &scales
-                            .iter()
-                            .flat_map(|v| v.to_le_bytes())
-                            .collect::<Vec<_>>(),
-                    );
-                    for r in [wr, br, sr] {
-                        a.extend_from_slice(&r.to_le_bytes());
-                    }
+                    let (wq, bias, scales) =
+                        quantize_rows(w, b, *out_c, w.len() / out_c, qs[*x].scale);
+                    let a = conv_attrs(g, *act, bw.weights(&wq, &bias, &scales));
                     bw.op(
                         if *linear {
                             opcode::LINEAR
@@ -502,20 +365,18 @@ impl Net {
                     &[],
                 ),
                 Op::UpsampleLike(x, like) => {
-                    let mut a = vec![upsample_mode::LIKE, 0];
-                    a.extend(le16(&[*like as u16, 0, 0]));
+                    let a = upsample_attrs(upsample_mode::LIKE, *like as u16, 0);
                     bw.op(opcode::UPSAMPLE_BILINEAR, &[*x as u16], out, &a);
                 }
                 Op::UpsampleScale(x, f) => {
-                    let mut a = vec![upsample_mode::SCALE, 0];
-                    a.extend(le16(&[*f as u16, *f as u16, 0]));
+                    let a = upsample_attrs(upsample_mode::SCALE, *f as u16, *f as u16);
                     bw.op(opcode::UPSAMPLE_BILINEAR, &[*x as u16], out, &a);
                 }
                 Op::PixelShuffle(x, r) => bw.op(
                     opcode::PIXEL_SHUFFLE,
                     &[*x as u16],
                     out,
-                    &le16(&[*r as u16, 0]),
+                    &pixel_shuffle_attrs(*r as u16),
                 ),
                 Op::Gap(x) => bw.op(opcode::GLOBAL_AVG_POOL, &[*x as u16], out, &[]),
                 Op::Gmp(x) => bw.op(opcode::GLOBAL_MAX_POOL, &[*x as u16], out, &[]),
@@ -531,50 +392,19 @@ impl Net {
                     w,
                     b,
                 } => {
-                    let c = calib[*f].0.c;
-                    let mut wq = Vec::new();
-                    let mut scales = Vec::new();
-                    let mut bias = Vec::new();
-                    for o in 0..attrs.n_bins {
-                        let m = w[o * c..(o + 1) * c]
-                            .iter()
-                            .fold(0f32, |a, &v| a.max(v.abs()))
-                            .max(1e-8);
-                        let s = m / 127.0;
-                        scales.push(s);
-                        wq.extend(
-                            w[o * c..(o + 1) * c]
-                                .iter()
-                                .map(|&v| (v / s).round() as i8 as u8),
-                        );
-                        bias.push((b[o] / (qs[*f].scale * s)).round() as i32);
-                    }
-                    let mut a = le16(&[attrs.n_bins as u16, 0]);
-                    a.extend_from_slice(&attrs.min_depth.to_le_bytes());
-                    a.extend_from_slice(&attrs.max_depth.to_le_bytes());
-                    let wr = bw.param(&wq);
-                    let br = bw.param(
-                        &bias
-                            .iter()
-                            .flat_map(|v| v.to_le_bytes())
-                            .collect::<Vec<_>>(),
+                    let (wq, bias, scales) =
+                        quantize_rows(w, b, attrs.n_bins, calib[*f].0.c, qs[*f].scale);
+                    let refs = bw.weights(&wq, &bias, &scales);
+                    let a = bins_head_attrs(
+                        attrs.n_bins as u16,
+                        attrs.min_depth,
+                        attrs.max_depth,
+                        refs,
                     );
-                    let sr = bw.param(
-                        &scales
-                            .iter()
-                            .flat_map(|v| v.to_le_bytes())
-                            .collect::<Vec<_>>(),
-                    );
-                    for r in [wr, br, sr] {
-                        a.extend_from_slice(&r.to_le_bytes());
-                    }
                     bw.op(opcode::BINS_HEAD, &[*f as u16, *logits as u16], out, &a);
                 }
                 Op::Refine { ins, attrs } => {
-                    let mut a = le16(&[attrs.iterations as u16, 0]);
-                    for s in attrs.sigma {
-                        a.extend_from_slice(&s.to_le_bytes());
-                    }
+                    let a = refine_attrs(attrs.iterations as u16, attrs.sigma);
                     bw.op(opcode::REFINE, &ins.map(|v| v as u16), out, &a);
                 }
             }
@@ -582,6 +412,28 @@ impl Net {
         let _ = NONE;
         bw.finish()
     }
+}
+
+/// Symmetric per-row int8 weights of `rows` rows of `per` values of `w` (scale `max|w|/127`, at
+/// least 1e-8/127) and the int32 bias in units of `s_in · scale`: `(weights, bias, scales)`.
+fn quantize_rows(
+    w: &[f32],
+    b: &[f32],
+    rows: usize,
+    per: usize,
+    s_in: f32,
+) -> (Vec<i8>, Vec<i32>, Vec<f32>) {
+    let mut wq = Vec::new();
+    let mut scales = Vec::new();
+    let mut bias = Vec::new();
+    for o in 0..rows {
+        let row = &w[o * per..(o + 1) * per];
+        let s = row.iter().fold(0f32, |a, &v| a.max(v.abs())).max(1e-8) / 127.0;
+        scales.push(s);
+        wq.extend(row.iter().map(|&v| (v / s).round() as i8));
+        bias.push((b[o] / (s_in * s)).round() as i32);
+    }
+    (wq, bias, scales)
 }
 
 /// The test network at `h × w` (both divisible by 2): every op of the blob vocabulary appears.

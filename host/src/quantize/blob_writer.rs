@@ -1,16 +1,17 @@
-//! Writer of the int8 model blob, format v1 (`DPTH`, byte layout in
-//! `depthor_core::blob::format`): a low-level [`BlobWriter`] for tensors, op records and the
-//! 16-byte aligned data section, and [`write_blob`], which quantises a [`Net`]'s parameters
-//! (symmetric per-output-channel int8 weights, int32 bias in units of `s_in · s_w[o]`) and
-//! bakes the element-wise LUTs with the core's `build_lut` and float references.
+//! The int8 model blob, format v1 (docs/blob.md), from a [`Net`]: [`write_blob`] quantises its
+//! parameters (symmetric per-output-channel int8 weights, int32 bias in units of `s_in · s_w[o]`),
+//! bakes the element-wise LUTs with the core's `build_lut` and float references, and writes
+//! them through the core's byte-level [`BlobWriter`] and attribute encoders
+//! (`depthor_core::blob::write`, the one writer of the format).
 
 use super::net::{Net, OpKind, Storage, UpsampleSize};
-use depthor_core::blob::checksum::crc32;
 use depthor_core::blob::format::{
-    activation, dtype, opcode, upsample_mode, DATA_ALIGN, HEADER_LEN, MAGIC, MAX_INPUTS, MAX_OPS,
-    MAX_TENSORS, NONE, VERSION,
+    dtype, opcode, upsample_mode, MAX_INPUTS, MAX_OPS, MAX_TENSORS, NONE,
 };
-use depthor_core::kernels::conv::Activation;
+pub use depthor_core::blob::write::BlobWriter;
+use depthor_core::blob::write::{
+    bins_head_attrs, conv_attrs, pixel_shuffle_attrs, refine_attrs, upsample_attrs,
+};
 use depthor_core::kernels::elementwise::build_lut;
 use depthor_core::kernels::float;
 use depthor_core::kernels::requant::QParams;
@@ -46,107 +47,6 @@ pub enum BlobError {
     },
 }
 
-/// Byte-level builder of a v1 blob.
-#[derive(Clone, Debug, Default)]
-pub struct BlobWriter {
-    height: u16,
-    width: u16,
-    tensors: Vec<[u8; 16]>,
-    ops: Vec<Vec<u8>>,
-    data: Vec<u8>,
-    io: [u16; 3],
-}
-
-impl BlobWriter {
-    /// A writer for a model whose native input is `height × width`.
-    pub fn new(height: u16, width: u16) -> BlobWriter {
-        BlobWriter {
-            height,
-            width,
-            ..Default::default()
-        }
-    }
-
-    /// Appends a tensor-table entry; returns its id.
-    pub fn tensor(&mut self, dt: u8, channels: u16, q: QParams) -> u16 {
-        let mut e = [0u8; 16];
-        e[0] = dt;
-        e[2..4].copy_from_slice(&channels.to_le_bytes());
-        e[4..8].copy_from_slice(&q.scale.to_le_bytes());
-        e[8..12].copy_from_slice(&q.zero_point.to_le_bytes());
-        self.tensors.push(e);
-        (self.tensors.len() - 1) as u16
-    }
-
-    /// Appends a parameter to the data section at the next 16-byte boundary; returns its offset
-    /// relative to the data section start.
-    pub fn param(&mut self, bytes: &[u8]) -> u32 {
-        while !self.data.len().is_multiple_of(DATA_ALIGN) {
-            self.data.push(0);
-        }
-        let off = self.data.len() as u32;
-        self.data.extend_from_slice(bytes);
-        off
-    }
-
-    /// Appends an op record (`attrs.len()` must be a multiple of 4).
-    pub fn op(&mut self, code: u8, inputs: &[u16], output: u16, attrs: &[u8]) {
-        let mut r = vec![code, inputs.len() as u8];
-        r.extend_from_slice(&output.to_le_bytes());
-        r.extend_from_slice(&(attrs.len() as u16).to_le_bytes());
-        r.extend_from_slice(&[0, 0]);
-        for i in inputs {
-            r.extend_from_slice(&i.to_le_bytes());
-        }
-        while !r.len().is_multiple_of(4) {
-            r.push(0);
-        }
-        r.extend_from_slice(attrs);
-        self.ops.push(r);
-    }
-
-    /// Sets the rgb, sparse and output tensor ids.
-    pub fn io(&mut self, rgb: u16, sparse: u16, output: u16) {
-        self.io = [rgb, sparse, output];
-    }
-
-    /// The finished blob: header with payload length and CRC-32, tensor table, ops, data.
-    pub fn finish(&self) -> Vec<u8> {
-        let mut payload = Vec::new();
-        for t in &self.tensors {
-            payload.extend_from_slice(t);
-        }
-        for o in &self.ops {
-            payload.extend_from_slice(o); // records are multiples of 4 and start 4-aligned
-        }
-        while !(HEADER_LEN + payload.len()).is_multiple_of(DATA_ALIGN) {
-            payload.push(0);
-        }
-        payload.extend_from_slice(&self.data);
-        let mut b = Vec::with_capacity(HEADER_LEN + payload.len());
-        b.extend_from_slice(&MAGIC);
-        b.extend_from_slice(&VERSION.to_le_bytes());
-        b.extend_from_slice(&0u16.to_le_bytes());
-        b.extend_from_slice(&(payload.len() as u32).to_le_bytes());
-        b.extend_from_slice(&crc32(&payload).to_le_bytes());
-        let header = [
-            self.height,
-            self.width,
-            self.tensors.len() as u16,
-            self.ops.len() as u16,
-            self.io[0],
-            self.io[1],
-            self.io[2],
-            0,
-        ];
-        for v in header {
-            b.extend_from_slice(&v.to_le_bytes());
-        }
-        b.extend_from_slice(&payload);
-        b
-    }
-}
-
 /// Symmetric per-output-channel int8 weights for `out_c` channels of `weight` (row-major,
 /// channel-major) and the int32 bias in units of `s_in · s_w[o]`. The scale is
 /// `max|w[o]|/127`, raised where needed so the bias fits in ±2³⁰ (all-zero channels).
@@ -176,14 +76,6 @@ pub fn quantize_channels(
         sc.push(s);
     }
     (wq, bq, sc)
-}
-
-fn le16(v: &[u16]) -> Vec<u8> {
-    v.iter().flat_map(|x| x.to_le_bytes()).collect()
-}
-
-fn bytes<T: Copy>(v: &[T], f: impl Fn(T) -> [u8; 4]) -> Vec<u8> {
-    v.iter().flat_map(|&x| f(x)).collect()
 }
 
 fn u16_of(what: &'static str, value: usize) -> Result<u16, BlobError> {
@@ -245,40 +137,14 @@ pub fn write_blob(net: &Net, qparams: &[QParams]) -> Result<Vec<u8>, BlobError> 
             } => {
                 let out_c = net.values[op.output].shape.c;
                 let (wq, bq, sc) = quantize_channels(weight, bias, out_c, qi.scale);
-                let mut a = le16(
-                    &[
-                        g.kernel[0],
-                        g.kernel[1],
-                        g.stride[0],
-                        g.stride[1],
-                        g.dilation[0],
-                        g.dilation[1],
-                        g.padding[0],
-                        g.padding[1],
-                        g.groups,
-                    ]
-                    .map(|v| v as u16),
-                );
-                let (ac, alpha) = match act {
-                    Activation::None => (activation::NONE, 0.0f32),
-                    Activation::Relu => (activation::RELU, 0.0),
-                    Activation::LeakyRelu(a) => (activation::LEAKY_RELU, *a),
-                };
-                a.extend_from_slice(&[ac, 0]);
-                a.extend_from_slice(&alpha.to_le_bytes());
-                let wr = bw.param(&wq.iter().map(|&v| v as u8).collect::<Vec<_>>());
-                let br = bw.param(&bytes(&bq, i32::to_le_bytes));
-                let sr = bw.param(&bytes(&sc, f32::to_le_bytes));
-                for r in [wr, br, sr] {
-                    a.extend_from_slice(&r.to_le_bytes());
-                }
+                let refs = bw.weights(&wq, &bq, &sc);
                 (
                     if *linear {
                         opcode::LINEAR
                     } else {
                         opcode::CONV2D
                     },
-                    a,
+                    conv_attrs(g, *act, refs),
                 )
             }
             OpKind::Relu => (opcode::RELU, lut(&float::relu)),
@@ -297,13 +163,11 @@ pub fn write_blob(net: &Net, qparams: &[QParams]) -> Result<Vec<u8>, BlobError> 
                         u16_of("upsample columns", w)?,
                     ),
                 };
-                let mut at = vec![mode, 0];
-                at.extend(le16(&[a, b, 0]));
-                (opcode::UPSAMPLE_BILINEAR, at)
+                (opcode::UPSAMPLE_BILINEAR, upsample_attrs(mode, a, b))
             }
             OpKind::PixelShuffle(r) => (
                 opcode::PIXEL_SHUFFLE,
-                le16(&[u16_of("pixel_shuffle factor", *r)?, 0]),
+                pixel_shuffle_attrs(u16_of("pixel_shuffle factor", *r)?),
             ),
             OpKind::GlobalAvgPool => (opcode::GLOBAL_AVG_POOL, vec![]),
             OpKind::GlobalMaxPool => (opcode::GLOBAL_MAX_POOL, vec![]),
@@ -316,23 +180,16 @@ pub fn write_blob(net: &Net, qparams: &[QParams]) -> Result<Vec<u8>, BlobError> 
                 bias,
             } => {
                 let (wq, bq, sc) = quantize_channels(weight, bias, attrs.n_bins, qi.scale);
-                let mut a = le16(&[u16_of("n_bins", attrs.n_bins)?, 0]);
-                a.extend_from_slice(&attrs.min_depth.to_le_bytes());
-                a.extend_from_slice(&attrs.max_depth.to_le_bytes());
-                let wr = bw.param(&wq.iter().map(|&v| v as u8).collect::<Vec<_>>());
-                let br = bw.param(&bytes(&bq, i32::to_le_bytes));
-                let sr = bw.param(&bytes(&sc, f32::to_le_bytes));
-                for r in [wr, br, sr] {
-                    a.extend_from_slice(&r.to_le_bytes());
-                }
-                (opcode::BINS_HEAD, a)
+                let n_bins = u16_of("n_bins", attrs.n_bins)?;
+                let refs = bw.weights(&wq, &bq, &sc);
+                (
+                    opcode::BINS_HEAD,
+                    bins_head_attrs(n_bins, attrs.min_depth, attrs.max_depth, refs),
+                )
             }
             OpKind::Refine(attrs) => {
-                let mut a = le16(&[u16_of("refine iterations", attrs.iterations)?, 0]);
-                for s in attrs.sigma {
-                    a.extend_from_slice(&s.to_le_bytes());
-                }
-                (opcode::REFINE, a)
+                let iterations = u16_of("refine iterations", attrs.iterations)?;
+                (opcode::REFINE, refine_attrs(iterations, attrs.sigma))
             }
         };
         bw.op(code, &ins, out, &attrs);
@@ -354,35 +211,5 @@ mod tests {
         assert_eq!(w, vec![127, -50, 0, 0]);
         assert_eq!(b, vec![40, 0]);
         assert!((s[0] - 0.01).abs() < 1e-8 && s[1] > 0.0);
-    }
-
-    #[test]
-    fn writer_layout_and_crc() {
-        let mut bw = BlobWriter::new(4, 6);
-        let q = QParams {
-            scale: 0.5,
-            zero_point: -3,
-        };
-        assert_eq!(bw.tensor(dtype::I8, 3, q), 0);
-        bw.tensor(dtype::I8, 1, q);
-        bw.tensor(dtype::F32, 1, q);
-        assert_eq!(bw.param(&[1, 2, 3]), 0);
-        assert_eq!(bw.param(&[4]), 16);
-        bw.op(opcode::ADD, &[0, 1, 1], 2, &[]);
-        bw.io(0, 1, 2);
-        let b = bw.finish();
-        assert_eq!(&b[0..4], b"DPTH");
-        assert_eq!(u16::from_le_bytes([b[16], b[17]]), 4);
-        assert_eq!(u16::from_le_bytes([b[18], b[19]]), 6);
-        // 3 tensors × 16 + op record (8 + 3 ids padded to 8) = 64 bytes, then the data section
-        // at blob offset 32 + 64 = 96 (16-aligned), 17 bytes of data.
-        let payload_len = u32::from_le_bytes([b[8], b[9], b[10], b[11]]) as usize;
-        assert_eq!(payload_len, 64 + 17);
-        assert_eq!(b[96..99], [1, 2, 3]);
-        assert_eq!(b[112], 4);
-        let crc = u32::from_le_bytes([b[12], b[13], b[14], b[15]]);
-        assert_eq!(crc, crc32(&b[32..]));
-        // Tensor 0's zero point.
-        assert_eq!(i32::from_le_bytes([b[40], b[41], b[42], b[43]]), -3);
     }
 }
