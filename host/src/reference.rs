@@ -116,42 +116,48 @@ fn input_positions(model: &TypedModel, wanted: &[(&str, usize)]) -> Option<Vec<u
     Some(by_name.unwrap_or_else(|| (0..wanted.len()).collect()))
 }
 
-/// Checks `dims` against `expected`, collecting bindings for plain symbolic dimensions.
+/// Checks `dims` of the model at `path` against `expected`, collecting bindings for plain
+/// symbolic dimensions; a mismatch is a [`ReferenceError::Contract`].
 fn bind_dims(
+    path: &Path,
     name: &str,
     dims: &[TDim],
     expected: [usize; 4],
     subs: &mut HashMap<Symbol, TDim>,
-) -> Result<(), String> {
+) -> Result<(), ReferenceError> {
+    let contract = |what: String| ReferenceError::Contract {
+        path: path.to_path_buf(),
+        what,
+    };
     let shape_text = || {
         let d: Vec<String> = dims.iter().map(|d| d.to_string()).collect();
         format!("[{}]", d.join(", "))
     };
     if dims.len() != 4 {
-        return Err(format!(
+        return Err(contract(format!(
             "input {name} has shape {}, expected {expected:?}",
             shape_text()
-        ));
+        )));
     }
     for (dim, &want) in dims.iter().zip(expected.iter()) {
         match dim {
             TDim::Val(v) if *v == want as i64 => {}
             TDim::Sym(s) => match subs.get(s) {
                 Some(TDim::Val(bound)) if *bound != want as i64 => {
-                    return Err(format!(
+                    return Err(contract(format!(
                         "input {name} has shape {}: symbol {s} cannot be both {bound} and {want}",
                         shape_text()
-                    ))
+                    )))
                 }
                 _ => {
                     subs.insert(s.clone(), TDim::Val(want as i64));
                 }
             },
             _ => {
-                return Err(format!(
+                return Err(contract(format!(
                     "input {name} has shape {}, expected {expected:?}",
                     shape_text()
-                ))
+                )))
             }
         }
     }
@@ -340,7 +346,13 @@ fn prepare(
                 fact.datum_type
             )));
         }
-        bind_dims(name, fact.shape.dims(), [1, channels, h, w], &mut subs).map_err(contract)?;
+        bind_dims(
+            path,
+            name,
+            fact.shape.dims(),
+            [1, channels, h, w],
+            &mut subs,
+        )?;
     }
 
     let outputs = model

@@ -24,35 +24,99 @@ pub(crate) struct Calib {
     pub baseline_mm: f64,
 }
 
+/// What is wrong with a `calib.txt`: the field, and what is wrong with it.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum CalibError {
+    /// A `key=` line is absent.
+    #[error("missing field {key}")]
+    Missing {
+        /// The key.
+        key: &'static str,
+    },
+    /// A value that is not a finite number.
+    #[error("{key}: {value:?} is not a number")]
+    NotNumber {
+        /// The key (`cam0` for a matrix entry).
+        key: &'static str,
+        /// The text.
+        value: String,
+    },
+    /// A value that is not a positive integer.
+    #[error("{key}: {value:?} is not a positive integer")]
+    NotPositiveInt {
+        /// The key.
+        key: &'static str,
+        /// The text.
+        value: String,
+    },
+    /// `cam0` is not in brackets.
+    #[error("cam0: expected [fx 0 cx; 0 fy cy; 0 0 1], found {found:?}")]
+    Cam0Brackets {
+        /// The value.
+        found: String,
+    },
+    /// `cam0` does not hold nine numbers.
+    #[error("cam0: expected 9 numbers, found {found}")]
+    Cam0Count {
+        /// How many it holds.
+        found: usize,
+    },
+    /// `cam0`'s last row or lower triangle is not a pinhole camera's.
+    #[error("cam0: not a pinhole matrix [fx s cx; 0 fy cy; 0 0 1]: {inner:?}")]
+    NotPinhole {
+        /// The matrix text.
+        inner: String,
+    },
+    /// A focal length is not positive.
+    #[error("cam0: focal lengths must be positive, found fx={fx} fy={fy}")]
+    Focal {
+        /// fx.
+        fx: f64,
+        /// fy.
+        fy: f64,
+    },
+    /// The baseline is not positive.
+    #[error("baseline: must be positive, found {0}")]
+    Baseline(f64),
+}
+
 /// Parses `calib.txt` (`key=value` lines; `cam0=[fx 0 cx; 0 fy cy; 0 0 1]`).
 /// The error names the field and what is wrong with it.
-pub(crate) fn parse_calib(text: &str) -> Result<Calib, String> {
-    let field = |key: &str| -> Result<&str, String> {
+pub(crate) fn parse_calib(text: &str) -> Result<Calib, CalibError> {
+    let field = |key: &'static str| -> Result<&str, CalibError> {
         text.lines()
             .filter_map(|l| l.split_once('='))
             .find(|(k, _)| k.trim() == key)
             .map(|(_, v)| v.trim())
-            .ok_or_else(|| format!("missing field {key}"))
+            .ok_or(CalibError::Missing { key })
     };
-    let number = |key: &str| -> Result<f64, String> {
+    let number = |key: &'static str| -> Result<f64, CalibError> {
         let v = field(key)?;
         v.parse::<f64>()
             .ok()
             .filter(|x| x.is_finite())
-            .ok_or_else(|| format!("{key}: {v:?} is not a number"))
+            .ok_or_else(|| CalibError::NotNumber {
+                key,
+                value: v.to_string(),
+            })
     };
-    let positive_int = |key: &str| -> Result<u32, String> {
+    let positive_int = |key: &'static str| -> Result<u32, CalibError> {
         let v = field(key)?;
         v.parse::<u32>()
             .ok()
             .filter(|&x| x > 0)
-            .ok_or_else(|| format!("{key}: {v:?} is not a positive integer"))
+            .ok_or_else(|| CalibError::NotPositiveInt {
+                key,
+                value: v.to_string(),
+            })
     };
     let cam = field("cam0")?;
     let inner = cam
         .strip_prefix('[')
         .and_then(|c| c.strip_suffix(']'))
-        .ok_or_else(|| format!("cam0: expected [fx 0 cx; 0 fy cy; 0 0 1], found {cam:?}"))?;
+        .ok_or_else(|| CalibError::Cam0Brackets {
+            found: cam.to_string(),
+        })?;
     let m: Vec<f64> = inner
         .split(|c: char| c == ';' || c.is_whitespace())
         .filter(|t| !t.is_empty())
@@ -60,26 +124,26 @@ pub(crate) fn parse_calib(text: &str) -> Result<Calib, String> {
             t.parse::<f64>()
                 .ok()
                 .filter(|x| x.is_finite())
-                .ok_or_else(|| format!("cam0: {t:?} is not a number"))
+                .ok_or_else(|| CalibError::NotNumber {
+                    key: "cam0",
+                    value: t.to_string(),
+                })
         })
         .collect::<Result<_, _>>()?;
     if m.len() != 9 {
-        return Err(format!("cam0: expected 9 numbers, found {}", m.len()));
+        return Err(CalibError::Cam0Count { found: m.len() });
     }
     if m[3] != 0.0 || m[6] != 0.0 || m[7] != 0.0 || m[8] != 1.0 {
-        return Err(format!(
-            "cam0: not a pinhole matrix [fx s cx; 0 fy cy; 0 0 1]: {inner:?}"
-        ));
+        return Err(CalibError::NotPinhole {
+            inner: inner.to_string(),
+        });
     }
     if m[0] <= 0.0 || m[4] <= 0.0 {
-        return Err(format!(
-            "cam0: focal lengths must be positive, found fx={} fy={}",
-            m[0], m[4]
-        ));
+        return Err(CalibError::Focal { fx: m[0], fy: m[4] });
     }
     let baseline_mm = number("baseline")?;
     if baseline_mm <= 0.0 {
-        return Err(format!("baseline: must be positive, found {baseline_mm}"));
+        return Err(CalibError::Baseline(baseline_mm));
     }
     Ok(Calib {
         cam0: CameraIntrinsics {
@@ -111,8 +175,8 @@ pub(crate) fn depth_from_disparity(d: f32, calib: &Calib) -> f32 {
 /// Loads one scene folder.
 fn load_scene(dir: &Path, id: String, t_s: f64) -> Result<ImportedFrame, ImportError> {
     let calib_path = dir.join("calib.txt");
-    let calib =
-        parse_calib(&read_text(&calib_path)?).map_err(|w| ImportError::invalid(&calib_path, w))?;
+    let calib = parse_calib(&read_text(&calib_path)?)
+        .map_err(|e| ImportError::invalid(&calib_path, e.to_string()))?;
     let (w, h) = (calib.cam0.width, calib.cam0.height);
     let pfm_path = dir.join("disp0GT.pfm");
     let disp = read_pfm(&pfm_path)?;
@@ -229,20 +293,23 @@ mod tests {
     #[test]
     fn calib_errors_name_the_field() {
         let no_doffs = ADIRONDACK.replace("doffs", "dofs");
-        assert_eq!(parse_calib(&no_doffs).unwrap_err(), "missing field doffs");
+        assert_eq!(
+            parse_calib(&no_doffs).unwrap_err().to_string(),
+            "missing field doffs"
+        );
         let short = ADIRONDACK.replacen(" 0 0 1 ]", " 0 0 ]", 1);
         assert_eq!(
-            parse_calib(&short).unwrap_err(),
+            parse_calib(&short).unwrap_err().to_string(),
             "cam0: expected 9 numbers, found 8"
         );
         let nan = ADIRONDACK.replace("baseline= 176.252", "baseline= abc");
         assert_eq!(
-            parse_calib(&nan).unwrap_err(),
+            parse_calib(&nan).unwrap_err().to_string(),
             "baseline: \"abc\" is not a number"
         );
         let w0 = ADIRONDACK.replace("width= 718", "width= 0");
         assert_eq!(
-            parse_calib(&w0).unwrap_err(),
+            parse_calib(&w0).unwrap_err().to_string(),
             "width: \"0\" is not a positive integer"
         );
     }

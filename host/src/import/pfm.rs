@@ -20,10 +20,84 @@ pub struct Pfm {
     pub data: Vec<f32>,
 }
 
+/// What is wrong with a PFM file: which header field, or how much data.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum PfmError {
+    /// No bytes at all.
+    #[error("empty file, expected PFM magic 'Pf'")]
+    Empty,
+    /// A colour PFM.
+    #[error("colour PFM ('PF') not supported, expected greyscale 'Pf'")]
+    Colour,
+    /// Another magic.
+    #[error("not a PFM file: magic {magic:?}, expected 'Pf'")]
+    NotPfm {
+        /// The first token, as text.
+        magic: String,
+    },
+    /// The header ends before `field`.
+    #[error("header: missing {field}")]
+    Missing {
+        /// `width`, `height` or `scale`.
+        field: &'static str,
+    },
+    /// A size that is not a positive integer.
+    #[error("header: {field} {text:?} is not a positive integer")]
+    Size {
+        /// `width` or `height`.
+        field: &'static str,
+        /// The token.
+        text: String,
+    },
+    /// A scale that is not a number.
+    #[error("header: scale {text:?} is not a number")]
+    ScaleNotNumber {
+        /// The token.
+        text: String,
+    },
+    /// A zero or non-finite scale.
+    #[error("header: scale {text:?} must be finite and non-zero (its sign gives the byte order)")]
+    ScaleZero {
+        /// The token.
+        text: String,
+    },
+    /// Nothing after the scale.
+    #[error("header: no data after the scale")]
+    NoData,
+    /// More samples than memory can address.
+    #[error("header: {width}×{height} is too large")]
+    TooLarge {
+        /// Width.
+        width: u32,
+        /// Height.
+        height: u32,
+    },
+    /// Fewer or more data bytes than `width · height` floats.
+    #[error("{}: {width}×{height} floats need {need} data bytes, found {found}", length_kind(*.found, *.need))]
+    Length {
+        /// Width.
+        width: u32,
+        /// Height.
+        height: u32,
+        /// Bytes needed.
+        need: usize,
+        /// Bytes found.
+        found: usize,
+    },
+}
+
+fn length_kind(found: usize, need: usize) -> &'static str {
+    if found < need {
+        "truncated"
+    } else {
+        "trailing bytes"
+    }
+}
+
 /// Reads a greyscale PFM file.
 pub fn read_pfm(path: &Path) -> Result<Pfm, ImportError> {
     let bytes = read_bytes(path)?;
-    parse_pfm(&bytes).map_err(|what| ImportError::invalid(path, what))
+    parse_pfm(&bytes).map_err(|e| ImportError::invalid(path, e.to_string()))
 }
 
 /// The next whitespace-separated header token at or after `pos`, and the index just past it.
@@ -41,57 +115,51 @@ fn token(bytes: &[u8], pos: usize) -> Option<(&[u8], usize)> {
 }
 
 /// Parses PFM bytes; the error says which header field or how much data is wrong.
-pub(crate) fn parse_pfm(bytes: &[u8]) -> Result<Pfm, String> {
-    let (magic, pos) = token(bytes, 0).ok_or("empty file, expected PFM magic 'Pf'")?;
+pub(crate) fn parse_pfm(bytes: &[u8]) -> Result<Pfm, PfmError> {
+    let (magic, pos) = token(bytes, 0).ok_or(PfmError::Empty)?;
     match magic {
         b"Pf" => {}
-        b"PF" => return Err("colour PFM ('PF') not supported, expected greyscale 'Pf'".into()),
+        b"PF" => return Err(PfmError::Colour),
         _ => {
-            return Err(format!(
-                "not a PFM file: magic {:?}, expected 'Pf'",
-                String::from_utf8_lossy(magic)
-            ))
+            return Err(PfmError::NotPfm {
+                magic: String::from_utf8_lossy(magic).into_owned(),
+            })
         }
     }
-    let field = |name: &str, pos: usize| -> Result<(String, usize), String> {
-        let (t, end) = token(bytes, pos).ok_or_else(|| format!("header: missing {name}"))?;
+    let field = |field: &'static str, pos: usize| -> Result<(String, usize), PfmError> {
+        let (t, end) = token(bytes, pos).ok_or(PfmError::Missing { field })?;
         Ok((String::from_utf8_lossy(t).into_owned(), end))
     };
     let (w, pos) = field("width", pos)?;
     let (h, pos) = field("height", pos)?;
     let (s, pos) = field("scale", pos)?;
-    let dim = |name: &str, t: &str| match t.parse::<u32>() {
+    let dim = |field: &'static str, t: &str| match t.parse::<u32>() {
         Ok(v) if v > 0 => Ok(v),
-        _ => Err(format!("header: {name} {t:?} is not a positive integer")),
+        _ => Err(PfmError::Size {
+            field,
+            text: t.to_string(),
+        }),
     };
     let (width, height) = (dim("width", &w)?, dim("height", &h)?);
     let scale: f32 = s
         .parse()
-        .map_err(|_| format!("header: scale {s:?} is not a number"))?;
+        .map_err(|_| PfmError::ScaleNotNumber { text: s.clone() })?;
     if !scale.is_finite() || scale == 0.0 {
-        return Err(format!(
-            "header: scale {s:?} must be finite and non-zero (its sign gives the byte order)"
-        ));
+        return Err(PfmError::ScaleZero { text: s });
     }
     let little = scale < 0.0;
-    let data = bytes
-        .get(pos + 1..)
-        .ok_or("header: no data after the scale")?;
+    let data = bytes.get(pos + 1..).ok_or(PfmError::NoData)?;
     let n = (width as usize)
         .checked_mul(height as usize)
         .filter(|n| n.checked_mul(4).is_some());
-    let n = n.ok_or_else(|| format!("header: {width}×{height} is too large"))?;
+    let n = n.ok_or(PfmError::TooLarge { width, height })?;
     if data.len() != n * 4 {
-        let kind = if data.len() < n * 4 {
-            "truncated"
-        } else {
-            "trailing bytes"
-        };
-        return Err(format!(
-            "{kind}: {width}×{height} floats need {} data bytes, found {}",
-            n * 4,
-            data.len()
-        ));
+        return Err(PfmError::Length {
+            width,
+            height,
+            need: n * 4,
+            found: data.len(),
+        });
     }
     let w = width as usize;
     let mut out = vec![0.0f32; n];
@@ -151,25 +219,20 @@ mod tests {
     #[test]
     fn malformed_headers_and_data() {
         let full = file("-1.0", true);
-        let e = parse_pfm(&full[..full.len() - 1]).unwrap_err();
+        let e = parse_pfm(&full[..full.len() - 1]).unwrap_err().to_string();
         assert!(
             e.starts_with("truncated: 2×2 floats need 16 data bytes, found 15"),
             "{e}"
         );
         let mut long = full.clone();
         long.push(0);
-        assert!(parse_pfm(&long).unwrap_err().starts_with("trailing bytes"));
-        assert!(parse_pfm(b"PF\n2 2\n-1\n").unwrap_err().contains("colour"));
-        assert!(parse_pfm(b"P5\n2 2\n-1\n")
-            .unwrap_err()
-            .contains("not a PFM"));
-        assert!(parse_pfm(b"Pf\n2 x\n-1\n")
-            .unwrap_err()
-            .contains("height \"x\""));
-        assert!(parse_pfm(b"Pf\n2 2\n0\n").unwrap_err().contains("scale"));
-        assert!(parse_pfm(b"Pf\n2 2\n")
-            .unwrap_err()
-            .contains("missing scale"));
+        let e = |b: &[u8]| parse_pfm(b).unwrap_err().to_string();
+        assert!(e(&long).starts_with("trailing bytes"));
+        assert!(e(b"PF\n2 2\n-1\n").contains("colour"));
+        assert!(e(b"P5\n2 2\n-1\n").contains("not a PFM"));
+        assert!(e(b"Pf\n2 x\n-1\n").contains("height \"x\""));
+        assert!(e(b"Pf\n2 2\n0\n").contains("scale"));
+        assert!(e(b"Pf\n2 2\n").contains("missing scale"));
         assert!(parse_pfm(b"").is_err());
     }
 }

@@ -169,13 +169,18 @@ pub enum RangeRule {
     Mse,
 }
 
+/// A `--ranges` value that names no [`RangeRule`].
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("unknown range rule {0:?} (minmax, mse)")]
+pub struct UnknownRangeRule(pub String);
+
 impl std::str::FromStr for RangeRule {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = UnknownRangeRule;
+    fn from_str(s: &str) -> Result<Self, UnknownRangeRule> {
         match s {
             "minmax" => Ok(RangeRule::MinMax),
             "mse" => Ok(RangeRule::Mse),
-            _ => Err(format!("unknown range rule {s:?} (minmax, mse)")),
+            _ => Err(UnknownRangeRule(s.to_string())),
         }
     }
 }

@@ -20,23 +20,59 @@ pub struct Shard {
     pub count: u64,
 }
 
+/// Why a `--shard` value is not `K/N` with 0 ≤ K < N.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ShardError {
+    /// No `/`.
+    #[error("{text:?}: expected K/N, e.g. 0/4")]
+    Form {
+        /// The value.
+        text: String,
+    },
+    /// K or N is not a whole number.
+    #[error("{text:?}: {part} {value:?}: {source}")]
+    Number {
+        /// The value.
+        text: String,
+        /// `K` or `N`.
+        part: &'static str,
+        /// Its text.
+        value: String,
+        /// Why it does not parse.
+        source: std::num::ParseIntError,
+    },
+    /// K ≥ N or N = 0.
+    #[error("{text:?}: need 0 <= K < N and N >= 1")]
+    Range {
+        /// The value.
+        text: String,
+    },
+}
+
 impl Shard {
     /// The whole run (`0/1`).
     pub const ALL: Shard = Shard { index: 0, count: 1 };
 
     /// Parses `K/N` (0 ≤ K < N); the error says what is wrong with `text`.
-    pub fn parse(text: &str) -> Result<Shard, String> {
-        let (k, n) = text
-            .split_once('/')
-            .ok_or_else(|| format!("{text:?}: expected K/N, e.g. 0/4"))?;
-        let parse = |s: &str, what: &str| {
+    pub fn parse(text: &str) -> Result<Shard, ShardError> {
+        let (k, n) = text.split_once('/').ok_or_else(|| ShardError::Form {
+            text: text.to_string(),
+        })?;
+        let parse = |s: &str, part: &'static str| {
             s.trim()
                 .parse::<u64>()
-                .map_err(|e| format!("{text:?}: {what} {s:?}: {e}"))
+                .map_err(|source| ShardError::Number {
+                    text: text.to_string(),
+                    part,
+                    value: s.to_string(),
+                    source,
+                })
         };
         let (index, count) = (parse(k, "K")?, parse(n, "N")?);
         if count == 0 || index >= count {
-            return Err(format!("{text:?}: need 0 <= K < N and N >= 1"));
+            return Err(ShardError::Range {
+                text: text.to_string(),
+            });
         }
         Ok(Shard { index, count })
     }

@@ -21,7 +21,7 @@ mod summary;
 mod writer;
 
 pub use error::{Invalid, RecordingError};
-pub use merge::{merge_shards, Shard};
+pub use merge::{merge_shards, Shard, ShardError};
 pub use meta::{
     frame_id_is_valid, CalibrationData, CameraMeta, DistanceMeta, DtofFrame, DtofMeta,
     ExtrinsicsMeta, FrameMeta, RecordingMeta, FORMAT, MAX_LABEL, MAX_ST_STATUS,
