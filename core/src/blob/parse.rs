@@ -262,6 +262,19 @@ fn arity(code: u8) -> Option<(usize, usize)> {
     })
 }
 
+/// The header fields the rest of the parse needs.
+struct Header {
+    height: usize,
+    width: usize,
+    n_tensors: usize,
+    n_ops: usize,
+    rgb: u16,
+    sparse: u16,
+    output: u16,
+    /// End of the payload (the CRC covers `HEADER_LEN..end`).
+    end: usize,
+}
+
 /// Parses and validates a blob (see the module doc).
 pub fn parse(blob: &[u8]) -> Result<Graph<'_>, BlobError> {
     let mut r = Reader {
@@ -269,6 +282,55 @@ pub fn parse(blob: &[u8]) -> Result<Graph<'_>, BlobError> {
         pos: 0,
         end: blob.len(),
     };
+    let h = read_header(&mut r)?;
+    let mut tensors: Vec<TensorInfo, MAX_TENSORS> = Vec::new();
+    for _ in 0..h.n_tensors {
+        let at = r.pos;
+        tensors
+            .push(read_tensor(&mut r)?)
+            .map_err(|_| bad(at, "tensor: table full"))?;
+    }
+    check_io(&tensors, &h)?;
+
+    // First pass over ops: record layout; parameters are resolved after the data start is known.
+    let mut produced = [false; MAX_TENSORS];
+    produced[h.rgb as usize] = true;
+    produced[h.sparse as usize] = true;
+    let mut ops: Vec<OpInfo, MAX_OPS> = Vec::new();
+    // Raw parameter offsets per op (weights, bias, scales), relative to the data section.
+    let mut raw: Vec<[u32; 3], MAX_OPS> = Vec::new();
+    for _ in 0..h.n_ops {
+        let (op, refs) = read_op(&mut r, &tensors, &mut produced)?;
+        let at = op.offset;
+        ops.push(op).map_err(|_| bad(at, "too many ops"))?;
+        raw.push(refs).map_err(|_| bad(at, "too many ops"))?;
+    }
+    if !produced[h.output as usize] || h.output == h.rgb || h.output == h.sparse {
+        return Err(bad(28, "header: output is not produced by any op"));
+    }
+    r.align(DATA_ALIGN, "data: alignment padding")?;
+    let data = r.pos;
+
+    // Resolve parameter references now that the data start is known.
+    for (op, refs) in ops.iter_mut().zip(raw.iter()) {
+        resolve_params(blob, op, *refs, &tensors, data, h.end)?;
+    }
+    Ok(Graph {
+        blob,
+        height: h.height,
+        width: h.width,
+        tensors,
+        ops,
+        rgb: h.rgb,
+        sparse: h.sparse,
+        output: h.output,
+    })
+}
+
+/// Reads and checks the header: magic, version, flags, the payload's length and CRC (the
+/// reader's end becomes the payload's), the input size and the table sizes.
+fn read_header(r: &mut Reader<'_>) -> Result<Header, BlobError> {
+    let blob = r.b;
     if r.arr::<4>("header: magic")? != MAGIC {
         return Err(bad(0, "header: magic is not \"DPTH\""));
     }
@@ -307,220 +369,230 @@ pub fn parse(blob: &[u8]) -> Result<Graph<'_>, BlobError> {
     if n_ops == 0 || n_ops > MAX_OPS {
         return Err(bad(22, "header: op count 0 or above MAX_OPS"));
     }
+    Ok(Header {
+        height,
+        width,
+        n_tensors,
+        n_ops,
+        rgb,
+        sparse,
+        output,
+        end,
+    })
+}
 
-    let mut tensors: Vec<TensorInfo, MAX_TENSORS> = Vec::new();
-    for _ in 0..n_tensors {
-        let at = r.pos;
-        let dt = r.u8("tensor: dtype")?;
-        if r.u8("tensor: reserved")? != 0 {
-            return Err(bad(at + 1, "tensor: reserved byte not zero"));
-        }
-        let channels = r.u16("tensor: channels")? as usize;
-        let scale = r.f32("tensor: scale")?;
-        let zero_point = r.i32("tensor: zero_point")?;
-        if r.u32("tensor: reserved")? != 0 {
-            return Err(bad(at + 12, "tensor: reserved word not zero"));
-        }
-        let (dtype, q) = match dt {
-            dtype::I8 => {
-                if !(scale.is_finite() && scale > 0.0 && (-128..=127).contains(&zero_point)) {
-                    return Err(bad(
-                        at + 4,
-                        "tensor: int8 scale must be finite and > 0, zero point in -128..=127",
-                    ));
-                }
-                (DType::I8, QParams { scale, zero_point })
-            }
-            dtype::F32 => (
-                DType::F32,
-                QParams {
-                    scale: 1.0,
-                    zero_point: 0,
-                },
-            ),
-            _ => return Err(bad(at, "tensor: unknown dtype")),
-        };
-        if channels == 0 {
-            return Err(bad(at + 2, "tensor: zero channels"));
-        }
-        tensors
-            .push(TensorInfo { dtype, channels, q })
-            .map_err(|_| bad(at, "tensor: table full"))?;
+/// Reads one tensor-table entry: dtype, channels, quantisation (checked for int8).
+fn read_tensor(r: &mut Reader<'_>) -> Result<TensorInfo, BlobError> {
+    let at = r.pos;
+    let dt = r.u8("tensor: dtype")?;
+    if r.u8("tensor: reserved")? != 0 {
+        return Err(bad(at + 1, "tensor: reserved byte not zero"));
     }
-    let tensor = |id: u16, at: usize| {
-        tensors
-            .get(id as usize)
-            .copied()
-            .ok_or(bad(at, "tensor id out of range"))
+    let channels = r.u16("tensor: channels")? as usize;
+    let scale = r.f32("tensor: scale")?;
+    let zero_point = r.i32("tensor: zero_point")?;
+    if r.u32("tensor: reserved")? != 0 {
+        return Err(bad(at + 12, "tensor: reserved word not zero"));
+    }
+    let (dtype, q) = match dt {
+        dtype::I8 => {
+            if !(scale.is_finite() && scale > 0.0 && (-128..=127).contains(&zero_point)) {
+                return Err(bad(
+                    at + 4,
+                    "tensor: int8 scale must be finite and > 0, zero point in -128..=127",
+                ));
+            }
+            (DType::I8, QParams { scale, zero_point })
+        }
+        dtype::F32 => (
+            DType::F32,
+            QParams {
+                scale: 1.0,
+                zero_point: 0,
+            },
+        ),
+        _ => return Err(bad(at, "tensor: unknown dtype")),
     };
-    let ti_rgb = tensor(rgb, 24)?;
-    let ti_sparse = tensor(sparse, 26)?;
-    let ti_out = tensor(output, 28)?;
-    if ti_rgb.channels != 3 || ti_sparse.channels != 1 || ti_out.channels != 1 || rgb == sparse {
+    if channels == 0 {
+        return Err(bad(at + 2, "tensor: zero channels"));
+    }
+    Ok(TensorInfo { dtype, channels, q })
+}
+
+/// Tensor `id` of the table; `at` is the offset reported when it is out of range.
+fn tensor_at(tensors: &[TensorInfo], id: u16, at: usize) -> Result<TensorInfo, BlobError> {
+    tensors
+        .get(id as usize)
+        .copied()
+        .ok_or(bad(at, "tensor id out of range"))
+}
+
+/// The header's inputs and output exist and have the contract's channels (rgb 3, sparse 1,
+/// output 1), and the two inputs differ.
+fn check_io(tensors: &[TensorInfo], h: &Header) -> Result<(), BlobError> {
+    let ti_rgb = tensor_at(tensors, h.rgb, 24)?;
+    let ti_sparse = tensor_at(tensors, h.sparse, 26)?;
+    let ti_out = tensor_at(tensors, h.output, 28)?;
+    if ti_rgb.channels != 3 || ti_sparse.channels != 1 || ti_out.channels != 1 || h.rgb == h.sparse
+    {
         return Err(bad(
             24,
             "header: inputs must be distinct [3,H,W] rgb and [1,H,W] sparse, output [1,H,W]",
         ));
     }
+    Ok(())
+}
 
-    // First pass over ops: record layout; parameters are resolved after the data start is known.
-    let mut produced = [false; MAX_TENSORS];
-    produced[rgb as usize] = true;
-    produced[sparse as usize] = true;
-    let mut ops: Vec<OpInfo, MAX_OPS> = Vec::new();
-    // Raw parameter offsets per op (weights, bias, scales), relative to the data section.
-    let mut raw: Vec<[u32; 3], MAX_OPS> = Vec::new();
-    for _ in 0..n_ops {
-        r.align(4, "op: alignment padding")?;
-        let at = r.pos;
-        let code = r.u8("op: opcode")?;
-        let n_in = r.u8("op: n_inputs")? as usize;
-        let out_id = r.u16("op: output id")?;
-        let attr_len = r.u16("op: attr_len")? as usize;
-        r.zero16("op: reserved")?;
-        let (lo, hi) = arity(code).ok_or(bad(at, "op: unknown opcode"))?;
-        if n_in < lo || n_in > hi {
-            return Err(bad(at + 1, "op: wrong number of inputs"));
+/// Reads one op record (opcode, inputs produced before it, an output produced once, its
+/// attributes) and checks its types; returns it with its raw parameter references.
+fn read_op(
+    r: &mut Reader<'_>,
+    tensors: &[TensorInfo],
+    produced: &mut [bool; MAX_TENSORS],
+) -> Result<(OpInfo, [u32; 3]), BlobError> {
+    r.align(4, "op: alignment padding")?;
+    let at = r.pos;
+    let code = r.u8("op: opcode")?;
+    let n_in = r.u8("op: n_inputs")? as usize;
+    let out_id = r.u16("op: output id")?;
+    let attr_len = r.u16("op: attr_len")? as usize;
+    r.zero16("op: reserved")?;
+    let (lo, hi) = arity(code).ok_or(bad(at, "op: unknown opcode"))?;
+    if n_in < lo || n_in > hi {
+        return Err(bad(at + 1, "op: wrong number of inputs"));
+    }
+    let mut inputs: Vec<u16, MAX_INPUTS> = Vec::new();
+    for _ in 0..n_in {
+        let ip = r.pos;
+        let id = r.u16("op: input id")?;
+        tensor_at(tensors, id, ip)?;
+        if !produced[id as usize] {
+            return Err(bad(ip, "op: input used before it is produced"));
         }
-        let mut inputs: Vec<u16, MAX_INPUTS> = Vec::new();
-        for _ in 0..n_in {
-            let ip = r.pos;
-            let id = r.u16("op: input id")?;
-            tensor(id, ip)?;
-            if !produced[id as usize] {
-                return Err(bad(ip, "op: input used before it is produced"));
-            }
-            inputs
-                .push(id)
-                .map_err(|_| bad(ip, "op: too many inputs"))?;
+        inputs
+            .push(id)
+            .map_err(|_| bad(ip, "op: too many inputs"))?;
+    }
+    r.align(4, "op: input padding")?;
+    tensor_at(tensors, out_id, at + 2)?;
+    if produced[out_id as usize] {
+        return Err(bad(at + 2, "op: output tensor produced twice"));
+    }
+    produced[out_id as usize] = true;
+    if !attr_len.is_multiple_of(4) {
+        return Err(bad(at + 4, "op: attr_len not a multiple of 4"));
+    }
+    let attr_start = r.pos;
+    let mut a = Reader {
+        b: r.b,
+        pos: attr_start,
+        end: attr_start
+            .checked_add(attr_len)
+            .ok_or(bad(at, "op: attr_len"))?,
+    };
+    if a.end > r.end {
+        return Err(bad(at + 4, "op: attributes beyond the payload"));
+    }
+    let (attrs, refs) = read_attrs(code, &mut a)?;
+    if a.pos != a.end {
+        return Err(bad(
+            a.pos,
+            "op: attr_len does not match the opcode's attributes",
+        ));
+    }
+    r.pos = a.end;
+    let op = OpInfo {
+        code,
+        inputs,
+        output: out_id,
+        attrs,
+        offset: at,
+    };
+    check_types(&op, tensors, produced)?;
+    Ok((op, refs))
+}
+
+/// Turns a conv's or bins head's raw references (relative to the data section at `data`) into
+/// parameters inside the payload (which ends at `end`) of the sizes its shapes need, and checks
+/// its weight scales.
+fn resolve_params(
+    blob: &[u8],
+    op: &mut OpInfo,
+    refs: [u32; 3],
+    tensors: &[TensorInfo],
+    data: usize,
+    end: usize,
+) -> Result<(), BlobError> {
+    let at = op.offset;
+    let in_c = tensor_at(tensors, op.inputs[0], at)?.channels;
+    let out_c = tensor_at(tensors, op.output, at)?.channels;
+    let param = |rel: u32, len: usize, what: &'static str| -> Result<Param, BlobError> {
+        let offset = data.checked_add(rel as usize).ok_or(bad(at, what))?;
+        match offset.checked_add(len) {
+            Some(e) if rel != NONE && e <= end => Ok(Param {
+                offset: u32::try_from(offset).map_err(|_| bad(at, what))?,
+                len: u32::try_from(len).map_err(|_| bad(at, what))?,
+            }),
+            _ => Err(bad(at, what)),
         }
-        r.align(4, "op: input padding")?;
-        tensor(out_id, at + 2)?;
-        if produced[out_id as usize] {
-            return Err(bad(at + 2, "op: output tensor produced twice"));
+    };
+    match &mut op.attrs {
+        Attrs::Conv {
+            geometry,
+            weights,
+            bias,
+            scales,
+            ..
+        } => {
+            let n = geometry
+                .get()
+                .weight_len(in_c, out_c)
+                .filter(|&n| n / out_c <= MAX_TAPS);
+            let n = n.ok_or(bad(at, "conv: weight shape too large"))?;
+            *weights = param(refs[0], n, "conv: weights outside the data section")?;
+            *bias = if refs[1] == NONE {
+                None
+            } else {
+                Some(param(
+                    refs[1],
+                    out_c * 4,
+                    "conv: bias outside the data section",
+                )?)
+            };
+            *scales = param(refs[2], out_c * 4, "conv: scales outside the data section")?;
+            check_scales(blob, *scales, out_c, at)?;
         }
-        produced[out_id as usize] = true;
-        if !attr_len.is_multiple_of(4) {
-            return Err(bad(at + 4, "op: attr_len not a multiple of 4"));
-        }
-        let attr_start = r.pos;
-        let mut a = Reader {
-            b: blob,
-            pos: attr_start,
-            end: attr_start
-                .checked_add(attr_len)
-                .ok_or(bad(at, "op: attr_len"))?,
-        };
-        if a.end > r.end {
-            return Err(bad(at + 4, "op: attributes beyond the payload"));
-        }
-        let (attrs, refs) = read_attrs(code, &mut a)?;
-        if a.pos != a.end {
-            return Err(bad(
-                a.pos,
-                "op: attr_len does not match the opcode's attributes",
-            ));
-        }
-        r.pos = a.end;
-        let op = OpInfo {
-            code,
-            inputs,
-            output: out_id,
+        Attrs::Bins {
             attrs,
-            offset: at,
-        };
-        check_types(&op, &tensors, &produced)?;
-        ops.push(op).map_err(|_| bad(at, "too many ops"))?;
-        raw.push(refs).map_err(|_| bad(at, "too many ops"))?;
-    }
-    if !produced[output as usize] || output == rgb || output == sparse {
-        return Err(bad(28, "header: output is not produced by any op"));
-    }
-    r.align(DATA_ALIGN, "data: alignment padding")?;
-    let data = r.pos;
-
-    // Resolve parameter references now that the data start is known.
-    for (op, refs) in ops.iter_mut().zip(raw.iter()) {
-        let at = op.offset;
-        let in_c = tensor(op.inputs[0], at)?.channels;
-        let out_c = tensor(op.output, at)?.channels;
-        let param = |rel: u32, len: usize, what: &'static str| -> Result<Param, BlobError> {
-            let offset = data.checked_add(rel as usize).ok_or(bad(at, what))?;
-            match offset.checked_add(len) {
-                Some(e) if rel != NONE && e <= end => Ok(Param {
-                    offset: u32::try_from(offset).map_err(|_| bad(at, what))?,
-                    len: u32::try_from(len).map_err(|_| bad(at, what))?,
-                }),
-                _ => Err(bad(at, what)),
-            }
-        };
-        match &mut op.attrs {
-            Attrs::Conv {
-                geometry,
-                weights,
-                bias,
-                scales,
-                ..
-            } => {
-                let n = geometry
-                    .get()
-                    .weight_len(in_c, out_c)
-                    .filter(|&n| n / out_c <= MAX_TAPS);
-                let n = n.ok_or(bad(at, "conv: weight shape too large"))?;
-                *weights = param(refs[0], n, "conv: weights outside the data section")?;
-                *bias = if refs[1] == NONE {
-                    None
-                } else {
-                    Some(param(
-                        refs[1],
-                        out_c * 4,
-                        "conv: bias outside the data section",
-                    )?)
-                };
-                *scales = param(refs[2], out_c * 4, "conv: scales outside the data section")?;
-                check_scales(blob, *scales, out_c, at)?;
-            }
-            Attrs::Bins {
-                attrs,
-                weights,
-                bias,
-                scales,
-            } => {
-                let nb = attrs.n_bins;
-                *weights = param(
-                    refs[0],
-                    nb * in_c,
-                    "bins_head: weights outside the data section",
-                )?;
-                *bias = if refs[1] == NONE {
-                    None
-                } else {
-                    Some(param(
-                        refs[1],
-                        nb * 4,
-                        "bins_head: bias outside the data section",
-                    )?)
-                };
-                *scales = param(
-                    refs[2],
+            weights,
+            bias,
+            scales,
+        } => {
+            let nb = attrs.n_bins;
+            *weights = param(
+                refs[0],
+                nb * in_c,
+                "bins_head: weights outside the data section",
+            )?;
+            *bias = if refs[1] == NONE {
+                None
+            } else {
+                Some(param(
+                    refs[1],
                     nb * 4,
-                    "bins_head: scales outside the data section",
-                )?;
-                check_scales(blob, *scales, nb, at)?;
-            }
-            _ => {}
+                    "bins_head: bias outside the data section",
+                )?)
+            };
+            *scales = param(
+                refs[2],
+                nb * 4,
+                "bins_head: scales outside the data section",
+            )?;
+            check_scales(blob, *scales, nb, at)?;
         }
+        _ => {}
     }
-    Ok(Graph {
-        blob,
-        height,
-        width,
-        tensors,
-        ops,
-        rgb,
-        sparse,
-        output,
-    })
+    Ok(())
 }
 
 fn check_scales(blob: &[u8], p: Param, n: usize, at: usize) -> Result<(), BlobError> {

@@ -446,6 +446,7 @@ pub fn best_cross_fitted(forward: &[f64], reverse: &[f64]) -> Option<usize> {
 /// Runs forward selection (single effects and the [`JOINT_PAIRS`]), joint refits, pruning and
 /// the confounding check.
 pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str)) -> Selection {
+    let progress: &mut dyn FnMut(&str) = &mut progress;
     let mut model = ctx.base.clone();
     let mut accepted: Vec<&'static str> = Vec::new();
     let mut joints: Vec<Joint> = Vec::new();
@@ -466,45 +467,7 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
             break;
         }
         let seed = 17 + round as u64;
-        let train_cur = ctx.train_nll(&model);
-        let trial = |names: Vec<&'static str>, m: SimConfig| {
-            let train_gain = train_cur - ctx.train_nll(&m);
-            let after = ctx.test_nlls(&m);
-            let (gain, p) = ctx.gain(&cur, &after, opts.permutations, seed);
-            let dims = names
-                .iter()
-                .filter_map(|n| effects::candidate(n))
-                .map(|c| c.params.len())
-                .sum();
-            Trial {
-                names,
-                model: m,
-                after,
-                gain,
-                p,
-                train_gain,
-                dims,
-            }
-        };
-        let mut trials = Vec::new();
-        for c in &cands {
-            progress(&format!("round {} · fitting {}", round + 1, c.name));
-            trials.push(trial(vec![c.name], ctx.fit_one(&model, c, opts)));
-        }
-        // Joint pairs, fitted only when one of their effects alone shows training evidence (the
-        // pair's joint pattern leaves a structured residual the single fit half explains).
-        for (a, b, _) in JOINT_PAIRS {
-            let single = |n: &str| trials.iter().find(|t| t.names == [n]);
-            let (Some(ta), Some(tb)) = (single(a), single(b)) else {
-                continue;
-            };
-            if ta.train_gain.max(tb.train_gain) < opts.joint_trigger {
-                continue;
-            }
-            progress(&format!("round {} · fitting {a}+{b} jointly", round + 1));
-            let pair = [a, b];
-            trials.push(trial(pair.to_vec(), ctx.fit_joint(&model, &pair, opts)));
-        }
+        let trials = fit_trials(ctx, opts, &model, &cur, &cands, round, progress);
         for t in &trials {
             log.push(format!(
                 "round {} {:<18} gain {:+.4} nats/zone  p {:.4}  (training gain {:+.1} nats)",
@@ -515,21 +478,7 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
                 t.train_gain
             ));
         }
-        let ps: Vec<f64> = trials.iter().map(|t| t.p).collect();
-        // The gate: Holm at α/2 (no candidate favoured) or fixed-sequence at α/2 in the order of
-        // training gain (set on the training frames, before any held-out p is seen: powerful for
-        // an effect confined to a few frames, whose p cannot reach Holm's α/m). Bonferroni over
-        // the two keeps the family-wise error ≤ α. Joint pairs are members of the family.
-        let order = gate_order(
-            &trials.iter().map(|t| t.train_gain).collect::<Vec<_>>(),
-            &trials.iter().map(|t| t.dims).collect::<Vec<_>>(),
-        );
-        let fixed = fixed_sequence(&ps, &order, opts.alpha / 2.0);
-        let sig: Vec<bool> = holm(&ps, opts.alpha / 2.0)
-            .into_iter()
-            .zip(fixed)
-            .map(|(a, b)| a || b)
-            .collect();
+        let sig = gate(&trials, opts);
         if round == 0 {
             for (t, &s) in trials.iter().zip(&sig) {
                 if let [n] = t.names[..] {
@@ -547,70 +496,8 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
         {
             break;
         }
-        // Attribution among the single effects significant on their own: look-alikes (range vs
-        // dark dropout where far surfaces are dark) reach similar held-out gains, and a split of
-        // 20 held-out frames decides between them by chance. Each contender is also fitted on
-        // the held-out frames and scored on the training frames (2-fold cross-fitting): twice the
-        // evidence, each half scored on frames its fit did not see.
-        let contenders: Vec<&Trial> = trials
-            .iter()
-            .filter(|t| t.names.len() == 1 && t.p <= opts.alpha && t.gain >= opts.min_gain)
-            .collect();
-        let best = if contenders.len() > 1 {
-            let flipped = ctx.swapped();
-            let base_train: f64 = flipped.test_nlls(&model).iter().sum();
-            let forward: Vec<f64> = contenders
-                .iter()
-                .map(|t| t.gain * ctx.test_zones())
-                .collect();
-            let reverse: Vec<f64> = contenders
-                .iter()
-                .map(|t| {
-                    progress(&format!(
-                        "round {} · cross-fitting {}",
-                        round + 1,
-                        t.names[0]
-                    ));
-                    let c = effects::candidate(t.names[0]).expect("library effect");
-                    let m = flipped.fit_one(&model, c, opts);
-                    base_train - flipped.test_nlls(&m).iter().sum::<f64>()
-                })
-                .collect();
-            for ((t, f), r) in contenders.iter().zip(&forward).zip(&reverse) {
-                log.push(format!(
-                    "round {} cross-fitted {:<18} {:+.1} + {:+.1} = {:+.1} nats",
-                    round + 1,
-                    t.names[0],
-                    f,
-                    r,
-                    f + r
-                ));
-            }
-            best_cross_fitted(&forward, &reverse).map(|i| contenders[i])
-        } else {
-            contenders.first().copied()
-        };
-        // A joint pair passed by the gate wins when it also beats, by the same test at α/2, the
-        // best single effect and each of its own effects alone.
-        let joint = trials
-            .iter()
-            .zip(&sig)
-            .filter(|(t, &s)| t.names.len() == 2 && s && t.gain >= opts.min_gain)
-            .filter_map(|(t, _)| {
-                let rivals = trials.iter().filter(|r| {
-                    r.names.len() == 1
-                        && (t.names.contains(&r.names[0])
-                            || best.is_some_and(|b| b.names == r.names))
-                });
-                let (g, p) = rivals
-                    .map(|r| ctx.gain(&r.after, &t.after, opts.permutations, seed + 1000))
-                    .fold((f64::INFINITY, 0.0f64), |(g, p), (gr, pr)| {
-                        (g.min(gr), p.max(pr))
-                    });
-                (g >= opts.min_gain && p <= opts.alpha / 2.0).then_some((t, g, p))
-            })
-            .max_by(|a, b| a.0.gain.total_cmp(&b.0.gain));
-        let chosen = if let Some((t, g, p)) = joint {
+        let best = attribute(ctx, opts, &model, &trials, round, &mut log, progress);
+        let chosen = if let Some((t, g, p)) = best_joint(ctx, opts, &trials, &sig, best, seed) {
             let why = JOINT_PAIRS
                 .iter()
                 .find(|j| t.names == [j.0, j.1])
@@ -635,67 +522,17 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
         model = ctx.refit(&chosen.model, &accepted, opts);
         cur = ctx.test_nlls(&model);
     }
-    // Prune: drop effects whose conditional held-out gain is no longer significant.
-    let mut cond: BTreeMap<&'static str, (f64, f64, SimConfig)> = BTreeMap::new();
-    let mut k = 0;
-    while k < accepted.len() {
-        let name = accepted[k];
-        progress(&format!("pruning {name}"));
-        let rest: Vec<&'static str> = accepted.iter().copied().filter(|&n| n != name).collect();
-        let mut without = model.clone();
-        effects::set(&mut without, name, None);
-        let without = if rest.is_empty() {
-            without
-        } else {
-            ctx.refit(&without, &rest, opts)
-        };
-        let (g, p) = ctx.gain(
-            &ctx.test_nlls(&without),
-            &cur,
-            opts.permutations,
-            99 + k as u64,
-        );
-        if p > opts.alpha || g < opts.min_gain {
-            log.push(format!("pruned {name}: conditional gain {g:+.4}, p {p:.4}"));
-            accepted.remove(k);
-            model = without;
-            cur = ctx.test_nlls(&model);
-            cond.clear();
-            k = 0;
-            continue;
-        }
-        cond.insert(name, (g, p, without));
-        k += 1;
-    }
+    let cond = prune(
+        ctx,
+        opts,
+        (&mut model, &mut cur),
+        &mut accepted,
+        &mut log,
+        progress,
+    );
     // A joint pair stands only while pruning kept both of its effects.
     joints.retain(|j| j.effects.iter().all(|e| accepted.contains(&e.as_str())));
-    // Confounding: a look-alike that, in the accepted effect's place, reaches ≥ half its gain.
-    let mut confounds = Vec::new();
-    for &a in &accepted {
-        let Some((ga, _, without)) = cond.get(a) else {
-            continue;
-        };
-        let base_nll = ctx.test_nlls(without);
-        for (&b, &(gb, sig_b)) in &solo {
-            if accepted.contains(&b) || !sig_b || gb < 0.25 * ga {
-                continue;
-            }
-            progress(&format!("confounding {a} / {b}"));
-            let Some(cb) = effects::candidate(b) else {
-                continue;
-            };
-            let swap = ctx.fit_one(without, cb, opts);
-            let (gs, _) = ctx.gain(&base_nll, &ctx.test_nlls(&swap), 0, 0);
-            if gs >= 0.5 * ga {
-                confounds.push(Confound {
-                    kept: a.to_string(),
-                    other: b.to_string(),
-                    share: gs / ga,
-                    separate_with: effects::separating_data(a, b),
-                });
-            }
-        }
-    }
+    let confounds = confounding(ctx, opts, &accepted, &cond, &solo, progress);
     let mut full = ctx.all_frames();
     let estimate = if accepted.is_empty() {
         model.clone()
@@ -729,6 +566,246 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
         joints,
         log,
     }
+}
+
+/// Round `round`'s trials on top of `model` (whose held-out NLLs are `cur`): every candidate
+/// fitted alone, then the [`JOINT_PAIRS`] whose single fits show training evidence.
+fn fit_trials(
+    ctx: &Ctx<'_>,
+    opts: &SelectOptions,
+    model: &SimConfig,
+    cur: &[f64],
+    cands: &[&&Candidate],
+    round: usize,
+    progress: &mut dyn FnMut(&str),
+) -> Vec<Trial> {
+    let seed = 17 + round as u64;
+    let train_cur = ctx.train_nll(model);
+    let trial = |names: Vec<&'static str>, m: SimConfig| {
+        let train_gain = train_cur - ctx.train_nll(&m);
+        let after = ctx.test_nlls(&m);
+        let (gain, p) = ctx.gain(cur, &after, opts.permutations, seed);
+        let dims = names
+            .iter()
+            .filter_map(|n| effects::candidate(n))
+            .map(|c| c.params.len())
+            .sum();
+        Trial {
+            names,
+            model: m,
+            after,
+            gain,
+            p,
+            train_gain,
+            dims,
+        }
+    };
+    let mut trials = Vec::new();
+    for c in cands {
+        progress(&format!("round {} · fitting {}", round + 1, c.name));
+        trials.push(trial(vec![c.name], ctx.fit_one(model, c, opts)));
+    }
+    // Joint pairs, fitted only when one of their effects alone shows training evidence (the
+    // pair's joint pattern leaves a structured residual the single fit half explains).
+    for (a, b, _) in JOINT_PAIRS {
+        let single = |n: &str| trials.iter().find(|t| t.names == [n]);
+        let (Some(ta), Some(tb)) = (single(a), single(b)) else {
+            continue;
+        };
+        if ta.train_gain.max(tb.train_gain) < opts.joint_trigger {
+            continue;
+        }
+        progress(&format!("round {} · fitting {a}+{b} jointly", round + 1));
+        let pair = [a, b];
+        trials.push(trial(pair.to_vec(), ctx.fit_joint(model, &pair, opts)));
+    }
+    trials
+}
+
+/// Which trials pass the gate: Holm at α/2 (no candidate favoured) or fixed-sequence at α/2 in
+/// the order of training gain (set on the training frames, before any held-out p is seen:
+/// powerful for an effect confined to a few frames, whose p cannot reach Holm's α/m).
+/// Bonferroni over the two keeps the family-wise error ≤ α. Joint pairs are members of the
+/// family.
+fn gate(trials: &[Trial], opts: &SelectOptions) -> Vec<bool> {
+    let ps: Vec<f64> = trials.iter().map(|t| t.p).collect();
+    let order = gate_order(
+        &trials.iter().map(|t| t.train_gain).collect::<Vec<_>>(),
+        &trials.iter().map(|t| t.dims).collect::<Vec<_>>(),
+    );
+    let fixed = fixed_sequence(&ps, &order, opts.alpha / 2.0);
+    holm(&ps, opts.alpha / 2.0)
+        .into_iter()
+        .zip(fixed)
+        .map(|(a, b)| a || b)
+        .collect()
+}
+
+/// Attribution among the single effects significant on their own: look-alikes (range vs dark
+/// dropout where far surfaces are dark) reach similar held-out gains, and a split of 20 held-out
+/// frames decides between them by chance. Each contender is also fitted on the held-out frames
+/// and scored on the training frames (2-fold cross-fitting): twice the evidence, each half
+/// scored on frames its fit did not see.
+fn attribute<'t>(
+    ctx: &Ctx<'_>,
+    opts: &SelectOptions,
+    model: &SimConfig,
+    trials: &'t [Trial],
+    round: usize,
+    log: &mut Vec<String>,
+    progress: &mut dyn FnMut(&str),
+) -> Option<&'t Trial> {
+    let contenders: Vec<&Trial> = trials
+        .iter()
+        .filter(|t| t.names.len() == 1 && t.p <= opts.alpha && t.gain >= opts.min_gain)
+        .collect();
+    if contenders.len() <= 1 {
+        return contenders.first().copied();
+    }
+    let flipped = ctx.swapped();
+    let base_train: f64 = flipped.test_nlls(model).iter().sum();
+    let forward: Vec<f64> = contenders
+        .iter()
+        .map(|t| t.gain * ctx.test_zones())
+        .collect();
+    let reverse: Vec<f64> = contenders
+        .iter()
+        .map(|t| {
+            progress(&format!(
+                "round {} · cross-fitting {}",
+                round + 1,
+                t.names[0]
+            ));
+            let c = effects::candidate(t.names[0]).expect("library effect");
+            let m = flipped.fit_one(model, c, opts);
+            base_train - flipped.test_nlls(&m).iter().sum::<f64>()
+        })
+        .collect();
+    for ((t, f), r) in contenders.iter().zip(&forward).zip(&reverse) {
+        log.push(format!(
+            "round {} cross-fitted {:<18} {:+.1} + {:+.1} = {:+.1} nats",
+            round + 1,
+            t.names[0],
+            f,
+            r,
+            f + r
+        ));
+    }
+    best_cross_fitted(&forward, &reverse).map(|i| contenders[i])
+}
+
+/// A joint pair passed by the gate (`sig`) wins when it also beats, by the same test at α/2, the
+/// `best` single effect and each of its own effects alone: the pair, its smallest gain over them
+/// and the largest p.
+fn best_joint<'t>(
+    ctx: &Ctx<'_>,
+    opts: &SelectOptions,
+    trials: &'t [Trial],
+    sig: &[bool],
+    best: Option<&Trial>,
+    seed: u64,
+) -> Option<(&'t Trial, f64, f64)> {
+    trials
+        .iter()
+        .zip(sig)
+        .filter(|(t, &s)| t.names.len() == 2 && s && t.gain >= opts.min_gain)
+        .filter_map(|(t, _)| {
+            let rivals = trials.iter().filter(|r| {
+                r.names.len() == 1
+                    && (t.names.contains(&r.names[0]) || best.is_some_and(|b| b.names == r.names))
+            });
+            let (g, p) = rivals
+                .map(|r| ctx.gain(&r.after, &t.after, opts.permutations, seed + 1000))
+                .fold((f64::INFINITY, 0.0f64), |(g, p), (gr, pr)| {
+                    (g.min(gr), p.max(pr))
+                });
+            (g >= opts.min_gain && p <= opts.alpha / 2.0).then_some((t, g, p))
+        })
+        .max_by(|a, b| a.0.gain.total_cmp(&b.0.gain))
+}
+
+/// Drops accepted effects whose conditional held-out gain is no longer significant, refitting
+/// `model` (and its held-out NLLs `cur`) after each drop; returns each kept effect's conditional
+/// gain, p and the model refitted without it.
+fn prune(
+    ctx: &Ctx<'_>,
+    opts: &SelectOptions,
+    (model, cur): (&mut SimConfig, &mut Vec<f64>),
+    accepted: &mut Vec<&'static str>,
+    log: &mut Vec<String>,
+    progress: &mut dyn FnMut(&str),
+) -> BTreeMap<&'static str, (f64, f64, SimConfig)> {
+    let mut cond: BTreeMap<&'static str, (f64, f64, SimConfig)> = BTreeMap::new();
+    let mut k = 0;
+    while k < accepted.len() {
+        let name = accepted[k];
+        progress(&format!("pruning {name}"));
+        let rest: Vec<&'static str> = accepted.iter().copied().filter(|&n| n != name).collect();
+        let mut without = model.clone();
+        effects::set(&mut without, name, None);
+        let without = if rest.is_empty() {
+            without
+        } else {
+            ctx.refit(&without, &rest, opts)
+        };
+        let (g, p) = ctx.gain(
+            &ctx.test_nlls(&without),
+            cur,
+            opts.permutations,
+            99 + k as u64,
+        );
+        if p > opts.alpha || g < opts.min_gain {
+            log.push(format!("pruned {name}: conditional gain {g:+.4}, p {p:.4}"));
+            accepted.remove(k);
+            *model = without;
+            *cur = ctx.test_nlls(model);
+            cond.clear();
+            k = 0;
+            continue;
+        }
+        cond.insert(name, (g, p, without));
+        k += 1;
+    }
+    cond
+}
+
+/// Confounding: a look-alike (significant alone in the first round) that, in an accepted
+/// effect's place, reaches ≥ half its gain.
+fn confounding(
+    ctx: &Ctx<'_>,
+    opts: &SelectOptions,
+    accepted: &[&'static str],
+    cond: &BTreeMap<&'static str, (f64, f64, SimConfig)>,
+    solo: &BTreeMap<&'static str, (f64, bool)>,
+    progress: &mut dyn FnMut(&str),
+) -> Vec<Confound> {
+    let mut confounds = Vec::new();
+    for &a in accepted {
+        let Some((ga, _, without)) = cond.get(a) else {
+            continue;
+        };
+        let base_nll = ctx.test_nlls(without);
+        for (&b, &(gb, sig_b)) in solo {
+            if accepted.contains(&b) || !sig_b || gb < 0.25 * ga {
+                continue;
+            }
+            progress(&format!("confounding {a} / {b}"));
+            let Some(cb) = effects::candidate(b) else {
+                continue;
+            };
+            let swap = ctx.fit_one(without, cb, opts);
+            let (gs, _) = ctx.gain(&base_nll, &ctx.test_nlls(&swap), 0, 0);
+            if gs >= 0.5 * ga {
+                confounds.push(Confound {
+                    kept: a.to_string(),
+                    other: b.to_string(),
+                    share: gs / ga,
+                    separate_with: effects::separating_data(a, b),
+                });
+            }
+        }
+    }
+    confounds
 }
 
 #[allow(clippy::too_many_arguments)]
