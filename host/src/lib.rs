@@ -19,7 +19,7 @@
 //! | [`dataset`] | scene generator + simulator → recording frames; resampling to a model's size |
 //! | [`models`] | the shipped model folders and how `--model` finds them |
 //! | [`inference`] | the core's int8 engine over an owned blob and arena |
-//! | [`reference`] | the float network and the monocular prior through tract |
+//! | [`reference`](mod@reference) | the float network and the monocular prior through tract |
 //! | [`baselines`] | nearest zone, bilinear zones, joint bilateral upsampling |
 //! | [`evaluation`] | frames, methods and predictions of `depthor eval` and `demo`; the eval output format |
 //! | [`quantize`] | graph.json + weights.bin → the int8 blob (fold, calibrate, write, check) |
