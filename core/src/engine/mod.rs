@@ -32,8 +32,9 @@ pub mod error;
 pub mod plan;
 
 pub use engine::{
-    required_arena_bytes, required_arena_bytes_with, DepthIn, DepthOut, Engine, Observed, Observer,
-    RunStats,
+    required_arena_bytes, required_arena_bytes_with, Engine, Observed, Observer, RunStats,
 };
 pub use error::Error;
-pub use plan::{plan, plan_with, BufferReq, Memory, Plan, PlanError};
+pub use plan::{
+    plan, plan_with, BufferReq, FusedRefine, Fusion, Memory, Plan, PlanError, RefineScratch,
+};

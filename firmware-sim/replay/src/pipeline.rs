@@ -19,9 +19,9 @@
 //! [`LoopError::Frame`] (exit 17): the core does not run the model without metric depth.
 
 use depthor_core::drivers::zone_bridge::{DeviceError, ZoneBridgeDevice, ZoneBridgeSensor};
-use depthor_core::engine::{self, DepthOut, Engine, RunStats};
+use depthor_core::engine::{self, Engine, RunStats};
 use depthor_core::hal::{ErrorKind, ZoneFrame};
-use depthor_core::pipeline::{depth_frame_probed, FrameBuffers, FrameError};
+use depthor_core::pipeline::{depth_frame_probed, DepthOut, FrameBuffers, FrameError};
 use depthor_core::projection::{ProjectionError, ProjectionStats};
 use embedded_hal::delay::DelayNs;
 
