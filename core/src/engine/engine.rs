@@ -411,7 +411,7 @@ impl<'a> Engine<'a> {
             }
             exec(&self.graph, &self.plan, i, op, consts, act, ext, self.isa)?;
             if let Some(f) = observer.as_deref_mut() {
-                observe(&self.graph, &self.plan, i, op, act, f)?;
+                observe(&self.graph, &self.plan, i, op, act, ext, f)?;
             }
         }
         Ok(RunStats {
@@ -428,6 +428,7 @@ fn observe(
     i: usize,
     op: &OpInfo,
     act: &[u8],
+    ext: &[f32],
     f: &mut Observer<'_>,
 ) -> Result<(), Error> {
     let bad = Error::Kernel {
@@ -436,6 +437,10 @@ fn observe(
     };
     let info = g.tensor(op.output)?;
     let n = plan.shape(op.output).and_then(|s| s.len()).ok_or(bad)?;
+    if op.output == g.output && !plan.output_in_arena() {
+        f(i, Observed::F32(ext.get(..n).ok_or(bad)?));
+        return Ok(());
+    }
     let buf = act
         .get(plan.tensor_range(op.output).ok_or(bad)?)
         .ok_or(bad)?;
