@@ -229,7 +229,7 @@ fn streamed_refinement_equals_whole_maps() {
             common::frame(h, w)
         };
         let mut outs = Vec::new();
-        for memory in [Memory::Whole, Memory::Streamed] {
+        for memory in [Memory::Whole, Memory::Streamed, Memory::Budget(usize::MAX)] {
             let need = required_arena_bytes_with(&blob, h, w, memory).unwrap();
             let mut arena = vec![0u8; need];
             let mut eng = Engine::with_memory(&blob, &mut arena, h, w, memory).unwrap();
@@ -237,12 +237,14 @@ fn streamed_refinement_equals_whole_maps() {
             eng.run(&rgb, &sparse, &mut out).unwrap();
             outs.push((need, out));
         }
-        let same = outs[0]
-            .1
-            .iter()
-            .zip(&outs[1].1)
-            .all(|(a, b)| a.to_bits() == b.to_bits());
-        assert!(same, "{h}x{w}: streamed output differs from whole maps");
+        for (k, other) in outs.iter().enumerate().skip(1) {
+            let same = outs[0]
+                .1
+                .iter()
+                .zip(&other.1)
+                .all(|(a, b)| a.to_bits() == b.to_bits());
+            assert!(same, "{h}x{w}: plan {k}'s output differs from whole maps");
+        }
         assert!(
             outs[1].0 < outs[0].0,
             "{h}x{w}: arena {} !< {}",

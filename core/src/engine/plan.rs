@@ -61,6 +61,10 @@ pub enum Memory {
     /// scratch rather than holding them in the persistent region. The bits do not change.
     #[default]
     Streamed,
+    /// The fastest streamed plan within this many arena bytes: the least [`Fusion`] (fusing
+    /// the kmix/tmix heads recomputes them per refinement branch) whose arena fits, else the
+    /// smallest ([`Memory::Streamed`]); [`Plan::arena_bytes`] says whether it fits.
+    Budget(usize),
     /// Every op's output stored whole (for observers that compare every tensor).
     Whole,
 }
@@ -138,6 +142,8 @@ pub struct Plan {
     fused: Vec<FusedRefine, MAX_FUSED>,
     /// Whether the graph's output is a tensor of the arena (else the caller's f32 buffer).
     output_in_arena: bool,
+    /// What the plan fuses into refinements.
+    fusion: Fusion,
     /// Concats read in place: (concat op, the conv that reads its parts).
     in_place: Vec<(u16, u16), MAX_IN_PLACE>,
     /// Whether convs compute their per-channel constants per run in their scratch.
@@ -252,6 +258,10 @@ impl Plan {
             .iter()
             .find(|f| usize::from(f.refine) == op)
             .copied()
+    }
+    /// What the plan fuses into refinements (the level [`plan_with`] chose).
+    pub fn fusion(&self) -> Fusion {
+        self.fusion
     }
     /// Whether the graph's output lives in the arena ([`Memory::Whole`]) or is written by its
     /// producer straight into the caller's f32 output ([`Memory::Streamed`]).
@@ -692,13 +702,17 @@ fn fusable(graph: &Graph, fusion: Fusion) -> Result<Vec<Option<u16>, MAX_OPS>, P
 /// bytes (the most fused where they tie): on small images a ring can hold more than the map it
 /// replaces.
 pub fn plan_with(graph: &Graph, h: usize, w: usize, memory: Memory) -> Result<Plan, PlanError> {
-    if memory == Memory::Whole {
-        return plan_fused(graph, h, w, memory, Fusion::None);
-    }
+    let budget = match memory {
+        Memory::Whole => return plan_fused(graph, h, w, memory, Fusion::None),
+        Memory::Streamed => 0,
+        Memory::Budget(bytes) => bytes,
+    };
     let mut best: Option<(usize, Fusion)> = None;
     for fusion in [Fusion::All, Fusion::Affinities, Fusion::None] {
         let bytes = plan_fused(graph, h, w, memory, fusion)?.arena_bytes();
-        if best.is_none_or(|(b, _)| bytes < b) {
+        let fits = bytes <= budget;
+        // Smallest first; within the budget, the least fused (the last that fits).
+        if best.is_none_or(|(b, _)| bytes < b || (fits && b <= budget)) {
             best = Some((bytes, fusion));
         }
     }
@@ -728,7 +742,7 @@ fn plan_fused(
     let n_t = graph.tensors.len();
     let n_ops = graph.ops.len();
     let fused_into = match memory {
-        Memory::Streamed => fusable(graph, fusion)?,
+        Memory::Streamed | Memory::Budget(_) => fusable(graph, fusion)?,
         Memory::Whole => {
             let mut v: Vec<Option<u16>, MAX_OPS> = Vec::new();
             v.resize(n_ops, None).map_err(|_| PlanError::TooLarge)?;
@@ -738,7 +752,7 @@ fn plan_fused(
     let mut fused: Vec<FusedRefine, MAX_FUSED> = Vec::new();
     let mut in_place: Vec<(u16, u16), MAX_IN_PLACE> = Vec::new();
     // Scratch bytes of each fused head (run inside its refinement, which holds it).
-    let per_run_consts = memory == Memory::Streamed;
+    let per_run_consts = memory != Memory::Whole;
     let mut head_consts: Vec<usize, MAX_OPS> = Vec::new();
     head_consts
         .resize(n_ops, 0)
@@ -889,6 +903,7 @@ fn plan_fused(
         broadcast,
         fused,
         output_in_arena,
+        fusion,
         in_place,
         per_run_consts,
         persistent_bytes: persistent,

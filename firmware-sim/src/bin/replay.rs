@@ -195,11 +195,12 @@ fn main() -> ! {
     };
     let arena_used = engine.plan().arena_bytes();
     println!(
-        "engine: blob {} B at {:p}, arena {arena_used} B of {} B reserved, {} MAC/frame, \
-         prepared in {} instructions",
+        "engine: blob {} B at {:p}, arena {arena_used} B of {} B reserved ({:?} fused), {} \
+         MAC/frame, prepared in {} instructions",
         MCU_BLOB.len(),
         MCU_BLOB.as_ptr(),
         ARENA_BUDGET_BYTES,
+        engine.plan().fusion(),
         engine.plan().macs(),
         cycles::instructions(cycles::ticks() - before)
     );
