@@ -285,9 +285,10 @@ pub const PLACE_ROUNDS: usize = 64;
 
 /// Places buffers: each in turn at the lowest offset that does not overlap a placed buffer
 /// alive at the same time (TFLite Micro's greedy planner), starting from the order largest
-/// first; then, for up to [`PLACE_ROUNDS`] rounds, the buffer that reaches the top is moved to
-/// the front of the order and everything placed again. Keeps the order with the smallest total
-/// (the first such). Writes one offset per request and returns the total bytes; deterministic.
+/// first; then, for up to [`PLACE_ROUNDS`] rounds or until the total equals the bytes live at
+/// the busiest step (no placement needs fewer), the buffer that reaches the top is moved to the
+/// front of the order and everything placed again. Keeps the order with the smallest total (the
+/// first such). Writes one offset per request and returns the total bytes; deterministic.
 /// Offsets are multiples of [`ALIGN`] when the sizes are.
 pub fn place(reqs: &[BufferReq], offsets: &mut [usize]) -> Result<usize, PlanError> {
     if reqs.len() > MAX_BUFFERS || offsets.len() < reqs.len() {
@@ -308,11 +309,29 @@ pub fn place(reqs: &[BufferReq], offsets: &mut [usize]) -> Result<usize, PlanErr
             .then(ra.first.cmp(&rb.first))
             .then(a.cmp(&b))
     });
+    // No placement needs fewer bytes than are live at the busiest step: stop there.
+    let steps = reqs
+        .iter()
+        .map(|r| r.last.saturating_add(1))
+        .max()
+        .unwrap_or(0);
+    let bound = (0..steps)
+        .map(|t| {
+            reqs.iter()
+                .filter(|r| r.first <= t && t <= r.last)
+                .map(|r| r.bytes)
+                .sum::<usize>()
+        })
+        .max()
+        .unwrap_or(0);
     let mut best = (usize::MAX, order.clone());
     for _ in 0..PLACE_ROUNDS {
         let total = place_in(reqs, offsets, &order)?;
         if total < best.0 {
             best = (total, order.clone());
+        }
+        if total <= bound {
+            break;
         }
         let end = |i: u16| offsets[i as usize] + reqs[i as usize].bytes;
         let Some(top) = order.iter().position(|&i| end(i) == total) else {
