@@ -29,16 +29,59 @@
 //! RGB, `4·H·W` bytes of sparse depth, a [`ZoneFrame<N>`] (`17·N + 8` bytes) and the output.
 
 use crate::calibration::Calibration;
-use crate::engine::{self, DepthIn, DepthOut, Engine, RunStats};
+use crate::engine::{self, Engine, RunStats};
 use crate::hal::{DtofSensor, Error as _, ErrorKind, RgbCamera, RgbFrame, ZoneFrame};
 use crate::projection::{project_to_sparse, ProjectionError, ProjectionStats};
+
+/// Where [`depth_frame`] writes the dense depth (`H×W`).
+#[derive(Debug)]
+pub enum DepthOut<'o> {
+    /// Metres.
+    Metres(&'o mut [f32]),
+    /// Millimetres, rounded and clamped to `0..=65535`.
+    Millimetres(&'o mut [u16]),
+}
+
+impl DepthOut<'_> {
+    /// Pixels the buffer holds.
+    fn len(&self) -> usize {
+        match self {
+            DepthOut::Metres(o) => o.len(),
+            DepthOut::Millimetres(o) => o.len(),
+        }
+    }
+
+    /// Writes `depth_m` (metres) into the buffer's first `depth_m.len()` pixels.
+    fn put(&mut self, depth_m: &[f32]) {
+        match self {
+            DepthOut::Metres(o) => {
+                for (o, &m) in o.iter_mut().zip(depth_m) {
+                    *o = m;
+                }
+            }
+            DepthOut::Millimetres(o) => {
+                for (o, &m) in o.iter_mut().zip(depth_m) {
+                    let mm = m * 1000.0 + 0.5;
+                    *o = if mm >= 65535.0 {
+                        u16::MAX
+                    } else if mm >= 0.0 {
+                        mm as u16
+                    } else {
+                        0
+                    };
+                }
+            }
+        }
+    }
+}
 
 /// The caller's buffers for one frame; each may be longer than the frame needs.
 #[derive(Debug)]
 pub struct FrameBuffers<'b, const N: usize> {
     /// RGB888, at least `3·H·W` bytes (`H×W` = the calibration's camera size).
     pub rgb: &'b mut [u8],
-    /// Sparse depth `S`, metres, at least `H·W` values.
+    /// Sparse depth `S`, metres, at least `H·W` values; the engine's dense output in metres
+    /// after [`depth_frame`] ([`Engine::run_in_place`]), before it is written to the output.
     pub sparse_m: &'b mut [f32],
     /// The zone frame the sensor fills.
     pub zones: &'b mut ZoneFrame<N>,
@@ -205,7 +248,20 @@ pub fn depth_frame_probed<C: RgbCamera, S: DtofSensor, const N: usize>(
         .rgb
         .get(..pixels.saturating_mul(3))
         .ok_or(FrameError::Buffer("RGB buffer"))?;
-    let run = engine.run_into(rgb, DepthIn::Metres(sparse), out)?;
+    if out.len() != pixels {
+        let what = match out {
+            DepthOut::Metres(_) => "out_depth_m",
+            DepthOut::Millimetres(_) => "out_depth_mm",
+        };
+        return Err(FrameError::Engine(engine::Error::ShapeMismatch {
+            what,
+            expected: pixels,
+            found: out.len(),
+        }));
+    }
+    let run = engine.run_in_place(rgb, sparse)?;
+    let mut out = out;
+    out.put(sparse);
     probe.mark(Stage::Done);
     Ok(FrameReport { projection, run })
 }

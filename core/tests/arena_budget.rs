@@ -4,7 +4,7 @@
 //! `cargo test -p depthor-core --test arena_budget -- --nocapture` prints the table.
 
 use depthor_core::blob::parse;
-use depthor_core::engine::{plan_with, Memory};
+use depthor_core::engine::{plan_with, Fusion, Memory};
 
 /// (variant, goal bytes, ceiling bytes: the streamed plan measured when this test was written,
 /// which the planner must not exceed).
@@ -12,8 +12,8 @@ const BUDGETS: [(&str, usize, usize); 2] = [
     ("mcu", 384 * 1024, CEIL_MCU),
     ("phone", 2 * 1024 * 1024, CEIL_PHONE),
 ];
-const CEIL_MCU: usize = 654_863;
-const CEIL_PHONE: usize = 1_826_479;
+const CEIL_MCU: usize = 384_175;
+const CEIL_PHONE: usize = 1_672_255;
 
 #[test]
 fn shipped_blobs_stay_within_their_arena_ceilings() {
@@ -35,9 +35,51 @@ fn shipped_blobs_stay_within_their_arena_ceilings() {
         );
         assert!(s.arena_bytes() <= whole.arena_bytes());
         assert!(
+            s.arena_bytes() <= goal,
+            "{variant}: arena {} B is over the goal {goal} B",
+            s.arena_bytes()
+        );
+        assert!(
             s.arena_bytes() <= ceiling,
             "{variant}: arena {} B grew past its ceiling {ceiling} B",
             s.arena_bytes()
+        );
+    }
+}
+
+/// [`Memory::Budget`] keeps the least fused plan that fits: the smallest plan at the goal, a
+/// less fused one when the budget allows it, and never more bytes than the budget where any
+/// plan fits.
+#[test]
+fn budget_plans_fit_their_budget() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    for (variant, goal, _) in BUDGETS {
+        let blob = std::fs::read(root.join("models").join(variant).join("depthor.dblob")).unwrap();
+        let g = parse(&blob).unwrap();
+        let (h, w) = (g.height, g.width);
+        let smallest = plan_with(&g, h, w, Memory::Streamed).unwrap();
+        assert_eq!(smallest.fusion(), Fusion::All, "{variant}");
+        let at_goal = plan_with(&g, h, w, Memory::Budget(goal)).unwrap();
+        assert!(at_goal.arena_bytes() <= goal, "{variant}");
+        let roomy = plan_with(&g, h, w, Memory::Budget(usize::MAX)).unwrap();
+        assert_eq!(roomy.fusion(), Fusion::None, "{variant}");
+        let affinities =
+            plan_with(&g, h, w, Memory::Budget(smallest.arena_bytes() * 3 / 2)).unwrap();
+        println!(
+            "{variant}: smallest {} B ({:?}); budget {} B → {} B ({:?}); unlimited → {} B ({:?})",
+            smallest.arena_bytes(),
+            smallest.fusion(),
+            smallest.arena_bytes() * 3 / 2,
+            affinities.arena_bytes(),
+            affinities.fusion(),
+            roomy.arena_bytes(),
+            roomy.fusion()
+        );
+        assert!(affinities.arena_bytes() <= smallest.arena_bytes() * 3 / 2);
+        assert_ne!(
+            affinities.fusion(),
+            Fusion::All,
+            "{variant}: 1.5× the smallest allows less fusion"
         );
     }
 }

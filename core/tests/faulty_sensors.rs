@@ -11,8 +11,9 @@ use depthor_core::calibration::{
     Calibration, CameraIntrinsics, DistanceKind, DtofGeometry, Extrinsics,
 };
 use depthor_core::drivers::zone_bridge::{reg, Config, ZoneBridgeDevice, ZoneBridgeSensor};
-use depthor_core::engine::{required_arena_bytes, DepthOut, Engine};
+use depthor_core::engine::{required_arena_bytes, Engine};
 use depthor_core::hal::{ErrorKind, ErrorType, RgbCamera, RgbFrame, ZoneFrame};
+use depthor_core::pipeline::DepthOut;
 use depthor_core::pipeline::{depth_frame, FrameBuffers, FrameError};
 use embedded_hal::delay::DelayNs;
 use embedded_hal::i2c::{self, I2c, NoAcknowledgeSource, Operation};

@@ -182,6 +182,41 @@ fn depthor(args: &[&str]) -> std::process::Output {
         .unwrap()
 }
 
+/// Eight frames (four held out) with a 6 cm range bias: the sign-flip test cannot reach
+/// p ≤ 0.025, so the run ends in the right name or in "inconclusive" with the frames needed,
+/// never in "no significant missing physics".
+#[test]
+fn too_few_frames_is_inconclusive_not_a_null() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut hidden = preset("mcu").unwrap();
+    depthor_host::gap::effects::set(&mut hidden, "range_bias", Some(&[0.06, 0.0]));
+    let data = make_real(&scenes()[..8], &hidden, 5, None).unwrap();
+    let rec = tmp.path().join("real8");
+    write_recording(&rec, &data, 8, true);
+    let out = tmp.path().join("out8");
+    let o = depthor(&[
+        "gap",
+        "--real",
+        rec.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(!md.contains("No significant missing physics"), "{md}");
+    if report["conclusive"] == false {
+        assert_eq!(report["heldout_frames"], 4);
+        assert_eq!(report["min_achievable_p"], 1.0 / 16.0);
+        assert_eq!(report["frames_needed"], 12);
+        assert!(md.starts_with("**Inconclusive**"), "{md}");
+        assert!(String::from_utf8_lossy(&o.stdout).contains("inconclusive"));
+    } else {
+        assert_eq!(report["findings"][0]["effect"], "range_bias", "{report:#}");
+    }
+}
+
 #[test]
 fn cli_writes_report_and_rejects_bad_input() {
     let tmp = tempfile::tempdir().unwrap();
@@ -206,6 +241,7 @@ fn cli_writes_report_and_rejects_bad_input() {
         assert!(report.get(k).is_some(), "{k} missing");
     }
     assert_eq!(report["findings"][0]["effect"], "range_bias", "{report:#}");
+    assert_eq!(report["conclusive"], true, "{report:#}");
     for k in ["heldout_nll_per_zone", "dropout_brier", "depth_mae_m"] {
         assert!(report["fit_after"][k].is_number());
     }

@@ -2,7 +2,7 @@
 
 use super::cast::{view, view_mut, Pod};
 use super::error::Error;
-use super::plan::{plan_with, Memory, Plan, ALIGN};
+use super::plan::{plan_with, FusedRefine, Memory, Plan, ALIGN};
 use crate::blob::format::{opcode, MAX_INPUTS};
 use crate::blob::parse::{f32_at, i32_at, parse, Attrs, DType, Graph, OpInfo};
 use crate::kernels::bins::{bin_centres, bins_head_i8, BinChannel, MAX_BINS};
@@ -14,7 +14,8 @@ use crate::kernels::isa::Isa;
 use crate::kernels::pack::Parts;
 use crate::kernels::pool::{self, MeanQuant};
 use crate::kernels::refine::{
-    self, refine_with, ConvRows, Head, I8Map, RefineAttrs, WholeMaps, KERNELS,
+    refine_with, AffinityRows, ConvRows, DepthRows, Head, I8Map, MixConvRows, RefineAttrs, Sources,
+    UpsampledDepth, WholeDepth, WholeMaps, WholeMix, KERNELS,
 };
 use crate::kernels::requant::QParams;
 use crate::kernels::resize;
@@ -28,58 +29,6 @@ pub struct RunStats {
     pub ops: usize,
     /// Multiply-accumulates of the convs, linears and the bins head.
     pub macs: u64,
-}
-
-/// Sparse dToF depth given to [`Engine::run_into`] (`H×W`, 0 = no point).
-#[derive(Clone, Copy, Debug)]
-pub enum DepthIn<'i> {
-    /// Metres.
-    Metres(&'i [f32]),
-    /// Integer millimetres.
-    Millimetres(&'i [u16]),
-}
-
-impl DepthIn<'_> {
-    /// Value at pixel `i` in metres (0 past the end).
-    fn metres(&self, i: usize) -> f32 {
-        match self {
-            DepthIn::Metres(s) => s.get(i).copied().unwrap_or(0.0),
-            DepthIn::Millimetres(s) => s.get(i).map_or(0.0, |&v| v as f32 * 0.001),
-        }
-    }
-}
-
-/// Where [`Engine::run_into`] writes the dense depth (`H×W`).
-#[derive(Debug)]
-pub enum DepthOut<'o> {
-    /// Metres.
-    Metres(&'o mut [f32]),
-    /// Millimetres, rounded and clamped to `0..=65535`.
-    Millimetres(&'o mut [u16]),
-}
-
-impl DepthOut<'_> {
-    fn put(&mut self, i: usize, metres: f32) {
-        match self {
-            DepthOut::Metres(o) => {
-                if let Some(o) = o.get_mut(i) {
-                    *o = metres;
-                }
-            }
-            DepthOut::Millimetres(o) => {
-                if let Some(o) = o.get_mut(i) {
-                    let mm = metres * 1000.0 + 0.5;
-                    *o = if mm >= 65535.0 {
-                        u16::MAX
-                    } else if mm >= 0.0 {
-                        mm as u16
-                    } else {
-                        0
-                    };
-                }
-            }
-        }
-    }
 }
 
 /// One op's output as [`Engine::run_observed`] shows it to its observer (a debugging aid: the
@@ -284,24 +233,30 @@ impl<'a> Engine<'a> {
     }
 
     /// Runs one frame: `rgb` is RGB888 interleaved `H×W×3`, `sparse_m` the projected dToF depth
-    /// `H×W` in metres (0 = no point), `out_depth_m` receives `H×W` metres.
+    /// `H×W` in metres (0 = no point), `out_depth_m` receives `H×W` metres (with the default
+    /// [`Memory::Streamed`] plan the refinement accumulates straight into it, so the arena holds
+    /// no output map).
     pub fn run(
         &mut self,
         rgb: &[u8],
         sparse_m: &[f32],
         out_depth_m: &mut [f32],
     ) -> Result<RunStats, Error> {
-        self.run_into(
-            rgb,
-            DepthIn::Metres(sparse_m),
-            DepthOut::Metres(out_depth_m),
-        )
+        self.run_with(rgb, Some(sparse_m), out_depth_m, None)
+    }
+
+    /// As [`Engine::run`] with one buffer for both depths: `depth_m` holds the sparse depth
+    /// (metres, 0 = no point) when called and the dense depth when it returns (the sparse
+    /// values are copied into the arena first). The least caller memory: `4·H·W` bytes.
+    pub fn run_in_place(&mut self, rgb: &[u8], depth_m: &mut [f32]) -> Result<RunStats, Error> {
+        self.run_with(rgb, None, depth_m, None)
     }
 
     /// As [`Engine::run`], calling `observer(op_index, output)` right after each op with that
     /// op's whole output tensor (before later ops may reuse its arena bytes). Ops fused into a
-    /// streamed refinement ([`Memory::Streamed`]) run inside it and are not observed; build the
-    /// engine with [`Memory::Whole`] to see every op.
+    /// streamed refinement ([`Memory::Streamed`]) run inside it and are not observed, nor is an
+    /// output written straight into `out_depth_m`; build the engine with [`Memory::Whole`] to
+    /// see every op.
     pub fn run_observed(
         &mut self,
         rgb: &[u8],
@@ -309,60 +264,32 @@ impl<'a> Engine<'a> {
         out_depth_m: &mut [f32],
         observer: &mut Observer<'_>,
     ) -> Result<RunStats, Error> {
-        self.run_with(
-            rgb,
-            DepthIn::Metres(sparse_m),
-            DepthOut::Metres(out_depth_m),
-            Some(observer),
-        )
+        self.run_with(rgb, Some(sparse_m), out_depth_m, Some(observer))
     }
 
-    /// As [`Engine::run`] with integer millimetres: `sparse_mm` (0 = no point) and
-    /// `out_depth_mm` (rounded, clamped to `0..=65535`).
-    pub fn run_mm(
-        &mut self,
-        rgb: &[u8],
-        sparse_mm: &[u16],
-        out_depth_mm: &mut [u16],
-    ) -> Result<RunStats, Error> {
-        self.run_into(
-            rgb,
-            DepthIn::Millimetres(sparse_mm),
-            DepthOut::Millimetres(out_depth_mm),
-        )
-    }
-
-    /// Runs one frame with the sparse input and the depth output in either unit.
-    pub fn run_into(
-        &mut self,
-        rgb: &[u8],
-        sparse: DepthIn<'_>,
-        out: DepthOut<'_>,
-    ) -> Result<RunStats, Error> {
-        self.run_with(rgb, sparse, out, None)
-    }
-
+    /// `sparse`: the sparse depth, or `None` where `out` holds it.
     fn run_with(
         &mut self,
         rgb: &[u8],
-        sparse: DepthIn<'_>,
-        mut out: DepthOut<'_>,
+        sparse: Option<&[f32]>,
+        out: &mut [f32],
         observer: Option<&mut Observer<'_>>,
     ) -> Result<RunStats, Error> {
         let (h, w) = self.plan.size();
         let n = h * w;
-        match sparse {
-            DepthIn::Metres(s) => check_len("sparse_m", n, s.len())?,
-            DepthIn::Millimetres(s) => check_len("sparse_mm", n, s.len())?,
+        if let Some(s) = sparse {
+            check_len("sparse_m", n, s.len())?;
         }
-        match &out {
-            DepthOut::Metres(o) => check_len("out_depth_m", n, o.len())?,
-            DepthOut::Millimetres(o) => check_len("out_depth_mm", n, o.len())?,
-        }
+        check_len("out_depth_m", n, out.len())?;
         self.write_rgb(rgb)?;
-        self.write_sparse(|i| sparse.metres(i))?;
-        let stats = self.execute(observer)?;
-        self.read_output(|i, v| out.put(i, v))?;
+        match sparse {
+            Some(s) => self.write_sparse(|i| s[i])?,
+            None => self.write_sparse(|i| out[i])?,
+        }
+        let stats = self.execute(observer, out)?;
+        if self.plan.output_in_arena() {
+            self.read_output(|i, v| out[i] = v)?;
+        }
         Ok(stats)
     }
 
@@ -469,16 +396,22 @@ impl<'a> Engine<'a> {
         Ok(())
     }
 
-    fn execute(&mut self, mut observer: Option<&mut Observer<'_>>) -> Result<RunStats, Error> {
+    /// Runs every op; `ext` is the caller's f32 output (written by the graph's last op where the
+    /// plan keeps the output out of the arena).
+    fn execute(
+        &mut self,
+        mut observer: Option<&mut Observer<'_>>,
+        ext: &mut [f32],
+    ) -> Result<RunStats, Error> {
         let persistent = self.plan.persistent_bytes();
         let (consts, act) = self.arena.split_at_mut(persistent);
         for (i, op) in self.graph.ops.iter().enumerate() {
             if self.plan.fused_into(i).is_some() {
                 continue; // runs row by row inside its refinement
             }
-            exec(&self.graph, &self.plan, i, op, consts, act, self.isa)?;
+            exec(&self.graph, &self.plan, i, op, consts, act, ext, self.isa)?;
             if let Some(f) = observer.as_deref_mut() {
-                observe(&self.graph, &self.plan, i, op, act, f)?;
+                observe(&self.graph, &self.plan, i, op, act, ext, f)?;
             }
         }
         Ok(RunStats {
@@ -495,6 +428,7 @@ fn observe(
     i: usize,
     op: &OpInfo,
     act: &[u8],
+    ext: &[f32],
     f: &mut Observer<'_>,
 ) -> Result<(), Error> {
     let bad = Error::Kernel {
@@ -503,6 +437,10 @@ fn observe(
     };
     let info = g.tensor(op.output)?;
     let n = plan.shape(op.output).and_then(|s| s.len()).ok_or(bad)?;
+    if op.output == g.output && !plan.output_in_arena() {
+        f(i, Observed::F32(ext.get(..n).ok_or(bad)?));
+        return Ok(());
+    }
     let buf = act
         .get(plan.tensor_range(op.output).ok_or(bad)?)
         .ok_or(bad)?;
@@ -665,7 +603,9 @@ fn first<T: Pod + Default>(b: &[u8], op: usize) -> Result<T, Error> {
     })
 }
 
-/// Runs op `i` on the arena (run time; nothing is validated twice except cheap slice bounds).
+/// Runs op `i` on the arena (run time; nothing is validated twice except cheap slice bounds);
+/// `ext` is the caller's f32 output ([`Plan::output_in_arena`]).
+#[allow(clippy::too_many_arguments)]
 fn exec(
     g: &Graph,
     plan: &Plan,
@@ -673,6 +613,7 @@ fn exec(
     op: &OpInfo,
     consts: &[u8],
     act: &mut [u8],
+    ext: &mut [f32],
     isa: Isa,
 ) -> Result<(), Error> {
     if let Some(c) = plan.concat_in_place(i) {
@@ -872,7 +813,7 @@ fn exec(
             .map_err(e)?;
         }
         (opcode::REFINE, Attrs::Refine(attrs)) if plan.fused_heads(i).is_some() => {
-            return exec_refine_streamed(g, plan, i, op, attrs, consts, act, isa);
+            return exec_refine_streamed(g, plan, i, op, attrs, consts, act, ext, isa);
         }
         (opcode::REFINE, Attrs::Refine(attrs)) => {
             let p = x_shape.plane().ok_or(bad)?;
@@ -885,20 +826,18 @@ fn exec(
                 m(3, KERNELS[2] * KERNELS[2] - 1)?,
             ];
             let (km, tm) = (m(4, 3)?, m(5, 3)?);
-            let mut rows = WholeMaps::new([&aff[0], &aff[1], &aff[2]], x_shape.w);
-            refine_with(
-                isa,
-                typed(ins[0], i)?,
-                x_shape.h,
-                x_shape.w,
-                &mut rows,
-                &km,
-                &tm,
-                attrs,
-                typed_mut(out_b, i)?,
-                typed_mut(scr_b, i)?,
-            )
-            .map_err(e)?;
+            let (h, w) = (x_shape.h, x_shape.w);
+            let d0: &[f32] = typed(ins[0], i)?;
+            if d0.len() < p {
+                return Err(bad);
+            }
+            let sources = Sources {
+                depth: &mut WholeDepth::new(d0, w),
+                aff: &mut WholeMaps::new([&aff[0], &aff[1], &aff[2]], w),
+                mix: &mut WholeMix::new(&km, &tm, w),
+            };
+            let (out, scratch) = (typed_mut(out_b, i)?, typed_mut(scr_b, i)?);
+            refine_with(isa, sources, h, w, attrs, out, scratch).map_err(e)?;
         }
         _ => return Err(bad),
     }
@@ -997,18 +936,31 @@ fn exec_conv_on_parts(
     Ok(())
 }
 
-/// `refine` op `i` with its three affinity heads run row by row ([`ConvRows`]): inputs d0,
-/// kmix, tmix and the heads' inputs; scratch the f32 windows, the int8 ring, the heads' conv
-/// scratch (the plan's layout).
+/// Splits `n` bytes off the front of `b` (`Err` where it is shorter).
+fn take(b: &mut [u8], n: usize, op: usize) -> Result<(&mut [u8], &mut [u8]), Error> {
+    if b.len() < n {
+        return Err(Error::Kernel {
+            op,
+            error: KernelError::Scratch,
+        });
+    }
+    Ok(b.split_at_mut(n))
+}
+
+/// `refine` op `i` with the producers the plan fused into it run row by row: the three
+/// affinity heads ([`ConvRows`]), kmix and tmix where fused ([`MixConvRows`]), `D_0`'s upsample
+/// where fused ([`UpsampledDepth`]); the output into the caller's `ext` where the plan keeps
+/// it out of the arena. Scratch as [`crate::engine::RefineScratch`] lays it out.
 #[allow(clippy::too_many_arguments)]
-fn exec_refine_streamed(
-    g: &Graph,
+fn exec_refine_streamed<'a>(
+    g: &'a Graph,
     plan: &Plan,
     i: usize,
     op: &OpInfo,
     attrs: &RefineAttrs,
-    consts: &[u8],
-    act: &mut [u8],
+    consts: &'a [u8],
+    act: &'a mut [u8],
+    ext: &mut [f32],
     isa: Isa,
 ) -> Result<(), Error> {
     let e = kerr(i);
@@ -1016,86 +968,188 @@ fn exec_refine_streamed(
         op: i,
         error: KernelError::Shape,
     };
-    let heads = plan.fused_heads(i).ok_or(bad)?;
+    let f = plan.fused_refine(i).ok_or(bad)?;
     let range = |id: u16| plan.tensor_range(id).ok_or(bad);
-    let head_in = |k: usize| g.ops.get(heads[k]).map(|o| o.inputs[0]).ok_or(bad);
+    let input_of = |j: u16| g.ops.get(usize::from(j)).map(|o| o.inputs[0]).ok_or(bad);
+    // What the refinement reads from the arena: D_0 (or its upsample's input), the mixing maps
+    // (or their heads' input), the affinity heads' inputs.
+    let d0_id = match f.depth {
+        Some(j) => input_of(j)?,
+        None => op.inputs[0],
+    };
+    let (km_id, tm_id) = match f.mix {
+        Some([k, t]) => (input_of(k)?, input_of(t)?),
+        None => (op.inputs[4], op.inputs[5]),
+    };
     let ids = [
-        op.inputs[0],
-        op.inputs[4],
-        op.inputs[5],
-        head_in(0)?,
-        head_in(1)?,
-        head_in(2)?,
+        d0_id,
+        km_id,
+        tm_id,
+        input_of(f.aff[0])?,
+        input_of(f.aff[1])?,
+        input_of(f.aff[2])?,
     ];
     let mut in_r: [Range<usize>; 6] = Default::default();
     for (r, &id) in in_r.iter_mut().zip(&ids) {
         *r = range(id)?;
     }
     let mut ins: [&[u8]; MAX_INPUTS] = [&[]; MAX_INPUTS];
-    let out_r = range(op.output)?;
+    let out_r = if plan.output_in_arena() {
+        range(op.output)?
+    } else {
+        0..0
+    };
     let scr_r = plan.scratch_range(i).ok_or(bad)?;
     let (out_b, scr_b) = split(act, out_r, scr_r, &in_r, &mut ins, i)?;
-    let d0 = plan.shape(op.inputs[0]).ok_or(bad)?;
-    let (h, w) = (d0.h, d0.w);
-    let p = d0.plane().ok_or(bad)?;
-    let (km, tm) = (
-        I8Map::new(typed(ins[1], i)?, g.tensor(ids[1])?.q, 3, p).map_err(e)?,
-        I8Map::new(typed(ins[2], i)?, g.tensor(ids[2])?.q, 3, p).map_err(e)?,
-    );
-    let windows = refine::scratch_len(w, attrs.iterations)
-        .checked_mul(4)
-        .and_then(|n| n.checked_add(ALIGN - 1))
-        .map(|n| n / ALIGN * ALIGN)
-        .ok_or(bad)?;
-    let ring = refine::ring_bytes(w, attrs.iterations)
-        .checked_add(ALIGN - 1)
-        .map(|n| n / ALIGN * ALIGN)
-        .ok_or(bad)?;
-    let (win_b, rest) = scr_b.split_at_mut(windows.min(scr_b.len()));
-    let (ring_b, conv_b) = rest.split_at_mut(ring.min(rest.len()));
-    let (c0, conv_b) = channel_quants(g, plan, heads[0], consts, conv_b)?;
-    let (c1, conv_b) = channel_quants(g, plan, heads[1], consts, conv_b)?;
-    let (c2, conv_b) = channel_quants(g, plan, heads[2], consts, conv_b)?;
-    let convs = [
-        Some(conv_of(g, heads[0], c0)?),
-        Some(conv_of(g, heads[1], c1)?),
-        Some(conv_of(g, heads[2], c2)?),
-    ];
-    let head = |k: usize| -> Result<Head<'_>, Error> {
-        let j = heads[k];
-        let conv = convs[k].ok_or(bad)?;
-        let out_id = g.ops.get(j).ok_or(bad)?.output;
+    let out: &mut [f32] = if plan.output_in_arena() {
+        typed_mut(out_b, i)?
+    } else {
+        ext
+    };
+    let shape = plan.shape(op.output).ok_or(bad)?;
+    let (h, w) = (shape.h, shape.w);
+    let p = shape.plane().ok_or(bad)?;
+    let t = attrs.iterations;
+    let sz = f.scratch;
+    let (win_b, rest) = take(scr_b, sz.windows, i)?;
+    let (ring_b, rest) = take(rest, sz.ring, i)?;
+    let (c0, rest) = channel_quants(g, plan, usize::from(f.aff[0]), consts, rest)?;
+    let (c1, rest) = channel_quants(g, plan, usize::from(f.aff[1]), consts, rest)?;
+    let (c2, rest) = channel_quants(g, plan, usize::from(f.aff[2]), consts, rest)?;
+    let (conv_b, rest) = take(rest, sz.aff_conv, i)?;
+    let head = |j: u16, ch: &'a [ChannelQuant], k: usize| -> Result<Head<'a>, Error> {
+        let out_id = g.ops.get(usize::from(j)).ok_or(bad)?.output;
         Ok(Head {
-            conv,
-            input: typed(ins[3 + k], i)?,
-            in_shape: plan.shape(ids[3 + k]).ok_or(bad)?,
+            conv: conv_of(g, usize::from(j), ch)?,
+            input: typed(ins[k], i)?,
+            in_shape: plan.shape(ids[k]).ok_or(bad)?,
             out_q: g.tensor(out_id)?.q,
         })
     };
-    let hs = [head(0)?, head(1)?, head(2)?];
-    let mut rows = ConvRows::new(
+    let hs = [
+        head(f.aff[0], c0, 3)?,
+        head(f.aff[1], c1, 4)?,
+        head(f.aff[2], c2, 5)?,
+    ];
+    let mut aff = ConvRows::new(
         isa,
         hs,
         h,
         w,
-        attrs.iterations,
+        t,
         typed_mut(ring_b, i)?,
         typed_mut(conv_b, i)?,
     )
     .map_err(e)?;
-    refine_with(
-        isa,
-        typed(ins[0], i)?,
-        h,
-        w,
-        &mut rows,
-        &km,
-        &tm,
-        attrs,
-        typed_mut(out_b, i)?,
-        typed_mut(win_b, i)?,
-    )
-    .map_err(e)
+    let scratch: &mut [f32] = typed_mut(win_b, i)?;
+    match f.depth {
+        Some(_) => {
+            let d_in = plan.shape(d0_id).ok_or(bad)?;
+            let mut depth = UpsampledDepth::new(typed(ins[0], i)?, d_in, h, w);
+            refine_mixed(
+                g,
+                plan,
+                i,
+                &f,
+                &ins,
+                &ids,
+                (consts, rest),
+                isa,
+                &mut depth,
+                &mut aff,
+                attrs,
+                out,
+                scratch,
+            )
+        }
+        None => {
+            let d0: &[f32] = typed(ins[0], i)?;
+            if d0.len() < p {
+                return Err(bad);
+            }
+            let mut depth = WholeDepth::new(d0, w);
+            refine_mixed(
+                g,
+                plan,
+                i,
+                &f,
+                &ins,
+                &ids,
+                (consts, rest),
+                isa,
+                &mut depth,
+                &mut aff,
+                attrs,
+                out,
+                scratch,
+            )
+        }
+    }
+}
+
+/// The rest of [`exec_refine_streamed`]: the mixing maps, streamed by their heads or whole,
+/// then the refinement.
+#[allow(clippy::too_many_arguments)]
+fn refine_mixed<D: DepthRows, R: AffinityRows>(
+    g: &Graph,
+    plan: &Plan,
+    i: usize,
+    f: &FusedRefine,
+    ins: &[&[u8]],
+    ids: &[u16; 6],
+    (consts, rest): (&[u8], &mut [u8]),
+    isa: Isa,
+    depth: &mut D,
+    aff: &mut R,
+    attrs: &RefineAttrs,
+    out: &mut [f32],
+    scratch: &mut [f32],
+) -> Result<(), Error> {
+    let e = kerr(i);
+    let bad = Error::Kernel {
+        op: i,
+        error: KernelError::Shape,
+    };
+    let shape = plan.shape(g.ops.get(i).ok_or(bad)?.output).ok_or(bad)?;
+    let (h, w) = (shape.h, shape.w);
+    let Some(mix) = f.mix else {
+        let p = shape.plane().ok_or(bad)?;
+        let map = |k: usize| I8Map::new(typed(ins[k], i)?, g.tensor(ids[k])?.q, 3, p).map_err(e);
+        let (km, tm) = (map(1)?, map(2)?);
+        let sources = Sources {
+            depth,
+            aff,
+            mix: &mut WholeMix::new(&km, &tm, w),
+        };
+        return refine_with(isa, sources, h, w, attrs, out, scratch).map_err(e);
+    };
+    let [[kr, _, kc], [tr, _, tc]] = f.scratch.mix;
+    let (k_ring, rest) = take(rest, kr, i)?;
+    let (k_ch, rest) = channel_quants(g, plan, usize::from(mix[0]), consts, rest)?;
+    let (k_conv, rest) = take(rest, kc, i)?;
+    let (t_ring, rest) = take(rest, tr, i)?;
+    let (t_ch, rest) = channel_quants(g, plan, usize::from(mix[1]), consts, rest)?;
+    let (t_conv, _) = take(rest, tc, i)?;
+    let head = |j: u16, ch, k: usize| -> Result<Head<'_>, Error> {
+        let out_id = g.ops.get(usize::from(j)).ok_or(bad)?.output;
+        Ok(Head {
+            conv: conv_of(g, usize::from(j), ch)?,
+            input: typed(ins[k], i)?,
+            in_shape: plan.shape(ids[k]).ok_or(bad)?,
+            out_q: g.tensor(out_id)?.q,
+        })
+    };
+    let heads = [head(mix[0], k_ch, 1)?, head(mix[1], t_ch, 2)?];
+    let rings = [typed_mut(k_ring, i)?, typed_mut(t_ring, i)?];
+    let convs = [typed_mut(k_conv, i)?, typed_mut(t_conv, i)?];
+    let attrs_t = attrs.iterations;
+    let mut mix = MixConvRows::new(isa, heads, h, w, attrs_t, rings, convs).map_err(e)?;
+    let sources = Sources {
+        depth,
+        aff,
+        mix: &mut mix,
+    };
+    refine_with(isa, sources, h, w, attrs, out, scratch).map_err(e)
 }
 
 impl core::fmt::Debug for Engine<'_> {

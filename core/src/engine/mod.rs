@@ -3,24 +3,29 @@
 //!
 //! ## Memory
 //! - The caller's arena: [`Plan::arena_bytes`] / [`required_arena_bytes`], for the default
-//!   [`Memory::Streamed`] plan: a refinement's three affinity heads run row by row inside it
-//!   into a ring of `(T − 1)·r + 1` rows ([`crate::kernels::refine::ConvRows`]), the
-//!   refinement itself is a row wavefront (windows of 14 rows per iteration, not two whole
-//!   maps), a concat read only by one conv is read in place by that conv, and convs compute
-//!   their per-channel constants per run in their scratch (the persistent region keeps only
-//!   the element-wise ops' few constants). No affinity map
-//!   and no such concat is ever stored whole; the bits are those of [`Memory::Whole`], which
-//!   keeps every op's output for `Engine::run_observed`. Shipped blobs at their native sizes
+//!   [`Memory::Streamed`] plan (the least memory): a refinement's affinity heads run row by row
+//!   inside it into a ring of `(T − 1)·r + 1` rows ([`crate::kernels::refine::ConvRows`]), its
+//!   kmix/tmix heads into rings of `T·3 + 1` rows ([`crate::kernels::refine::MixConvRows`],
+//!   recomputed per branch), `D_0`'s upsample row by row
+//!   ([`crate::kernels::refine::UpsampledDepth`]); the refinement is a row wavefront (windows
+//!   of 8 rows per iteration) that accumulates straight into the caller's f32 output; a concat
+//!   read only by one conv is read in place by it; a conv packs at most 16 K weight elements
+//!   at a time; convs compute their per-channel constants per run in their scratch. The
+//!   planner places buffers greedily and searches the order ([`plan::place`]) and picks, among
+//!   the [`Fusion`] levels, the smallest plan ([`Memory::Streamed`]) or the least fused that
+//!   fits a budget ([`Memory::Budget`]). The bits are those of [`Memory::Whole`], which keeps
+//!   every op's output for `Engine::run_observed`. Shipped blobs at their native sizes
 //!   (`cargo test -p depthor-core --test arena_budget -- --nocapture`):
 //!
-//!   | variant | H×W | `Memory::Streamed` | `Memory::Whole` |
-//!   |---|---|---|---|
-//!   | `mcu` | 120×160 | 654 863 B | 1 922 687 B |
-//!   | `phone` | 320×240 | 1 826 479 B | 7 431 599 B |
+//!   | variant | H×W | `Memory::Streamed` | `Memory::Budget(1.5 ×)` | `Memory::Whole` |
+//!   |---|---|---|---|---|
+//!   | `mcu` | 120×160 | 384 175 B (goal 384 KiB) | 518 575 B (affinities only) | 1 922 687 B |
+//!   | `phone` | 320×240 | 1 672 255 B (goal 2 MiB) | 1 672 255 B | 7 431 599 B |
 //!
-//!   The `mcu` peak is now the refinement step (the 8-channel full-resolution guidance the
-//!   heads read, d0 and the output in f32, the mixing maps and the 7×7 ring); the 384 KiB
-//!   goal needs the half-resolution refinement of `mcu_lite`.
+//!   The `mcu` peaks are the last decoder stage (skips and a conv's scratch, 382 112 B) and the
+//!   refinement (guidance 153 600 B, the ring, windows and heads' scratch 206 400 B, the bins
+//!   map 19 200 B). Fusing kmix/tmix costs instructions (≈ 42 M per frame on a Cortex-M4):
+//!   `Memory::Budget` trades them back where the arena allows.
 //! - `size_of::<Engine>()` is 48 736 bytes on x86-64 (fixed-capacity op, tensor and buffer
 //!   tables, no heap; less on 32-bit targets): keep it in a `static` on a microcontroller.
 //!   `Engine::new` also uses ≈ 25 KiB of stack once, for the planner's temporary tables.
@@ -32,8 +37,9 @@ pub mod error;
 pub mod plan;
 
 pub use engine::{
-    required_arena_bytes, required_arena_bytes_with, DepthIn, DepthOut, Engine, Observed, Observer,
-    RunStats,
+    required_arena_bytes, required_arena_bytes_with, Engine, Observed, Observer, RunStats,
 };
 pub use error::Error;
-pub use plan::{plan, plan_with, BufferReq, Memory, Plan, PlanError};
+pub use plan::{
+    plan, plan_with, BufferReq, FusedRefine, Fusion, Memory, Plan, PlanError, RefineScratch,
+};

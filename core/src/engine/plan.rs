@@ -41,7 +41,7 @@ pub const ALIGN: usize = 16;
 pub const MAX_BUFFERS: usize = MAX_TENSORS + MAX_OPS;
 /// Most refinements per graph whose heads are fused ([`Memory::Streamed`]); others keep
 /// whole maps.
-pub const MAX_FUSED: usize = 4;
+pub const MAX_FUSED: usize = 2;
 /// Most concats per graph read in place by their conv ([`Memory::Streamed`]); others are
 /// copied.
 pub const MAX_IN_PLACE: usize = 32;
@@ -51,13 +51,20 @@ pub const MAX_IN_PLACE: usize = 32;
 pub enum Memory {
     /// Least memory: where a `refine` op's three affinity inputs each come from a `conv2d`
     /// read by nothing else, those convs are fused into the refinement and run one output row
-    /// at a time into a ring ([`crate::kernels::refine::ConvRows`]); their outputs are never
-    /// stored whole (nor shown to `Engine::run_observed`). A concat read only by one conv is
-    /// read in place by it. Convs compute their per-channel requantisation constants per run
-    /// in their scratch rather than holding them in the persistent region. The bits do not
-    /// change.
+    /// at a time into a ring ([`crate::kernels::refine::ConvRows`]); so are its kmix and tmix
+    /// convs ([`crate::kernels::refine::MixConvRows`]) and a one-channel f32
+    /// `upsample_bilinear` giving its `D_0` ([`crate::kernels::refine::UpsampledDepth`]).
+    /// Their outputs are never stored whole (nor shown to `Engine::run_observed`). A refine
+    /// whose output is the graph's writes it straight into the caller's f32 output
+    /// ([`Plan::output_in_arena`] is false). A concat read only by one conv is read in place
+    /// by it. Convs compute their per-channel requantisation constants per run in their
+    /// scratch rather than holding them in the persistent region. The bits do not change.
     #[default]
     Streamed,
+    /// The fastest streamed plan within this many arena bytes: the least [`Fusion`] (fusing
+    /// the kmix/tmix heads recomputes them per refinement branch) whose arena fits, else the
+    /// smallest ([`Memory::Streamed`]); [`Plan::arena_bytes`] says whether it fits.
+    Budget(usize),
     /// Every op's output stored whole (for observers that compare every tensor).
     Whole,
 }
@@ -97,6 +104,29 @@ impl core::fmt::Display for PlanError {
     }
 }
 
+/// A refinement that runs producers of its inputs row by row ([`Memory::Streamed`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FusedRefine {
+    /// The refine op.
+    pub refine: u16,
+    /// The conv heads of the affinities of kernels 3, 5 and 7.
+    pub aff: [u16; 3],
+    /// The kmix and tmix conv heads, where they are fused too.
+    pub mix: Option<[u16; 2]>,
+    /// The `upsample_bilinear` giving `D_0`, where it is fused too.
+    pub depth: Option<u16>,
+    /// How the refine's scratch is laid out.
+    pub scratch: RefineScratch,
+}
+
+impl FusedRefine {
+    /// Every fused op.
+    fn ops(&self) -> impl Iterator<Item = u16> + '_ {
+        let mix = self.mix.into_iter().flatten();
+        self.aff.iter().copied().chain(mix).chain(self.depth)
+    }
+}
+
 /// The result of [`plan`]: shapes of all tensors and where every buffer lives.
 #[derive(Clone, Debug)]
 pub struct Plan {
@@ -108,8 +138,12 @@ pub struct Plan {
     offsets: Vec<usize, MAX_BUFFERS>,
     consts: Vec<Range<usize>, MAX_OPS>,
     broadcast: Vec<Broadcast, MAX_OPS>,
-    /// Refinements with fused heads: (refine op, head ops of kernels 3, 5, 7).
-    fused: Vec<(u16, [u16; 3]), MAX_FUSED>,
+    /// Refinements with fused producers.
+    fused: Vec<FusedRefine, MAX_FUSED>,
+    /// Whether the graph's output is a tensor of the arena (else the caller's f32 buffer).
+    output_in_arena: bool,
+    /// What the plan fuses into refinements.
+    fusion: Fusion,
     /// Concats read in place: (concat op, the conv that reads its parts).
     in_place: Vec<(u16, u16), MAX_IN_PLACE>,
     /// Whether convs compute their per-channel constants per run in their scratch.
@@ -177,13 +211,14 @@ impl Plan {
     pub fn const_range(&self, op: usize) -> Option<Range<usize>> {
         self.consts.get(op).cloned()
     }
-    /// The refine op that runs op `op` row by row (`None`: it runs on its own).
+    /// The op that runs op `op` inside itself: the refine that runs it row by row, or the conv
+    /// that reads a concat's parts in place (`None`: it runs on its own).
     pub fn fused_into(&self, op: usize) -> Option<usize> {
         let head = self
             .fused
             .iter()
-            .find(|(_, heads)| heads.iter().any(|&j| usize::from(j) == op))
-            .map(|&(r, _)| usize::from(r));
+            .find(|f| f.ops().any(|j| usize::from(j) == op))
+            .map(|f| usize::from(f.refine));
         head.or_else(|| {
             self.in_place
                 .iter()
@@ -215,10 +250,23 @@ impl Plan {
     }
     /// For a refine op with fused affinity heads, the head ops of kernels 3, 5 and 7.
     pub fn fused_heads(&self, op: usize) -> Option<[usize; 3]> {
+        self.fused_refine(op).map(|f| f.aff.map(usize::from))
+    }
+    /// For a refine op with fused producers, what is fused into it.
+    pub fn fused_refine(&self, op: usize) -> Option<FusedRefine> {
         self.fused
             .iter()
-            .find(|&&(r, _)| usize::from(r) == op)
-            .map(|&(_, h)| h.map(usize::from))
+            .find(|f| usize::from(f.refine) == op)
+            .copied()
+    }
+    /// What the plan fuses into refinements (the level [`plan_with`] chose).
+    pub fn fusion(&self) -> Fusion {
+        self.fusion
+    }
+    /// Whether the graph's output lives in the arena ([`Memory::Whole`]) or is written by its
+    /// producer straight into the caller's f32 output ([`Memory::Streamed`]).
+    pub fn output_in_arena(&self) -> bool {
+        self.output_in_arena
     }
     /// How the second input of op `op` broadcasts (meaningful for `mul`).
     pub fn broadcast(&self, op: usize) -> Broadcast {
@@ -232,18 +280,28 @@ fn round_up(n: usize) -> Result<usize, PlanError> {
         .ok_or(PlanError::TooLarge)
 }
 
-/// Places buffers greedily (largest first, lowest non-conflicting offset); writes one offset
-/// per request and returns the total bytes. Offsets are multiples of [`ALIGN`] when the sizes
-/// are.
+/// Most rounds of [`place`]'s search.
+pub const PLACE_ROUNDS: usize = 64;
+
+/// Places buffers: each in turn at the lowest offset that does not overlap a placed buffer
+/// alive at the same time (TFLite Micro's greedy planner), starting from the order largest
+/// first; then, for up to [`PLACE_ROUNDS`] rounds or until the total equals the bytes live at
+/// the busiest step (no placement needs fewer), the buffer that reaches the top is moved to the
+/// front of the order and everything placed again. Keeps the order with the smallest total (the
+/// first such). Writes one offset per request and returns the total bytes; deterministic.
+/// Offsets are multiples of [`ALIGN`] when the sizes are.
 pub fn place(reqs: &[BufferReq], offsets: &mut [usize]) -> Result<usize, PlanError> {
     if reqs.len() > MAX_BUFFERS || offsets.len() < reqs.len() {
         return Err(PlanError::TooLarge);
     }
     let mut order: Vec<u16, MAX_BUFFERS> = Vec::new();
-    for i in 0..reqs.len() {
-        order.push(i as u16).map_err(|_| PlanError::TooLarge)?;
+    for (i, r) in reqs.iter().enumerate() {
+        offsets[i] = 0;
+        if r.bytes > 0 {
+            order.push(i as u16).map_err(|_| PlanError::TooLarge)?;
+        }
     }
-    // Decreasing size, then earlier first use, then index: deterministic.
+    // Decreasing size, then earlier first use, then index.
     order.sort_unstable_by(|&a, &b| {
         let (ra, rb) = (&reqs[a as usize], &reqs[b as usize]);
         rb.bytes
@@ -251,14 +309,54 @@ pub fn place(reqs: &[BufferReq], offsets: &mut [usize]) -> Result<usize, PlanErr
             .then(ra.first.cmp(&rb.first))
             .then(a.cmp(&b))
     });
+    // No placement needs fewer bytes than are live at the busiest step: stop there.
+    let steps = reqs
+        .iter()
+        .map(|r| r.last.saturating_add(1))
+        .max()
+        .unwrap_or(0);
+    let bound = (0..steps)
+        .map(|t| {
+            reqs.iter()
+                .filter(|r| r.first <= t && t <= r.last)
+                .map(|r| r.bytes)
+                .sum::<usize>()
+        })
+        .max()
+        .unwrap_or(0);
+    let mut best = (usize::MAX, order.clone());
+    for _ in 0..PLACE_ROUNDS {
+        let total = place_in(reqs, offsets, &order)?;
+        if total < best.0 {
+            best = (total, order.clone());
+        }
+        if total <= bound {
+            break;
+        }
+        let end = |i: u16| offsets[i as usize] + reqs[i as usize].bytes;
+        let Some(top) = order.iter().position(|&i| end(i) == total) else {
+            break;
+        };
+        if top == 0 {
+            break;
+        }
+        let i = order.remove(top);
+        order.insert(0, i).map_err(|_| PlanError::TooLarge)?;
+    }
+    place_in(reqs, offsets, &best.1)
+}
+
+/// Places the buffers of `order` one by one at the lowest offset that does not overlap an
+/// already-placed buffer alive at the same time; returns the total.
+fn place_in(reqs: &[BufferReq], offsets: &mut [usize], order: &[u16]) -> Result<usize, PlanError> {
     let mut placed: Vec<u16, MAX_BUFFERS> = Vec::new();
     let mut total = 0usize;
-    for &i in &order {
+    for &i in order {
         let r = reqs[i as usize];
         let mut conflicts: Vec<(usize, usize), MAX_BUFFERS> = Vec::new();
         for &j in &placed {
             let q = reqs[j as usize];
-            if q.bytes > 0 && q.first <= r.last && r.first <= q.last {
+            if q.first <= r.last && r.first <= q.last {
                 let o = offsets[j as usize];
                 conflicts
                     .push((o, o + q.bytes))
@@ -420,6 +518,70 @@ fn plan_op(i: usize, op: &OpInfo, g: &Graph, shapes: &[Shape]) -> Result<OpPlan,
     Ok(p)
 }
 
+/// Byte layout of a fused refinement's scratch, in this order: the f32 windows, the
+/// affinity ring, the affinity heads' per-channel constants, the affinity heads' conv scratch,
+/// then (where the mixing heads are fused) for kmix and tmix each: ring, constants, conv
+/// scratch. Every part is a multiple of [`ALIGN`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RefineScratch {
+    /// f32 windows ([`refine::scratch_len`]).
+    pub windows: usize,
+    /// The affinity ring ([`refine::ring_bytes`]).
+    pub ring: usize,
+    /// Per-channel constants of the affinity heads of kernels 3, 5, 7.
+    pub aff_consts: [usize; 3],
+    /// Conv scratch shared by the affinity heads.
+    pub aff_conv: usize,
+    /// Per mixing head (kmix, tmix): ring, per-channel constants, conv scratch (0 unfused).
+    pub mix: [[usize; 3]; 2],
+}
+
+impl RefineScratch {
+    /// All bytes.
+    pub fn total(&self) -> Result<usize, PlanError> {
+        let mut parts = [self.windows, self.ring, self.aff_conv]
+            .into_iter()
+            .chain(self.aff_consts)
+            .chain(self.mix.iter().flatten().copied());
+        parts.try_fold(0usize, |a, b| a.checked_add(b).ok_or(PlanError::TooLarge))
+    }
+}
+
+fn refine_scratch(
+    f: &FusedRefine,
+    (h, w): (usize, usize),
+    iterations: usize,
+    head_scratch: &[usize],
+    head_consts: &[usize],
+) -> Result<RefineScratch, PlanError> {
+    let at = |v: &[usize], j: u16| v.get(usize::from(j)).copied().unwrap_or(0);
+    let bytes = |n: usize| {
+        n.checked_mul(4)
+            .ok_or(PlanError::TooLarge)
+            .and_then(round_up)
+    };
+    let mut s = RefineScratch {
+        windows: bytes(refine::scratch_len(w, iterations))?,
+        ring: round_up(refine::ring_bytes(h, w, iterations))?,
+        aff_consts: f.aff.map(|j| at(head_consts, j)),
+        aff_conv: round_up(
+            f.aff
+                .iter()
+                .map(|&j| at(head_scratch, j))
+                .max()
+                .unwrap_or(0),
+        )?,
+        mix: [[0; 3]; 2],
+    };
+    if let Some(mix) = f.mix {
+        let ring = round_up(refine::MixConvRows::ring_bytes(h, w, iterations))?;
+        for (m, &j) in s.mix.iter_mut().zip(&mix) {
+            *m = [ring, at(head_consts, j), round_up(at(head_scratch, j))?];
+        }
+    }
+    Ok(s)
+}
+
 /// Plans `graph` for an input of `h × w` with [`Memory::Streamed`] (see the module doc).
 pub fn plan(graph: &Graph, h: usize, w: usize) -> Result<Plan, PlanError> {
     plan_with(graph, h, w, Memory::Streamed)
@@ -429,7 +591,7 @@ pub fn plan(graph: &Graph, h: usize, w: usize) -> Result<Plan, PlanError> {
 /// inputs of a `refine` and read by nothing else, where all three are such convs, goes into the
 /// refine; a `concat` read only by a `conv2d` with one group (not itself fused) goes into that
 /// conv, which reads its parts in place.
-fn fusable(graph: &Graph) -> Result<Vec<Option<u16>, MAX_OPS>, PlanError> {
+fn fusable(graph: &Graph, fusion: Fusion) -> Result<Vec<Option<u16>, MAX_OPS>, PlanError> {
     let n_ops = graph.ops.len();
     let mut fused: Vec<Option<u16>, MAX_OPS> = Vec::new();
     fused.resize(n_ops, None).map_err(|_| PlanError::TooLarge)?;
@@ -471,10 +633,44 @@ fn fusable(graph: &Graph) -> Result<Vec<Option<u16>, MAX_OPS>, PlanError> {
                     .get(t as usize)
                     .is_some_and(|x| x.dtype == DType::I8)
         });
-        if ok && count < MAX_FUSED {
-            count += 1;
-            for h in heads {
+        if !ok || count == MAX_FUSED || fusion == Fusion::None {
+            continue;
+        }
+        count += 1;
+        for h in heads {
+            fused[h as usize] = Some(i as u16);
+        }
+        if fusion != Fusion::All {
+            continue;
+        }
+        // kmix and tmix: 3-channel int8 convs read only here.
+        let only_here = |t: u16| readers.get(t as usize) == Some(&1) && t != graph.output;
+        let tensor = |t: u16| graph.tensors.get(t as usize);
+        let producer_of = |t: u16| producer.get(t as usize).copied().flatten();
+        let mix = op.inputs[4..6].iter().map(|&t| {
+            let p = producer_of(t)?;
+            let conv = graph.ops[p as usize].code == opcode::CONV2D;
+            let ok = tensor(t).is_some_and(|x| x.dtype == DType::I8 && x.channels == 3);
+            (conv && ok && only_here(t)).then_some(p)
+        });
+        let mix: Vec<u16, 2> = mix.flatten().collect();
+        if mix.len() == 2 {
+            for &h in &mix {
                 fused[h as usize] = Some(i as u16);
+            }
+        }
+        // D_0: a one-channel f32 upsample of a one-channel f32 tensor, read only here.
+        let d0 = op.inputs[0];
+        if let Some(p) = producer_of(d0) {
+            let up = &graph.ops[p as usize];
+            let f32_1 =
+                |t: u16| tensor(t).is_some_and(|x| x.dtype == DType::F32 && x.channels == 1);
+            if up.code == opcode::UPSAMPLE_BILINEAR
+                && f32_1(d0)
+                && f32_1(up.inputs[0])
+                && only_here(d0)
+            {
+                fused[p as usize] = Some(i as u16);
             }
         }
     }
@@ -520,21 +716,62 @@ fn fusable(graph: &Graph) -> Result<Vec<Option<u16>, MAX_OPS>, PlanError> {
 
 /// Plans `graph` for an input of `h × w` with the given [`Memory`] choice. Pure: reads only its
 /// arguments.
+///
+/// [`Memory::Streamed`] plans every [`Fusion`] level and keeps the one needing the fewest arena
+/// bytes (the most fused where they tie): on small images a ring can hold more than the map it
+/// replaces.
 pub fn plan_with(graph: &Graph, h: usize, w: usize, memory: Memory) -> Result<Plan, PlanError> {
+    let budget = match memory {
+        Memory::Whole => return plan_fused(graph, h, w, memory, Fusion::None),
+        Memory::Streamed => 0,
+        Memory::Budget(bytes) => bytes,
+    };
+    let mut best: Option<(usize, Fusion)> = None;
+    for fusion in [Fusion::All, Fusion::Affinities, Fusion::None] {
+        let bytes = plan_fused(graph, h, w, memory, fusion)?.arena_bytes();
+        let fits = bytes <= budget;
+        // Smallest first; within the budget, the least fused (the last that fits).
+        if best.is_none_or(|(b, _)| bytes < b || (fits && b <= budget)) {
+            best = Some((bytes, fusion));
+        }
+    }
+    let (_, fusion) = best.ok_or(PlanError::TooLarge)?;
+    plan_fused(graph, h, w, memory, fusion)
+}
+
+/// What a [`Memory::Streamed`] plan fuses into a refinement.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Fusion {
+    /// Its affinity heads, kmix/tmix heads and `D_0`'s upsample, where they qualify.
+    All,
+    /// Its affinity heads only.
+    Affinities,
+    /// Nothing.
+    None,
+}
+
+/// [`plan_with`] at one [`Fusion`] level.
+fn plan_fused(
+    graph: &Graph,
+    h: usize,
+    w: usize,
+    memory: Memory,
+    fusion: Fusion,
+) -> Result<Plan, PlanError> {
     let n_t = graph.tensors.len();
     let n_ops = graph.ops.len();
     let fused_into = match memory {
-        Memory::Streamed => fusable(graph)?,
+        Memory::Streamed | Memory::Budget(_) => fusable(graph, fusion)?,
         Memory::Whole => {
             let mut v: Vec<Option<u16>, MAX_OPS> = Vec::new();
             v.resize(n_ops, None).map_err(|_| PlanError::TooLarge)?;
             v
         }
     };
-    let mut fused: Vec<(u16, [u16; 3]), MAX_FUSED> = Vec::new();
+    let mut fused: Vec<FusedRefine, MAX_FUSED> = Vec::new();
     let mut in_place: Vec<(u16, u16), MAX_IN_PLACE> = Vec::new();
     // Scratch bytes of each fused head (run inside its refinement, which holds it).
-    let per_run_consts = memory == Memory::Streamed;
+    let per_run_consts = memory != Memory::Whole;
     let mut head_consts: Vec<usize, MAX_OPS> = Vec::new();
     head_consts
         .resize(n_ops, 0)
@@ -590,30 +827,30 @@ pub fn plan_with(graph: &Graph, h: usize, w: usize, memory: Memory) -> Result<Pl
             }
         }
         if let Attrs::Refine(attrs) = &op.attrs {
-            let mine: [Option<u16>; 3] = core::array::from_fn(|k| {
-                let t = op.inputs[1 + k];
+            let mine = |input: usize| -> Option<u16> {
+                let t = *op.inputs.get(input)?;
                 (0..i)
                     .find(|&j| graph.ops[j].output == t && fused_into[j] == Some(i as u16))
                     .map(|j| j as u16)
-            });
-            if let [Some(a), Some(b), Some(c)] = mine {
-                let conv_scratch = [a, b, c]
-                    .iter()
-                    .map(|&j| head_scratch[j as usize])
-                    .max()
-                    .unwrap_or(0);
-                let head_channels: usize = [a, b, c].iter().map(|&j| head_consts[j as usize]).sum();
-                let ring = refine::ring_bytes(p.out.w, attrs.iterations);
-                p.scratch = round_up(p.scratch)?
-                    .checked_add(round_up(ring)?)
-                    .and_then(|n| n.checked_add(head_channels))
-                    .and_then(|n| n.checked_add(round_up(conv_scratch).ok()?))
-                    .ok_or(PlanError::TooLarge)?;
-                fused
-                    .push((i as u16, [a, b, c]))
-                    .map_err(|_| PlanError::TooLarge)?;
-                // The heads' inputs are read while the refinement runs.
-                for j in [a, b, c] {
+            };
+            if let [Some(a), Some(b), Some(c)] = [mine(1), mine(2), mine(3)] {
+                let mix = match [mine(4), mine(5)] {
+                    [Some(k), Some(t)] => Some([k, t]),
+                    _ => None,
+                };
+                let mut f = FusedRefine {
+                    refine: i as u16,
+                    aff: [a, b, c],
+                    mix,
+                    depth: mine(0),
+                    scratch: RefineScratch::default(),
+                };
+                let hw = (p.out.h, p.out.w);
+                f.scratch = refine_scratch(&f, hw, attrs.iterations, &head_scratch, &head_consts)?;
+                p.scratch = f.scratch.total()?;
+                fused.push(f).map_err(|_| PlanError::TooLarge)?;
+                // The fused ops' inputs are read while the refinement runs.
+                for j in f.ops() {
                     let input = graph.ops[j as usize].inputs[0] as usize;
                     reqs[input].last = reqs[input].last.max(step);
                 }
@@ -646,6 +883,13 @@ pub fn plan_with(graph: &Graph, h: usize, w: usize, memory: Memory) -> Result<Pl
         });
     }
     reqs[graph.output as usize].last = last_step;
+    // Streamed: a fused refinement producing the graph's output writes the caller's buffer.
+    let output_in_arena = !fused.iter().any(|f| {
+        graph
+            .ops
+            .get(usize::from(f.refine))
+            .is_some_and(|o| o.output == graph.output)
+    });
     for (t, info) in graph.tensors.iter().enumerate() {
         let elem = if info.dtype == DType::F32 { 4 } else { 1 };
         let n = shapes[t]
@@ -658,6 +902,9 @@ pub fn plan_with(graph: &Graph, h: usize, w: usize, memory: Memory) -> Result<Pl
         if f.is_some() {
             reqs[op.output as usize].bytes = 0;
         }
+    }
+    if !output_in_arena {
+        reqs[graph.output as usize].bytes = 0;
     }
     let mut offsets: Vec<usize, MAX_BUFFERS> = Vec::new();
     offsets
@@ -674,6 +921,8 @@ pub fn plan_with(graph: &Graph, h: usize, w: usize, memory: Memory) -> Result<Pl
         consts,
         broadcast,
         fused,
+        output_in_arena,
+        fusion,
         in_place,
         per_run_consts,
         persistent_bytes: persistent,

@@ -207,8 +207,7 @@ impl Conv2d<'_> {
             .saturating_mul(g.kernel[0])
             .saturating_mul(g.stride[1])
             .saturating_mul(pack::row_width(g, out_shape.w));
-        let weights = ocg
-            .div_ceil(NB)
+        let weights = pack::blocks_per_pack(g, icg, ocg.div_ceil(NB))
             .saturating_mul(NB)
             .saturating_mul(c4)
             .saturating_mul(k);
@@ -804,8 +803,9 @@ fn run<F: Micro, S: Source>(
     let icg = in_shape.c / g.groups;
     let ocg = out.c / g.groups;
     let dims = pack::Dims::new(g, icg, ocg, out.w, F::L);
+    let per_pack = pack::blocks_per_pack(g, icg, dims.n_blocks);
     let (rows, rest) = take::<F::Elem>(scratch, dims.rows_len());
-    let (weights, rest) = take::<F::W>(rest, dims.n_blocks * dims.block_len);
+    let (weights, rest) = take::<F::W>(rest, per_pack * dims.block_len);
     let (sums, rest) = take::<i32>(rest, ocg);
     let (steps, _) = take::<u32>(rest, kh * kw * dims.n_cg);
     for ky in 0..kh {
@@ -816,42 +816,99 @@ fn run<F: Micro, S: Source>(
             }
         }
     }
-    let zp = op.quant.input_zero_point;
     let group_shape = Shape::new(icg, in_shape.h, in_shape.w);
     let mut acc: Acc = [0; NB * PB];
+    let taps = icg * kh * kw;
+    // The packed weights stay valid across calls only where one pack holds them all.
+    let keep = weights_packed && g.groups == 1 && per_pack >= dims.n_blocks;
     for grp in 0..g.groups {
         let o_first = grp * ocg;
-        let w = &op.weights[o_first * icg * kh * kw..(o_first + ocg) * icg * kh * kw];
-        if !(weights_packed && g.groups == 1) {
-            pack::pack_weights::<F>(g, w, icg, ocg, &dims, weights, sums);
+        for first_block in (0..dims.n_blocks).step_by(per_pack) {
+            // Channels c0 .. c0 + nc of the group, packed together.
+            let c0 = first_block * NB;
+            let nc = (per_pack * NB).min(ocg - c0);
+            let w = &op.weights[(o_first + c0) * taps..(o_first + c0 + nc) * taps];
+            if !keep {
+                pack::pack_weights::<F>(g, w, icg, nc, &dims, weights, sums);
+            }
+            let pack = Pack {
+                weights,
+                sums,
+                first: o_first + c0,
+                channels: nc,
+            };
+            run_pack::<F, S>(
+                isa,
+                op,
+                input,
+                grp * icg,
+                group_shape,
+                out,
+                dst,
+                output,
+                rows,
+                steps,
+                &dims,
+                &pack,
+                &mut acc,
+            );
         }
+    }
+}
 
-        for oy in dst.rows.clone() {
-            pack::pack_rows::<F, S>(g, input, grp * icg, group_shape, out.w, oy, zp, &dims, rows);
-            // Blocks outermost: a block's requantisation constants once per row.
-            for b in 0..dims.n_blocks {
-                let o0 = o_first + b * NB;
-                let nb = NB.min(ocg - b * NB);
-                let mut rq = [RowQuant::default(); NB];
-                for (j, q) in rq.iter_mut().enumerate().take(nb) {
-                    let base = op.channels[o0 + j]
-                        .bias
-                        .wrapping_sub(F::bias_term(zp, sums[b * NB + j]));
-                    *q = op.row_quant(o0 + j, base);
-                }
-                for ox0 in (0..out.w).step_by(PB) {
-                    let n = PB.min(out.w - ox0);
-                    let task = Task {
-                        rows,
-                        weights: &weights[b * dims.block_len..(b + 1) * dims.block_len],
-                        steps,
-                        ox0,
-                        pixels: n,
-                    };
-                    F::kernel(isa, &task, &mut acc);
-                    let at = o0 * dst.stride + (oy - dst.rows.start) * out.w + ox0;
-                    op.finish_block(isa, &rq[..nb], o0, &acc, n, output, at, dst.stride);
-                }
+/// The packed weights of output channels `first .. first + channels` and their sums.
+struct Pack<'p, W> {
+    weights: &'p [W],
+    sums: &'p [i32],
+    first: usize,
+    channels: usize,
+}
+
+/// [`run`] for the channels of one [`Pack`], row by row.
+#[allow(clippy::too_many_arguments)]
+fn run_pack<F: Micro, S: Source>(
+    isa: Isa,
+    op: &Conv2d,
+    input: &S,
+    c_in: usize,
+    group_shape: Shape,
+    out: Shape,
+    dst: &OutRows,
+    output: &mut [i8],
+    rows: &mut [F::Elem],
+    steps: &[u32],
+    dims: &pack::Dims,
+    pack: &Pack<'_, F::W>,
+    acc: &mut Acc,
+) {
+    let zp = op.quant.input_zero_point;
+    let g = &op.geometry;
+    let (weights, sums) = (pack.weights, pack.sums);
+    for oy in dst.rows.clone() {
+        pack::pack_rows::<F, S>(g, input, c_in, group_shape, out.w, oy, zp, dims, rows);
+        // Blocks outermost: a block's requantisation constants once per row.
+        for b in 0..pack.channels.div_ceil(NB) {
+            let o0 = pack.first + b * NB;
+            let nb = NB.min(pack.channels - b * NB);
+            let mut rq = [RowQuant::default(); NB];
+            for (j, q) in rq.iter_mut().enumerate().take(nb) {
+                let base = op.channels[o0 + j]
+                    .bias
+                    .wrapping_sub(F::bias_term(zp, sums[b * NB + j]));
+                *q = op.row_quant(o0 + j, base);
+            }
+            for ox0 in (0..out.w).step_by(PB) {
+                let n = PB.min(out.w - ox0);
+                let task = Task {
+                    rows,
+                    weights: &weights[b * dims.block_len..(b + 1) * dims.block_len],
+                    steps,
+                    ox0,
+                    pixels: n,
+                };
+                F::kernel(isa, &task, acc);
+                let at = o0 * dst.stride + (oy - dst.rows.start) * out.w + ox0;
+                op.finish_block(isa, &rq[..nb], o0, acc, n, output, at, dst.stride);
             }
         }
     }

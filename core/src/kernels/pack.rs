@@ -146,6 +146,22 @@ impl Dims {
     }
 }
 
+/// Most packed weight elements a conv holds at once: where a group's weights are more, they are
+/// packed and used [`blocks_per_pack`] output blocks at a time (the input rows are then packed
+/// once per such pack), so that a conv with large weights on a small image needs little
+/// scratch.
+pub const MAX_PACKED_WEIGHTS: usize = 16 * 1024;
+
+/// Output blocks of `NB` channels whose weights are packed together, of `n_blocks` per group
+/// with `icg` input channels per group.
+pub fn blocks_per_pack(g: &ConvGeometry, icg: usize, n_blocks: usize) -> usize {
+    let per_block = NB
+        .saturating_mul(icg.div_ceil(4).saturating_mul(4))
+        .saturating_mul(g.kernel[0].saturating_mul(g.kernel[1]))
+        .max(1);
+    (MAX_PACKED_WEIGHTS / per_block).clamp(1, n_blocks.max(1))
+}
+
 /// Element offset of tap `(ky, kx)` inside one channel group's packed rows, plus the offset of
 /// pixel `ox` (`ox · L`).
 pub fn tap_offset(g: &ConvGeometry, out_w: usize, l: usize, ky: usize, kx: usize) -> usize {
@@ -421,7 +437,7 @@ pub fn pack_weights<F: Layout>(
     let (kh, kw) = (g.kernel[0], g.kernel[1]);
     let taps = icg * kh * kw;
     let l = F::L;
-    out[..dims.n_blocks * dims.block_len].fill(F::W::default());
+    out[..ocg.div_ceil(NB) * dims.block_len].fill(F::W::default());
     // Consecutive taps of one input channel are `n_cg · NB · l` elements apart.
     let stride = dims.n_cg * NB * l;
     for o in 0..ocg {

@@ -201,23 +201,55 @@ pub fn upsample_bilinear_f32(
     out_shape: Shape,
 ) -> Result<(), KernelError> {
     check(input, in_shape, out, out_shape)?;
-    let (ih, iw) = (in_shape.h, in_shape.w);
     for c in 0..out_shape.c {
         for oy in 0..out_shape.h {
-            let (y0, fy, dy) = src(oy, ih, out_shape.h);
-            let y1 = (y0 + 1).min(ih - 1);
-            let wy = fy as f32 / dy as f32;
-            let mut cols = Coords::new(iw, out_shape.w);
-            for ox in 0..out_shape.w {
-                let (x0, fx, dx) = cols.next();
-                let x1 = (x0 + 1).min(iw - 1);
-                let wx = fx as f32 / dx as f32;
-                let v = |y: usize, x: usize| input[(c * ih + y) * iw + x];
-                let top = v(y0, x0) * (1.0 - wx) + v(y0, x1) * wx;
-                let bot = v(y1, x0) * (1.0 - wx) + v(y1, x1) * wx;
-                out[(c * out_shape.h + oy) * out_shape.w + ox] = top * (1.0 - wy) + bot * wy;
-            }
+            let at = (c * out_shape.h + oy) * out_shape.w;
+            upsample_bilinear_f32_row(
+                input,
+                in_shape,
+                c,
+                oy,
+                &mut out[at..at + out_shape.w],
+                out_shape,
+            )?;
         }
+    }
+    Ok(())
+}
+
+/// Row `oy` of channel `c` of [`upsample_bilinear_f32`]'s output (`out_shape.w` values into
+/// `dst`), the same bits, so a consumer can resize one row at a time.
+pub fn upsample_bilinear_f32_row(
+    input: &[f32],
+    in_shape: Shape,
+    c: usize,
+    oy: usize,
+    dst: &mut [f32],
+    out_shape: Shape,
+) -> Result<(), KernelError> {
+    let (ih, iw) = (in_shape.h, in_shape.w);
+    let ok = c < in_shape.c.min(out_shape.c)
+        && oy < out_shape.h
+        && ih > 0
+        && iw > 0
+        && dst.len() >= out_shape.w
+        && in_shape.len().is_some_and(|n| n <= input.len());
+    if !ok {
+        return Err(KernelError::Shape);
+    }
+    let (y0, fy, dy) = src(oy, ih, out_shape.h);
+    let y1 = (y0 + 1).min(ih - 1);
+    let wy = fy as f32 / dy as f32;
+    let r0 = &input[(c * ih + y0) * iw..][..iw];
+    let r1 = &input[(c * ih + y1) * iw..][..iw];
+    let mut cols = Coords::new(iw, out_shape.w);
+    for o in dst[..out_shape.w].iter_mut() {
+        let (x0, fx, dx) = cols.next();
+        let x1 = (x0 + 1).min(iw - 1);
+        let wx = fx as f32 / dx as f32;
+        let top = r0[x0] * (1.0 - wx) + r0[x1] * wx;
+        let bot = r1[x0] * (1.0 - wx) + r1[x1] * wx;
+        *o = top * (1.0 - wy) + bot * wy;
     }
     Ok(())
 }

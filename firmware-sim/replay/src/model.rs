@@ -7,7 +7,7 @@
 //! start* (see `depthor_core::blob::format`), and [`MCU_BLOB`] is placed on a 16-byte boundary so
 //! that they are also 16-byte aligned in memory, should a kernel ever read them by words.
 
-use depthor_core::engine::{self, Engine};
+use depthor_core::engine::{self, Engine, Memory};
 
 /// 16-byte alignment wrapper for embedded bytes.
 #[repr(C, align(16))]
@@ -21,20 +21,42 @@ static ALIGNED_BLOB: &Align16<[u8]> = &Align16(*include_bytes!(concat!(
 /// The `mcu` int8 model blob (16-byte aligned).
 pub static MCU_BLOB: &[u8] = &ALIGNED_BLOB.0;
 
-/// Arena bytes the firmware reserves: 704 KiB, the shipped `mcu` blob's streamed plan
-/// (654 863 B at 120×160, `core/tests/arena_budget.rs`) with a little room; the goal
-/// (docs/design.md) is 384 KiB. [`Engine::with_size`] reports `ArenaTooSmall` when a blob needs more.
-pub const ARENA_BUDGET_BYTES: usize = 704 * 1024;
+/// Arena bytes the firmware reserves: 384 KiB (the internal-SRAM goal, docs/design.md) unless
+/// the build sets `DEPTHOR_ARENA_KIB`; the shipped `mcu` blob's smallest plan needs 384 175 B
+/// at 120×160 (`core/tests/arena_budget.rs`). [`Engine::with_memory`] reports `ArenaTooSmall`
+/// when a blob needs more.
+pub const ARENA_BUDGET_BYTES: usize = match option_env!("DEPTHOR_ARENA_KIB") {
+    Some(kib) => parse_kib(kib) * 1024,
+    None => 384 * 1024,
+};
 
-/// Prepares the engine once for the replay image's `height × width` (the blob's native size
-/// for a 120×160 image, where this is the same as [`Engine::new`]).
+/// `DEPTHOR_ARENA_KIB` as a number (a build error if it is not one).
+const fn parse_kib(s: &str) -> usize {
+    let b = s.as_bytes();
+    assert!(!b.is_empty(), "DEPTHOR_ARENA_KIB: empty");
+    let mut n = 0usize;
+    let mut i = 0;
+    while i < b.len() {
+        assert!(
+            b[i].is_ascii_digit(),
+            "DEPTHOR_ARENA_KIB: not a number of KiB"
+        );
+        n = n * 10 + (b[i] - b'0') as usize;
+        i += 1;
+    }
+    n
+}
+
+/// Prepares the engine once for the replay image's `height × width` with the fastest plan that
+/// fits [`ARENA_BUDGET_BYTES`] ([`Memory::Budget`]).
 pub fn prepare<'a>(
     blob: &'a [u8],
     arena: &'a mut [u8],
     height: u16,
     width: u16,
 ) -> Result<Engine<'a>, engine::Error> {
-    Engine::with_size(blob, arena, usize::from(height), usize::from(width))
+    let (h, w) = (usize::from(height), usize::from(width));
+    Engine::with_memory(blob, arena, h, w, Memory::Budget(ARENA_BUDGET_BYTES))
 }
 
 #[cfg(test)]

@@ -7,8 +7,10 @@
 
 use cortex_m_rt::entry;
 use depthor_core::blob::format::op_name;
+use depthor_core::calibration::Calibration;
 use depthor_core::engine::Engine;
 use depthor_core::hal::ZoneFrame;
+use depthor_core::projection::project_to_sparse;
 use depthor_firmware_sim::{console, cycles, memory, println};
 use depthor_replay::format::Image;
 use depthor_replay::model::{self, ARENA_BUDGET_BYTES, MCU_BLOB};
@@ -71,11 +73,16 @@ const KINDS: usize = 24;
 
 /// Runs the last frame's inputs once more through [`Engine::run_observed`], reading SysTick after
 /// every op, and prints the instructions of each op and of each op kind.
-fn profile_ops<const N: usize>(engine: &mut Engine<'_>, ws: &Workspace<'_, N>) {
+fn profile_ops<const N: usize>(engine: &mut Engine<'_>, ws: &mut Workspace<'_, N>, cal: &Calibration) {
     let ops = engine.graph().ops.len();
     let mut per_op = [0u64; depthor_core::blob::format::MAX_OPS];
-    let mut last = cycles::ticks();
+    // The frame ran in place on `sparse_m`: project its zones again for the sparse input.
+    if let Err(e) = project_to_sparse(cal, &ws.zones.view(), ws.sparse_m) {
+        println!("op profile: projection error {e}");
+        return;
+    }
     let scratch_depth = DepthScratch::take();
+    let mut last = cycles::ticks();
     let result = engine.run_observed(ws.rgb, ws.sparse_m, scratch_depth.0, &mut |i, _| {
         let now = cycles::ticks();
         if let Some(t) = per_op.get_mut(i) {
@@ -188,11 +195,12 @@ fn main() -> ! {
     };
     let arena_used = engine.plan().arena_bytes();
     println!(
-        "engine: blob {} B at {:p}, arena {arena_used} B of {} B reserved, {} MAC/frame, \
-         prepared in {} instructions",
+        "engine: blob {} B at {:p}, arena {arena_used} B of {} B reserved ({:?} fused), {} \
+         MAC/frame, prepared in {} instructions",
         MCU_BLOB.len(),
         MCU_BLOB.as_ptr(),
         ARENA_BUDGET_BYTES,
+        engine.plan().fusion(),
         engine.plan().macs(),
         cycles::instructions(cycles::ticks() - before)
     );
@@ -237,7 +245,7 @@ fn main() -> ! {
     }
 
     if frames > 0 {
-        profile_ops(&mut engine, &ws);
+        profile_ops(&mut engine, &mut ws, &image.calibration());
     }
 
     let stack = memory::stack_high_water();

@@ -83,6 +83,13 @@ pub fn handle(args: Args) -> anyhow::Result<()> {
         let report = staging_report(&args.out)?;
         return super::common::print_json(&report);
     }
+    if !a.power.conclusive {
+        println!(
+            "inconclusive: {} held-out frames cannot reach p ≤ {} (smallest achievable p {:.4}); \
+             record at least {} frames",
+            a.power.heldout_frames, a.power.level, a.power.min_achievable_p, a.power.frames_needed
+        );
+    }
     println!(
         "{} finding(s); held-out NLL/zone {:.4} → {:.4}; report in {}",
         a.selection.findings.len(),

@@ -91,6 +91,12 @@ pub fn slices(recs: &[ZoneRecord], bins: usize) -> Vec<Slice> {
     for (ci, &cov) in Covariate::ALL.iter().enumerate() {
         let mut order: Vec<usize> = (0..recs.len()).collect();
         order.sort_by(|&a, &b| recs[a].cov[ci].total_cmp(&recs[b].cov[ci]));
+        // A covariate with no spread (e.g. material on imported frames without labels) cannot
+        // localise anything: its slices would split the zones arbitrarily.
+        let (lo, hi) = (recs[order[0]].cov[ci], recs[order[order.len() - 1]].cov[ci]);
+        if lo.total_cmp(&hi).is_eq() {
+            continue;
+        }
         for b in 0..bins {
             let chunk = &order[b * order.len() / bins..(b + 1) * order.len() / bins];
             if chunk.is_empty() {
@@ -257,5 +263,20 @@ mod tests {
         assert!((m.depth_mae_m - 0.1).abs() < 1e-12);
         let h = pit_histogram(&recs, 4);
         assert_eq!(h, vec![0.0, 0.0, 1.0, 0.0]);
+    }
+
+    #[test]
+    fn covariates_without_spread_are_not_sliced() {
+        // The same zones with the third covariate constant (material on unlabelled frames).
+        let recs: Vec<ZoneRecord> = (0..200)
+            .map(|i| {
+                let mut r = rec(i >= 100, 0.1, 0.5, i as f64);
+                r.cov[2] = 0.0;
+                r
+            })
+            .collect();
+        let s = slices(&recs, 4);
+        assert!(s.iter().all(|x| x.covariate != Covariate::ALL[2]));
+        assert_eq!(s.len(), 4 * (Covariate::ALL.len() - 1));
     }
 }

@@ -15,6 +15,7 @@ pub mod effects;
 pub mod likelihood;
 pub mod localise;
 pub mod model;
+pub mod power;
 pub mod report;
 pub mod select;
 pub mod stats;
@@ -75,6 +76,8 @@ pub struct Analysis {
     pub grid: (usize, usize),
     /// Frames used (train, held-out).
     pub split: (usize, usize),
+    /// Whether the held-out frames could show an effect.
+    pub power: power::Power,
 }
 
 /// Compares `data` with `base`: prepares the draws, selects and fits effects, localises what is
@@ -125,6 +128,12 @@ pub fn analyze(
         after,
         grid: (usize::from(base.grid.rows), usize::from(base.grid.cols)),
         split: (ctx.train.len(), ctx.test.len()),
+        power: power::Power::of(
+            ctx.test.len(),
+            opts.select.permutations,
+            opts.select.alpha / 2.0,
+            !selection.findings.is_empty(),
+        ),
         selection,
     })
 }

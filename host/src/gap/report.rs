@@ -44,6 +44,10 @@ pub struct Report {
     pub fit_after: FitMetrics,
     /// The fitted simulator configuration (`depthor sim --config`).
     pub sim_config: serde_json::Value,
+    /// Whether the held-out frames could show an effect (`conclusive`, `heldout_frames`,
+    /// `min_achievable_p`, `level`, `frames_needed`, at the top level).
+    #[serde(flatten)]
+    pub power: super::power::Power,
 }
 
 impl Report {
@@ -98,6 +102,7 @@ impl Report {
             fit_before: a.fit_before,
             fit_after: a.fit_after,
             sim_config: serde_json::to_value(&a.selection.estimate).unwrap_or_default(),
+            power: a.power,
         }
     }
 }
@@ -221,6 +226,9 @@ fn metrics_row(name: &str, m: &FitMetrics) -> String {
 /// The Markdown report.
 pub fn markdown(a: &Analysis, r: &Report) -> String {
     let mut s = String::new();
+    if let Some(line) = r.power.headline() {
+        let _ = writeln!(s, "{line}\n");
+    }
     let _ = writeln!(s, "# Sim-to-real gap report\n");
     let _ = writeln!(
         s,
@@ -230,7 +238,7 @@ pub fn markdown(a: &Analysis, r: &Report) -> String {
     s.push_str("| held-out fit | NLL/zone | dropout Brier | depth MAE (m) |\n|---|---|---|---|\n");
     s.push_str(&metrics_row("before", &r.fit_before));
     s.push_str(&metrics_row("after", &r.fit_after));
-    if r.findings.is_empty() {
+    if r.findings.is_empty() && r.power.conclusive {
         s.push_str("\n**No significant missing physics**: no effect of the library improves the held-out likelihood significantly.\n");
     }
     for f in &r.findings {

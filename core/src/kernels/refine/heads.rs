@@ -1,8 +1,9 @@
 //! [`ConvRows`]: the refinement's affinities computed row by row by their own int8 convolution
-//! heads into a ring of [`super::ring_rows`] rows, so that no affinity map is stored whole
+//! heads into a ring of [`super::ring_rows`] rows, so that no affinity map is stored whole;
+//! [`MixConvRows`]: the same for the kmix and tmix heads, in rings of [`mix_ring_rows`] rows
 //! (module doc of [`super`], "Streaming").
 
-use super::{ring_bytes, ring_rows, AffinityRows, I8Map, KERNELS};
+use super::{mix_ring_rows, ring_bytes, ring_rows, AffinityRows, I8Map, MixRows, KERNELS};
 use crate::kernels::conv::{conv2d_rows_packed, Conv2d, OutRows};
 use crate::kernels::isa::Isa;
 use crate::kernels::requant::QParams;
@@ -28,6 +29,7 @@ pub struct ConvRows<'a, 'r> {
     heads: [Head<'a>; 3],
     ring: &'r mut [i8],
     scratch: &'r mut [i32],
+    h: usize,
     w: usize,
     iterations: usize,
     /// The branch whose head's weights `scratch` holds packed.
@@ -47,7 +49,7 @@ impl<'a, 'r> ConvRows<'a, 'r> {
         ring: &'r mut [i8],
         scratch: &'r mut [i32],
     ) -> Result<Self, KernelError> {
-        if ring.len() < ring_bytes(w, iterations) {
+        if ring.len() < ring_bytes(h, w, iterations) {
             return Err(KernelError::Shape);
         }
         for (head, s) in heads.iter().zip(KERNELS) {
@@ -64,6 +66,7 @@ impl<'a, 'r> ConvRows<'a, 'r> {
             heads,
             ring,
             scratch,
+            h,
             w,
             iterations,
             packed: None,
@@ -72,7 +75,7 @@ impl<'a, 'r> ConvRows<'a, 'r> {
 
     /// Rows in branch `k`'s ring.
     fn rows(&self, k: usize) -> usize {
-        ring_rows(k, self.iterations).max(1)
+        ring_rows(k, self.h, self.iterations).max(1)
     }
 }
 
@@ -117,11 +120,110 @@ impl AffinityRows for ConvRows<'_, '_> {
     }
 }
 
+/// [`MixRows`] that runs the kmix and tmix [`Head`]s (3 channels each) one output row at a
+/// time into rings of [`mix_ring_rows`] rows, each head with its own conv scratch (its weights
+/// stay packed).
+#[derive(Debug)]
+pub struct MixConvRows<'a, 'r> {
+    isa: Isa,
+    heads: [Head<'a>; 2],
+    rings: [&'r mut [i8]; 2],
+    scratch: [&'r mut [i32]; 2],
+    w: usize,
+    rows: usize,
+    packed: [bool; 2],
+}
+
+impl<'a, 'r> MixConvRows<'a, 'r> {
+    /// Bytes of one head's ring for an `h × w` image and `iterations` steps.
+    pub fn ring_bytes(h: usize, w: usize, iterations: usize) -> usize {
+        mix_ring_rows(h, iterations)
+            .saturating_mul(3)
+            .saturating_mul(w)
+    }
+
+    /// The kmix and tmix heads of a `h × w` refinement of `iterations` steps; each ring holds
+    /// ≥ [`MixConvRows::ring_bytes`] bytes and each scratch ≥ its head's
+    /// [`Conv2d::scratch_len`] i32. `Err(Shape)` where a head's output is not `[3, h, w]` or a
+    /// buffer is short.
+    pub fn new(
+        isa: Isa,
+        heads: [Head<'a>; 2],
+        h: usize,
+        w: usize,
+        iterations: usize,
+        rings: [&'r mut [i8]; 2],
+        scratch: [&'r mut [i32]; 2],
+    ) -> Result<Self, KernelError> {
+        for ((head, ring), scratch) in heads.iter().zip(&rings).zip(&scratch) {
+            let out = head.conv.check(head.in_shape)?;
+            if out != Shape::new(3, h, w) || ring.len() < Self::ring_bytes(h, w, iterations) {
+                return Err(KernelError::Shape);
+            }
+            if scratch.len() < Conv2d::scratch_len(&head.conv.geometry, head.in_shape, out) {
+                return Err(KernelError::Scratch);
+            }
+        }
+        Ok(MixConvRows {
+            isa,
+            heads,
+            rings,
+            scratch,
+            w,
+            rows: mix_ring_rows(h, iterations),
+            packed: [false; 2],
+        })
+    }
+}
+
+impl MixRows for MixConvRows<'_, '_> {
+    type View<'v>
+        = I8Map<'v>
+    where
+        Self: 'v;
+
+    fn compute(&mut self, y: usize) -> Result<(), KernelError> {
+        let (rows, w) = (self.rows, self.w);
+        let dst = OutRows {
+            rows: y..y + 1,
+            stride: rows * w,
+        };
+        for m in 0..2 {
+            let head = &self.heads[m];
+            let ring = self.rings[m]
+                .get_mut((y % rows) * w..)
+                .ok_or(KernelError::Shape)?;
+            conv2d_rows_packed(
+                self.isa,
+                &head.conv,
+                head.input,
+                head.in_shape,
+                &dst,
+                ring,
+                self.scratch[m],
+                self.packed[m],
+            )?;
+            self.packed[m] = true;
+        }
+        Ok(())
+    }
+
+    fn view(&self, y: usize) -> Result<(I8Map<'_>, I8Map<'_>, usize), KernelError> {
+        let plane = self.rows * self.w;
+        let map = |m: usize| I8Map::new(self.rings[m], self.heads[m].out_q, 3, plane);
+        Ok((map(0)?, map(1)?, (y % self.rows) * self.w))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::kernels::conv::{conv2d_with, Activation, ChannelQuant, ConvGeometry, ConvQuant};
-    use crate::kernels::refine::{refine_with, scratch_len, RefineAttrs, WholeMaps};
+    use crate::kernels::refine::{
+        refine_with, scratch_len, RefineAttrs, Sources, UpsampledDepth, WholeDepth, WholeMaps,
+        WholeMix,
+    };
+    use crate::kernels::resize::upsample_bilinear_f32;
     use std::vec::Vec;
 
     struct Rng(u64);
@@ -138,7 +240,8 @@ mod tests {
         }
     }
 
-    /// Streamed heads give the bits of heads run whole, then refined from whole maps, for every
+    /// Streamed heads (affinities, kmix, tmix) and a row-by-row upsampled `D_0` give the bits
+    /// of heads run whole, an upsample run whole, then refined from whole maps, for every
     /// kernel set, 1×1 and 3×3 heads, images taller than a window and T up to 8.
     #[test]
     fn streamed_heads_equal_whole_maps() {
@@ -148,6 +251,7 @@ mod tests {
             (9, 8, 2, 1),
             (40, 13, 8, 3),
             (5, 30, 4, 1),
+            (24, 32, 6, 3),
         ] {
             let cin = 6;
             let in_shape = Shape::new(cin, h, w);
@@ -163,11 +267,12 @@ mod tests {
                 padding: [k / 2, k / 2],
                 groups: 1,
             };
+            // Heads 0..3: affinities of kernels 3, 5, 7; 3: kmix; 4: tmix.
+            let outs = [8usize, 24, 48, 3, 3];
             let mut weights = Vec::new();
             let mut chans = Vec::new();
             let mut qs = Vec::new();
-            for (b, s) in KERNELS.iter().enumerate() {
-                let n = s * s - 1;
+            for (b, &n) in outs.iter().enumerate() {
                 weights.push(rng.codes(n * cin * k * k));
                 chans.push(
                     (0..n)
@@ -187,7 +292,7 @@ mod tests {
                     zero_point: -10 + 5 * b as i32,
                 });
             }
-            let convs: Vec<Conv2d> = (0..3)
+            let convs: Vec<Conv2d> = (0..5)
                 .map(|b| Conv2d {
                     geometry,
                     quant: ConvQuant::new(in_q.zero_point, qs[b].zero_point, Activation::None),
@@ -195,22 +300,15 @@ mod tests {
                     channels: &chans[b],
                 })
                 .collect();
-            let d0: Vec<f32> = (0..h * w)
+            let half = Shape::new(1, h.div_ceil(2), w.div_ceil(2));
+            let small: Vec<f32> = (0..half.plane().unwrap())
                 .map(|_| 0.5 + (rng.next() % 1000) as f32 * 0.006)
                 .collect();
-            let km = rng.codes(3 * h * w);
-            let tm = rng.codes(3 * h * w);
-            let mq = QParams {
-                scale: 0.03,
-                zero_point: 1,
-            };
-            let kmix = I8Map::new(&km, mq, 3, h * w).unwrap();
-            let tmix = I8Map::new(&tm, mq, 3, h * w).unwrap();
             let attrs = RefineAttrs {
                 iterations: t,
                 sigma: [1.0, 1.4, 2.1],
             };
-            let conv_scratch_len = (0..3)
+            let conv_scratch_len = (0..5)
                 .map(|b| {
                     let out = convs[b].check(in_shape).unwrap();
                     Conv2d::scratch_len(&geometry, in_shape, out)
@@ -219,7 +317,7 @@ mod tests {
                 .unwrap();
             for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
                 let mut scratch = std::vec![0i32; conv_scratch_len];
-                let maps: Vec<Vec<i8>> = (0..3)
+                let maps: Vec<Vec<i8>> = (0..5)
                     .map(|b| {
                         let out = convs[b].check(in_shape).unwrap();
                         let mut y = std::vec![0i8; out.len().unwrap()];
@@ -228,41 +326,43 @@ mod tests {
                         y
                     })
                     .collect();
-                let views: Vec<I8Map> = (0..3)
-                    .map(|b| {
-                        I8Map::new(&maps[b], qs[b], KERNELS[b] * KERNELS[b] - 1, h * w).unwrap()
-                    })
+                let views: Vec<I8Map> = (0..5)
+                    .map(|b| I8Map::new(&maps[b], qs[b], outs[b], h * w).unwrap())
                     .collect();
+                let mut d0 = std::vec![0f32; h * w];
+                upsample_bilinear_f32(&small, half, &mut d0, Shape::new(1, h, w)).unwrap();
                 let mut whole = std::vec![0f32; h * w];
                 let mut rs = std::vec![0f32; scratch_len(w, t)];
-                let mut rows = WholeMaps::new([&views[0], &views[1], &views[2]], w);
-                refine_with(
-                    isa, &d0, h, w, &mut rows, &kmix, &tmix, &attrs, &mut whole, &mut rs,
-                )
-                .unwrap();
+                let sources = Sources {
+                    depth: &mut WholeDepth::new(&d0, w),
+                    aff: &mut WholeMaps::new([&views[0], &views[1], &views[2]], w),
+                    mix: &mut WholeMix::new(&views[3], &views[4], w),
+                };
+                refine_with(isa, sources, h, w, &attrs, &mut whole, &mut rs).unwrap();
 
-                let heads: [Head; 3] = core::array::from_fn(|b| Head {
+                let head = |b: usize| Head {
                     conv: convs[b],
                     input: &input,
                     in_shape,
                     out_q: qs[b],
-                });
-                let mut ring = std::vec![0i8; ring_bytes(w, t)];
+                };
+                let mut ring = std::vec![0i8; ring_bytes(h, w, t)];
+                let mut mix_rings =
+                    [0, 1].map(|_| std::vec![0i8; MixConvRows::ring_bytes(h, w, t)]);
+                let mut mix_scratch = [0, 1].map(|_| std::vec![0i32; conv_scratch_len]);
+                let [r0, r1] = &mut mix_rings;
+                let [s0, s1] = &mut mix_scratch;
                 let mut streamed = std::vec![0f32; h * w];
+                let heads = [head(0), head(1), head(2)];
                 let mut rows = ConvRows::new(isa, heads, h, w, t, &mut ring, &mut scratch).unwrap();
-                refine_with(
-                    isa,
-                    &d0,
-                    h,
-                    w,
-                    &mut rows,
-                    &kmix,
-                    &tmix,
-                    &attrs,
-                    &mut streamed,
-                    &mut rs,
-                )
-                .unwrap();
+                let mut mix =
+                    MixConvRows::new(isa, [head(3), head(4)], h, w, t, [r0, r1], [s0, s1]).unwrap();
+                let sources = Sources {
+                    depth: &mut UpsampledDepth::new(&small, half, h, w),
+                    aff: &mut rows,
+                    mix: &mut mix,
+                };
+                refine_with(isa, sources, h, w, &attrs, &mut streamed, &mut rs).unwrap();
                 let same = whole
                     .iter()
                     .zip(&streamed)
@@ -303,7 +403,7 @@ mod tests {
                 zero_point: 0,
             },
         };
-        let mut ring = std::vec![0i8; ring_bytes(4, 2)];
+        let mut ring = std::vec![0i8; ring_bytes(4, 4, 2)];
         let mut scratch = std::vec![0i32; 4096];
         // The 8-channel head cannot stand for the 24- and 48-channel branches.
         let r = ConvRows::new(Isa::Portable, [head; 3], 4, 4, 2, &mut ring, &mut scratch);

@@ -24,20 +24,24 @@
 //! computed at this or an earlier step. Each iteration `1..T` keeps a window of
 //! [`WINDOW_ROWS`] rows; the affinities come row by row from an [`AffinityRows`] source, which
 //! must keep rows `s − T·r ..= s − r` readable (a ring of [`ring_rows`] rows, or the whole map:
-//! [`WholeMaps`]). Every pixel still gets the operations above in the same order, so the bits
-//! equal the whole-map order's. Scratch: [`scratch_len`] f32 (`((T − 1)·14 + 1)·W`), against
-//! `2·H·W` for ping-pong maps.
+//! [`WholeMaps`]). `D_0` comes row by row from a [`DepthRows`] source (row `s` at step `s`, into
+//! iteration 0's window) and kmix/tmix from a [`MixRows`] source that keeps rows
+//! `s − T·3 ..= s` readable ([`mix_ring_rows`]); the `t = 0` terms of row `s` are added at step
+//! `s`. Every pixel still gets the operations above in the same order, so the bits equal the
+//! whole-map order's. Scratch: [`scratch_len`] f32 (`(T·14 + 1)·W`), against `2·H·W` for
+//! ping-pong maps.
 
 mod heads;
 mod step;
 
-pub use heads::{ConvRows, Head};
+pub use heads::{ConvRows, Head, MixConvRows};
 pub use step::{step_pixel, step_row, Branch, RowAt, MAX_NEIGHBOURS};
 
 use super::float::exp;
 use super::isa::Isa;
 use super::requant::QParams;
-use super::KernelError;
+use super::resize::upsample_bilinear_f32_row;
+use super::{KernelError, Shape};
 
 /// Most iterations accepted.
 pub const MAX_ITERATIONS: usize = 64;
@@ -241,33 +245,149 @@ impl<A: Map> AffinityRows for WholeMaps<'_, A> {
     }
 }
 
-/// Rows each iteration's window holds (≥ `2r + 1` for the largest radius, 3).
-pub const WINDOW_ROWS: usize = 14;
+/// Where the refinement reads its initial depth `D_0`, one row at a time.
+pub trait DepthRows {
+    /// Writes row `y` of `D_0` (`w` values) into `dst`. Within a branch rows are asked for in
+    /// increasing order, once each; the next branch starts again at row 0.
+    fn row(&mut self, y: usize, dst: &mut [f32]) -> Result<(), KernelError>;
+}
 
-/// f32 scratch elements [`refine_with`] needs for an image `w` wide and `iterations` steps.
+/// [`DepthRows`] over a whole `H×W` map.
+#[derive(Clone, Copy, Debug)]
+pub struct WholeDepth<'a> {
+    d0: &'a [f32],
+    w: usize,
+}
+
+impl<'a> WholeDepth<'a> {
+    /// `d0` holds `H×W` values of an image `w` wide.
+    pub fn new(d0: &'a [f32], w: usize) -> Self {
+        WholeDepth { d0, w }
+    }
+}
+
+impl DepthRows for WholeDepth<'_> {
+    fn row(&mut self, y: usize, dst: &mut [f32]) -> Result<(), KernelError> {
+        let w = self.w;
+        let src = y
+            .checked_mul(w)
+            .and_then(|a| self.d0.get(a..a.checked_add(w)?))
+            .ok_or(KernelError::Shape)?;
+        dst.get_mut(..w)
+            .ok_or(KernelError::Shape)?
+            .copy_from_slice(src);
+        Ok(())
+    }
+}
+
+/// [`DepthRows`] resizing a lower-resolution f32 map row by row
+/// ([`crate::kernels::resize::upsample_bilinear_f32_row`], the bits of the whole resize), so
+/// that `D_0` is never stored at full resolution.
+#[derive(Clone, Copy, Debug)]
+pub struct UpsampledDepth<'a> {
+    input: &'a [f32],
+    in_shape: Shape,
+    out_shape: Shape,
+}
+
+impl<'a> UpsampledDepth<'a> {
+    /// `input` (`in_shape`, one channel) resized to `h × w`.
+    pub fn new(input: &'a [f32], in_shape: Shape, h: usize, w: usize) -> Self {
+        UpsampledDepth {
+            input,
+            in_shape,
+            out_shape: Shape::new(1, h, w),
+        }
+    }
+}
+
+impl DepthRows for UpsampledDepth<'_> {
+    fn row(&mut self, y: usize, dst: &mut [f32]) -> Result<(), KernelError> {
+        upsample_bilinear_f32_row(self.input, self.in_shape, 0, y, dst, self.out_shape)
+    }
+}
+
+/// Where the refinement reads its kmix and tmix maps (3 channels each), one row at a time.
+pub trait MixRows {
+    /// The map [`MixRows::view`] returns.
+    type View<'v>: Map
+    where
+        Self: 'v;
+    /// Makes row `y` of both maps readable. Within a branch rows are asked for in increasing
+    /// order, once each; the next branch starts again at row 0.
+    fn compute(&mut self, y: usize) -> Result<(), KernelError>;
+    /// The kmix and tmix maps holding row `y` and the index of its pixel `(y, 0)` in channel 0
+    /// (valid for rows `y − T·3 ..= y` of the latest [`MixRows::compute`], [`mix_ring_rows`]).
+    /// Each map's rows share one quantisation.
+    fn view(&self, y: usize) -> Result<(Self::View<'_>, Self::View<'_>, usize), KernelError>;
+}
+
+/// [`MixRows`] over whole `H×W` kmix and tmix maps.
+#[derive(Clone, Copy, Debug)]
+pub struct WholeMix<'m, B: Map> {
+    kmix: &'m B,
+    tmix: &'m B,
+    w: usize,
+}
+
+impl<'m, B: Map> WholeMix<'m, B> {
+    /// kmix and tmix (≥ 3 channels each) of an image `w` wide.
+    pub fn new(kmix: &'m B, tmix: &'m B, w: usize) -> Self {
+        WholeMix { kmix, tmix, w }
+    }
+}
+
+impl<B: Map> MixRows for WholeMix<'_, B> {
+    type View<'v>
+        = &'v B
+    where
+        Self: 'v;
+    fn compute(&mut self, _y: usize) -> Result<(), KernelError> {
+        Ok(())
+    }
+    fn view(&self, y: usize) -> Result<(&B, &B, usize), KernelError> {
+        Ok((self.kmix, self.tmix, y * self.w))
+    }
+}
+
+/// Rows a streaming [`MixRows`] must keep readable at once in an image `h` rows high:
+/// `T·3 + 1` (the `t = T` terms of the widest branch come `T·3` rows after the `t = 0` ones),
+/// at most `h`.
+pub fn mix_ring_rows(h: usize, iterations: usize) -> usize {
+    iterations
+        .saturating_mul(KERNELS[2] / 2)
+        .saturating_add(1)
+        .min(h.max(1))
+}
+
+/// Rows each iteration's window holds (≥ `2r + 1` for the largest radius, 3).
+pub const WINDOW_ROWS: usize = 8;
+
+/// f32 scratch elements [`refine_with`] needs for an image `w` wide and `iterations` steps:
+/// a window per iteration `0..T` and the last iteration's row.
 pub fn scratch_len(w: usize, iterations: usize) -> usize {
     iterations
-        .saturating_sub(1)
+        .max(1)
         .saturating_mul(WINDOW_ROWS)
         .saturating_add(1)
         .saturating_mul(w)
 }
 
-/// Affinity rows of branch `k` a streaming [`AffinityRows`] must keep readable at once:
-/// `(T − 1)·r + 1` (0 when `T = 0`: no row is read).
-pub fn ring_rows(k: usize, iterations: usize) -> usize {
+/// Affinity rows of branch `k` a streaming [`AffinityRows`] must keep readable at once in an
+/// image `h` rows high: `(T − 1)·r + 1`, at most `h` (0 when `T = 0`: no row is read).
+pub fn ring_rows(k: usize, h: usize, iterations: usize) -> usize {
     if iterations == 0 {
         return 0;
     }
-    (iterations - 1) * (KERNELS[k.min(2)] / 2) + 1
+    ((iterations - 1) * (KERNELS[k.min(2)] / 2) + 1).min(h.max(1))
 }
 
 /// Bytes of one int8 ring holding [`ring_rows`] rows of any branch's channels, `w` wide (the
 /// branches run one after another, so one ring serves all three).
-pub fn ring_bytes(w: usize, iterations: usize) -> usize {
+pub fn ring_bytes(h: usize, w: usize, iterations: usize) -> usize {
     (0..3)
         .map(|k| {
-            ring_rows(k, iterations)
+            ring_rows(k, h, iterations)
                 .saturating_mul(KERNELS[k] * KERNELS[k] - 1)
                 .saturating_mul(w)
         })
@@ -275,30 +395,30 @@ pub fn ring_bytes(w: usize, iterations: usize) -> usize {
         .unwrap_or(0)
 }
 
-/// A 3-channel mixing map (kmix or tmix) with its per-pixel softmax. On int8 maps the
+/// The per-pixel softmax of a 3-channel mixing map (kmix or tmix). On int8 maps the
 /// exponentials come from a table made once per run, `E[d] = exp(−d·scale)` for the code
 /// distance `d = max code − code` (0..=255): `e_c = E[max − q_c]`; on f32 maps
 /// `e_c = exp(v_c − max v)`. Then `s = (e_0 + e_1) + e_2` and `p_c = e_c / s`.
-pub struct Mix<'m, B: Map> {
-    map: &'m B,
+#[derive(Clone, Debug)]
+pub struct Mix {
     table: Option<[f32; 256]>,
 }
 
-impl<'m, B: Map> Mix<'m, B> {
-    /// The mix over `map` (its table made here when it is int8).
-    pub fn new(map: &'m B) -> Self {
+impl Mix {
+    /// The mix of maps quantised as `map` (its table made here when it is int8).
+    pub fn new<B: Map>(map: &B) -> Self {
         let table = map.as_i8().map(|m| {
             let scale = m.q().scale;
             core::array::from_fn(|d| exp(-(d as f32) * scale))
         });
-        Mix { map, table }
+        Mix { table }
     }
 
-    /// Component `c` (`< 3`) of the softmax at pixel `i`: [`Mix::at`]`(i)[c]`, the same bits,
-    /// with one division instead of three.
+    /// Component `c` (`< 3`) of the softmax of `map` at pixel `i`: [`Mix::at`]`(map, i)[c]`,
+    /// the same bits, with one division instead of three.
     #[inline(always)]
-    pub fn one(&self, i: usize, c: usize) -> f32 {
-        let e = match (self.map.as_i8(), &self.table) {
+    pub fn one<B: Map>(&self, map: &B, i: usize, c: usize) -> f32 {
+        let e = match (map.as_i8(), &self.table) {
             (Some(m), Some(t)) => {
                 let (d, p) = (m.data(), m.plane());
                 let q0 = i32::from(d[i]);
@@ -309,7 +429,7 @@ impl<'m, B: Map> Mix<'m, B> {
                 [e(q0), e(q1), e(q2)]
             }
             _ => {
-                let v = [0, 1, 2].map(|c| self.map.value(c, i));
+                let v = [0, 1, 2].map(|c| map.value(c, i));
                 let mx = v[0].max(v[1]).max(v[2]);
                 v.map(|v| exp(v - mx))
             }
@@ -317,17 +437,17 @@ impl<'m, B: Map> Mix<'m, B> {
         e[c] / (e[0] + e[1] + e[2])
     }
 
-    /// The softmax at pixel `i`.
+    /// The softmax of `map` at pixel `i`.
     #[inline]
-    pub fn at(&self, i: usize) -> [f32; 3] {
-        let e = match (self.map.as_i8(), &self.table) {
+    pub fn at<B: Map>(&self, map: &B, i: usize) -> [f32; 3] {
+        let e = match (map.as_i8(), &self.table) {
             (Some(m), Some(t)) => {
                 let q = [0, 1, 2].map(|c| i32::from(m.data()[c * m.plane() + i]));
                 let mx = q[0].max(q[1]).max(q[2]);
                 q.map(|q| t[(mx - q) as usize & 255])
             }
             _ => {
-                let v = [0, 1, 2].map(|c| self.map.value(c, i));
+                let v = [0, 1, 2].map(|c| map.value(c, i));
                 let mx = v[0].max(v[1]).max(v[2]);
                 v.map(|v| exp(v - mx))
             }
@@ -335,11 +455,14 @@ impl<'m, B: Map> Mix<'m, B> {
         let s = e[0] + e[1] + e[2];
         e.map(|e| e / s)
     }
+}
 
-    /// The int8 map and its table, where the map is int8.
-    fn int8(&self) -> Option<(&I8Map<'_>, &[f32; 256])> {
-        Some((self.map.as_i8()?, self.table.as_ref()?))
-    }
+/// One mixing map's view with its [`Mix`].
+type MixAt<'a, B> = (&'a B, &'a Mix);
+
+/// The int8 map and its table, where the map is int8 and the mix has a table.
+fn int8<'a, B: Map>((map, mix): MixAt<'a, B>) -> Option<(&'a I8Map<'a>, &'a [f32; 256])> {
+    Some((map.as_i8()?, mix.table.as_ref()?))
 }
 
 /// Checks `T` and the σs.
@@ -369,19 +492,18 @@ pub fn refine<A: Map, B: Map>(
     out: &mut [f32],
     scratch: &mut [f32],
 ) -> Result<(), KernelError> {
-    let mut rows = WholeMaps::new(aff, w);
-    refine_with(
-        Isa::best(),
-        d0,
-        h,
-        w,
-        &mut rows,
-        kmix,
-        tmix,
-        attrs,
-        out,
-        scratch,
-    )
+    let maps_ok = [kmix, tmix]
+        .iter()
+        .all(|m| m.channels() >= 3 && m.plane() >= h.saturating_mul(w));
+    if d0.len() < h.saturating_mul(w) || !maps_ok {
+        return Err(KernelError::Shape);
+    }
+    let sources = Sources {
+        depth: &mut WholeDepth::new(d0, w),
+        aff: &mut WholeMaps::new(aff, w),
+        mix: &mut WholeMix::new(kmix, tmix, w),
+    };
+    refine_with(Isa::best(), sources, h, w, attrs, out, scratch)
 }
 
 /// One iteration's window of rows in its scratch slice: image row `base` at slot 0, `len` rows.
@@ -409,18 +531,25 @@ impl Window {
     }
 }
 
-/// As [`refine`] with kernel set `isa` and the affinities from `aff` (whole maps or computed
-/// row by row): the x86 sets run 8 or 16 pixels per vector, every pixel's own operations in the
-/// module doc's order, so the bits do not change.
-#[allow(clippy::too_many_arguments)]
-pub fn refine_with<R: AffinityRows, B: Map>(
+/// The three row sources of one refinement: `D_0`, the affinities and the mixing maps, whole
+/// ([`WholeDepth`], [`WholeMaps`], [`WholeMix`]) or computed row by row.
+pub struct Sources<'s, D: DepthRows, R: AffinityRows, M: MixRows> {
+    /// `D_0`.
+    pub depth: &'s mut D,
+    /// The affinities of kernels 3, 5, 7.
+    pub aff: &'s mut R,
+    /// kmix and tmix.
+    pub mix: &'s mut M,
+}
+
+/// As [`refine`] with kernel set `isa` and every input from a row source (whole maps or
+/// computed row by row): the x86 sets run 8 or 16 pixels per vector, every pixel's own
+/// operations in the module doc's order, so the bits do not change. `out`: `h·w` f32.
+pub fn refine_with<D: DepthRows, R: AffinityRows, M: MixRows>(
     isa: Isa,
-    d0: &[f32],
+    src: Sources<'_, D, R, M>,
     h: usize,
     w: usize,
-    aff: &mut R,
-    kmix: &B,
-    tmix: &B,
     attrs: &RefineAttrs,
     out: &mut [f32],
     scratch: &mut [f32],
@@ -428,28 +557,40 @@ pub fn refine_with<R: AffinityRows, B: Map>(
     check_attrs(attrs)?;
     let p = h.checked_mul(w).ok_or(KernelError::Shape)?;
     let t_max = attrs.iterations;
-    let maps_ok = [kmix, tmix]
-        .iter()
-        .all(|m| m.channels() >= 3 && m.plane() >= p);
-    if d0.len() < p || out.len() < p || scratch.len() < scratch_len(w, t_max) || !maps_ok {
+    if out.len() < p || scratch.len() < scratch_len(w, t_max) || p == 0 {
         return Err(KernelError::Shape);
     }
+    let Sources { depth, aff, mix } = src;
     let times = [0, t_max / 2, t_max];
-    let (tmix, kmix) = (Mix::new(tmix), Mix::new(kmix));
+    let mixes = {
+        mix.compute(0)?;
+        let (km, tm, _) = mix.view(0)?;
+        (Mix::new(&tm), Mix::new(&km))
+    };
     let out = &mut out[..p];
     out.fill(0.0);
     let win_len = WINDOW_ROWS * w;
     for (k, &size) in KERNELS.iter().enumerate() {
         let mut br = Branch::new(size, attrs.sigma[k], w);
         let r = br.radius();
-        for (ti, _) in times.iter().enumerate().filter(|(_, &t)| t == 0) {
-            accumulate(isa, out, &d0[..p], &tmix, &kmix, ti, k, 0);
-        }
-        if t_max == 0 {
-            continue;
-        }
+        // Window t holds rows of iteration t (t = 0: D_0), for t < T.
         let mut win = [Window::default(); MAX_ITERATIONS];
         for s in 0..h + t_max * r {
+            if s < h {
+                // Iteration 0 of row s, and its t = 0 terms.
+                if k > 0 || s > 0 {
+                    mix.compute(s)?;
+                }
+                let slot = win[0].push(&mut scratch[..win_len], w, 2 * r, s);
+                let d = &mut scratch[slot * w..(slot + 1) * w];
+                depth.row(s, d)?;
+                let (km, tm, at) = mix.view(s)?;
+                check_mix(&km, &tm, at, w)?;
+                for (ti, _) in times.iter().enumerate().filter(|(_, &t)| t == 0) {
+                    let o = &mut out[s * w..(s + 1) * w];
+                    accumulate(isa, o, d, (&tm, &mixes.0), (&km, &mixes.1), ti, k, at);
+                }
+            }
             for t in 1..=t_max {
                 let Some(y) = s.checked_sub(t * r).filter(|&y| y < h) else {
                     continue;
@@ -461,13 +602,10 @@ pub fn refine_with<R: AffinityRows, B: Map>(
                 if let Some(m) = map.as_i8() {
                     br.set_quant(m.q());
                 }
-                let (done, rest) = scratch.split_at_mut((t - 1) * win_len);
-                let (cur, c_at) = if t == 1 {
-                    (d0, y * w)
-                } else {
-                    let prev = win[t - 1];
-                    (&done[(t - 2) * win_len..], (y - prev.base) * w)
-                };
+                let (done, rest) = scratch.split_at_mut(t * win_len);
+                let prev = win[t - 1];
+                let cur = &done[(t - 1) * win_len..];
+                let c_at = (y - prev.base) * w;
                 let dst = if t < t_max {
                     let slot = win[t].push(&mut rest[..win_len], w, 2 * r, y);
                     &mut rest[slot * w..(slot + 1) * w]
@@ -479,14 +617,28 @@ pub fn refine_with<R: AffinityRows, B: Map>(
                     cur: c_at,
                 };
                 step_row(isa, &map, &br, h, w, y, at, cur, dst)?;
-                for (ti, _) in times.iter().enumerate().filter(|(_, &tt)| tt == t) {
-                    let o = &mut out[y * w..(y + 1) * w];
-                    accumulate(isa, o, dst, &tmix, &kmix, ti, k, y * w);
+                if times.contains(&t) {
+                    let (km, tm, m_at) = mix.view(y)?;
+                    check_mix(&km, &tm, m_at, w)?;
+                    for (ti, _) in times.iter().enumerate().filter(|(_, &tt)| tt == t) {
+                        let o = &mut out[y * w..(y + 1) * w];
+                        accumulate(isa, o, dst, (&tm, &mixes.0), (&km, &mixes.1), ti, k, m_at);
+                    }
                 }
             }
         }
     }
     Ok(())
+}
+
+/// `Err(Shape)` unless both mixing maps hold 3 channels of the row at `at`, `w` wide.
+fn check_mix<B: Map>(km: &B, tm: &B, at: usize, w: usize) -> Result<(), KernelError> {
+    let fits = |m: &B| m.channels() >= 3 && at.checked_add(w).is_some_and(|e| e <= m.plane());
+    if fits(km) && fits(tm) {
+        Ok(())
+    } else {
+        Err(KernelError::Shape)
+    }
 }
 
 /// [`accumulate`] on int8 mixing maps, scalar: the three channel rows sliced once, so the
@@ -540,15 +692,15 @@ fn accumulate_vector<B: Map>(
     isa: Isa,
     out: &mut [f32],
     cur: &[f32],
-    tmix: &Mix<B>,
-    kmix: &Mix<B>,
+    tmix: MixAt<'_, B>,
+    kmix: MixAt<'_, B>,
     ti: usize,
     k: usize,
     first: usize,
 ) -> usize {
     #[cfg(target_arch = "x86_64")]
     if matches!(isa, Isa::Avx2 | Isa::Avx512Vnni) && Isa::Avx2.available() {
-        if let (Some(t), Some(m)) = (tmix.int8(), kmix.int8()) {
+        if let (Some(t), Some(m)) = (int8(tmix), int8(kmix)) {
             let p = out.len().min(cur.len());
             let fits = |m: &I8Map| m.channels >= 3 && m.plane >= first + p;
             if fits(t.0) && fits(m.0) {
@@ -568,8 +720,8 @@ fn accumulate<B: Map>(
     isa: Isa,
     out: &mut [f32],
     cur: &[f32],
-    tmix: &Mix<B>,
-    kmix: &Mix<B>,
+    tmix: MixAt<'_, B>,
+    kmix: MixAt<'_, B>,
     ti: usize,
     k: usize,
     first: usize,
@@ -577,14 +729,14 @@ fn accumulate<B: Map>(
     let p = out.len().min(cur.len());
     let done = accumulate_vector(isa, out, cur, tmix, kmix, ti, k, first);
     if done == 0 {
-        if let (Some(t), Some(m)) = (tmix.int8(), kmix.int8()) {
+        if let (Some(t), Some(m)) = (int8(tmix), int8(kmix)) {
             if accumulate_i8(&mut out[..p], &cur[..p], t, m, ti, k, first) {
                 return;
             }
         }
     }
     for i in done..p {
-        let coef = tmix.one(first + i, ti) * kmix.one(first + i, k);
+        let coef = tmix.1.one(tmix.0, first + i, ti) * kmix.1.one(kmix.0, first + i, k);
         out[i] += coef * cur[i];
     }
 }
@@ -680,7 +832,7 @@ mod tests {
         let t_max = attrs.iterations;
         let times = [0, t_max / 2, t_max];
         let mut out = std::vec![0f32; p];
-        let (tmix, kmix) = (Mix::new(tmix), Mix::new(kmix));
+        let (tm, km) = (Mix::new(tmix), Mix::new(kmix));
         for (k, (&a, &s)) in aff.iter().zip(&KERNELS).enumerate() {
             let br = Branch::new(s, attrs.sigma[k], w);
             let mut cur = d0.to_vec();
@@ -699,7 +851,7 @@ mod tests {
                 for (ti, &tt) in times.iter().enumerate() {
                     if tt == t {
                         for i in 0..p {
-                            out[i] += (tmix.one(i, ti) * kmix.one(i, k)) * cur[i];
+                            out[i] += (tm.one(tmix, i, ti) * km.one(kmix, i, k)) * cur[i];
                         }
                     }
                 }
@@ -755,19 +907,12 @@ mod tests {
             for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
                 let mut out = std::vec![0f32; p];
                 let mut scratch = std::vec![0f32; scratch_len(w, attrs.iterations)];
-                refine_with(
-                    isa,
-                    &d0,
-                    h,
-                    w,
-                    &mut WholeMaps::new([&m3, &m5, &m7], w),
-                    &kmx,
-                    &tmx,
-                    &attrs,
-                    &mut out,
-                    &mut scratch,
-                )
-                .unwrap();
+                let sources = Sources {
+                    depth: &mut WholeDepth::new(&d0, w),
+                    aff: &mut WholeMaps::new([&m3, &m5, &m7], w),
+                    mix: &mut WholeMix::new(&kmx, &tmx, w),
+                };
+                refine_with(isa, sources, h, w, &attrs, &mut out, &mut scratch).unwrap();
                 let same = out
                     .iter()
                     .zip(&want)
@@ -805,7 +950,8 @@ mod tests {
         let a = std::vec![0f32; 48 * 4];
         let m = [0f32; 12];
         let mut o = [0f32; 4];
-        let mut s = [0f32; 30];
+        let n = scratch_len(2, 2);
+        let mut s = std::vec![0f32; n];
         let bad_t = RefineAttrs {
             iterations: 3,
             sigma: [1.0; 3],
@@ -819,12 +965,30 @@ mod tests {
             sigma: [1.0; 3],
         };
         assert_eq!(
-            float::refine(&d0, 2, 2, [&a, &a, &a], &m, &m, &ok, &mut o, &mut s[..29]),
+            float::refine(
+                &d0,
+                2,
+                2,
+                [&a, &a, &a],
+                &m,
+                &m,
+                &ok,
+                &mut o,
+                &mut s[..n - 1]
+            ),
             Err(KernelError::Shape)
         );
         assert_eq!(
             float::refine(&d0, 2, 2, [&a[..31], &a, &a], &m, &m, &ok, &mut o, &mut s),
             Err(KernelError::Shape)
+        );
+        assert_eq!(
+            float::refine(&d0, 2, 2, [&a, &a, &a], &m[..11], &m, &ok, &mut o, &mut s),
+            Err(KernelError::Shape)
+        );
+        assert_eq!(
+            float::refine(&d0, 2, 2, [&a, &a, &a], &m, &m, &ok, &mut o, &mut s),
+            Ok(())
         );
     }
 }
