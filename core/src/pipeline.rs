@@ -3,9 +3,9 @@
 //!
 //! ```
 //! use depthor_core::calibration::Calibration;
-//! use depthor_core::engine::{DepthOut, Engine};
+//! use depthor_core::engine::Engine;
 //! use depthor_core::hal::{DtofSensor, RgbCamera, ZoneFrame};
-//! use depthor_core::pipeline::{depth_frame, FrameBuffers, FrameError};
+//! use depthor_core::pipeline::{depth_frame, DepthOut, FrameBuffers, FrameError};
 //!
 //! /// Per frame on a board: 64 zones, 120×160 RGB, depth out in millimetres.
 //! fn frame(
