@@ -182,6 +182,29 @@ fn depthor(args: &[&str]) -> std::process::Output {
         .unwrap()
 }
 
+/// `depthor gap` on the first `n` frames of `data` written as a recording in `dir/real`, report
+/// in `dir/out`: the output, report.json and the report folder.
+fn gap_run(
+    dir: &Path,
+    data: &GapData,
+    n: usize,
+) -> (std::process::Output, serde_json::Value, std::path::PathBuf) {
+    let rec = dir.join("real");
+    write_recording(&rec, data, n, true);
+    let out = dir.join("out");
+    let o = depthor(&[
+        "gap",
+        "--real",
+        rec.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    (o, report, out)
+}
+
 /// Eight frames (four held out) with a 6 cm range bias: the sign-flip test cannot reach
 /// p ≤ 0.025, so the run ends in the right name or in "inconclusive" with the frames needed,
 /// never in "no significant missing physics".
@@ -191,19 +214,7 @@ fn too_few_frames_is_inconclusive_not_a_null() {
     let mut hidden = preset("mcu").unwrap();
     depthor_host::gap::effects::set(&mut hidden, "range_bias", Some(&[0.06, 0.0]));
     let data = make_real(&scenes()[..8], &hidden, 5, None).unwrap();
-    let rec = tmp.path().join("real8");
-    write_recording(&rec, &data, 8, true);
-    let out = tmp.path().join("out8");
-    let o = depthor(&[
-        "gap",
-        "--real",
-        rec.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let (o, report, out) = gap_run(tmp.path(), &data, 8);
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
     assert!(!md.contains("No significant missing physics"), "{md}");
     if report["conclusive"] == false {
@@ -224,19 +235,8 @@ fn cli_writes_report_and_rejects_bad_input() {
     let mut hidden = base.clone();
     depthor_host::gap::effects::set(&mut hidden, "range_bias", Some(&[0.05, 0.0]));
     let data = make_real(&scenes()[..24], &hidden, 3, None).unwrap();
+    let (_, report, out) = gap_run(tmp.path(), &data, 24);
     let rec = tmp.path().join("real");
-    write_recording(&rec, &data, 24, true);
-    let out = tmp.path().join("out");
-    let o = depthor(&[
-        "gap",
-        "--real",
-        rec.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     for k in ["findings", "fit_before", "fit_after", "sim_config"] {
         assert!(report.get(k).is_some(), "{k} missing");
     }

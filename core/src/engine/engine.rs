@@ -1042,47 +1042,36 @@ fn exec_refine_streamed<'a>(
     )
     .map_err(e)?;
     let scratch: &mut [f32] = typed_mut(win_b, i)?;
-    match f.depth {
+    let mut depth = match f.depth {
         Some(_) => {
             let d_in = plan.shape(d0_id).ok_or(bad)?;
-            let mut depth = UpsampledDepth::new(typed(ins[0], i)?, d_in, h, w);
-            refine_mixed(
-                g,
-                plan,
-                i,
-                &f,
-                &ins,
-                &ids,
-                (consts, rest),
-                isa,
-                &mut depth,
-                &mut aff,
-                attrs,
-                out,
-                scratch,
-            )
+            Depth::Upsampled(UpsampledDepth::new(typed(ins[0], i)?, d_in, h, w))
         }
         None => {
             let d0: &[f32] = typed(ins[0], i)?;
             if d0.len() < p {
                 return Err(bad);
             }
-            let mut depth = WholeDepth::new(d0, w);
-            refine_mixed(
-                g,
-                plan,
-                i,
-                &f,
-                &ins,
-                &ids,
-                (consts, rest),
-                isa,
-                &mut depth,
-                &mut aff,
-                attrs,
-                out,
-                scratch,
-            )
+            Depth::Whole(WholeDepth::new(d0, w))
+        }
+    };
+    let arena = (consts, rest);
+    refine_mixed(
+        g, plan, i, &f, &ins, &ids, arena, isa, &mut depth, &mut aff, attrs, out, scratch,
+    )
+}
+
+/// `D_0` of a fused refinement: whole in the arena, or upsampled row by row.
+enum Depth<'a> {
+    Whole(WholeDepth<'a>),
+    Upsampled(UpsampledDepth<'a>),
+}
+
+impl DepthRows for Depth<'_> {
+    fn row(&mut self, y: usize, dst: &mut [f32]) -> Result<(), KernelError> {
+        match self {
+            Depth::Whole(d) => d.row(y, dst),
+            Depth::Upsampled(d) => d.row(y, dst),
         }
     }
 }

@@ -22,6 +22,20 @@ pub struct Head<'a> {
     pub out_q: QParams,
 }
 
+impl Head<'_> {
+    /// `Err(Shape)` unless the head's output is `out`; `Err(Scratch)` unless `scratch` i32 hold
+    /// its conv scratch.
+    fn check(&self, out: Shape, scratch: usize) -> Result<(), KernelError> {
+        if self.conv.check(self.in_shape)? != out {
+            return Err(KernelError::Shape);
+        }
+        if scratch < Conv2d::scratch_len(&self.conv.geometry, self.in_shape, out) {
+            return Err(KernelError::Scratch);
+        }
+        Ok(())
+    }
+}
+
 /// [`AffinityRows`] that runs each branch's [`Head`] one output row at a time into `ring`.
 #[derive(Debug)]
 pub struct ConvRows<'a, 'r> {
@@ -53,13 +67,7 @@ impl<'a, 'r> ConvRows<'a, 'r> {
             return Err(KernelError::Shape);
         }
         for (head, s) in heads.iter().zip(KERNELS) {
-            let out = head.conv.check(head.in_shape)?;
-            if out != Shape::new(s * s - 1, h, w) {
-                return Err(KernelError::Shape);
-            }
-            if scratch.len() < Conv2d::scratch_len(&head.conv.geometry, head.in_shape, out) {
-                return Err(KernelError::Scratch);
-            }
+            head.check(Shape::new(s * s - 1, h, w), scratch.len())?;
         }
         Ok(ConvRows {
             isa,
@@ -156,13 +164,10 @@ impl<'a, 'r> MixConvRows<'a, 'r> {
         scratch: [&'r mut [i32]; 2],
     ) -> Result<Self, KernelError> {
         for ((head, ring), scratch) in heads.iter().zip(&rings).zip(&scratch) {
-            let out = head.conv.check(head.in_shape)?;
-            if out != Shape::new(3, h, w) || ring.len() < Self::ring_bytes(h, w, iterations) {
+            if ring.len() < Self::ring_bytes(h, w, iterations) {
                 return Err(KernelError::Shape);
             }
-            if scratch.len() < Conv2d::scratch_len(&head.conv.geometry, head.in_shape, out) {
-                return Err(KernelError::Scratch);
-            }
+            head.check(Shape::new(3, h, w), scratch.len())?;
         }
         Ok(MixConvRows {
             isa,
