@@ -1017,15 +1017,8 @@ fn exec_refine_streamed<'a>(
     let (c1, rest) = channel_quants(g, plan, usize::from(f.aff[1]), consts, rest)?;
     let (c2, rest) = channel_quants(g, plan, usize::from(f.aff[2]), consts, rest)?;
     let (conv_b, rest) = take(rest, sz.aff_conv, i)?;
-    let head = |j: u16, ch: &'a [ChannelQuant], k: usize| -> Result<Head<'a>, Error> {
-        let out_id = g.ops.get(usize::from(j)).ok_or(bad)?.output;
-        Ok(Head {
-            conv: conv_of(g, usize::from(j), ch)?,
-            input: typed(ins[k], i)?,
-            in_shape: plan.shape(ids[k]).ok_or(bad)?,
-            out_q: g.tensor(out_id)?.q,
-        })
-    };
+    let head =
+        |j: u16, ch: &'a [ChannelQuant], k: usize| fused_head(g, plan, i, j, ch, ins[k], ids[k]);
     let hs = [
         head(f.aff[0], c0, 3)?,
         head(f.aff[1], c1, 4)?,
@@ -1059,6 +1052,30 @@ fn exec_refine_streamed<'a>(
     refine_mixed(
         g, plan, i, &f, &ins, &ids, arena, isa, &mut depth, &mut aff, attrs, out, scratch,
     )
+}
+
+/// The conv op `j` fused into refine op `i` as a [`Head`]: per-channel constants `ch`, its
+/// input tensor `input_id` read from `input`.
+fn fused_head<'a>(
+    g: &'a Graph,
+    plan: &Plan,
+    i: usize,
+    j: u16,
+    ch: &'a [ChannelQuant],
+    input: &'a [u8],
+    input_id: u16,
+) -> Result<Head<'a>, Error> {
+    let bad = Error::Kernel {
+        op: i,
+        error: KernelError::Shape,
+    };
+    let out_id = g.ops.get(usize::from(j)).ok_or(bad)?.output;
+    Ok(Head {
+        conv: conv_of(g, usize::from(j), ch)?,
+        input: typed(input, i)?,
+        in_shape: plan.shape(input_id).ok_or(bad)?,
+        out_q: g.tensor(out_id)?.q,
+    })
 }
 
 /// `D_0` of a fused refinement: whole in the arena, or upsampled row by row.
@@ -1119,15 +1136,7 @@ fn refine_mixed<D: DepthRows, R: AffinityRows>(
     let (t_ring, rest) = take(rest, tr, i)?;
     let (t_ch, rest) = channel_quants(g, plan, usize::from(mix[1]), consts, rest)?;
     let (t_conv, _) = take(rest, tc, i)?;
-    let head = |j: u16, ch, k: usize| -> Result<Head<'_>, Error> {
-        let out_id = g.ops.get(usize::from(j)).ok_or(bad)?.output;
-        Ok(Head {
-            conv: conv_of(g, usize::from(j), ch)?,
-            input: typed(ins[k], i)?,
-            in_shape: plan.shape(ids[k]).ok_or(bad)?,
-            out_q: g.tensor(out_id)?.q,
-        })
-    };
+    let head = |j: u16, ch, k: usize| fused_head(g, plan, i, j, ch, ins[k], ids[k]);
     let heads = [head(mix[0], k_ch, 1)?, head(mix[1], t_ch, 2)?];
     let rings = [typed_mut(k_ring, i)?, typed_mut(t_ring, i)?];
     let convs = [typed_mut(k_conv, i)?, typed_mut(t_conv, i)?];

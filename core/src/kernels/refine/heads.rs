@@ -23,6 +23,26 @@ pub struct Head<'a> {
 }
 
 impl Head<'_> {
+    /// Output row `y` into `ring` at its slot (channels `stride` apart), with the weights
+    /// `scratch` already holds packed where `packed`.
+    fn row(
+        &self,
+        isa: Isa,
+        y: usize,
+        stride: usize,
+        ring: &mut [i8],
+        scratch: &mut [i32],
+        packed: bool,
+    ) -> Result<(), KernelError> {
+        let dst = OutRows {
+            rows: y..y + 1,
+            stride,
+        };
+        let (input, shape) = (self.input, self.in_shape);
+        conv2d_rows_packed(isa, &self.conv, input, shape, &dst, ring, scratch, packed)?;
+        Ok(())
+    }
+
     /// `Err(Shape)` unless the head's output is `out`; `Err(Scratch)` unless `scratch` i32 hold
     /// its conv scratch.
     fn check(&self, out: Shape, scratch: usize) -> Result<(), KernelError> {
@@ -97,24 +117,12 @@ impl AffinityRows for ConvRows<'_, '_> {
         let rows = self.rows(k);
         let head = self.heads.get(k).ok_or(KernelError::Shape)?;
         let slot = y % rows;
-        let dst = OutRows {
-            rows: y..y + 1,
-            stride: rows * self.w,
-        };
         let ring = self
             .ring
             .get_mut(slot * self.w..)
             .ok_or(KernelError::Shape)?;
-        conv2d_rows_packed(
-            self.isa,
-            &head.conv,
-            head.input,
-            head.in_shape,
-            &dst,
-            ring,
-            self.scratch,
-            self.packed == Some(k),
-        )?;
+        let packed = self.packed == Some(k);
+        head.row(self.isa, y, rows * self.w, ring, self.scratch, packed)?;
         self.packed = Some(k);
         Ok(())
     }
@@ -189,25 +197,12 @@ impl MixRows for MixConvRows<'_, '_> {
 
     fn compute(&mut self, y: usize) -> Result<(), KernelError> {
         let (rows, w) = (self.rows, self.w);
-        let dst = OutRows {
-            rows: y..y + 1,
-            stride: rows * w,
-        };
         for m in 0..2 {
-            let head = &self.heads[m];
             let ring = self.rings[m]
                 .get_mut((y % rows) * w..)
                 .ok_or(KernelError::Shape)?;
-            conv2d_rows_packed(
-                self.isa,
-                &head.conv,
-                head.input,
-                head.in_shape,
-                &dst,
-                ring,
-                self.scratch[m],
-                self.packed[m],
-            )?;
+            let scratch = &mut *self.scratch[m];
+            self.heads[m].row(self.isa, y, rows * w, ring, scratch, self.packed[m])?;
             self.packed[m] = true;
         }
         Ok(())
