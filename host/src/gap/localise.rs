@@ -36,25 +36,42 @@ pub fn records(
         let prep = &frames[f];
         let ev = eval_frame(density, model, base, prep, true);
         for (z, fit) in ev.zones.into_iter().enumerate() {
-            let c = &prep.cov[z];
             out.push(ZoneRecord {
                 zone: z,
-                cov: [
-                    f64::from(c.mean_m),
-                    f64::from(c.spread_m),
-                    f64::from(c.brightness),
-                    f64::from(c.nonlambertian_fraction),
-                    f64::from(c.radius),
-                    (z / prep.cols) as f64,
-                    (z % prep.cols) as f64,
-                    prep.t_s,
-                ],
+                cov: zone_covariates(prep, z),
                 fit,
                 dropped: prep.real[z].is_none(),
             });
         }
     }
     out
+}
+
+/// The covariates of zone `z` of `prep`, in [`Covariate::ALL`]'s order.
+pub fn zone_covariates(prep: &Prepared, z: usize) -> [f64; 8] {
+    let c = &prep.cov[z];
+    [
+        f64::from(c.mean_m),
+        f64::from(c.spread_m),
+        f64::from(c.brightness),
+        f64::from(c.nonlambertian_fraction),
+        f64::from(c.radius),
+        (z / prep.cols) as f64,
+        (z % prep.cols) as f64,
+        prep.t_s,
+    ]
+}
+
+/// Whether covariate `cov` takes more than one value over the zones of `frames`.
+pub fn varies(frames: &[Prepared], cov: Covariate) -> bool {
+    let ci = Covariate::ALL.iter().position(|&c| c == cov).unwrap_or(0);
+    let mut values = frames
+        .iter()
+        .flat_map(|p| (0..p.zones()).map(move |z| zone_covariates(p, z)[ci]));
+    let Some(first) = values.next() else {
+        return false;
+    };
+    values.any(|v| v.total_cmp(&first).is_ne())
 }
 
 /// One slice of one covariate.
@@ -278,5 +295,38 @@ mod tests {
         let s = slices(&recs, 4);
         assert!(s.iter().all(|x| x.covariate != Covariate::ALL[2]));
         assert_eq!(s.len(), 4 * (Covariate::ALL.len() - 1));
+    }
+
+    #[test]
+    fn varies_looks_at_every_zone_of_every_frame() {
+        use crate::sim::covariates::ZoneCovariates;
+        let frame = |material: f32, t_s: f64| Prepared {
+            rows: 1,
+            cols: 2,
+            draws: Vec::new(),
+            k: 0,
+            cov: vec![
+                ZoneCovariates {
+                    mean_m: 1.0,
+                    ..Default::default()
+                },
+                ZoneCovariates {
+                    mean_m: 2.0,
+                    nonlambertian_fraction: material,
+                    ..Default::default()
+                },
+            ],
+            draw_cov: Vec::new(),
+            real: vec![None, None],
+            t_s,
+        };
+        let unlabelled = [frame(0.0, 0.0), frame(0.0, 0.0)];
+        assert!(varies(&unlabelled, Covariate::Range));
+        assert!(!varies(&unlabelled, Covariate::Material));
+        assert!(!varies(&unlabelled, Covariate::Time));
+        // One zone of the second frame differs: the covariate varies.
+        let labelled = [frame(0.0, 0.0), frame(0.5, 1.0)];
+        assert!(varies(&labelled, Covariate::Material) && varies(&labelled, Covariate::Time));
+        assert!(!varies(&[], Covariate::Range));
     }
 }

@@ -452,10 +452,23 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
     let mut joints: Vec<Joint> = Vec::new();
     let mut log = Vec::new();
     let mut cur = ctx.test_nlls(&model);
-    let pool: Vec<&'static Candidate> = LIBRARY
+    // An effect whose covariate takes one value in these frames (material on imports without
+    // labels) cannot be told from the base: it is not a candidate.
+    let mut pool: Vec<&'static Candidate> = Vec::new();
+    for c in LIBRARY
         .iter()
         .filter(|c| !effects::enabled(ctx.base, c.name))
-        .collect();
+    {
+        if super::localise::varies(ctx.frames, c.stratum) {
+            pool.push(c);
+        } else {
+            log.push(format!(
+                "{}: not a candidate, {} takes one value in these frames",
+                c.name,
+                c.stratum.name()
+            ));
+        }
+    }
     // First-round (solo) gain of every candidate, for the confounding check.
     let mut solo: BTreeMap<&'static str, (f64, bool)> = BTreeMap::new();
     for round in 0..opts.max_effects {
