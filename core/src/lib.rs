@@ -5,10 +5,6 @@
 #[cfg(test)]
 extern crate std;
 
-// Only the blob writer (`blob::write`, feature `alloc`) allocates; the rest never does.
-#[cfg(feature = "alloc")]
-extern crate alloc;
-
 // In pipeline order (see the README); the blank lines keep rustfmt from sorting them.
 // 1. Sensors.
 pub mod hal;

@@ -1,15 +1,17 @@
 //! Test helpers: a tiny float network in the blob's op vocabulary, and a calibration-based
 //! quantizer turning it into a blob (a miniature of the host quantizer: min/max ranges, plain
-//! per-channel rounding) written through the core's own `blob::write`. The core's tests cannot
-//! use the host's quantizer: `depthor-host` depends on `depthor-core`.
+//! per-channel rounding) written through the one blob writer, `host/src/quantize/blob_format.rs`,
+//! included here by path. The core's tests cannot depend on `depthor-host` (it depends on
+//! `depthor-core`), and the core itself never allocates, so the writer lives with the host.
 #![allow(dead_code)]
 
+#[path = "../../../host/src/quantize/blob_format.rs"]
+mod blob_format;
+
+pub use blob_format::BlobWriter;
+use blob_format::{bins_head_attrs, conv_attrs, pixel_shuffle_attrs, refine_attrs, upsample_attrs};
 use depthor_core::blob::checksum::crc32;
 use depthor_core::blob::format::{dtype, opcode, upsample_mode, HEADER_LEN, NONE};
-pub use depthor_core::blob::write::BlobWriter;
-use depthor_core::blob::write::{
-    bins_head_attrs, conv_attrs, pixel_shuffle_attrs, refine_attrs, upsample_attrs,
-};
 use depthor_core::kernels::bins::BinsAttrs;
 use depthor_core::kernels::conv::{Activation, ConvGeometry};
 use depthor_core::kernels::elementwise::build_lut;

@@ -1,16 +1,16 @@
 //! The int8 model blob, format v1 (docs/blob.md), from a [`Net`]: [`write_blob`] quantises its
 //! parameters (symmetric per-output-channel int8 weights, int32 bias in units of `s_in · s_w[o]`),
 //! bakes the element-wise LUTs with the core's `build_lut` and float references, and writes
-//! them through the core's byte-level [`BlobWriter`] and attribute encoders
-//! (`depthor_core::blob::write`, the one writer of the format).
+//! them through the byte-level [`BlobWriter`] and attribute encoders of [`super::blob_format`]
+//! (the one writer of the format).
 
+pub use super::blob_format::BlobWriter;
+use super::blob_format::{
+    bins_head_attrs, conv_attrs, pixel_shuffle_attrs, refine_attrs, upsample_attrs,
+};
 use super::net::{Net, OpKind, Storage, UpsampleSize};
 use depthor_core::blob::format::{
     dtype, opcode, upsample_mode, MAX_INPUTS, MAX_OPS, MAX_TENSORS, NONE,
-};
-pub use depthor_core::blob::write::BlobWriter;
-use depthor_core::blob::write::{
-    bins_head_attrs, conv_attrs, pixel_shuffle_attrs, refine_attrs, upsample_attrs,
 };
 use depthor_core::kernels::elementwise::build_lut;
 use depthor_core::kernels::float;

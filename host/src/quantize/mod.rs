@@ -7,8 +7,8 @@
 //!    records every value's min/max (and, for MSE clipping, a histogram) over them and chooses
 //!    int8 asymmetric per-tensor parameters.
 //! 3. [`blob_writer`] quantises weights (symmetric int8 per output channel, int32 bias), bakes
-//!    the LUTs and writes blob format v1; the engine derives its Q31 multipliers from the stored
-//!    f32 scales when it prepares the blob.
+//!    the LUTs and writes blob format v1 through [`blob_format`] (the format's one writer); the
+//!    engine derives its Q31 multipliers from the stored f32 scales when it prepares the blob.
 //! 4. [`check`] compares the engine on the blob with the float network, per frame and per op.
 //!
 //! ```no_run
@@ -20,6 +20,9 @@
 //! std::fs::write("models/mcu/depthor.dblob", &q.blob).unwrap();
 //! ```
 
+pub mod blob_format;
+#[cfg(test)]
+mod blob_format_tests;
 pub mod blob_writer;
 pub mod calibrate;
 pub mod check;

@@ -1,17 +1,16 @@
-//! The writer of the blob format (`docs/blob.md`), the inverse of [`parse()`](super::parse()):
-//! a byte-level [`BlobWriter`] for the tensor table, op records and the 16-byte aligned data
-//! section, and the encoders of each opcode's attributes. It needs an allocator, so it is behind
-//! the `alloc` feature; the quantizers (the host's, and the miniature one of the core's tests)
-//! decide the numbers and write them through it.
+//! The writer of the blob format (`docs/blob.md`), the inverse of the core's
+//! `depthor_core::blob::parse`: a byte-level [`BlobWriter`] for the tensor table, op records and
+//! the 16-byte aligned data section, and the encoders of each opcode's attributes. The
+//! quantizers (the host's [`super::blob_writer`], and the miniature one of the core's tests,
+//! which include this file by path: the core itself never allocates) decide the numbers and
+//! write them through it. Only `depthor_core` paths are used, so the file compiles in both.
 
-use alloc::vec::Vec;
-
-use super::checksum::crc32;
-use super::format::{
+use depthor_core::blob::checksum::crc32;
+use depthor_core::blob::format::{
     activation, DATA_ALIGN, HEADER_LEN, MAGIC, OP_HEADER_LEN, TENSOR_ENTRY_LEN, VERSION,
 };
-use crate::kernels::conv::{Activation, ConvGeometry};
-use crate::kernels::requant::QParams;
+use depthor_core::kernels::conv::{Activation, ConvGeometry};
+use depthor_core::kernels::requant::QParams;
 
 /// Byte-level builder of a v1 blob.
 #[derive(Clone, Debug, Default)]
@@ -190,53 +189,4 @@ pub fn upsample_attrs(mode: u8, a: u16, b: u16) -> Vec<u8> {
 /// `pixel_shuffle` attributes: the factor.
 pub fn pixel_shuffle_attrs(factor: u16) -> Vec<u8> {
     le16(&[factor, 0])
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::blob::format::{dtype, opcode};
-
-    #[test]
-    fn writer_layout_and_crc() {
-        let mut bw = BlobWriter::new(4, 6);
-        let q = QParams {
-            scale: 0.5,
-            zero_point: -3,
-        };
-        assert_eq!(bw.tensor(dtype::I8, 3, q), 0);
-        bw.tensor(dtype::I8, 1, q);
-        bw.tensor(dtype::F32, 1, q);
-        assert_eq!(bw.param(&[1, 2, 3]), 0);
-        assert_eq!(bw.param(&[4]), 16);
-        bw.op(opcode::ADD, &[0, 1, 1], 2, &[]);
-        bw.io(0, 1, 2);
-        let b = bw.finish();
-        assert_eq!(&b[0..4], b"DPTH");
-        assert_eq!(u16::from_le_bytes([b[16], b[17]]), 4);
-        assert_eq!(u16::from_le_bytes([b[18], b[19]]), 6);
-        // 3 tensors × 16 + op record (8 + 3 ids padded to 8) = 64 bytes, then the data section
-        // at blob offset 32 + 64 = 96 (16-aligned), 17 bytes of data.
-        let payload_len = u32::from_le_bytes([b[8], b[9], b[10], b[11]]) as usize;
-        assert_eq!(payload_len, 64 + 17);
-        assert_eq!(b[96..99], [1, 2, 3]);
-        assert_eq!(b[112], 4);
-        let crc = u32::from_le_bytes([b[12], b[13], b[14], b[15]]);
-        assert_eq!(crc, crc32(&b[32..]));
-        // Tensor 0's zero point.
-        assert_eq!(i32::from_le_bytes([b[40], b[41], b[42], b[43]]), -3);
-    }
-
-    #[test]
-    fn attributes_have_the_parsed_lengths() {
-        let g = ConvGeometry::POINTWISE;
-        assert_eq!(
-            conv_attrs(&g, Activation::LeakyRelu(0.1), [0, 16, 32]).len(),
-            36
-        );
-        assert_eq!(bins_head_attrs(8, 0.1, 10.0, [0, 16, 32]).len(), 24);
-        assert_eq!(refine_attrs(4, [1.0, 2.0, 3.0]).len(), 16);
-        assert_eq!(upsample_attrs(0, 1, 2).len(), 8);
-        assert_eq!(pixel_shuffle_attrs(2).len(), 4);
-    }
 }
