@@ -28,7 +28,7 @@
 //! iteration 0's window) and kmix/tmix from a [`MixRows`] source that keeps rows
 //! `s − T·3 ..= s` readable ([`mix_ring_rows`]); the `t = 0` terms of row `s` are added at step
 //! `s`. Every pixel still gets the operations above in the same order, so the bits equal the
-//! whole-map order's. Scratch: [`scratch_len`] f32 (`(T·14 + 1)·W`), against `2·H·W` for
+//! whole-map order's. Scratch: [`scratch_len`] f32 (`(T·`[`WINDOW_ROWS`]` + 1)·W`), against `2·H·W` for
 //! ping-pong maps.
 
 mod heads;
