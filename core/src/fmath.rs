@@ -157,6 +157,11 @@ pub(crate) fn exp_f32(x: f32) -> f32 {
                 + r * (1.0 / 6.0
                     + r * (1.0 / 24.0
                         + r * (1.0 / 120.0 + r * (1.0 / 720.0 + r * (1.0 / 5040.0)))))));
+    if (-126..=127).contains(&k) {
+        // One exact power of two: the same single rounding as the two-step form below, whose
+        // first product is exact for every k.
+        return p * pow2i(k);
+    }
     // 2^k = 2^k1 · 2^k2 with both halves inside the normal exponent range [−126, 127].
     let k1 = k / 2;
     let k2 = k - k1;
@@ -201,6 +206,24 @@ mod tests {
         assert_eq!(exp_f32(100.0), f32::INFINITY);
         assert!(exp_f32(f32::NAN).is_nan());
         assert!(exp_f32(-100.0) > 0.0, "subnormal results kept");
+    }
+
+    /// The one-multiply scaling for `k ∈ [−126, 127]` gives the bits of the two-step form
+    /// (the shipped golden outputs were made with it) for every `k` and a dense sweep of the
+    /// polynomial's range, subnormal and overflowing results included.
+    #[test]
+    fn exp_f32_one_step_scaling_equals_two_step() {
+        let two_step = |p: f32, k: i32| p * pow2i(k / 2) * pow2i(k - k / 2);
+        for k in -126..=127 {
+            for bits in (0x3f35_04f3u32..=0x3fb5_04f3).step_by(997) {
+                let p = f32::from_bits(bits); // [√½, √2]: the polynomial's range
+                assert_eq!(
+                    (p * pow2i(k)).to_bits(),
+                    two_step(p, k).to_bits(),
+                    "p {p} k {k}"
+                );
+            }
+        }
     }
 
     #[test]

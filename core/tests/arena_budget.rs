@@ -6,14 +6,14 @@
 use depthor_core::blob::parse;
 use depthor_core::engine::{plan_with, Fusion, Memory};
 
-/// (variant, goal bytes, ceiling bytes: the streamed plan measured when this test was written,
-/// which the planner must not exceed).
+/// (variant, goal bytes, ceiling bytes: the streamed plan as last measured, which the planner
+/// must not exceed; +16 B since the conv scratch records which input row each row slot holds).
 const BUDGETS: [(&str, usize, usize); 2] = [
     ("mcu", 384 * 1024, CEIL_MCU),
     ("phone", 2 * 1024 * 1024, CEIL_PHONE),
 ];
-const CEIL_MCU: usize = 384_175;
-const CEIL_PHONE: usize = 1_672_255;
+const CEIL_MCU: usize = 384_191;
+const CEIL_PHONE: usize = 1_672_271;
 
 #[test]
 fn shipped_blobs_stay_within_their_arena_ceilings() {

@@ -217,6 +217,7 @@ impl Conv2d<'_> {
             .saturating_add(weights.div_ceil(2))
             .saturating_add(ocg)
             .saturating_add(k.saturating_mul(icg.div_ceil(2)))
+            .saturating_add(g.kernel[0])
     }
 
     /// The requantisation constants of channel `o` for sums offset by `base` (`simple` false
@@ -484,7 +485,8 @@ pub fn conv2d(
 /// As [`conv2d`] with the kernel set `isa` (`Err(Isa)` if this CPU cannot run it).
 ///
 /// Per group, the weights are packed once ([`pack::pack_weights`]); per output row, the input
-/// rows it reads are packed with channels innermost ([`pack::pack_rows`]); then for each
+/// input rows it reads that the previous output row did not are packed with channels innermost
+/// into row slots ([`pack::pack_row`], [`pack::row_slot`]); then for each
 /// [`PB`]-pixel block and [`NB`]-channel block one micro-kernel ([`super::dot`]) computes the
 /// sums in registers before requantisation.
 pub fn conv2d_with(
@@ -568,8 +570,9 @@ pub fn conv2d_rows_with(
 }
 
 /// As [`conv2d_rows_with`]; with `weights_packed`, a one-group conv skips packing its weights
-/// and uses those its previous call (same `isa`, `op`, `in_shape`) left in `scratch`: the
-/// refinement's heads pack theirs once per branch, not once per row.
+/// and uses those its previous call (same `isa`, `op`, `in_shape` and `input`) left in
+/// `scratch`, and the input rows it packed there: the refinement's heads pack their weights
+/// once per branch, not once per row, and each input row about once.
 #[allow(clippy::too_many_arguments)]
 pub fn conv2d_rows_packed(
     isa: Isa,
@@ -807,14 +810,12 @@ fn run<F: Micro, S: Source>(
     let (rows, rest) = take::<F::Elem>(scratch, dims.rows_len());
     let (weights, rest) = take::<F::W>(rest, per_pack * dims.block_len);
     let (sums, rest) = take::<i32>(rest, ocg);
-    let (steps, _) = take::<u32>(rest, kh * kw * dims.n_cg);
-    for ky in 0..kh {
-        for kx in 0..kw {
-            let tap = pack::tap_offset(g, out.w, F::L, ky, kx);
-            for cg in 0..dims.n_cg {
-                steps[(ky * kw + kx) * dims.n_cg + cg] = (tap + cg * dims.cg_stride) as u32;
-            }
-        }
+    let (steps, rest) = take::<u32>(rest, kh * kw * dims.n_cg);
+    // Input row held by each row slot (`pack::row_slot`); the packed rows depend on the input
+    // only, so they stay valid across packs and, with `weights_packed`, across calls.
+    let (slots, _) = take::<i32>(rest, kh);
+    if !weights_packed || g.groups > 1 {
+        slots.fill(i32::MIN);
     }
     let group_shape = Shape::new(icg, in_shape.h, in_shape.w);
     let mut acc: Acc = [0; NB * PB];
@@ -822,6 +823,9 @@ fn run<F: Micro, S: Source>(
     // The packed weights stay valid across calls only where one pack holds them all.
     let keep = weights_packed && g.groups == 1 && per_pack >= dims.n_blocks;
     for grp in 0..g.groups {
+        if grp > 0 {
+            slots.fill(i32::MIN);
+        }
         let o_first = grp * ocg;
         for first_block in (0..dims.n_blocks).step_by(per_pack) {
             // Channels c0 .. c0 + nc of the group, packed together.
@@ -846,8 +850,7 @@ fn run<F: Micro, S: Source>(
                 out,
                 dst,
                 output,
-                rows,
-                steps,
+                (&mut *rows, &mut *steps, &mut *slots),
                 &dims,
                 &pack,
                 &mut acc,
@@ -875,17 +878,46 @@ fn run_pack<F: Micro, S: Source>(
     out: Shape,
     dst: &OutRows,
     output: &mut [i8],
-    rows: &mut [F::Elem],
-    steps: &[u32],
+    (rows, steps, slots): (&mut [F::Elem], &mut [u32], &mut [i32]),
     dims: &pack::Dims,
     pack: &Pack<'_, F::W>,
     acc: &mut Acc,
 ) {
     let zp = op.quant.input_zero_point;
     let g = &op.geometry;
+    let (kh, kw) = (g.kernel[0], g.kernel[1]);
     let (weights, sums) = (pack.weights, pack.sums);
     for oy in dst.rows.clone() {
-        pack::pack_rows::<F, S>(g, input, c_in, group_shape, out.w, oy, zp, dims, rows);
+        // The input rows of output row `oy` into their slots (packed only where a slot does not
+        // hold its row already), and the reduction steps' offsets for this slot order.
+        for ky in 0..kh {
+            let iy = (oy * g.stride[0] + ky * g.dilation[0]) as isize - g.padding[0] as isize;
+            let keyed = pack::row_slot(kh, g.dilation[0], iy);
+            let slot = keyed.unwrap_or(ky);
+            let tag = i32::try_from(iy).unwrap_or(i32::MIN);
+            if keyed.is_none() || tag == i32::MIN || slots[slot] != tag {
+                pack::pack_row::<F, S>(
+                    g,
+                    input,
+                    c_in,
+                    group_shape,
+                    out.w,
+                    iy,
+                    slot,
+                    zp,
+                    dims,
+                    rows,
+                );
+                slots[slot] = if keyed.is_some() { tag } else { i32::MIN };
+            }
+            for kx in 0..kw {
+                let tap = pack::tap_offset(g, out.w, F::L, slot, kx);
+                let at = &mut steps[(ky * kw + kx) * dims.n_cg..][..dims.n_cg];
+                for (cg, step) in at.iter_mut().enumerate() {
+                    *step = (tap + cg * dims.cg_stride) as u32;
+                }
+            }
+        }
         // Blocks outermost: a block's requantisation constants once per row.
         for b in 0..pack.channels.div_ceil(NB) {
             let o0 = pack.first + b * NB;
@@ -1193,6 +1225,85 @@ pub(crate) mod tests {
     kernel_tests!(suite_arm_dsp, ref: conv2d_ref, fast: arm_dsp, golden: golden, arb: arb_valid(), check: check);
     kernel_tests!(suite_avx2, ref: conv2d_ref, fast: avx2, golden: golden, arb: arb_valid(), check: check);
     kernel_tests!(suite_avx512_vnni, ref: conv2d_ref, fast: avx512_vnni, golden: golden, arb: arb_valid(), check: check);
+
+    /// Input rows packed once into row slots and reused: convs whose weights take several packs
+    /// (`MAX_PACKED_WEIGHTS`), dilations whose rows take distinct slots (`gcd(dh, kh) = 1`) and
+    /// one where they would collide, stride 2, and row-by-row calls that keep their scratch
+    /// (`conv2d_rows_packed` with `weights_packed`, as the refinement's heads call it) all give
+    /// the reference's bits on every kernel set.
+    #[test]
+    fn row_slots_match_reference_across_packs_and_calls() {
+        let mut seed = 11u64;
+        for (k, s, d, cin, cout, h, w) in [
+            (3usize, 1usize, 1usize, 48usize, 48usize, 7usize, 9usize),
+            (3, 1, 2, 8, 5, 9, 12),
+            (3, 1, 3, 8, 5, 10, 12),
+            (5, 2, 1, 6, 7, 11, 13),
+            (3, 1, 1, 6, 3, 6, 40),
+        ] {
+            let mut next = || {
+                seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (seed >> 33) as u32
+            };
+            let geometry = ConvGeometry {
+                kernel: [k, k],
+                stride: [s, s],
+                dilation: [d, d],
+                padding: [k / 2 * d, k / 2 * d],
+                groups: 1,
+            };
+            let in_shape = Shape::new(cin, h, w);
+            let case = Case {
+                name: "row slots",
+                geometry,
+                in_shape,
+                out_c: cout,
+                input: (0..in_shape.len().unwrap()).map(|_| next() as i8).collect(),
+                in_q: QParams {
+                    scale: 0.02,
+                    zero_point: 5,
+                },
+                weights: (0..geometry.weight_len(cin, cout).unwrap())
+                    .map(|_| (next() as i8).max(-127))
+                    .collect(),
+                w_scales: (0..cout).map(|i| 0.0005 + 0.0001 * i as f32).collect(),
+                bias: (0..cout).map(|i| i as i32 * 50 - 300).collect(),
+                out_q: QParams {
+                    scale: 0.05,
+                    zero_point: -3,
+                },
+                act: Activation::None,
+                expect: None,
+            };
+            for f in [portable, arm_dsp, avx2, avx512_vnni] {
+                check(&case, f);
+            }
+            let (out, whole) = run(&case, conv2d_ref);
+            let ch = channels(&case);
+            let op = Conv2d {
+                geometry,
+                quant: ConvQuant::new(5, -3, Activation::None),
+                weights: &case.weights,
+                channels: &ch,
+            };
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                let mut y = std::vec![0i8; out.len().unwrap()];
+                let mut t = std::vec![0i32; Conv2d::scratch_len(&geometry, in_shape, out)];
+                for oy in 0..out.h {
+                    let dst = OutRows {
+                        rows: oy..oy + 1,
+                        stride: out.h * out.w,
+                    };
+                    let at = &mut y[oy * out.w..];
+                    conv2d_rows_packed(isa, &op, &case.input, in_shape, &dst, at, &mut t, oy > 0)
+                        .unwrap();
+                }
+                assert_eq!(y, whole, "{} row by row, k {k} s {s} d {d}", isa.name());
+            }
+        }
+    }
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(48))]

@@ -2,9 +2,11 @@
 //!
 //! **Rows.** For one output row `oy`, the `kh` input rows it reads (`iy = oy·sh + ky·dh − ph`)
 //! are packed per group of `L` input channels ("channel group" `cg`) as
-//! `rows[cg][ky][phase][xq][l]`: input channel `cg·L + l` at padded column
-//! `xq·sw + phase` (column `ix = xq·sw + phase − pw`). Tap `(ky, kx)` of output pixel `ox` is
-//! then at `[cg][ky][(kx·dw) mod sw][ox + ⌊kx·dw / sw⌋]`: consecutive pixels are consecutive
+//! `rows[cg][slot][phase][xq][l]`: input channel `cg·L + l` at padded column
+//! `xq·sw + phase` (column `ix = xq·sw + phase − pw`), input row `iy` in slot
+//! [`row_slot`]` = iy mod kh` (or `ky` where that would collide), so a row stays packed while
+//! the next output rows read it. Tap `(ky, kx)` of output pixel `ox` is then at
+//! `[cg][slot][(kx·dw) mod sw][ox + ⌊kx·dw / sw⌋]`: consecutive pixels are consecutive
 //! `L`-element words for every stride and dilation. Padding (rows, columns, channels past the
 //! group's last) holds the padding element. Each row is [`row_width`] words wide so that a
 //! pixel block of [`PB`] may run past the last output column.
@@ -42,6 +44,12 @@ pub trait Layout {
     fn weight(w: i8) -> Self::W;
     /// What the packing adds to channel `o`'s sum, given `zp` and `Σw` of that channel.
     fn bias_term(zp: i32, sum_w: i32) -> i32;
+    /// Packs the first pixels of two untabled channel rows into `out` as [`Layout::elem`]
+    /// would, where the target has a faster way; returns how many pixels it packed (0: none).
+    #[inline(always)]
+    fn interleave2_fast(_a: &[i8], _b: &[i8], _zp: i32, _out: &mut [Self::Elem]) -> usize {
+        0
+    }
 }
 
 /// 16-bit `x − zp`, two channels per word.
@@ -65,6 +73,11 @@ impl Layout for Pairs {
     #[inline(always)]
     fn bias_term(_zp: i32, _sum_w: i32) -> i32 {
         0
+    }
+    #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+    #[inline(always)]
+    fn interleave2_fast(a: &[i8], b: &[i8], zp: i32, out: &mut [i16]) -> usize {
+        super::arm::pack::interleave_pairs(a, b, zp, out)
     }
 }
 
@@ -252,16 +265,30 @@ impl Source for Parts<'_> {
     }
 }
 
-/// Packs the rows output row `oy` reads from channels `c0 .. c0 + in_shape.c` of `input` (the
-/// group's channels).
+/// Slot of the packed rows that holds input row `iy` of a conv with kernel height `kh` and
+/// row dilation `dh`: `iy mod kh` where the `kh` rows one output row reads then take distinct
+/// slots (`gcd(dh, kh) = 1`, e.g. every undilated kernel), so that a row packed for one output
+/// row serves the next ones that read it; `None` otherwise (the slot is then the tap row).
+pub fn row_slot(kh: usize, dh: usize, iy: isize) -> Option<usize> {
+    let (mut a, mut b) = (kh, dh);
+    while b != 0 {
+        (a, b) = (b, a % b);
+    }
+    (a == 1).then(|| iy.rem_euclid(kh as isize) as usize)
+}
+
+/// Packs input row `iy` (padding where it lies outside the image) of channels
+/// `c0 .. c0 + in_shape.c` of `input` (the group's channels) into row slot `slot` of every
+/// channel group of `rows`.
 #[allow(clippy::too_many_arguments)]
-pub fn pack_rows<F: Layout, S: Source>(
+pub fn pack_row<F: Layout, S: Source>(
     g: &ConvGeometry,
     input: &S,
     c0: usize,
     in_shape: Shape,
     out_w: usize,
-    oy: usize,
+    iy: isize,
+    slot: usize,
     zp: i32,
     dims: &Dims,
     rows: &mut [F::Elem],
@@ -277,54 +304,51 @@ pub fn pack_rows<F: Layout, S: Source>(
         let hi = (iw + pw).saturating_sub(phase).div_ceil(sw).min(rw);
         (lo.min(hi), hi)
     };
+    let row_ok = iy >= 0 && (iy as usize) < ih;
     for cg in 0..dims.n_cg {
-        for ky in 0..g.kernel[0] {
-            let iy = (oy * g.stride[0] + ky * g.dilation[0]) as isize - g.padding[0] as isize;
-            let row_ok = iy >= 0 && (iy as usize) < ih;
-            for phase in 0..sw {
-                let base = cg * dims.cg_stride + (ky * sw + phase) * rw * l;
-                let dst = &mut rows[base..base + rw * l];
-                if !row_ok {
-                    dst.fill(pad);
-                    continue;
-                }
-                let (lo, hi) = span(phase);
-                dst[..lo * l].fill(pad);
-                dst[hi.max(lo) * l..].fill(pad);
-                let at = iy as usize * iw + (lo * sw + phase).saturating_sub(pw);
-                let len = hi.saturating_sub(lo);
-                if sw == 1 && (cg + 1) * l <= in_shape.c {
-                    let src = |li: usize| input.run(c0 + cg * l + li, at, len);
-                    let out = &mut dst[lo * l..hi * l];
-                    match l {
-                        4 => {
-                            if let (Some(a), Some(b), Some(c), Some(d)) =
-                                (src(0), src(1), src(2), src(3))
-                            {
-                                interleave4::<F>([a, b, c, d], zp, out);
-                                continue;
-                            }
+        for phase in 0..sw {
+            let base = cg * dims.cg_stride + (slot * sw + phase) * rw * l;
+            let dst = &mut rows[base..base + rw * l];
+            if !row_ok {
+                dst.fill(pad);
+                continue;
+            }
+            let (lo, hi) = span(phase);
+            dst[..lo * l].fill(pad);
+            dst[hi.max(lo) * l..].fill(pad);
+            let at = iy as usize * iw + (lo * sw + phase).saturating_sub(pw);
+            let len = hi.saturating_sub(lo);
+            if sw == 1 && (cg + 1) * l <= in_shape.c {
+                let src = |li: usize| input.run(c0 + cg * l + li, at, len);
+                let out = &mut dst[lo * l..hi * l];
+                match l {
+                    4 => {
+                        if let (Some(a), Some(b), Some(c), Some(d)) =
+                            (src(0), src(1), src(2), src(3))
+                        {
+                            interleave4::<F>([a, b, c, d], zp, out);
+                            continue;
                         }
-                        _ => {
-                            if let (Some(a), Some(b)) = (src(0), src(1)) {
-                                interleave2::<F>([a, b], zp, out);
-                                continue;
-                            }
+                    }
+                    _ => {
+                        if let (Some(a), Some(b)) = (src(0), src(1)) {
+                            interleave2::<F>([a, b], zp, out);
+                            continue;
                         }
                     }
                 }
-                for li in 0..l {
-                    let c = cg * l + li;
-                    let words = &mut dst[lo * l..hi.max(lo) * l];
-                    let src = if c < in_shape.c {
-                        input.run(c0 + c, iy as usize * iw, iw)
-                    } else {
-                        None
-                    };
-                    let ix0 = (lo * sw + phase - pw).min(iw);
-                    let run = src.map(|(src, table)| (&src[ix0..], table));
-                    fill_lane::<F>(words, l, li, run, sw, zp);
-                }
+            }
+            for li in 0..l {
+                let c = cg * l + li;
+                let words = &mut dst[lo * l..hi.max(lo) * l];
+                let src = if c < in_shape.c {
+                    input.run(c0 + c, iy as usize * iw, iw)
+                } else {
+                    None
+                };
+                let ix0 = (lo * sw + phase - pw).min(iw);
+                let run = src.map(|(src, table)| (&src[ix0..], table));
+                fill_lane::<F>(words, l, li, run, sw, zp);
             }
         }
     }
@@ -398,7 +422,11 @@ fn interleave4<F: Layout>(src: [Run; 4], zp: i32, out: &mut [F::Elem]) {
 #[inline]
 fn interleave2<F: Layout>(src: [Run; 2], zp: i32, out: &mut [F::Elem]) {
     if src.iter().all(|s| s.1.is_none()) {
-        for (d, (&a, &b)) in out.chunks_exact_mut(2).zip(src[0].0.iter().zip(src[1].0)) {
+        let done = F::interleave2_fast(src[0].0, src[1].0, zp, out);
+        let (a, b) = (src[0].0.get(done..), src[1].0.get(done..));
+        let (a, b) = (a.unwrap_or_default(), b.unwrap_or_default());
+        let out = out.get_mut(done * 2..).unwrap_or_default();
+        for (d, (&a, &b)) in out.chunks_exact_mut(2).zip(a.iter().zip(b)) {
             d[0] = F::elem(a, zp);
             d[1] = F::elem(b, zp);
         }

@@ -1,4 +1,5 @@
 //! Cortex-M micro-kernels (stable `asm!`, built with core's `arm-dsp` feature).
 
 pub mod dsp;
+pub mod pack;
 pub mod refine;
