@@ -212,7 +212,7 @@ fn gap_run(
 fn too_few_frames_is_inconclusive_not_a_null() {
     let tmp = tempfile::tempdir().unwrap();
     let mut hidden = preset("mcu").unwrap();
-    depthor_host::gap::effects::set(&mut hidden, "range_bias", Some(&[0.06, 0.0]));
+    hidden.set_effect("range_bias", Some(&[0.06, 0.0])).unwrap();
     let data = make_real(&scenes()[..8], &hidden, 5, None).unwrap();
     let (o, report, out) = gap_run(tmp.path(), &data, 8);
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
@@ -233,7 +233,7 @@ fn cli_writes_report_and_rejects_bad_input() {
     let tmp = tempfile::tempdir().unwrap();
     let base = preset("mcu").unwrap();
     let mut hidden = base.clone();
-    depthor_host::gap::effects::set(&mut hidden, "range_bias", Some(&[0.05, 0.0]));
+    hidden.set_effect("range_bias", Some(&[0.05, 0.0])).unwrap();
     let data = make_real(&scenes()[..24], &hidden, 3, None).unwrap();
     let (_, report, out) = gap_run(tmp.path(), &data, 24);
     let rec = tmp.path().join("real");

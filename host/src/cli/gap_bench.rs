@@ -205,7 +205,7 @@ fn calibrate_units(args: &Args) -> anyhow::Result<()> {
     let sets: Vec<_> = (0..k)
         .map(|t| render_scenes(args.frames, args.width, args.height, cal0 + t * n))
         .collect();
-    let names: Vec<&'static str> = effects::LIBRARY
+    let names: Vec<&'static str> = effects::ALL
         .iter()
         .map(|c| c.name)
         .filter(|n| args.only.as_ref().is_none_or(|o| n.contains(o.as_str())))

@@ -10,8 +10,9 @@ use std::path::Path;
 use rayon::prelude::*;
 
 use super::data::{GapData, GapFrame};
+use super::effects::{library, UnknownEffect, ALL};
 use super::stats::clopper_pearson_upper;
-use super::{analyze, effects, Analysis, GapError, GapOptions};
+use super::{analyze, Analysis, GapError, GapOptions};
 use crate::import::{self, ImportKind};
 use crate::rng::Rng;
 use crate::scene::{camera_for, render_scene, SceneConfig, SceneFrame};
@@ -25,8 +26,14 @@ pub use super::units::unit_size;
 
 /// Parameters of `name` at `size` × its unit ([`unit_size`]; integer parameters stay at their
 /// unit).
-pub fn sized(name: &str, size: f64) -> Option<Vec<f64>> {
+pub fn sized(name: &str, size: f64) -> Result<Vec<f64>, UnknownEffect> {
     super::units::scale(name, &unit_size(name)?, size)
+}
+
+/// `(name, sized(name, size))` for the fixed case lists, whose names are the library's: a
+/// misspelt one panics naming it.
+fn at_size(name: &'static str, size: f64) -> (&'static str, Vec<f64>) {
+    (name, sized(name, size).unwrap_or_else(|e| panic!("{e}")))
 }
 
 /// The measurement seed of a case: `seed` mixed with its label (FNV-1a), so a single case
@@ -323,9 +330,7 @@ impl CaseResult {
     pub fn param_error(&self) -> Option<f64> {
         let (name, truth) = self.case.hidden.first()?;
         let fitted = self.fitted.as_ref()?;
-        let c = effects::candidate(name)?;
-        let i = c.params.iter().position(|p| !p.integer)?;
-        let i = if *name == "calibration_shift" { 1 } else { i };
+        let i = library(name).params.iter().position(|p| !p.integer)?;
         Some((fitted[i] - truth[i]).abs() / truth[i].abs().max(1e-9))
     }
 }
@@ -340,7 +345,7 @@ pub fn run_case(
 ) -> Result<(CaseResult, Analysis), GapError> {
     let mut hidden = base.clone();
     for (n, v) in &case.hidden {
-        effects::set(&mut hidden, n, Some(v));
+        hidden.set_effect(n, Some(v))?;
     }
     let post: Option<&PostEffect> = if case.outside {
         Some(&phantom_cover_glass)
@@ -359,7 +364,7 @@ pub fn run_case(
         .hidden
         .first()
         .filter(|(n, _)| named.iter().any(|m| m == n))
-        .map(|(n, _)| effects::get(&a.selection.estimate, n));
+        .map(|(n, _)| library(n).get(&a.selection.estimate));
     Ok((
         CaseResult {
             case: case.clone(),
@@ -381,20 +386,18 @@ pub fn run_case(
 /// One case per library effect and size in `sizes` on `scenes` (effects in `skip` left out).
 fn sized_cases(sizes: &[f64], scenes: SceneSet, skip: &[&str]) -> Vec<Case> {
     let mut v = Vec::new();
-    for c in effects::LIBRARY {
+    for c in ALL {
         if skip.contains(&c.name) {
             continue;
         }
         for &s in sizes {
-            if let Some(p) = sized(c.name, s) {
-                v.push(Case {
-                    label: label(scenes, &format!("{}@{s}x", c.name)),
-                    hidden: vec![(c.name, p)],
-                    size: s,
-                    outside: false,
-                    scenes,
-                });
-            }
+            v.push(Case {
+                label: label(scenes, &format!("{}@{s}x", c.name)),
+                hidden: vec![at_size(c.name, s)],
+                size: s,
+                outside: false,
+                scenes,
+            });
         }
     }
     v
@@ -436,7 +439,6 @@ fn multi(l: &str, hidden: Vec<(&'static str, Vec<f64>)>, scenes: SceneSet) -> Ca
 pub fn standard_cases(sizes: &[f64], nulls: usize) -> Vec<Case> {
     let mut v = sized_cases(sizes, SceneSet::Sim, &[]);
     v.extend(null_cases(nulls, SceneSet::Sim));
-    let s4 = |n: &'static str| (n, sized(n, 4.0).unwrap_or_default());
     for (a, b) in [
         ("range_dropout", "range_bias"),
         ("dark_dropout", "edge_mixing"),
@@ -444,7 +446,7 @@ pub fn standard_cases(sizes: &[f64], nulls: usize) -> Vec<Case> {
     ] {
         v.push(multi(
             &format!("{a}+{b}@4x"),
-            vec![s4(a), s4(b)],
+            vec![at_size(a, 4.0), at_size(b, 4.0)],
             SceneSet::Sim,
         ));
     }
@@ -464,18 +466,17 @@ pub fn standard_cases(sizes: &[f64], nulls: usize) -> Vec<Case> {
 /// calibration has absorbed into a range scale (`range_bias.scale = −mean(k − 1)·fraction` over
 /// the grid): the residual is then the radial pattern alone.
 pub fn confounder_cases() -> Vec<Case> {
-    let s4 = |n: &'static str| (n, sized(n, 4.0).unwrap_or_default());
-    let radial = sized("radial_distance", 4.0).unwrap_or_default();
+    let (_, radial) = at_size("radial_distance", 4.0);
     let scale = -absorbed_scale(radial.first().copied().unwrap_or(0.0));
     vec![
         multi(
             "range_dropout@4x",
-            vec![s4("range_dropout")],
+            vec![at_size("range_dropout", 4.0)],
             SceneSet::DarkFar,
         ),
         multi(
             "dark_dropout@4x",
-            vec![s4("dark_dropout")],
+            vec![at_size("dark_dropout", 4.0)],
             SceneSet::DarkFar,
         ),
         multi(
@@ -491,7 +492,7 @@ pub fn confounder_cases() -> Vec<Case> {
 
 /// Mean of `factor − 1` over the 8×8 grid for a `radial_distance` of `fraction` (45° FoV).
 pub fn absorbed_scale(fraction: f64) -> f64 {
-    let r = crate::sim::radial_distance::RadialDistance {
+    let r = crate::sim::effects::radial_distance::RadialDistance {
         enabled: true,
         fraction: fraction as f32,
         ..Default::default()
@@ -509,10 +510,9 @@ pub fn absorbed_scale(fraction: f64) -> f64 {
 pub fn real_cases(sizes: &[f64], nulls: usize) -> Vec<Case> {
     let mut v = sized_cases(sizes, SceneSet::Real, &["multipath"]);
     v.extend(null_cases(nulls, SceneSet::Real));
-    let s4 = |n: &'static str| (n, sized(n, 4.0).unwrap_or_default());
     v.push(multi(
         "range_dropout+range_bias@4x",
-        vec![s4("range_dropout"), s4("range_bias")],
+        vec![at_size("range_dropout", 4.0), at_size("range_bias", 4.0)],
         SceneSet::Real,
     ));
     v
@@ -654,7 +654,7 @@ mod tests {
         // mean of the per-zone factors.
         let a = absorbed_scale(1.0);
         assert!(a > 0.0 && (absorbed_scale(0.5) - a / 2.0).abs() < 1e-6);
-        let r = crate::sim::radial_distance::RadialDistance {
+        let r = crate::sim::effects::radial_distance::RadialDistance {
             enabled: true,
             fraction: 1.0,
             ..Default::default()
@@ -676,7 +676,7 @@ mod tests {
             v.iter()
                 .filter(|c| c.hidden.len() == 1 && c.scenes == SceneSet::Sim)
                 .count(),
-            3 * effects::LIBRARY.len()
+            3 * ALL.len()
         );
         assert!(v.iter().any(|c| c.outside));
         assert!(v.iter().any(|c| c.scenes == SceneSet::DarkFar));

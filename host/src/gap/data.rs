@@ -56,6 +56,9 @@ pub enum GapError {
     /// The simulator rejected its configuration or input.
     #[error(transparent)]
     Sim(#[from] crate::sim::SimError),
+    /// A name that is not an effect of the library.
+    #[error(transparent)]
+    UnknownEffect(#[from] crate::sim::effects::UnknownEffect),
 }
 
 /// One frame to compare: the simulator's input and the zones the real sensor reported.

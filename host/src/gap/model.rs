@@ -10,6 +10,7 @@ use super::data::{GapData, GapFrame};
 use super::likelihood::{Density, Draw, ZoneFit};
 use crate::rng::Rng;
 use crate::sim::covariates::{zone_covariates, ZoneCovariates};
+use crate::sim::effects::{self, EffectFit};
 use crate::sim::{simulate_with_covariates, SimConfig, SimError};
 
 /// One frame, prepared.
@@ -140,8 +141,7 @@ pub fn transform(
     prep: &Prepared,
     shift: [i64; 2],
 ) -> Vec<Draw> {
-    let on =
-        |name: &str| super::effects::enabled(model, name) && !super::effects::enabled(base, name);
+    let on = |e: &EffectFit| e.enabled(model) && !e.enabled(base);
     let (z_n, rows, cols) = (prep.zones(), prep.rows, prep.cols);
     let mut out = prep.draws.clone();
     if shift != [0, 0] {
@@ -175,18 +175,18 @@ pub fn transform(
         }
     }
     let (radial, bias, edge, multi, xtalk, wiggle, noise) = (
-        on("radial_distance"),
-        on("range_bias"),
-        on("edge_mixing"),
-        on("multipath"),
-        on("zone_crosstalk"),
-        on("bin_wiggle"),
-        on("range_noise"),
+        on(&effects::radial_distance::FIT),
+        on(&effects::range_bias::FIT),
+        on(&effects::edge_mixing::FIT),
+        on(&effects::multipath::FIT),
+        on(&effects::zone_crosstalk::FIT),
+        on(&effects::bin_wiggle::FIT),
+        on(&effects::range_noise::FIT),
     );
     let (rdrop, ddrop, bdrop) = (
-        on("range_dropout"),
-        on("dark_dropout"),
-        on("border_dropout"),
+        on(&effects::range_dropout::FIT),
+        on(&effects::dark_dropout::FIT),
+        on(&effects::border_dropout::FIT),
     );
     let mut dist = vec![0.0f32; z_n];
     let mut valid = vec![0.0f32; z_n];

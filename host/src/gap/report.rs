@@ -7,7 +7,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use super::effects::{self, Covariate};
+use super::effects::{library, Covariate};
 use super::localise::{pit_histogram, zone_maps, FitMetrics, Slice};
 use super::Analysis;
 use crate::plot::{bar_chart, line_chart, zone_heat_map, Series, PALETTE};
@@ -242,11 +242,9 @@ pub fn markdown(a: &Analysis, r: &Report) -> String {
         s.push_str("\n**No significant missing physics**: no effect of the library improves the held-out likelihood significantly.\n");
     }
     for f in &r.findings {
-        let c = effects::candidate(&f.effect);
+        let c = library(&f.effect);
         let _ = writeln!(s, "\n## `{}`\n", f.effect);
-        if let Some(c) = c {
-            let _ = writeln!(s, "Physics: {}.\n", c.physics);
-        }
+        let _ = writeln!(s, "Physics: {}.\n", c.physics);
         s.push_str("| parameter | fitted | ≈95 % interval |\n|---|---|---|\n");
         for (k, v) in &f.params {
             let ci =
@@ -261,14 +259,12 @@ pub fn markdown(a: &Analysis, r: &Report) -> String {
             100.0 * f.zones_affected,
             f.evidence
         );
-        if let Some(c) = c {
-            let _ = writeln!(
-                s,
-                "Before/after in its stratum: ![{}](covariate_{}.png)",
-                c.stratum.name(),
-                c.stratum.name()
-            );
-        }
+        let _ = writeln!(
+            s,
+            "Before/after in its stratum: ![{}](covariate_{}.png)",
+            c.stratum.name(),
+            c.stratum.name()
+        );
     }
     let unexplained: Vec<&Slice> = a.slices_after.iter().filter(|x| x.significant).collect();
     let _ = writeln!(s, "\n## Unexplained residual\n");

@@ -5,7 +5,7 @@
 
 use std::collections::BTreeMap;
 
-use super::effects::{self, Candidate, JOINT_PAIRS, LIBRARY};
+use super::effects::{self, library, EffectFit, ALL, JOINT_PAIRS};
 use super::likelihood::Density;
 use super::model::{eval_frame, frame_nlls, Prepared};
 use super::stats::{fixed_sequence, grid_golden_min, holm, sign_flip_p};
@@ -198,10 +198,10 @@ impl Ctx<'_> {
 
     /// Fits effect `c` in `model` (switched on if off), other effects fixed: per continuous
     /// parameter a grid scan then golden-section refinement ([`grid_golden_min`]).
-    pub fn fit_one(&self, model: &SimConfig, c: &Candidate, opts: &SelectOptions) -> SimConfig {
+    pub fn fit_one(&self, model: &SimConfig, c: &EffectFit, opts: &SelectOptions) -> SimConfig {
         let mut m = model.clone();
-        let mut v = if effects::enabled(&m, c.name) {
-            effects::get(&m, c.name)
+        let mut v = if c.enabled(&m) {
+            c.get(&m)
         } else {
             c.params
                 .iter()
@@ -242,7 +242,7 @@ impl Ctx<'_> {
                         |x| {
                             let mut t = w.clone();
                             t[i] = x;
-                            effects::set(&mut m, c.name, Some(&t));
+                            c.set(&mut m, Some(&t));
                             self.train_nll(&m)
                         },
                         s.lo,
@@ -261,11 +261,12 @@ impl Ctx<'_> {
         if let Some((_, w)) = best {
             v = w;
         }
-        effects::set(&mut m, c.name, Some(&v));
+        c.set(&mut m, Some(&v));
         m
     }
 
-    /// Refits the effects `names` of `model` jointly (coordinate descent, two sweeps).
+    /// Refits the effects `names` of `model` jointly (coordinate descent, two sweeps). Panics,
+    /// naming it, on a name outside the library ([`library`]).
     pub fn refit(
         &self,
         model: &SimConfig,
@@ -276,9 +277,7 @@ impl Ctx<'_> {
         let sweeps = if names.len() > 1 { 2 } else { 1 };
         for _ in 0..sweeps {
             for n in names {
-                if let Some(c) = effects::candidate(n) {
-                    m = self.fit_one(&m, c, opts);
-                }
+                m = self.fit_one(&m, library(n), opts);
             }
         }
         m
@@ -326,23 +325,21 @@ impl Ctx<'_> {
     /// Fits the effects `names` of `model` jointly when their parameters trade off against each
     /// other (a valley that coordinate descent crosses slowly): two coordinate sweeps, a
     /// pattern move (Hooke–Jeeves) along the change of the second sweep, which in a quadratic
-    /// valley of two parameters points at the minimum, then a last sweep.
+    /// valley of two parameters points at the minimum, then a last sweep. Panics, naming it, on a
+    /// name outside the library ([`library`]).
     pub fn fit_joint(
         &self,
         model: &SimConfig,
         names: &[&'static str],
         opts: &SelectOptions,
     ) -> SimConfig {
-        let cands: Vec<&'static Candidate> =
-            names.iter().filter_map(|n| effects::candidate(n)).collect();
+        let cands: Vec<&'static EffectFit> = names.iter().map(|n| library(n)).collect();
         let sweep = |m: &SimConfig| {
             cands
                 .iter()
                 .fold(m.clone(), |m, c| self.fit_one(&m, c, opts))
         };
-        let params = |m: &SimConfig| -> Vec<f64> {
-            cands.iter().flat_map(|c| effects::get(m, c.name)).collect()
-        };
+        let params = |m: &SimConfig| -> Vec<f64> { cands.iter().flat_map(|c| c.get(m)).collect() };
         let put = |m: &mut SimConfig, v: &[f64]| {
             let mut k = 0;
             for c in &cands {
@@ -353,7 +350,7 @@ impl Ctx<'_> {
                     .zip(&v[k..k + n])
                     .map(|(s, x)| x.clamp(s.lo, s.hi))
                     .collect();
-                effects::set(m, c.name, Some(&w));
+                c.set(m, Some(&w));
                 k += n;
             }
         };
@@ -454,11 +451,8 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
     let mut cur = ctx.test_nlls(&model);
     // An effect whose covariate takes one value in these frames (material on imports without
     // labels) cannot be told from the base: it is not a candidate.
-    let mut pool: Vec<&'static Candidate> = Vec::new();
-    for c in LIBRARY
-        .iter()
-        .filter(|c| !effects::enabled(ctx.base, c.name))
-    {
+    let mut pool: Vec<&'static EffectFit> = Vec::new();
+    for c in ALL.iter().filter(|c| !c.enabled(ctx.base)) {
         if super::localise::varies(ctx.frames, c.stratum) {
             pool.push(c);
         } else {
@@ -472,7 +466,7 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
     // First-round (solo) gain of every candidate, for the confounding check.
     let mut solo: BTreeMap<&'static str, (f64, bool)> = BTreeMap::new();
     for round in 0..opts.max_effects {
-        let cands: Vec<&&Candidate> = pool
+        let cands: Vec<&&EffectFit> = pool
             .iter()
             .filter(|c| !accepted.contains(&c.name))
             .collect();
@@ -564,7 +558,7 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
         .iter()
         .filter_map(|&a| {
             let (g, p, without) = cond.get(a)?;
-            let c = effects::candidate(a)?;
+            let c = library(a);
             Some(finding(
                 ctx, &full, &joints, &model, &estimate, without, c, *g, *p, &confounds,
             ))
@@ -588,7 +582,7 @@ fn fit_trials(
     opts: &SelectOptions,
     model: &SimConfig,
     cur: &[f64],
-    cands: &[&&Candidate],
+    cands: &[&&EffectFit],
     round: usize,
     progress: &mut dyn FnMut(&str),
 ) -> Vec<Trial> {
@@ -598,11 +592,7 @@ fn fit_trials(
         let train_gain = train_cur - ctx.train_nll(&m);
         let after = ctx.test_nlls(&m);
         let (gain, p) = ctx.gain(cur, &after, opts.permutations, seed);
-        let dims = names
-            .iter()
-            .filter_map(|n| effects::candidate(n))
-            .map(|c| c.params.len())
-            .sum();
+        let dims = names.iter().map(|n| library(n).params.len()).sum();
         Trial {
             names,
             model: m,
@@ -689,8 +679,7 @@ fn attribute<'t>(
                 round + 1,
                 t.names[0]
             ));
-            let c = effects::candidate(t.names[0]).expect("library effect");
-            let m = flipped.fit_one(model, c, opts);
+            let m = flipped.fit_one(model, library(t.names[0]), opts);
             base_train - flipped.test_nlls(&m).iter().sum::<f64>()
         })
         .collect();
@@ -755,7 +744,7 @@ fn prune(
         progress(&format!("pruning {name}"));
         let rest: Vec<&'static str> = accepted.iter().copied().filter(|&n| n != name).collect();
         let mut without = model.clone();
-        effects::set(&mut without, name, None);
+        library(name).set(&mut without, None);
         let without = if rest.is_empty() {
             without
         } else {
@@ -803,9 +792,7 @@ fn confounding(
                 continue;
             }
             progress(&format!("confounding {a} / {b}"));
-            let Some(cb) = effects::candidate(b) else {
-                continue;
-            };
+            let cb = library(b);
             let swap = ctx.fit_one(without, cb, opts);
             let (gs, _) = ctx.gain(&base_nll, &ctx.test_nlls(&swap), 0, 0);
             if gs >= 0.5 * ga {
@@ -813,7 +800,7 @@ fn confounding(
                     kept: a.to_string(),
                     other: b.to_string(),
                     share: gs / ga,
-                    separate_with: effects::separating_data(a, b),
+                    separate_with: effects::separating_data(library(a), cb),
                 });
             }
         }
@@ -829,14 +816,14 @@ fn finding(
     model: &SimConfig,
     estimate: &SimConfig,
     without: &SimConfig,
-    c: &Candidate,
+    c: &EffectFit,
     gain: f64,
     p: f64,
     confounds: &[Confound],
 ) -> Finding {
     // Parameters and their intervals: the every-frame fit; the zones affected: the held-out
     // frames under the training fit, like the gain.
-    let v = effects::get(estimate, c.name);
+    let v = c.get(estimate);
     let f0 = full.train_nll(estimate);
     let mut params = BTreeMap::new();
     let mut ci = BTreeMap::new();
@@ -850,7 +837,7 @@ fn finding(
             let mut t = v.clone();
             t[i] = x;
             let mut m = estimate.clone();
-            effects::set(&mut m, c.name, Some(&t));
+            c.set(&mut m, Some(&t));
             full.train_nll(&m) - f0 - 1.92
         };
         let bound = |end: f64| {

@@ -2,8 +2,9 @@
 //! which the gap tool names it in at least half of the trials, on rendered scenes whose seeds are
 //! disjoint from the benchmark's (`depthor gap-bench --calibrate-units`). The result is committed
 //! as `host/data/gap_units.json` (with the command that produced it) and compiled in;
-//! [`start_unit`], the old hand estimates, is only where the calibration ladder starts (and the
-//! fallback for an effect the table lacks).
+//! [`start_unit`], the old hand estimates (each effect's `EffectFit::start_unit`), is only where
+//! the calibration ladder starts (and the fallback for an effect the table lacks). A name outside
+//! the library is an error ([`UnknownEffect`]) everywhere here.
 
 use std::collections::BTreeMap;
 use std::sync::OnceLock;
@@ -11,34 +12,23 @@ use std::sync::OnceLock;
 use serde::{Deserialize, Serialize};
 
 use super::bench::{run_case, Case, SceneSet};
-use super::{effects, GapError, GapOptions};
+use super::effects::{by_name, UnknownEffect};
+use super::{GapError, GapOptions};
 use crate::scene::SceneFrame;
 use crate::sim::SimConfig;
 
-/// Hand estimate of each effect's minimum detectable size with ~20 held-out 8×8 frames: the
-/// calibration ladder's starting point (the first continuous parameter, or `calibration_shift`'s
-/// frame probability, is the one whose recovery is scored; integer parameters are kept).
-pub fn start_unit(name: &str) -> Option<Vec<f64>> {
-    Some(match name {
-        "range_dropout" => vec![0.01],
-        "dark_dropout" => vec![0.15],
-        "border_dropout" => vec![0.2],
-        "calibration_shift" => vec![1.0, 0.25],
-        "radial_distance" => vec![0.25],
-        "range_bias" => vec![0.01, 0.0],
-        "range_noise" => vec![0.005],
-        "multipath" => vec![0.1],
-        "edge_mixing" => vec![0.05],
-        "zone_crosstalk" => vec![0.05],
-        "bin_wiggle" => vec![0.005],
-        _ => return None,
-    })
+/// Hand estimate of effect `name`'s minimum detectable size with ~20 held-out 8×8 frames
+/// (`EffectFit::start_unit`): the calibration ladder's starting point (the first continuous
+/// parameter, `calibration_shift`'s frame probability, is the one whose recovery is scored;
+/// integer parameters are kept).
+pub fn start_unit(name: &str) -> Result<Vec<f64>, UnknownEffect> {
+    Ok(by_name(name)?.start_unit.to_vec())
 }
 
 /// One effect's calibrated unit.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CalibratedUnit {
-    /// Parameters at 1× (in [`effects::Candidate::params`] order).
+    /// Parameters at 1× (in `EffectFit::params` order).
     pub params: Vec<f64>,
     /// 1× as a multiple of [`start_unit`].
     pub multiple: f64,
@@ -88,41 +78,39 @@ pub fn calibrated() -> &'static UnitTable {
 
 /// Unit ("1×") size of effect `name`: the calibrated one, or [`start_unit`] when the table lacks
 /// it.
-pub fn unit_size(name: &str) -> Option<Vec<f64>> {
-    calibrated()
+pub fn unit_size(name: &str) -> Result<Vec<f64>, UnknownEffect> {
+    let start = start_unit(name)?;
+    Ok(calibrated()
         .units
         .get(name)
-        .map(|u| u.params.clone())
-        .or_else(|| start_unit(name))
+        .map_or(start, |u| u.params.clone()))
 }
 
 /// `unit` × `multiple` for the continuous parameters, clamped to their bounds (integer
 /// parameters kept).
-pub fn scale(name: &str, unit: &[f64], multiple: f64) -> Option<Vec<f64>> {
-    let c = effects::candidate(name)?;
-    Some(
-        unit.iter()
-            .zip(c.params)
-            .map(|(v, s)| {
-                if s.integer {
-                    *v
-                } else {
-                    (v * multiple).clamp(s.lo, s.hi)
-                }
-            })
-            .collect(),
-    )
+pub fn scale(name: &str, unit: &[f64], multiple: f64) -> Result<Vec<f64>, UnknownEffect> {
+    let c = by_name(name)?;
+    Ok(unit
+        .iter()
+        .zip(c.params)
+        .map(|(v, s)| {
+            if s.integer {
+                *v
+            } else {
+                (v * multiple).clamp(s.lo, s.hi)
+            }
+        })
+        .collect())
 }
 
 /// The largest multiple of `unit` before a continuous parameter of `name` reaches its bound.
-pub fn max_multiple(name: &str, unit: &[f64]) -> f64 {
-    effects::candidate(name).map_or(1.0, |c| {
-        unit.iter()
-            .zip(c.params)
-            .filter(|(v, s)| !s.integer && v.abs() > 0.0)
-            .map(|(v, s)| if *v > 0.0 { s.hi / v } else { s.lo / v })
-            .fold(f64::INFINITY, f64::min)
-    })
+pub fn max_multiple(name: &str, unit: &[f64]) -> Result<f64, UnknownEffect> {
+    Ok(unit
+        .iter()
+        .zip(by_name(name)?.params)
+        .filter(|(v, s)| !s.integer && v.abs() > 0.0)
+        .map(|(v, s)| if *v > 0.0 { s.hi / v } else { s.lo / v })
+        .fold(f64::INFINITY, f64::min))
 }
 
 /// The smallest multiple for which `passes` holds, assumed monotone: from `start`, down the
@@ -206,17 +194,15 @@ pub fn calibrate(
     let need = ((opts.threshold * k as f64).ceil() as usize).max(1);
     let mut out = BTreeMap::new();
     for &name in names {
-        let Some(start) = start_unit(name) else {
-            continue;
-        };
+        let start = start_unit(name)?;
         let mut ladder = Vec::new();
         let (multiple, bracketed) = ladder_search(
             1.0,
             opts.step,
-            max_multiple(name, &start),
+            max_multiple(name, &start)?,
             opts.refine,
             |m| -> Result<bool, GapError> {
-                let params = scale(name, &start, m).unwrap_or_default();
+                let params = scale(name, &start, m)?;
                 let (mut hits, mut runs) = (0, 0);
                 for (t, scenes) in scene_sets.iter().enumerate() {
                     if hits >= need || runs - hits > k - need {
@@ -278,12 +264,15 @@ mod tests {
 
     #[test]
     fn committed_table_covers_the_library_or_falls_back() {
-        for c in effects::LIBRARY {
+        for c in super::super::effects::ALL {
             let u = unit_size(c.name).unwrap();
             assert_eq!(u.len(), c.params.len(), "{}", c.name);
         }
         let u = start_unit("calibration_shift").unwrap();
         assert_eq!(scale("calibration_shift", &u, 8.0).unwrap(), vec![1.0, 1.0]);
-        assert!((max_multiple("calibration_shift", &u) - 4.0).abs() < 1e-9);
+        assert!((max_multiple("calibration_shift", &u).unwrap() - 4.0).abs() < 1e-9);
+        assert_eq!(unit_size("cover_glass").unwrap_err().name, "cover_glass");
+        assert!(scale("cover_glass", &u, 2.0).is_err());
+        assert!(max_multiple("cover_glass", &u).is_err());
     }
 }

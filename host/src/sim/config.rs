@@ -4,30 +4,31 @@
 //!
 //! Adding an aspect: a new module with its parameter struct implementing
 //! `frame::ZoneEffect`, a `#[serde(default)]` field here, and one entry in
-//! `SimConfig::zone_effects` (which fixes where in the pipeline it runs).
+//! `SimConfig::zone_effects` (which fixes where in the pipeline it runs). An effect the gap tool
+//! fits goes under `effects/` with its fit description and an entry in [`super::effects::ALL`].
 
 use serde::{Deserialize, Serialize};
 
 use super::anomalies::Anomalies;
-use super::bin_wiggle::BinWiggle;
-use super::border_dropout::BorderDropout;
-use super::calibration_shift::CalibrationShift;
 use super::dark::DarkAspect;
-use super::dark_dropout::DarkDropout;
-use super::edge_mixing::EdgeMixing;
+use super::effects::bin_wiggle::BinWiggle;
+use super::effects::border_dropout::BorderDropout;
+use super::effects::calibration_shift::CalibrationShift;
+use super::effects::dark_dropout::DarkDropout;
+use super::effects::edge_mixing::EdgeMixing;
+use super::effects::multipath::Multipath;
+use super::effects::radial_distance::RadialDistance;
+use super::effects::range_bias::RangeBias;
+use super::effects::range_dropout::RangeDropout;
+use super::effects::range_noise::RangeNoise;
+use super::effects::zone_crosstalk::ZoneCrosstalk;
 use super::error::SimError;
 use super::frame::ZoneEffect;
 use super::grid::{GridConfig, OverallDistribution};
 use super::halving::DepthHalving;
-use super::multipath::Multipath;
-use super::radial_distance::RadialDistance;
 use super::range::RangeAspect;
-use super::range_bias::RangeBias;
-use super::range_dropout::RangeDropout;
-use super::range_noise::RangeNoise;
 use super::signal_loss::SignalLoss;
 use super::surfaces::{Surface, SurfaceAspect};
-use super::zone_crosstalk::ZoneCrosstalk;
 
 /// Default memory limit of a run (see [`SimConfig::check_memory`]): 8 GiB, or
 /// `DEPTHOR_MEMORY_LIMIT_MIB` from the environment.

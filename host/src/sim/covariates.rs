@@ -29,6 +29,56 @@ pub struct ZoneCovariates {
     pub grid_pos: [f32; 2],
 }
 
+/// Covariates along which the gap tool localises residuals (and the stratum of each effect,
+/// [`super::effects::EffectFit::stratum`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Covariate {
+    /// Simulated/reference range of the zone, metres.
+    Range,
+    /// In-zone depth spread (p90 − p10), metres: edges.
+    Spread,
+    /// Mean brightness (V / 255): reflectance proxy.
+    Brightness,
+    /// Fraction of transparent/specular pixels.
+    Material,
+    /// Normalised distance from the grid centre.
+    Radius,
+    /// Zone row.
+    Row,
+    /// Zone column.
+    Col,
+    /// Frame time.
+    Time,
+}
+
+impl Covariate {
+    /// Every covariate, in report order.
+    pub const ALL: [Covariate; 8] = [
+        Covariate::Range,
+        Covariate::Spread,
+        Covariate::Brightness,
+        Covariate::Material,
+        Covariate::Radius,
+        Covariate::Row,
+        Covariate::Col,
+        Covariate::Time,
+    ];
+
+    /// Short name (file names, report).
+    pub fn name(self) -> &'static str {
+        match self {
+            Covariate::Range => "range_m",
+            Covariate::Spread => "depth_spread_m",
+            Covariate::Brightness => "brightness",
+            Covariate::Material => "transparent_specular_fraction",
+            Covariate::Radius => "grid_radius",
+            Covariate::Row => "zone_row",
+            Covariate::Col => "zone_col",
+            Covariate::Time => "time_s",
+        }
+    }
+}
+
 /// Normalised position `[row, col]` in `[-1, 1]` of zone `(row, col)` on a `rows × cols` grid and
 /// its radius (1 at the corners).
 pub fn grid_position(row: usize, col: usize, rows: usize, cols: usize) -> ([f32; 2], f32) {

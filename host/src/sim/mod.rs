@@ -8,11 +8,15 @@
 //!    translation and rotation, and let each zone report the peak of its depth histogram.
 //! 3. Per-zone physics: [`surfaces`] (transparent, specular), [`dark`], [`range`],
 //!    [`signal_loss`].
-//! 4. [`calibration_shift`]: background zones take a neighbour's measurement.
+//! 4. [`effects::calibration_shift`]: background zones take a neighbour's measurement.
 //! 5. [`anomalies`]: random noise and blank zones.
-//! 6. The gap tool's sim-to-real effects (off by default): [`radial_distance`], [`range_bias`],
-//!    [`edge_mixing`], [`multipath`], [`zone_crosstalk`], [`bin_wiggle`], [`range_noise`],
-//!    [`range_dropout`], [`dark_dropout`], [`border_dropout`].
+//! 6. The gap tool's sim-to-real effects (off by default), one module each under [`effects`]:
+//!    `radial_distance`, `range_bias`, `edge_mixing`, `multipath`, `zone_crosstalk`,
+//!    `bin_wiggle`, `range_noise`, `range_dropout`, `dark_dropout`, `border_dropout`.
+//!
+//! [`effects`] holds every effect the gap tool can fit (these ten and `calibration_shift`): its
+//! parameters, forward model and fit description ([`effects::EffectFit`], listed in
+//! [`effects::ALL`]).
 //!
 //! Each aspect draws from its own random stream (derived from the seed and its name), and draws
 //! the same numbers whatever the other aspects did: switching one aspect off changes only the
@@ -30,29 +34,19 @@
 //! ```
 
 pub mod anomalies;
-pub mod bin_wiggle;
-pub mod border_dropout;
-pub mod calibration_shift;
 pub mod config;
 pub mod covariates;
 pub mod dark;
-pub mod dark_dropout;
-pub mod edge_mixing;
+pub mod effects;
 pub mod error;
 mod frame;
 pub mod grid;
 pub mod halving;
-pub mod multipath;
 pub mod presets;
-pub mod radial_distance;
 pub mod range;
-pub mod range_bias;
-pub mod range_dropout;
-pub mod range_noise;
 pub mod signal_loss;
 pub mod surfaces;
 pub mod truth;
-pub mod zone_crosstalk;
 
 pub use config::{memory_limit_bytes, MemoryEstimate, SimConfig};
 pub use error::SimError;

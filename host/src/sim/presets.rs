@@ -3,8 +3,8 @@
 //! so a preset applies to any image of the same aspect ratio (`mcu` is `l5` at 120×160).
 
 use super::anomalies::Anomalies;
-use super::calibration_shift::CalibrationShift;
 use super::dark::DarkAspect;
+use super::effects::calibration_shift::CalibrationShift;
 use super::error::SimError;
 use super::grid::{GridConfig, OverallDistribution};
 use super::halving::DepthHalving;

@@ -3,11 +3,12 @@
 //! a corner) is lost with probability `p_corner · r^exponent`.
 use serde::{Deserialize, Serialize};
 
-use super::covariates::grid_position;
-use super::error::{check_above, check_prob, SimError};
-use super::frame::{Scene, ZoneEffect, ZoneGrid};
-use super::truth::ZoneEvents;
+use super::{param, Covariate, EffectFit};
 use crate::rng::Rng;
+use crate::sim::covariates::grid_position;
+use crate::sim::error::{check_above, check_prob, SimError};
+use crate::sim::frame::{Scene, ZoneEffect, ZoneGrid};
+use crate::sim::truth::ZoneEvents;
 
 /// Parameters of the radial dropout.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -61,6 +62,20 @@ impl ZoneEffect for BorderDropout {
         }
     }
 }
+
+/// Fit description for the gap tool ([`super::ALL`]).
+pub const FIT: EffectFit = EffectFit {
+    name: "border_dropout",
+    physics: "vignetting / illumination roll-off toward the grid's corners: p_loss = p_corner·r⁴",
+    params: &[param("p_corner", 0.0, 1.0)],
+    stratum: Covariate::Radius,
+    separating_data: "near, bright targets filling the corner zones",
+    start_unit: &[0.2],
+    config: |c| &c.border_dropout,
+    config_mut: |c| &mut c.border_dropout,
+};
+
+f32_params!(BorderDropout: p_corner);
 
 #[cfg(test)]
 mod tests {

@@ -3,9 +3,10 @@
 //! `d' = offset_m + (1 + scale) · d`, kept above 1 mm.
 use serde::{Deserialize, Serialize};
 
-use super::error::{check_in, SimError};
-use super::frame::{Scene, ZoneEffect, ZoneGrid};
+use super::{param, Covariate, EffectFit};
 use crate::rng::Rng;
+use crate::sim::error::{check_in, SimError};
+use crate::sim::frame::{Scene, ZoneEffect, ZoneGrid};
 
 /// Parameters of the distance bias.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -45,6 +46,20 @@ impl ZoneEffect for RangeBias {
         }
     }
 }
+
+/// Fit description for the gap tool ([`super::ALL`]).
+pub const FIT: EffectFit = EffectFit {
+    name: "range_bias",
+    physics: "offset and scale error of the reported distance: d' = offset + (1 + scale)·d",
+    params: &[param("offset_m", -0.3, 0.3), param("scale", -0.2, 0.2)],
+    stratum: Covariate::Range,
+    separating_data: "a flat wall at several distances (offset vs scale) seen centred",
+    start_unit: &[0.01, 0.0],
+    config: |c| &c.range_bias,
+    config_mut: |c| &mut c.range_bias,
+};
+
+f32_params!(RangeBias: offset_m, scale);
 
 #[cfg(test)]
 mod tests {

@@ -4,11 +4,12 @@
 //! small, saturating at 1 far away.
 use serde::{Deserialize, Serialize};
 
-use super::error::check_in;
-use super::error::SimError;
-use super::frame::{Scene, ZoneEffect, ZoneGrid};
-use super::truth::ZoneEvents;
+use super::{param, Covariate, EffectFit};
 use crate::rng::Rng;
+use crate::sim::error::check_in;
+use crate::sim::error::SimError;
+use crate::sim::frame::{Scene, ZoneEffect, ZoneGrid};
+use crate::sim::truth::ZoneEvents;
 
 /// Parameters of the range-dependent dropout.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -52,6 +53,20 @@ impl ZoneEffect for RangeDropout {
         }
     }
 }
+
+/// Fit description for the gap tool ([`super::ALL`]).
+pub const FIT: EffectFit = EffectFit {
+    name: "range_dropout",
+    physics: "detection probability falls with range (signal ∝ ρ/r²): p_loss = 1 − exp(−k·d²)",
+    params: &[param("loss_per_m2", 0.0, 0.5)],
+    stratum: Covariate::Range,
+    separating_data: "bright surfaces far away (range without darkness)",
+    start_unit: &[0.01],
+    config: |c| &c.range_dropout,
+    config_mut: |c| &mut c.range_dropout,
+};
+
+f32_params!(RangeDropout: loss_per_m2);
 
 #[cfg(test)]
 mod tests {

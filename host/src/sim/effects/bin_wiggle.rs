@@ -2,9 +2,10 @@
 //! error. Forward model: `d' = d + amplitude_m · sin(2π d / period_m)`.
 use serde::{Deserialize, Serialize};
 
-use super::error::{check_above, check_in, SimError};
-use super::frame::{Scene, ZoneEffect, ZoneGrid};
+use super::{param, Covariate, EffectFit};
 use crate::rng::Rng;
+use crate::sim::error::{check_above, check_in, SimError};
+use crate::sim::frame::{Scene, ZoneEffect, ZoneGrid};
 
 /// Parameters of the periodic range error.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -61,6 +62,20 @@ impl ZoneEffect for BinWiggle {
         }
     }
 }
+
+/// Fit description for the gap tool ([`super::ALL`]).
+pub const FIT: EffectFit = EffectFit {
+    name: "bin_wiggle",
+    physics: "periodic range error from histogram binning: d + A·sin(2πd/0.3 m)",
+    params: &[param("amplitude_m", 0.0, 0.1)],
+    stratum: Covariate::Range,
+    separating_data: "a wall swept finely in range (periodic pattern)",
+    start_unit: &[0.005],
+    config: |c| &c.bin_wiggle,
+    config_mut: |c| &mut c.bin_wiggle,
+};
+
+f32_params!(BinWiggle: amplitude_m);
 
 #[cfg(test)]
 mod tests {

@@ -6,10 +6,11 @@
 //! was assumed).
 use serde::{Deserialize, Serialize};
 
-use super::covariates::grid_position;
-use super::error::{check_above, check_in, SimError};
-use super::frame::{Scene, ZoneEffect, ZoneGrid};
+use super::{param, Covariate, EffectFit};
 use crate::rng::Rng;
+use crate::sim::covariates::grid_position;
+use crate::sim::error::{check_above, check_in, SimError};
+use crate::sim::frame::{Scene, ZoneEffect, ZoneGrid};
 
 /// Parameters of the radial/z mismatch.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -67,6 +68,20 @@ impl ZoneEffect for RadialDistance {
         }
     }
 }
+
+/// Fit description for the gap tool ([`super::ALL`]).
+pub const FIT: EffectFit = EffectFit {
+    name: "radial_distance",
+    physics: "the sensor reports range along the ray where the simulator assumes z: d·(1 + f·(√(1+tx²+ty²) − 1))",
+    params: &[param("fraction", -1.0, 2.0)],
+    stratum: Covariate::Radius,
+    separating_data: "a flat wall facing the sensor at several distances (radial error ∝ d, grows toward corners)",
+    start_unit: &[0.25],
+    config: |c| &c.radial_distance,
+    config_mut: |c| &mut c.radial_distance,
+};
+
+f32_params!(RadialDistance: fraction);
 
 #[cfg(test)]
 mod tests {

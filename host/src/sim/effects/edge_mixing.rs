@@ -3,10 +3,11 @@
 //! `mean` the mean depth over the zone's window (no effect on zones of one surface).
 use serde::{Deserialize, Serialize};
 
-use super::covariates::{scene_covariates, ZoneCovariates};
-use super::error::{check_prob, SimError};
-use super::frame::{Scene, ZoneEffect, ZoneGrid};
+use super::{param, Covariate, EffectFit};
 use crate::rng::Rng;
+use crate::sim::covariates::{scene_covariates, ZoneCovariates};
+use crate::sim::error::{check_prob, SimError};
+use crate::sim::frame::{Scene, ZoneEffect, ZoneGrid};
 
 /// Parameters of the edge mixing.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -48,6 +49,20 @@ impl ZoneEffect for EdgeMixing {
         }
     }
 }
+
+/// Fit description for the gap tool ([`super::ALL`]).
+pub const FIT: EffectFit = EffectFit {
+    name: "edge_mixing",
+    physics: "zones straddling depth edges report a mix of the returns: d + w·(mean − d)",
+    params: &[param("weight", 0.0, 1.0)],
+    stratum: Covariate::Spread,
+    separating_data: "depth edges with large and small depth steps at zone-centred positions",
+    start_unit: &[0.05],
+    config: |c| &c.edge_mixing,
+    config_mut: |c| &mut c.edge_mixing,
+};
+
+f32_params!(EdgeMixing: weight);
 
 #[cfg(test)]
 mod tests {

@@ -4,9 +4,10 @@
 //! return (before the blur); zones without such neighbours are unchanged.
 use serde::{Deserialize, Serialize};
 
-use super::error::{check_prob, SimError};
-use super::frame::{Scene, ZoneEffect, ZoneGrid};
+use super::{param, Covariate, EffectFit};
 use crate::rng::Rng;
+use crate::sim::error::{check_prob, SimError};
+use crate::sim::frame::{Scene, ZoneEffect, ZoneGrid};
 
 /// Parameters of the crosstalk.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -75,6 +76,20 @@ impl ZoneEffect for ZoneCrosstalk {
         }
     }
 }
+
+/// Fit description for the gap tool ([`super::ALL`]).
+pub const FIT: EffectFit = EffectFit {
+    name: "zone_crosstalk",
+    physics: "returns blur into neighbouring zones: (1 − c)·d + c·mean(neighbours)",
+    params: &[param("coupling", 0.0, 1.0)],
+    stratum: Covariate::Spread,
+    separating_data: "an isolated near object on a far background (crosstalk reaches neighbours, mixing stays in the zone)",
+    start_unit: &[0.05],
+    config: |c| &c.zone_crosstalk,
+    config_mut: |c| &mut c.zone_crosstalk,
+};
+
+f32_params!(ZoneCrosstalk: coupling);
 
 #[cfg(test)]
 mod tests {

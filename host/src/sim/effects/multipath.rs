@@ -5,11 +5,12 @@
 //! sees it (its photons then dominate the histogram peak's neighbourhood).
 use serde::{Deserialize, Serialize};
 
-use super::covariates::{scene_covariates, ZoneCovariates};
-use super::error::check_in;
-use super::error::SimError;
-use super::frame::{Scene, ZoneEffect, ZoneGrid};
+use super::{param, Covariate, EffectFit};
 use crate::rng::Rng;
+use crate::sim::covariates::{scene_covariates, ZoneCovariates};
+use crate::sim::error::check_in;
+use crate::sim::error::SimError;
+use crate::sim::frame::{Scene, ZoneEffect, ZoneGrid};
 
 /// Parameters of the multipath lengthening.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -47,6 +48,21 @@ impl ZoneEffect for Multipath {
         }
     }
 }
+
+/// Fit description for the gap tool ([`super::ALL`]).
+pub const FIT: EffectFit = EffectFit {
+    name: "multipath",
+    physics:
+        "transparent/specular surfaces return farther depth: d·(1 + extra·min(1, 4·f_material))",
+    params: &[param("extra", 0.0, 1.0)],
+    stratum: Covariate::Material,
+    separating_data: "glass/mirrors in front of known-depth backgrounds",
+    start_unit: &[0.1],
+    config: |c| &c.multipath,
+    config_mut: |c| &mut c.multipath,
+};
+
+f32_params!(Multipath: extra);
 
 #[cfg(test)]
 mod tests {

@@ -4,11 +4,12 @@
 //! darker the zone, the likelier the loss, nothing above `knee`.
 use serde::{Deserialize, Serialize};
 
-use super::covariates::{scene_covariates, ZoneCovariates};
-use super::error::{check_above, check_prob, SimError};
-use super::frame::{Scene, ZoneEffect, ZoneGrid};
-use super::truth::ZoneEvents;
+use super::{param, Covariate, EffectFit};
 use crate::rng::Rng;
+use crate::sim::covariates::{scene_covariates, ZoneCovariates};
+use crate::sim::error::{check_above, check_prob, SimError};
+use crate::sim::frame::{Scene, ZoneEffect, ZoneGrid};
+use crate::sim::truth::ZoneEvents;
 
 /// Parameters of the brightness-dependent dropout.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -61,6 +62,20 @@ impl ZoneEffect for DarkDropout {
         }
     }
 }
+
+/// Fit description for the gap tool ([`super::ALL`]).
+pub const FIT: EffectFit = EffectFit {
+    name: "dark_dropout",
+    physics: "low-reflectance surfaces return too few photons: p_loss = p_black·(1 − b/knee)₊",
+    params: &[param("p_black", 0.0, 1.0)],
+    stratum: Covariate::Brightness,
+    separating_data: "dark surfaces close by (darkness without range)",
+    start_unit: &[0.15],
+    config: |c| &c.dark_dropout,
+    config_mut: |c| &mut c.dark_dropout,
+};
+
+f32_params!(DarkDropout: p_black);
 
 #[cfg(test)]
 mod tests {

@@ -3,10 +3,11 @@
 //! deviation `sigma_per_m · d` (kept above 1 mm).
 use serde::{Deserialize, Serialize};
 
-use super::error::check_in;
-use super::error::SimError;
-use super::frame::{Scene, ZoneEffect, ZoneGrid};
+use super::{param, Covariate, EffectFit};
 use crate::rng::Rng;
+use crate::sim::error::check_in;
+use crate::sim::error::SimError;
+use crate::sim::frame::{Scene, ZoneEffect, ZoneGrid};
 
 /// Parameters of the range noise.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -50,6 +51,20 @@ impl ZoneEffect for RangeNoise {
         }
     }
 }
+
+/// Fit description for the gap tool ([`super::ALL`]).
+pub const FIT: EffectFit = EffectFit {
+    name: "range_noise",
+    physics: "noise growing with range: Gaussian with σ = sigma_per_m·d",
+    params: &[param("sigma_per_m", 0.0, 0.2)],
+    stratum: Covariate::Range,
+    separating_data: "repeated frames of a static scene at several ranges",
+    start_unit: &[0.005],
+    config: |c| &c.range_noise,
+    config_mut: |c| &mut c.range_noise,
+};
+
+f32_params!(RangeNoise: sigma_per_m);
 
 #[cfg(test)]
 mod tests {

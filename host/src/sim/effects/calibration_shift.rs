@@ -12,10 +12,11 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::error::{check_ordered, check_prob, invalid, SimError};
-use super::frame::{Scene, ZoneEffect, ZoneGrid};
-use super::truth::ZoneEvents;
+use super::{param, value, Covariate, EffectFit, EffectParams, ParamSpec};
 use crate::rng::Rng;
+use crate::sim::error::{check_ordered, check_prob, invalid, SimError};
+use crate::sim::frame::{Scene, ZoneEffect, ZoneGrid};
+use crate::sim::truth::ZoneEvents;
 
 /// Parameters of the background shift.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -112,6 +113,41 @@ impl ZoneEffect for CalibrationShift {
             zone.truth.shift = [dr as i8, dc as i8];
             zone.truth.events.insert(ZoneEvents::SHIFTED);
         }
+    }
+}
+
+/// Fit description for the gap tool ([`super::ALL`]).
+pub const FIT: EffectFit = EffectFit {
+    name: "calibration_shift",
+    physics:
+        "zone grid misregistered against the camera: background zones report a neighbour's depth",
+    params: &[
+        ParamSpec {
+            field: "max_shift_zones",
+            lo: 1.0,
+            hi: 2.0,
+            integer: true,
+        },
+        param("frame_probability", 0.0, 1.0),
+    ],
+    stratum: Covariate::Spread,
+    separating_data: "frames with a near object in front of a far background at several positions",
+    start_unit: &[1.0, 0.25],
+    config: |c| &c.calibration_shift,
+    config_mut: |c| &mut c.calibration_shift,
+};
+
+impl EffectParams for CalibrationShift {
+    fn switch(&mut self) -> &mut bool {
+        &mut self.enabled
+    }
+    fn values(&self) -> Vec<f32> {
+        vec![f32::from(self.max_shift_zones[0]), self.frame_probability]
+    }
+    fn set_values(&mut self, v: &[f64]) {
+        let m = value(v, 0).round().clamp(0.0, 64.0) as u8;
+        self.max_shift_zones = [m, m];
+        self.frame_probability = value(v, 1);
     }
 }
 
