@@ -30,7 +30,7 @@
 //!   tables, no heap; less on 32-bit targets): keep it in a `static` on a microcontroller.
 //!   `Engine::new` also uses ≈ 25 KiB of stack once, for the planner's temporary tables.
 
-mod cast;
+pub(crate) mod cast;
 #[allow(clippy::module_inception)]
 mod engine;
 pub mod error;
