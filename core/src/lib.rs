@@ -21,6 +21,7 @@ pub mod blob;
 pub mod engine;
 mod fmath;
 pub mod kernels;
+mod ops;
 
 // The one-frame chain of 1–3.
 pub mod pipeline;

@@ -6,10 +6,11 @@
 use super::checksum::crc32;
 use super::error::BlobError;
 use super::format::*;
-use crate::kernels::bins::{BinsAttrs, MAX_BINS, MAX_BIN_FEATURES};
+use crate::kernels::bins::BinsAttrs;
 use crate::kernels::conv::{Activation, ConvGeometry, MAX_TAPS};
-use crate::kernels::refine::{RefineAttrs, MAX_ITERATIONS};
+use crate::kernels::refine::RefineAttrs;
 use crate::kernels::requant::QParams;
+use crate::ops::{Kind, Types};
 use heapless::Vec;
 
 /// Element type of a tensor.
@@ -178,14 +179,15 @@ impl Graph<'_> {
     }
 }
 
-struct Reader<'a> {
+pub(crate) struct Reader<'a> {
     b: &'a [u8],
-    pos: usize,
+    /// Next byte to read.
+    pub(crate) pos: usize,
     end: usize,
 }
 
 impl<'a> Reader<'a> {
-    fn take(&mut self, n: usize, what: &'static str) -> Result<&'a [u8], BlobError> {
+    pub(crate) fn take(&mut self, n: usize, what: &'static str) -> Result<&'a [u8], BlobError> {
         let end = self.pos.checked_add(n).filter(|&e| e <= self.end);
         let s = end
             .and_then(|e| self.b.get(self.pos..e))
@@ -196,41 +198,41 @@ impl<'a> Reader<'a> {
         self.pos += n;
         Ok(s)
     }
-    fn arr<const N: usize>(&mut self, what: &'static str) -> Result<[u8; N], BlobError> {
+    pub(crate) fn arr<const N: usize>(&mut self, what: &'static str) -> Result<[u8; N], BlobError> {
         let s = self.take(N, what)?;
         let mut a = [0u8; N];
         a.copy_from_slice(s);
         Ok(a)
     }
-    fn u8(&mut self, what: &'static str) -> Result<u8, BlobError> {
+    pub(crate) fn u8(&mut self, what: &'static str) -> Result<u8, BlobError> {
         Ok(self.arr::<1>(what)?[0])
     }
-    fn u16(&mut self, what: &'static str) -> Result<u16, BlobError> {
+    pub(crate) fn u16(&mut self, what: &'static str) -> Result<u16, BlobError> {
         Ok(u16::from_le_bytes(self.arr(what)?))
     }
-    fn u32(&mut self, what: &'static str) -> Result<u32, BlobError> {
+    pub(crate) fn u32(&mut self, what: &'static str) -> Result<u32, BlobError> {
         Ok(u32::from_le_bytes(self.arr(what)?))
     }
-    fn i32(&mut self, what: &'static str) -> Result<i32, BlobError> {
+    pub(crate) fn i32(&mut self, what: &'static str) -> Result<i32, BlobError> {
         Ok(i32::from_le_bytes(self.arr(what)?))
     }
-    fn f32(&mut self, what: &'static str) -> Result<f32, BlobError> {
+    pub(crate) fn f32(&mut self, what: &'static str) -> Result<f32, BlobError> {
         Ok(f32::from_le_bytes(self.arr(what)?))
     }
-    fn zero16(&mut self, what: &'static str) -> Result<(), BlobError> {
+    pub(crate) fn zero16(&mut self, what: &'static str) -> Result<(), BlobError> {
         let at = self.pos;
         if self.u16(what)? != 0 {
             return Err(BlobError::Bad { offset: at, what });
         }
         Ok(())
     }
-    fn align(&mut self, a: usize, what: &'static str) -> Result<(), BlobError> {
+    pub(crate) fn align(&mut self, a: usize, what: &'static str) -> Result<(), BlobError> {
         let pad = (a - self.pos % a) % a;
         self.take(pad, what).map(|_| ())
     }
 }
 
-fn bad(offset: usize, what: &'static str) -> BlobError {
+pub(crate) fn bad(offset: usize, what: &'static str) -> BlobError {
     BlobError::Bad { offset, what }
 }
 
@@ -246,20 +248,6 @@ pub fn i32_at(bytes: &[u8], i: usize) -> i32 {
     bytes
         .get(i * 4..i * 4 + 4)
         .map_or(0, |s| i32::from_le_bytes([s[0], s[1], s[2], s[3]]))
-}
-
-/// Expected inputs per opcode: (min, max).
-fn arity(code: u8) -> Option<(usize, usize)> {
-    use opcode::*;
-    Some(match code {
-        CONV2D | LINEAR | RELU | LEAKY_RELU | SIGMOID | RECIPROCAL | UPSAMPLE_BILINEAR
-        | PIXEL_SHUFFLE | GLOBAL_AVG_POOL | GLOBAL_MAX_POOL | CHANNEL_MEAN | CHANNEL_MAX
-        | MINMAX_NORM => (1, 1),
-        ADD | MUL | BINS_HEAD => (2, 2),
-        CONCAT => (1, MAX_INPUTS),
-        REFINE => (6, 6),
-        _ => return None,
-    })
 }
 
 /// The header fields the rest of the parse needs.
@@ -457,7 +445,8 @@ fn read_op(
     let out_id = r.u16("op: output id")?;
     let attr_len = r.u16("op: attr_len")? as usize;
     r.zero16("op: reserved")?;
-    let (lo, hi) = arity(code).ok_or(bad(at, "op: unknown opcode"))?;
+    let kind = Kind::of(code).ok_or(bad(at, "op: unknown opcode"))?;
+    let (lo, hi) = kind.arity();
     if n_in < lo || n_in > hi {
         return Err(bad(at + 1, "op: wrong number of inputs"));
     }
@@ -493,7 +482,7 @@ fn read_op(
     if a.end > r.end {
         return Err(bad(at + 4, "op: attributes beyond the payload"));
     }
-    let (attrs, refs) = read_attrs(code, &mut a)?;
+    let (attrs, refs) = kind.read_attrs(code, &mut a)?;
     if a.pos != a.end {
         return Err(bad(
             a.pos,
@@ -508,7 +497,7 @@ fn read_op(
         attrs,
         offset: at,
     };
-    check_types(&op, tensors, produced)?;
+    check_types(kind, &op, tensors, produced)?;
     Ok((op, refs))
 }
 
@@ -609,163 +598,17 @@ fn check_scales(blob: &[u8], p: Param, n: usize, at: usize) -> Result<(), BlobEr
     Ok(())
 }
 
-const NO_PARAM: Param = Param { offset: 0, len: 0 };
+/// A parameter not yet resolved (attributes before [`parse`] resolves references).
+pub(crate) const NO_PARAM: Param = Param { offset: 0, len: 0 };
 
-fn read_attrs(code: u8, a: &mut Reader) -> Result<(Attrs, [u32; 3]), BlobError> {
-    use opcode::*;
-    let at = a.pos;
-    Ok(match code {
-        CONV2D | LINEAR => {
-            let mut raw = [0u16; 9];
-            for x in raw.iter_mut() {
-                *x = a.u16("conv: geometry")?;
-            }
-            let v = raw.map(|x| x as usize);
-            let act_code = a.u8("conv: activation")?;
-            a.u8("conv: reserved")?;
-            let alpha = a.f32("conv: alpha")?;
-            let refs = [
-                a.u32("conv: weight ref")?,
-                a.u32("conv: bias ref")?,
-                a.u32("conv: scale ref")?,
-            ];
-            let geometry = ConvGeometry {
-                kernel: [v[0], v[1]],
-                stride: [v[2], v[3]],
-                dilation: [v[4], v[5]],
-                padding: [v[6], v[7]],
-                groups: v[8],
-            };
-            if v[..6].contains(&0) || v[8] == 0 {
-                return Err(bad(at, "conv: zero kernel, stride, dilation or groups"));
-            }
-            if code == LINEAR && geometry != ConvGeometry::POINTWISE {
-                return Err(bad(at, "linear: geometry must be pointwise"));
-            }
-            let act = match act_code {
-                activation::NONE => Activation::None,
-                activation::RELU => Activation::Relu,
-                activation::LEAKY_RELU if alpha.is_finite() && alpha >= 0.0 => {
-                    Activation::LeakyRelu(alpha)
-                }
-                _ => return Err(bad(at + 18, "conv: bad activation or alpha")),
-            };
-            (
-                Attrs::Conv {
-                    geometry: Geometry(raw),
-                    act,
-                    weights: NO_PARAM,
-                    bias: None,
-                    scales: NO_PARAM,
-                },
-                refs,
-            )
-        }
-        RELU | LEAKY_RELU | SIGMOID | RECIPROCAL => {
-            a.take(256, "table: 256 bytes")?;
-            (
-                Attrs::Lut(Param {
-                    offset: u32::try_from(at).map_err(|_| bad(at, "table offset"))?,
-                    len: 256,
-                }),
-                [NONE; 3],
-            )
-        }
-        ADD | MUL | CONCAT | GLOBAL_AVG_POOL | GLOBAL_MAX_POOL | CHANNEL_MEAN | CHANNEL_MAX => {
-            (Attrs::Plain, [NONE; 3])
-        }
-        UPSAMPLE_BILINEAR => {
-            let mode = a.u8("upsample: mode")?;
-            a.u8("upsample: reserved")?;
-            let x = a.u16("upsample: a")? as usize;
-            let y = a.u16("upsample: b")? as usize;
-            a.zero16("upsample: reserved")?;
-            let ok = match mode {
-                upsample_mode::FIXED | upsample_mode::SCALE => x > 0 && y > 0,
-                upsample_mode::LIKE => x < MAX_TENSORS,
-                _ => false,
-            };
-            if !ok {
-                return Err(bad(at, "upsample: bad mode or size"));
-            }
-            (Attrs::Upsample { mode, a: x, b: y }, [NONE; 3])
-        }
-        PIXEL_SHUFFLE => {
-            let f = a.u16("pixel_shuffle: factor")? as usize;
-            a.zero16("pixel_shuffle: reserved")?;
-            if f == 0 {
-                return Err(bad(at, "pixel_shuffle: zero factor"));
-            }
-            (Attrs::PixelShuffle(f), [NONE; 3])
-        }
-        MINMAX_NORM => {
-            let eps = a.f32("minmax_norm: eps")?;
-            if !(eps.is_finite() && eps >= 0.0) {
-                return Err(bad(at, "minmax_norm: eps must be finite and >= 0"));
-            }
-            (Attrs::MinMax(eps), [NONE; 3])
-        }
-        BINS_HEAD => {
-            let n_bins = a.u16("bins_head: n_bins")? as usize;
-            a.zero16("bins_head: reserved")?;
-            let min_depth = a.f32("bins_head: min_depth")?;
-            let max_depth = a.f32("bins_head: max_depth")?;
-            let refs = [
-                a.u32("bins_head: weight ref")?,
-                a.u32("bins_head: bias ref")?,
-                a.u32("bins_head: scale ref")?,
-            ];
-            if n_bins == 0
-                || n_bins > MAX_BINS
-                || !(min_depth.is_finite() && max_depth.is_finite() && min_depth < max_depth)
-            {
-                return Err(bad(at, "bins_head: bad n_bins or depth range"));
-            }
-            let attrs = BinsAttrs {
-                n_bins,
-                min_depth,
-                max_depth,
-            };
-            (
-                Attrs::Bins {
-                    attrs,
-                    weights: NO_PARAM,
-                    bias: None,
-                    scales: NO_PARAM,
-                },
-                refs,
-            )
-        }
-        REFINE => {
-            let iterations = a.u16("refine: iterations")? as usize;
-            a.zero16("refine: reserved")?;
-            let sigma = [
-                a.f32("refine: sigma3")?,
-                a.f32("refine: sigma5")?,
-                a.f32("refine: sigma7")?,
-            ];
-            if !iterations.is_multiple_of(2)
-                || iterations > MAX_ITERATIONS
-                || sigma.iter().any(|s| !(s.is_finite() && *s > 0.0))
-            {
-                return Err(bad(
-                    at,
-                    "refine: iterations must be even and <= 64, sigmas finite and > 0",
-                ));
-            }
-            (Attrs::Refine(RefineAttrs { iterations, sigma }), [NONE; 3])
-        }
-        _ => return Err(bad(at, "op: unknown opcode")),
-    })
-}
-
-/// Static dtype / channel rules per op (spatial sizes are the planner's job).
+/// Static dtype / channel rules per op (spatial sizes are the planner's job): the op's file in
+/// `crate::ops` says what fits it.
 fn check_types(
+    kind: Kind,
     op: &OpInfo,
     tensors: &[TensorInfo],
     produced: &[bool; MAX_TENSORS],
 ) -> Result<(), BlobError> {
-    use opcode::*;
     let at = op.offset;
     let t = |id: u16| {
         tensors
@@ -773,86 +616,19 @@ fn check_types(
             .copied()
             .ok_or(bad(at, "tensor id out of range"))
     };
-    let out = t(op.output)?;
-    let x = t(op.inputs[0])?;
-    let all_i8 = op
-        .inputs
-        .iter()
-        .all(|&i| t(i).is_ok_and(|ti| ti.dtype == DType::I8))
-        && out.dtype == DType::I8;
-    let fail = |what| Err(bad(at, what));
-    match op.code {
-        CONV2D | LINEAR | RELU | LEAKY_RELU | SIGMOID | RECIPROCAL | ADD | MUL | CONCAT
-        | GLOBAL_AVG_POOL | GLOBAL_MAX_POOL | CHANNEL_MEAN | CHANNEL_MAX | MINMAX_NORM
-            if !all_i8 =>
-        {
-            return fail("op: inputs and output must be int8");
-        }
-        _ => {}
-    }
-    let ok = match (op.code, &op.attrs) {
-        (CONV2D | LINEAR, Attrs::Conv { geometry, .. }) => {
-            let g = geometry.get().groups;
-            x.channels % g == 0 && out.channels % g == 0
-        }
-        (RELU | LEAKY_RELU | SIGMOID | RECIPROCAL | MINMAX_NORM, _) => x.channels == out.channels,
-        (ADD, _) => {
-            let y = t(op.inputs[1])?;
-            x.channels == out.channels && y.channels == x.channels
-        }
-        (MUL, _) => {
-            let y = t(op.inputs[1])?;
-            x.channels == out.channels && (y.channels == x.channels || y.channels == 1)
-        }
-        (CONCAT, _) => {
-            op.inputs
-                .iter()
-                .try_fold(0usize, |s, &i| t(i).map(|ti| s + ti.channels))?
-                == out.channels
-        }
-        (UPSAMPLE_BILINEAR, Attrs::Upsample { mode, a, .. }) => {
-            let like_ok = *mode != upsample_mode::LIKE || (*a < tensors.len() && produced[*a]);
-            like_ok
-                && x.channels == out.channels
-                && x.dtype == out.dtype
-                && (x.dtype == DType::F32 || x.q == out.q)
-        }
-        (PIXEL_SHUFFLE, Attrs::PixelShuffle(f)) => {
-            Some(x.channels) == out.channels.checked_mul(f * f)
-                && x.dtype == out.dtype
-                && (x.dtype == DType::F32 || x.q == out.q)
-        }
-        (GLOBAL_AVG_POOL | GLOBAL_MAX_POOL, _) => x.channels == out.channels,
-        (CHANNEL_MEAN | CHANNEL_MAX, _) => out.channels == 1,
-        (BINS_HEAD, Attrs::Bins { attrs, .. }) => {
-            let l = t(op.inputs[1])?;
-            x.dtype == DType::I8
-                && x.channels <= MAX_BIN_FEATURES
-                && l.channels == attrs.n_bins
-                && out.dtype == DType::F32
-                && out.channels == 1
-        }
-        (REFINE, _) => {
-            let want = [
-                (DType::F32, 1),
-                (DType::I8, 8),
-                (DType::I8, 24),
-                (DType::I8, 48),
-                (DType::I8, 3),
-                (DType::I8, 3),
-            ];
-            let ins_ok = op
-                .inputs
-                .iter()
-                .zip(want)
-                .all(|(&i, (d, c))| t(i).is_ok_and(|ti| ti.dtype == d && ti.channels == c));
-            ins_ok && out.dtype == DType::F32 && out.channels == 1
-        }
-        _ => false,
+    let k = Types {
+        op,
+        tensors,
+        produced,
+        x: t(op.inputs[0])?,
+        out: t(op.output)?,
     };
-    if ok {
+    if kind.types_ok(&k)? {
         Ok(())
     } else {
-        fail("op: input/output dtypes or channel counts do not fit the op")
+        Err(bad(
+            at,
+            "op: input/output dtypes or channel counts do not fit the op",
+        ))
     }
 }

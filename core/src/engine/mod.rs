@@ -19,18 +19,18 @@
 //!
 //!   | variant | H×W | `Memory::Streamed` | `Memory::Budget(1.5 ×)` | `Memory::Whole` |
 //!   |---|---|---|---|---|
-//!   | `mcu` | 120×160 | 384 175 B (goal 384 KiB) | 518 575 B (affinities only) | 1 922 687 B |
-//!   | `phone` | 320×240 | 1 672 255 B (goal 2 MiB) | 1 672 255 B | 7 431 599 B |
+//!   | `mcu` | 120×160 | 384 191 B (goal 384 KiB) | 518 591 B (affinities only) | 1 922 703 B |
+//!   | `phone` | 320×240 | 1 672 271 B (goal 2 MiB) | 1 672 271 B | 7 431 615 B |
 //!
-//!   The `mcu` peaks are the last decoder stage (skips and a conv's scratch, 382 112 B) and the
-//!   refinement (guidance 153 600 B, the ring, windows and heads' scratch 206 400 B, the bins
-//!   map 19 200 B). Fusing kmix/tmix costs instructions (≈ 42 M per frame on a Cortex-M4):
+//!   The `mcu` peaks are the last decoder stage (skips and a conv's scratch, 382 128 B) and the
+//!   refinement (guidance 153 600 B, the ring, windows and heads' scratch 206 448 B, the bins
+//!   map 19 200 B). Fusing kmix/tmix costs instructions (≈ 33 M per frame on a Cortex-M4):
 //!   `Memory::Budget` trades them back where the arena allows.
 //! - `size_of::<Engine>()` is 48 736 bytes on x86-64 (fixed-capacity op, tensor and buffer
 //!   tables, no heap; less on 32-bit targets): keep it in a `static` on a microcontroller.
 //!   `Engine::new` also uses ≈ 25 KiB of stack once, for the planner's temporary tables.
 
-mod cast;
+pub(crate) mod cast;
 #[allow(clippy::module_inception)]
 mod engine;
 pub mod error;

@@ -21,16 +21,14 @@
 //!  arena_bytes = 15 (base alignment slack) + persistent_bytes + activation_bytes
 //! ```
 
-use crate::blob::format::{opcode, upsample_mode, MAX_OPS, MAX_TENSORS};
+use crate::blob::format::{opcode, MAX_OPS, MAX_TENSORS};
 use crate::blob::parse::{Attrs, DType, Graph, OpInfo};
-use crate::kernels::bins::BinChannel;
-use crate::kernels::conv::{ChannelQuant, Conv2d};
-use crate::kernels::elementwise::{AddQuant, MulQuant, Rescale};
-use crate::kernels::float::Broadcast;
+use crate::kernels::broadcast::Broadcast;
+use crate::kernels::conv::ChannelQuant;
 use crate::kernels::pack::MAX_PARTS;
-use crate::kernels::pool::MeanQuant;
 use crate::kernels::refine;
 use crate::kernels::Shape;
+use crate::ops::{Kind, PlanCtx};
 use core::mem::size_of;
 use core::ops::Range;
 use heapless::Vec;
@@ -378,25 +376,27 @@ fn place_in(reqs: &[BufferReq], offsets: &mut [usize], order: &[u16]) -> Result<
     Ok(total)
 }
 
-/// Output shape, scratch bytes, constant bytes, broadcast and MACs of one op.
-struct OpPlan {
-    out: Shape,
-    scratch: usize,
-    consts: usize,
-    broadcast: Broadcast,
-    macs: u64,
+/// Output shape, scratch bytes, constant bytes, broadcast and MACs of one op (each op's
+/// file in `crate::ops` fills it).
+pub(crate) struct OpPlan {
+    /// Output shape.
+    pub out: Shape,
+    /// Scratch bytes.
+    pub scratch: usize,
+    /// Persistent constant bytes.
+    pub consts: usize,
+    /// How a `mul`'s second operand broadcasts.
+    pub broadcast: Broadcast,
+    /// Multiply-accumulates.
+    pub macs: u64,
 }
 
 fn plan_op(i: usize, op: &OpInfo, g: &Graph, shapes: &[Shape]) -> Result<OpPlan, PlanError> {
-    use opcode::*;
     let err = |what| PlanError::Shape { op: i, what };
-    let shape = |id: u16| {
-        shapes
-            .get(id as usize)
-            .copied()
-            .ok_or(err("input shape unknown"))
-    };
-    let x = shape(op.inputs[0])?;
+    let x = shapes
+        .get(op.inputs[0] as usize)
+        .copied()
+        .ok_or(err("input shape unknown"))?;
     let out_c = g
         .tensors
         .get(op.output as usize)
@@ -409,109 +409,15 @@ fn plan_op(i: usize, op: &OpInfo, g: &Graph, shapes: &[Shape]) -> Result<OpPlan,
         broadcast: Broadcast::None,
         macs: 0,
     };
-    match (op.code, &op.attrs) {
-        (CONV2D | LINEAR, Attrs::Conv { geometry, .. }) => {
-            let geometry = geometry.get();
-            p.out = geometry
-                .output_shape(x, out_c)
-                .ok_or(err("conv: no output for this input size"))?;
-            p.scratch = Conv2d::scratch_len(&geometry, x, p.out)
-                .checked_mul(4)
-                .ok_or(PlanError::TooLarge)?;
-            p.consts = out_c * size_of::<ChannelQuant>();
-            let taps = geometry.weight_len(x.c, out_c).ok_or(PlanError::TooLarge)? / out_c;
-            p.macs = (p.out.len().ok_or(PlanError::TooLarge)? as u64).saturating_mul(taps as u64);
-        }
-        (ADD, _) => {
-            if shape(op.inputs[1])? != x {
-                return Err(err("add: operand shapes differ"));
-            }
-            p.consts = size_of::<AddQuant>();
-        }
-        (MUL, _) => {
-            let y = shape(op.inputs[1])?;
-            p.broadcast = if y == x {
-                Broadcast::None
-            } else if y == Shape::new(1, x.h, x.w) {
-                Broadcast::OverChannels
-            } else if y == Shape::new(x.c, 1, 1) {
-                Broadcast::OverSpace
-            } else {
-                return Err(err(
-                    "mul: second operand neither equal, [1,H,W] nor [C,1,1]",
-                ));
-            };
-            p.consts = size_of::<MulQuant>();
-        }
-        (CONCAT, _) => {
-            for &id in &op.inputs {
-                let s = shape(id)?;
-                if (s.h, s.w) != (x.h, x.w) {
-                    return Err(err("concat: inputs differ in H or W"));
-                }
-            }
-            p.consts = op.inputs.len() * size_of::<Rescale>();
-        }
-        (UPSAMPLE_BILINEAR, Attrs::Upsample { mode, a, b }) => {
-            let (h, w) = match *mode {
-                upsample_mode::FIXED => (*a, *b),
-                upsample_mode::SCALE => (
-                    x.h.checked_mul(*a).ok_or(PlanError::TooLarge)?,
-                    x.w.checked_mul(*b).ok_or(PlanError::TooLarge)?,
-                ),
-                _ => {
-                    let s = shapes
-                        .get(*a)
-                        .copied()
-                        .filter(|s| s.c > 0)
-                        .ok_or(err("upsample: size tensor unknown"))?;
-                    (s.h, s.w)
-                }
-            };
-            p.out = Shape::new(out_c, h, w);
-        }
-        (PIXEL_SHUFFLE, Attrs::PixelShuffle(r)) => {
-            p.out = Shape::new(
-                out_c,
-                x.h.checked_mul(*r).ok_or(PlanError::TooLarge)?,
-                x.w.checked_mul(*r).ok_or(PlanError::TooLarge)?,
-            );
-        }
-        (GLOBAL_AVG_POOL, _) => {
-            p.out = Shape::new(out_c, 1, 1);
-            p.consts = size_of::<MeanQuant>();
-        }
-        (GLOBAL_MAX_POOL, _) => {
-            p.out = Shape::new(out_c, 1, 1);
-            p.consts = size_of::<Rescale>();
-        }
-        (CHANNEL_MEAN, _) => p.consts = size_of::<MeanQuant>(),
-        (CHANNEL_MAX, _) => p.consts = size_of::<Rescale>(),
-        (RELU | LEAKY_RELU | SIGMOID | RECIPROCAL | MINMAX_NORM, _) => {}
-        (BINS_HEAD, Attrs::Bins { attrs, .. }) => {
-            if shape(op.inputs[1])? != Shape::new(attrs.n_bins, 1, 1) {
-                return Err(err("bins_head: bin logits must be [N,1,1]"));
-            }
-            p.consts = attrs.n_bins * size_of::<BinChannel>();
-            p.macs = (x.plane().ok_or(PlanError::TooLarge)? as u64)
-                .saturating_mul((x.c * attrs.n_bins) as u64);
-        }
-        (REFINE, _) => {
-            for &id in &op.inputs {
-                let s = shape(id)?;
-                if (s.h, s.w) != (x.h, x.w) {
-                    return Err(err("refine: inputs differ in H or W"));
-                }
-            }
-            let Attrs::Refine(attrs) = &op.attrs else {
-                return Err(err("refine: attributes"));
-            };
-            p.scratch = refine::scratch_len(x.w, attrs.iterations)
-                .checked_mul(4)
-                .ok_or(PlanError::TooLarge)?;
-        }
-        _ => return Err(err("op attributes do not match the opcode")),
-    }
+    let kind = Kind::of(op.code).ok_or(err("op attributes do not match the opcode"))?;
+    let c = PlanCtx {
+        i,
+        op,
+        shapes,
+        x,
+        out_c,
+    };
+    kind.plan(&c, &mut p)?;
     if p.out.len().is_none_or(|n| n == 0) {
         return Err(err("empty or overflowing output"));
     }

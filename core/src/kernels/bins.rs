@@ -7,12 +7,12 @@
 //! expectation by whole bins, and a fixed-point exp would need a 32-bit LUT pipeline like
 //! TFLite's `SOFTMAX` with Q5.26 inputs. Cortex-M4F/M7 have a single-precision FPU, so the
 //! logits are dequantised (`acc · s_F · s_w[i]`) and the softmax and expectation run in f32 with
-//! [`float::exp`](super::float::exp) in a fixed order: `m = max l`, then for
+//! [`scalar::exp`](super::scalar::exp) in a fixed order: `m = max l`, then for
 //! `i = 0..N` in order `e = exp(l_i − m); S += e; D += e·c_i`, result `D / S`. No FMA is used
 //! (Rust never contracts `a*b+c`), so host and MCU give the same bits. The output map is f32 metres.
 
-use super::float::exp;
 use super::isa::Isa;
+use super::scalar::exp;
 use super::{need, KernelError, Shape};
 
 /// Most bins supported (stack arrays of this size hold logits and centres).
@@ -54,12 +54,12 @@ pub fn bin_centres(
     }
     let mut total = 0.0f32;
     for &l in &bin_logits[..n] {
-        total += super::float::relu(l) + 0.1;
+        total += super::scalar::relu(l) + 0.1;
     }
     let range = attrs.max_depth - attrs.min_depth;
     let mut edge = attrs.min_depth;
     for (c, &l) in centres[..n].iter_mut().zip(bin_logits) {
-        let width = range * ((super::float::relu(l) + 0.1) / total);
+        let width = range * ((super::scalar::relu(l) + 0.1) / total);
         *c = edge + width / 2.0;
         edge += width;
     }

@@ -311,10 +311,10 @@ impl Conv2d<'_> {
 }
 
 /// Requantisation constants of one output channel (`simple`: multipliers ≥ 0 shifting right
-/// only, the case [`requant_one`] and the vector paths handle).
+/// only, the case `requant_one` and the vector paths handle).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct RowQuant {
-    /// Whether [`requant_one`] applies.
+    /// Whether `requant_one` applies.
     pub simple: bool,
     /// Added to every accumulator first (bias and packing terms).
     pub base: i32,

@@ -4,7 +4,7 @@
 //! rounding of the exact product, [`Requant::apply_rounded`], not TFLite's two), concat with
 //! per-input requantisation, pixel_shuffle and minmax_norm.
 
-use super::float::{broadcast_index, broadcast_len, Broadcast};
+use super::broadcast::{broadcast_index, broadcast_len, Broadcast};
 use super::requant::{clamp_i8, QParams, Requant};
 use super::{need, KernelError, Shape};
 

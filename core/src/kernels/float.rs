@@ -8,45 +8,7 @@ use super::conv::{Activation, ConvGeometry};
 use super::refine::{self, F32Map, RefineAttrs};
 use super::{need, KernelError, Shape};
 
-/// `e^x` to about 2 ULP from deterministic IEEE f32 operations (called explicitly so a host
-/// build with `std` linked never picks the platform `expf`, whose bits differ between libms).
-#[inline]
-pub fn exp(x: f32) -> f32 {
-    crate::fmath::exp_f32(x)
-}
-
-/// `max(x, 0)`.
-pub fn relu(x: f32) -> f32 {
-    if x > 0.0 {
-        x
-    } else {
-        0.0
-    }
-}
-
-/// `x` for `x ≥ 0`, `alpha·x` otherwise.
-pub fn leaky_relu(x: f32, alpha: f32) -> f32 {
-    if x >= 0.0 {
-        x
-    } else {
-        alpha * x
-    }
-}
-
-/// `1/(1 + e^−x)`, saturating cleanly for large |x|.
-pub fn sigmoid(x: f32) -> f32 {
-    if x >= 0.0 {
-        1.0 / (1.0 + exp(-x))
-    } else {
-        let e = exp(x);
-        e / (1.0 + e)
-    }
-}
-
-/// `1/(x + eps)`.
-pub fn reciprocal(x: f32, eps: f32) -> f32 {
-    1.0 / (x + eps)
-}
+pub use super::scalar::{exp, leaky_relu, reciprocal, relu, sigmoid};
 
 /// Applies an activation.
 pub fn activate(x: f32, act: Activation) -> f32 {
@@ -137,36 +99,7 @@ pub fn linear(
     )
 }
 
-/// How the second operand of [`mul`] broadcasts.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Broadcast {
-    /// Same shape as the first operand.
-    None,
-    /// `[1, H, W]`: one map applied to every channel (CBAM spatial attention).
-    OverChannels,
-    /// `[C, 1, 1]`: one value per channel (CBAM channel attention).
-    OverSpace,
-}
-
-/// Index into the second operand for element `i` of a `shape` tensor.
-#[inline]
-pub fn broadcast_index(b: Broadcast, shape: Shape, i: usize) -> usize {
-    let plane = shape.h * shape.w;
-    match b {
-        Broadcast::None => i,
-        Broadcast::OverChannels => i % plane,
-        Broadcast::OverSpace => i / plane,
-    }
-}
-
-/// Length the second operand must have.
-pub fn broadcast_len(b: Broadcast, shape: Shape) -> Option<usize> {
-    match b {
-        Broadcast::None => shape.len(),
-        Broadcast::OverChannels => shape.plane(),
-        Broadcast::OverSpace => Some(shape.c),
-    }
-}
+pub use super::broadcast::{broadcast_index, broadcast_len, Broadcast};
 
 /// Elementwise `a + b` (same shape).
 pub fn add(a: &[f32], b: &[f32], out: &mut [f32]) -> Result<(), KernelError> {

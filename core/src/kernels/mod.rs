@@ -1,7 +1,10 @@
 //! Int8 kernels, one module per op family, each in TFLite-Micro layers: a `*_ref` function with
 //! plain loops (the spec), a fast path with the same signature where one pays off, both run by
 //! the shared `kernel_tests!` suite on named golden cases and proptest shapes; and
-//! [`float`], the f32 reference of every op that the host quantizer calibrates with.
+//! [`float`], the f32 reference of every op that the host quantizer calibrates with. The scalar
+//! functions ([`scalar`]) and `mul`'s broadcasts ([`broadcast`]) are leaves that the kernels and
+//! the reference share, so no kernel imports [`float`]. How an op reads its blob attributes,
+//! plans and runs is in its file under `core/src/ops/`.
 //!
 //! Tensors are planar CHW (the graph's NCHW with N = 1), row-major, in caller-provided slices.
 //! Kernels check every length up front and return [`KernelError`] instead of panicking.
@@ -17,6 +20,7 @@
 #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
 pub mod arm;
 pub mod bins;
+pub mod broadcast;
 pub mod conv;
 pub mod dot;
 pub mod elementwise;
@@ -27,6 +31,7 @@ pub mod pool;
 pub mod refine;
 pub mod requant;
 pub mod resize;
+pub mod scalar;
 #[cfg(target_arch = "x86_64")]
 pub mod x86_64;
 

@@ -7,6 +7,7 @@ use depthor_host::gap::bench::{
     case_seed, dark_far, real_cases, real_scenes, render_scenes, run_case, standard_cases, table,
     SceneSet,
 };
+use depthor_host::gap::shapes::{run_shape_case, shape_cases, shape_table};
 use depthor_host::gap::units::{calibrate, CalibrateOptions, UnitTable};
 use depthor_host::gap::{effects, GapOptions};
 use depthor_host::sim::preset;
@@ -80,6 +81,17 @@ pub struct Args {
     /// Log-bisection steps inside the calibration bracket.
     #[arg(long, default_value_t = 1)]
     refine: usize,
+    /// Run the misspecified-shape benchmark instead (docs/gap.md "Shape bench"): every effect
+    /// family injected with forward models other than the library's, by the benchmark's own
+    /// code, at `--shape-size` × the family's unit; `--nulls` / `--real-nulls` null cases.
+    #[arg(long)]
+    shapes: bool,
+    /// Size multiple of the shape benchmark.
+    #[arg(long, default_value_t = 2.0)]
+    shape_size: f64,
+    /// Recordings per shape and scene set in the shape benchmark (each on its own seed).
+    #[arg(long, default_value_t = 1)]
+    repeats: usize,
 }
 
 /// Runs `depthor gap-bench`.
@@ -102,25 +114,14 @@ pub fn handle(args: Args) -> anyhow::Result<()> {
     if args.calibrate_units {
         return calibrate_units(&args);
     }
+    if args.shapes {
+        return shape_bench(&args);
+    }
     let t0 = Instant::now();
     let base = preset("mcu")?;
     let scenes = render_scenes(args.frames, args.width, args.height, args.seed);
     let mut cases = standard_cases(&args.sizes, args.nulls);
-    let real = if args.no_real {
-        Vec::new()
-    } else if args.real_data.is_dir() {
-        let (r, notes) = real_scenes(&args.real_data, args.width, args.height);
-        for n in notes {
-            eprintln!("note: {n}");
-        }
-        r
-    } else {
-        eprintln!(
-            "note: {} not found: no cases on real RGB-D frames (pass --real-data)",
-            args.real_data.display()
-        );
-        Vec::new()
-    };
+    let real = load_real(&args);
     if real.len() >= 8 {
         cases.extend(real_cases(&args.sizes, args.real_nulls));
     }
@@ -252,6 +253,82 @@ fn calibrate_units(args: &Args) -> anyhow::Result<()> {
     if let Some(p) = &args.out {
         super::common::OutFile::new(p, "gap_units.json")
             .write((json + "\n").as_bytes(), args.overwrite)?;
+    }
+    Ok(())
+}
+
+/// The real-set frames of `args` (empty with `--no-real` or without the folder, with a note).
+fn load_real(args: &Args) -> Vec<depthor_host::scene::SceneFrame> {
+    if args.no_real {
+        Vec::new()
+    } else if args.real_data.is_dir() {
+        let (r, notes) = real_scenes(&args.real_data, args.width, args.height);
+        for n in notes {
+            eprintln!("note: {n}");
+        }
+        r
+    } else {
+        eprintln!(
+            "note: {} not found: no cases on real RGB-D frames (pass --real-data)",
+            args.real_data.display()
+        );
+        Vec::new()
+    }
+}
+
+/// `depthor gap-bench --shapes`: the misspecified-shape benchmark on rendered and real-set
+/// recordings.
+fn shape_bench(args: &Args) -> anyhow::Result<()> {
+    let t0 = Instant::now();
+    let base = preset("mcu")?;
+    let scenes = render_scenes(args.frames, args.width, args.height, args.seed);
+    let real = load_real(args);
+    let mut cases = shape_cases(&["sim"], args.shape_size, args.repeats, args.nulls);
+    if real.len() >= 8 {
+        cases.extend(shape_cases(
+            &["real"],
+            args.shape_size,
+            args.repeats,
+            args.real_nulls,
+        ));
+    }
+    cases.retain(|c| {
+        args.only
+            .as_ref()
+            .is_none_or(|o| c.label.contains(o.as_str()))
+    });
+    let bar = super::progress(cases.len() as u64, "cases");
+    let opts = GapOptions {
+        draws: args.draws,
+        ..GapOptions::default()
+    };
+    let mut results = Vec::new();
+    for c in &cases {
+        bar.set_message(c.label.clone());
+        let set = if c.scenes == "real" { &real } else { &scenes };
+        let r = run_shape_case(set, &base, c, &opts, case_seed(args.seed, &c.label))?;
+        if args.verbose {
+            bar.suspend(|| eprintln!("{}: a {:.4}, named {:?}", c.label, r.amplitude, r.named));
+        }
+        bar.inc(1);
+        results.push(r);
+    }
+    bar.finish_and_clear();
+    let mut t = shape_table(&results);
+    t.push_str(&format!(
+        "\n{} cases at {}× the family's unit; {} rendered frames and {} real-set frames of {}×{} per recording; seed {}; wall time {:.0} s.\n",
+        results.len(),
+        args.shape_size,
+        scenes.len(),
+        real.len(),
+        args.width,
+        args.height,
+        args.seed,
+        t0.elapsed().as_secs_f64()
+    ));
+    println!("{t}");
+    if let Some(p) = &args.out {
+        super::common::OutFile::new(p, "gap_bench.md").write(t.as_bytes(), args.overwrite)?;
     }
     Ok(())
 }

@@ -18,6 +18,7 @@ pub mod model;
 pub mod power;
 pub mod report;
 pub mod select;
+pub mod shapes;
 pub mod stats;
 pub mod units;
 

@@ -13,7 +13,7 @@
 //! `A += r_j · D_j` from `A = D`, then `D' = A / (1 + S)`: one pass over the neighbours, one
 //! division. This is docs/graph.md's `w_c·D + Σ w_j·D_j` with `w_j = r_j/(1 + S)` and
 //! `w_c = 1/(1 + S)`, rounded differently. The Gaussians `g_j = exp(−(dx²+dy²)/(2σ_k²))` are
-//! computed once per run with [`super::float::exp`]. After `t ∈ {0, T/2, T}` the output gains
+//! computed once per run with [`super::scalar::exp`]. After `t ∈ {0, T/2, T}` the output gains
 //! `(τ_t · σ_k) · D_{k,t}` with `σ`, `τ` the per-pixel 3-way softmaxes of kmix / tmix
 //! ([`Mix`]: on int8 maps the exponentials come from a 256-entry table of the code distance).
 //! The output map is the accumulator.
@@ -37,10 +37,10 @@ mod step;
 pub use heads::{ConvRows, Head, MixConvRows};
 pub use step::{step_pixel, step_row, Branch, RowAt, MAX_NEIGHBOURS};
 
-use super::float::exp;
 use super::isa::Isa;
 use super::requant::QParams;
 use super::resize::upsample_bilinear_f32_row;
+use super::scalar::exp;
 use super::{KernelError, Shape};
 
 /// Most iterations accepted.

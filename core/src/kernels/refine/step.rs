@@ -7,9 +7,9 @@
 //! bits do not depend on which ran.
 
 use super::{I8Map, Map};
-use crate::kernels::float::{exp, relu};
 use crate::kernels::isa::Isa;
 use crate::kernels::requant::QParams;
+use crate::kernels::scalar::{exp, relu};
 use crate::kernels::KernelError;
 
 /// Most neighbours of a branch (7×7 − 1).

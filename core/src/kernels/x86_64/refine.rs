@@ -156,7 +156,7 @@ unsafe fn step_lanes<V: Lanes>(
     }
 }
 
-/// [`step_lanes`] with 8 lanes over `neighbours = (j0, delta, g)`. Callers check that `a` has
+/// `step_lanes` with 8 lanes over `neighbours = (j0, delta, g)`. Callers check that `a` has
 /// `j0 + delta.len()` channels holding `at.aff + x` for `x < x1`, that every
 /// `at.cur + x + delta` of `x0..x1` lies in `cur`, and that `nxt` holds `x1` values.
 ///

@@ -1,4 +1,4 @@
-//! AVX2 `exp`, bit for bit [`crate::fmath::exp_f32`] per lane: the same IEEE operations in the
+//! AVX2 `exp`, bit for bit `crate::fmath::exp_f32` per lane: the same IEEE operations in the
 //! same order (no FMA), the special cases blended in at the end.
 
 use core::arch::x86_64::*;

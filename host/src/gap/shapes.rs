@@ -1,0 +1,581 @@
+//! The misspecified-shape benchmark (`depthor gap-bench --shapes`, docs/gap.md "Shape bench"):
+//! each effect family injected with forward models that differ from the one the tool fits
+//! (dropout with a logistic or step cut-off in range, dark loss below a brightness threshold or
+//! along a quadratic ramp, border loss as a step or a linear ramp in radius, range noise growing
+//! with d² or as a constant plus d, range bias growing with d² or only beyond the median range).
+//! The injection is this file's own code, applied to the "real" zones after a plain simulation:
+//! it reads its own zone facts (mean reference depth, mean HSV value, grid radius) and never
+//! calls the simulator's effect modules. Each shape is sized to the library form's mean effect
+//! at a multiple of its unit (`units.rs`) on the same recording (mean loss probability, mean
+//! added σ or mean |bias| over the valid zones), so "2×" means the same strength as the
+//! library's 2× case. A case is right when the tool's first finding is the family's name.
+
+use rayon::prelude::*;
+
+use super::bench::{make_real, sized};
+use super::data::{GapData, GapFrame};
+use super::stats::clopper_pearson_upper;
+use super::{analyze, effects, GapError, GapOptions};
+use crate::rng::Rng;
+use crate::scene::SceneFrame;
+use crate::sim::covariates::zone_covariates;
+use crate::sim::SimConfig;
+
+/// One injected shape.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Shape {
+    /// The library family the tool should name.
+    pub family: &'static str,
+    /// Short name of the shape.
+    pub name: &'static str,
+    /// The forward model in words.
+    pub what: &'static str,
+}
+
+const fn s(family: &'static str, name: &'static str, what: &'static str) -> Shape {
+    Shape { family, name, what }
+}
+
+/// Every shape, by family.
+pub const SHAPES: [Shape; 11] = [
+    s(
+        "range_dropout",
+        "logistic",
+        "p = a·σ((d − d70)/0.15 m): a sharp cut-off at the 70th range percentile",
+    ),
+    s(
+        "range_dropout",
+        "step",
+        "p = a beyond the 70th range percentile, 0 nearer",
+    ),
+    s(
+        "dark_dropout",
+        "threshold",
+        "p = a below the 30th brightness percentile, 0 above",
+    ),
+    s(
+        "dark_dropout",
+        "ramp",
+        "p = a·(1 − V/V60)₊²: a smooth quadratic ramp up to the 60th brightness percentile",
+    ),
+    s(
+        "border_dropout",
+        "step",
+        "p = a at grid radius > 0.75, 0 inside",
+    ),
+    s(
+        "border_dropout",
+        "linear",
+        "p = a·r: linear in the grid radius",
+    ),
+    s("range_noise", "quadratic", "σ = a·d²"),
+    s("range_noise", "affine", "σ = a·(0.5 m + d)"),
+    s("range_bias", "quadratic", "bias = a·d²"),
+    s(
+        "range_bias",
+        "far_step",
+        "bias = a beyond the median range, 0 nearer",
+    ),
+    s(
+        "range_bias",
+        "far_ramp",
+        "bias = a·(d − d50)₊: growing beyond the median range",
+    ),
+];
+
+/// What the injections read per zone (this file's own computation).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ZoneFacts {
+    /// Mean reference depth over the zone's rectangle (0 without depth), metres.
+    pub range_m: f32,
+    /// Mean HSV value (max of R, G, B) / 255.
+    pub v: f32,
+    /// Distance from the grid centre, 0 at the centre, 1 at the corners.
+    pub radius: f32,
+}
+
+/// Zone facts of `f` for a `rows × cols` grid whose zone rectangles (`[y0, x0, y1, x1]`
+/// pixels) are `rects`.
+pub fn zone_facts(f: &GapFrame, rects: &[[f32; 4]], rows: usize, cols: usize) -> Vec<ZoneFacts> {
+    let (w, h) = (f.width as i64, f.height as i64);
+    rects
+        .iter()
+        .enumerate()
+        .map(|(z, r)| {
+            let (y0, x0) = ((r[0].floor() as i64).max(0), (r[1].floor() as i64).max(0));
+            let (y1, x1) = ((r[2].ceil() as i64).min(h), (r[3].ceil() as i64).min(w));
+            let (mut dsum, mut dn, mut vsum, mut vn) = (0.0f64, 0u32, 0.0f64, 0u32);
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    let i = (y * w + x) as usize;
+                    let d = f.depth_m[i];
+                    if d.is_finite() && d > 0.0 {
+                        dsum += f64::from(d);
+                        dn += 1;
+                    }
+                    let p = &f.rgb[3 * i..3 * i + 3];
+                    vsum += f64::from(p[0].max(p[1]).max(p[2])) / 255.0;
+                    vn += 1;
+                }
+            }
+            let half = |n: usize| ((n as f32 - 1.0) / 2.0).max(0.5);
+            let (gy, gx) = (
+                ((z / cols) as f32 - half(rows)) / half(rows),
+                ((z % cols) as f32 - half(cols)) / half(cols),
+            );
+            ZoneFacts {
+                range_m: if dn > 0 {
+                    (dsum / f64::from(dn)) as f32
+                } else {
+                    0.0
+                },
+                v: if vn > 0 {
+                    (vsum / f64::from(vn)) as f32
+                } else {
+                    0.0
+                },
+                radius: ((gy * gy + gx * gx) / 2.0).sqrt(),
+            }
+        })
+        .collect()
+}
+
+/// The `q`-quantile of `v` (0 when empty).
+fn quantile(v: &mut [f32], q: f64) -> f32 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(f32::total_cmp);
+    v[((q * (v.len() - 1) as f64).round() as usize).min(v.len() - 1)]
+}
+
+/// Recording-level thresholds the shapes use: 70th and 50th range percentiles, 30th and 60th
+/// brightness percentiles (over zones with depth).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Thresholds {
+    d70: f32,
+    d50: f32,
+    v30: f32,
+    v60: f32,
+}
+
+impl Thresholds {
+    /// From every zone of every frame.
+    pub fn of(facts: &[Vec<ZoneFacts>]) -> Self {
+        let all: Vec<&ZoneFacts> = facts.iter().flatten().filter(|z| z.range_m > 0.0).collect();
+        let mut d: Vec<f32> = all.iter().map(|z| z.range_m).collect();
+        let mut v: Vec<f32> = all.iter().map(|z| z.v).collect();
+        Thresholds {
+            d70: quantile(&mut d, 0.7),
+            d50: quantile(&mut d, 0.5),
+            v30: quantile(&mut v, 0.3),
+            v60: quantile(&mut v, 0.6).max(1e-3),
+        }
+    }
+}
+
+/// The shape's value at unit amplitude for zone `z` (a loss probability factor, a σ in metres
+/// per unit, or a bias in metres per unit).
+pub fn unit_value(shape: &Shape, t: &Thresholds, z: &ZoneFacts) -> f32 {
+    let d = z.range_m;
+    match (shape.family, shape.name) {
+        ("range_dropout", "logistic") => 1.0 / (1.0 + (-(d - t.d70) / 0.15).exp()),
+        ("range_dropout", _) => f32::from(u8::from(d > t.d70)),
+        ("dark_dropout", "threshold") => f32::from(u8::from(z.v < t.v30)),
+        ("dark_dropout", _) => (1.0 - z.v / t.v60).max(0.0).powi(2),
+        ("border_dropout", "step") => f32::from(u8::from(z.radius > 0.75)),
+        ("border_dropout", _) => z.radius,
+        ("range_noise", "quadratic") => d * d,
+        ("range_noise", _) => 0.5 + d,
+        ("range_bias", "quadratic") => d * d,
+        ("range_bias", "far_step") => f32::from(u8::from(d > t.d50)),
+        ("range_bias", _) => (d - t.d50).max(0.0),
+        _ => 0.0,
+    }
+}
+
+/// The library form's per-zone effect (loss probability, σ, or |bias|) under `lib` for zone `z`
+/// of frame `f` (the simulator's covariates `cov`, used only to size the shapes).
+fn library_value(
+    family: &str,
+    lib: &SimConfig,
+    z: &ZoneFacts,
+    cov: &crate::sim::covariates::ZoneCovariates,
+) -> f32 {
+    let d = z.range_m;
+    match family {
+        "range_dropout" => lib.range_dropout.loss_probability(d),
+        "dark_dropout" => lib.dark_dropout.loss_probability(cov),
+        "border_dropout" => lib.border_dropout.loss_probability(cov.radius),
+        "range_noise" => lib.range_noise.sigma(d),
+        "range_bias" => (lib.range_bias.distance(d) - d).abs(),
+        _ => 0.0,
+    }
+}
+
+/// Amplitude `a` of `shape` whose mean effect over the valid zones of `plain` equals the library
+/// form's at `size` × its unit.
+pub fn amplitude(
+    shape: &Shape,
+    size: f64,
+    base: &SimConfig,
+    plain: &GapData,
+    facts: &[Vec<ZoneFacts>],
+    t: &Thresholds,
+) -> Option<f32> {
+    let mut lib = base.clone();
+    effects::set(&mut lib, shape.family, Some(&sized(shape.family, size)?));
+    let (rows, cols) = (usize::from(base.grid.rows), usize::from(base.grid.cols));
+    let (mut lib_sum, mut unit_sum, mut n) = (0.0f64, 0.0f64, 0usize);
+    for (f, zf) in plain.frames.iter().zip(facts) {
+        let input = f.sim_input();
+        let rects = base.grid.zone_rects_px(f.width, f.height);
+        for (zi, z) in zf.iter().enumerate() {
+            if !f.real_valid.get(zi).copied().unwrap_or(false) || z.range_m <= 0.0 {
+                continue;
+            }
+            let r = rects[zi];
+            let w = f.width as i64;
+            let mut px = Vec::new();
+            for y in (r[0].floor() as i64).max(0)..(r[2].ceil() as i64).min(f.height as i64) {
+                for x in (r[1].floor() as i64).max(0)..(r[3].ceil() as i64).min(w) {
+                    px.push((y * w + x) as u32);
+                }
+            }
+            let cov = zone_covariates(&input, &px, 1.0, zi, rows, cols);
+            lib_sum += f64::from(library_value(shape.family, &lib, z, &cov));
+            unit_sum += f64::from(unit_value(shape, t, z));
+            n += 1;
+        }
+    }
+    (n > 0 && unit_sum > 0.0).then(|| (lib_sum / unit_sum) as f32)
+}
+
+/// Applies `shape` at amplitude `a` to the zones of `f` (facts `zf`): dropout clears a valid
+/// zone with probability `min(a·u, 1)`, noise adds `a·u·N(0, 1)`, bias adds `a·u`.
+pub fn inject(
+    shape: &Shape,
+    a: f32,
+    t: &Thresholds,
+    zf: &[ZoneFacts],
+    f: &mut GapFrame,
+    rng: &mut Rng,
+) {
+    for (zi, z) in zf.iter().enumerate() {
+        if !f.real_valid.get(zi).copied().unwrap_or(false) {
+            continue;
+        }
+        let u = unit_value(shape, t, z);
+        match shape.family {
+            "range_noise" => f.real_m[zi] = (f.real_m[zi] + a * u * rng.normal()).max(1e-3),
+            "range_bias" => f.real_m[zi] = (f.real_m[zi] + a * u).max(1e-3),
+            _ => {
+                if rng.f32() < (a * u).min(1.0) {
+                    f.real_valid[zi] = false;
+                }
+            }
+        }
+    }
+}
+
+/// One shape case (or a null: `shape` None).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ShapeCase {
+    /// Label (`real:range_dropout/logistic@2x#0`, `null#3`).
+    pub label: String,
+    /// The injected shape.
+    pub shape: Option<Shape>,
+    /// Size multiple of the family's unit.
+    pub size: f64,
+    /// Scene set name (`sim`, `real`).
+    pub scenes: &'static str,
+}
+
+/// The outcome of one shape case.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ShapeResult {
+    /// The case.
+    pub case: ShapeCase,
+    /// The amplitude injected.
+    pub amplitude: f32,
+    /// Effects named, most important first.
+    pub named: Vec<String>,
+    /// Whether report.json would say the held-out frames can reach significance.
+    pub conclusive: bool,
+    /// Held-out gain of each accepted finding, nats per zone.
+    pub finding_gains: Vec<f64>,
+}
+
+impl ShapeResult {
+    /// The first finding is the family's name.
+    pub fn top1(&self) -> bool {
+        self.case
+            .shape
+            .is_some_and(|s| self.named.first().is_some_and(|n| n == s.family))
+    }
+}
+
+/// Runs one case: a plain simulation of `scenes`, the shape injected, the tool run against
+/// `base`.
+pub fn run_shape_case(
+    scenes: &[SceneFrame],
+    base: &SimConfig,
+    case: &ShapeCase,
+    opts: &GapOptions,
+    seed: u64,
+) -> Result<ShapeResult, GapError> {
+    let mut real = make_real(scenes, base, seed, None)?;
+    let (rows, cols) = (usize::from(base.grid.rows), usize::from(base.grid.cols));
+    let facts: Vec<Vec<ZoneFacts>> = real
+        .frames
+        .par_iter()
+        .map(|f| zone_facts(f, &base.grid.zone_rects_px(f.width, f.height), rows, cols))
+        .collect();
+    let t = Thresholds::of(&facts);
+    let mut a = 0.0;
+    if let Some(shape) = &case.shape {
+        a = amplitude(shape, case.size, base, &real, &facts, &t).unwrap_or(0.0);
+        for (i, (f, zf)) in real.frames.iter_mut().zip(&facts).enumerate() {
+            inject(
+                shape,
+                a,
+                &t,
+                zf,
+                f,
+                &mut Rng::derive(seed ^ 0x5_4A9E, i as u64),
+            );
+        }
+    }
+    let an = analyze(&real, base, opts, &|_| {})?;
+    Ok(ShapeResult {
+        case: case.clone(),
+        amplitude: a,
+        named: an
+            .selection
+            .findings
+            .iter()
+            .map(|f| f.effect.clone())
+            .collect(),
+        conclusive: an.power.conclusive,
+        finding_gains: an
+            .selection
+            .findings
+            .iter()
+            .map(|f| f.heldout_gain)
+            .collect(),
+    })
+}
+
+/// Every shape at `size` on each scene set in `sets`, `repeats` times (own seeds), and `nulls`
+/// null cases per set.
+pub fn shape_cases(
+    sets: &[&'static str],
+    size: f64,
+    repeats: usize,
+    nulls: usize,
+) -> Vec<ShapeCase> {
+    let mut v = Vec::new();
+    for &set in sets {
+        let pre = if set == "sim" {
+            String::new()
+        } else {
+            format!("{set}:")
+        };
+        for r in 0..repeats {
+            for sh in SHAPES {
+                v.push(ShapeCase {
+                    label: format!("{pre}{}/{}@{size}x#{r}", sh.family, sh.name),
+                    shape: Some(sh),
+                    size,
+                    scenes: set,
+                });
+            }
+        }
+        for k in 0..nulls {
+            v.push(ShapeCase {
+                label: format!("{pre}null#{k}"),
+                shape: None,
+                size: 0.0,
+                scenes: set,
+            });
+        }
+    }
+    v
+}
+
+/// Markdown tables of `results`: one row per case; top-1 attribution per scene set and family;
+/// false positives on the nulls with a one-sided 95 % upper bound; findings with a positive
+/// held-out gain.
+pub fn shape_table(results: &[ShapeResult]) -> String {
+    let mut s = String::from(
+        "| case | shape | amplitude | named | top-1 | conclusive | findings with gain > 0 |\n|---|---|---|---|---|---|---|\n",
+    );
+    for r in results {
+        s.push_str(&format!(
+            "| {} | {} | {} | {} | {} | {} | {}/{} |\n",
+            r.case.label,
+            r.case.shape.map_or("—", |x| x.what),
+            r.case
+                .shape
+                .map_or("—".into(), |_| format!("{:.4}", r.amplitude)),
+            if r.named.is_empty() {
+                "—".into()
+            } else {
+                r.named.join(", ")
+            },
+            if r.case.shape.is_none() {
+                "—"
+            } else if r.top1() {
+                "yes"
+            } else {
+                "no"
+            },
+            if r.conclusive { "yes" } else { "no" },
+            r.finding_gains.iter().filter(|&&g| g > 0.0).count(),
+            r.finding_gains.len(),
+        ));
+    }
+    let mut sets: Vec<&str> = results.iter().map(|r| r.case.scenes).collect();
+    sets.dedup();
+    s.push_str("\n| scenes | family | cases | top-1 attribution |\n|---|---|---|---|\n");
+    for set in &sets {
+        let mut fams: Vec<&str> = SHAPES.iter().map(|x| x.family).collect();
+        fams.dedup();
+        fams.push("all");
+        for fam in fams {
+            let rs: Vec<&ShapeResult> = results
+                .iter()
+                .filter(|r| r.case.scenes == *set)
+                .filter(|r| {
+                    r.case
+                        .shape
+                        .is_some_and(|x| fam == "all" || x.family == fam)
+                })
+                .collect();
+            if rs.is_empty() {
+                continue;
+            }
+            let top = rs.iter().filter(|r| r.top1()).count();
+            s.push_str(&format!(
+                "| {set} | {fam} | {} | {:.0} % ({top}) |\n",
+                rs.len(),
+                100.0 * top as f64 / rs.len() as f64
+            ));
+        }
+    }
+    s.push('\n');
+    for set in sets.iter().copied().chain(std::iter::once("all")) {
+        let nulls: Vec<&ShapeResult> = results
+            .iter()
+            .filter(|r| r.case.shape.is_none() && (set == "all" || r.case.scenes == set))
+            .collect();
+        if nulls.is_empty() {
+            continue;
+        }
+        let fp = nulls.iter().filter(|r| !r.named.is_empty()).count();
+        s.push_str(&format!(
+            "Nulls ({set}): {} cases, {fp} with a finding ({:.1} %; one-sided 95 % Clopper–Pearson upper bound {:.1} %).\n",
+            nulls.len(),
+            100.0 * fp as f64 / nulls.len() as f64,
+            100.0 * clopper_pearson_upper(fp, nulls.len(), 0.05)
+        ));
+    }
+    let gains: Vec<f64> = results
+        .iter()
+        .flat_map(|r| r.finding_gains.iter().copied())
+        .collect();
+    s.push_str(&format!(
+        "Accepted findings with a positive held-out gain: {} of {}.\n",
+        gains.iter().filter(|&&g| g > 0.0).count(),
+        gains.len()
+    ));
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frame(depth: f32, v: u8) -> GapFrame {
+        let (w, h) = (16u32, 16u32);
+        let n = (w * h) as usize;
+        GapFrame {
+            id: "0".into(),
+            t_s: 0.0,
+            width: w,
+            height: h,
+            depth_m: vec![depth; n],
+            rgb: vec![v; 3 * n],
+            labels: None,
+            real_valid: vec![true; 4],
+            real_m: vec![depth; 4],
+        }
+    }
+
+    fn rects() -> Vec<[f32; 4]> {
+        vec![
+            [0.0, 0.0, 8.0, 8.0],
+            [0.0, 8.0, 8.0, 16.0],
+            [8.0, 0.0, 16.0, 8.0],
+            [8.0, 8.0, 16.0, 16.0],
+        ]
+    }
+
+    #[test]
+    fn facts_are_the_zone_means_and_corners_have_radius_one() {
+        let f = frame(2.5, 102);
+        let z = zone_facts(&f, &rects(), 2, 2);
+        assert!(z
+            .iter()
+            .all(|z| (z.range_m - 2.5).abs() < 1e-6 && (z.v - 0.4).abs() < 1e-6));
+        assert!(z.iter().all(|z| (z.radius - 1.0).abs() < 1e-6), "{z:?}");
+    }
+
+    #[test]
+    fn shapes_differ_from_the_library_forms_and_injections_do_what_they_say() {
+        let t = Thresholds {
+            d70: 3.0,
+            d50: 2.0,
+            v30: 0.2,
+            v60: 0.5,
+        };
+        let near = ZoneFacts {
+            range_m: 1.0,
+            v: 0.9,
+            radius: 0.2,
+        };
+        let far = ZoneFacts {
+            range_m: 5.0,
+            v: 0.1,
+            radius: 0.9,
+        };
+        for sh in SHAPES {
+            let (a, b) = (unit_value(&sh, &t, &near), unit_value(&sh, &t, &far));
+            assert!(
+                b > a,
+                "{} / {}: far or dark or outer zones get more",
+                sh.family,
+                sh.name
+            );
+        }
+        // Steps are exactly 0 / 1: not the library's smooth forms.
+        let step = SHAPES.iter().find(|x| x.name == "step").unwrap();
+        assert_eq!(
+            (unit_value(step, &t, &near), unit_value(step, &t, &far)),
+            (0.0, 1.0)
+        );
+        let mut f = frame(5.0, 20);
+        let zf = vec![far; 4];
+        let bias = SHAPES.iter().find(|x| x.name == "far_step").unwrap();
+        inject(bias, 0.05, &t, &zf, &mut f, &mut Rng::new(1));
+        assert!(f.real_m.iter().all(|&d| (d - 5.05).abs() < 1e-6));
+        let drop = SHAPES.iter().find(|x| x.family == "dark_dropout").unwrap();
+        inject(drop, 1.0, &t, &zf, &mut f, &mut Rng::new(1));
+        assert!(f.real_valid.iter().all(|v| !v), "p = 1 clears every zone");
+        let cases = shape_cases(&["sim", "real"], 2.0, 2, 3);
+        assert_eq!(cases.len(), 2 * (2 * SHAPES.len() + 3));
+        assert!(cases
+            .iter()
+            .all(|c| c.scenes == "sim" || c.label.starts_with("real:")));
+    }
+}
