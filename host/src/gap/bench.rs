@@ -32,7 +32,7 @@ pub fn sized(name: &str, size: f64) -> Result<Vec<f64>, UnknownEffect> {
 
 /// `(name, sized(name, size))` for the fixed case lists, whose names are the library's: a
 /// misspelt one panics naming it.
-fn at_size(name: &'static str, size: f64) -> (&'static str, Vec<f64>) {
+pub(super) fn at_size(name: &'static str, size: f64) -> (&'static str, Vec<f64>) {
     (name, sized(name, size).unwrap_or_else(|e| panic!("{e}")))
 }
 

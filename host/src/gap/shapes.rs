@@ -12,10 +12,11 @@
 
 use rayon::prelude::*;
 
-use super::bench::{make_real, sized};
+use super::bench::{at_size, make_real};
 use super::data::{GapData, GapFrame};
+use super::effects::library;
 use super::stats::clopper_pearson_upper;
-use super::{analyze, effects, GapError, GapOptions};
+use super::{analyze, GapError, GapOptions};
 use crate::rng::Rng;
 use crate::scene::SceneFrame;
 use crate::sim::covariates::zone_covariates;
@@ -224,7 +225,8 @@ pub fn amplitude(
     t: &Thresholds,
 ) -> Option<f32> {
     let mut lib = base.clone();
-    effects::set(&mut lib, shape.family, Some(&sized(shape.family, size)?));
+    let (family, v) = at_size(shape.family, size);
+    library(family).set(&mut lib, Some(&v));
     let (rows, cols) = (usize::from(base.grid.rows), usize::from(base.grid.cols));
     let (mut lib_sum, mut unit_sum, mut n) = (0.0f64, 0.0f64, 0usize);
     for (f, zf) in plain.frames.iter().zip(facts) {
