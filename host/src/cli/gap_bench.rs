@@ -306,9 +306,17 @@ fn shape_bench(args: &Args) -> anyhow::Result<()> {
     for c in &cases {
         bar.set_message(c.label.clone());
         let set = if c.scenes == "real" { &real } else { &scenes };
-        let r = run_shape_case(set, &base, c, &opts, case_seed(args.seed, &c.label))?;
+        let (r, a) = run_shape_case(set, &base, c, &opts, case_seed(args.seed, &c.label))?;
         if args.verbose {
-            bar.suspend(|| eprintln!("{}: a {:.4}, named {:?}", c.label, r.amplitude, r.named));
+            bar.suspend(|| {
+                eprintln!(
+                    "{}: a {:.4}, named {:?}\n  {}",
+                    c.label,
+                    r.amplitude,
+                    r.named,
+                    a.selection.log.join("\n  ")
+                )
+            });
         }
         bar.inc(1);
         results.push(r);

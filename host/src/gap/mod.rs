@@ -12,6 +12,7 @@
 pub mod bench;
 pub mod data;
 pub mod effects;
+pub mod flexible;
 pub mod likelihood;
 pub mod localise;
 pub mod model;

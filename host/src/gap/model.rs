@@ -188,6 +188,8 @@ pub fn transform(
         on(&effects::dark_dropout::FIT),
         on(&effects::border_dropout::FIT),
     );
+    // The learned terms (flexible forms) apply last, as in the simulator's pipeline.
+    let learned = model.learned.enabled && !model.learned.terms.is_empty() && !base.learned.enabled;
     let mut dist = vec![0.0f32; z_n];
     let mut valid = vec![0.0f32; z_n];
     for k in 0..prep.k {
@@ -241,6 +243,13 @@ pub fn transform(
             }
             if bdrop {
                 x.p *= 1.0 - model.border_dropout.loss_probability(c.radius);
+            }
+            if learned {
+                let l = &model.learned;
+                x.d = l.distance(x.d, c);
+                let s = T3_SCALE_OF_GAUSSIAN * l.sigma(x.d, c);
+                x.s = (x.s * x.s + s * s).sqrt();
+                x.p *= 1.0 - l.loss_probability(x.d, c);
             }
         }
     }

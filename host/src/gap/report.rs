@@ -31,6 +31,12 @@ pub struct FindingJson {
     /// when none.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub joint_with: Vec<String>,
+    /// `parametric` (the library's form, `params`) or `flexible` (a curve over the family's
+    /// covariate fitted better: `curve`, the `learned` term in `sim_config`).
+    pub form: &'static str,
+    /// The fitted curve of a flexible finding; absent otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub curve: Option<crate::sim::learned::Term>,
 }
 
 /// `report.json`.
@@ -86,7 +92,24 @@ impl Report {
                         j.p_value
                     );
                 }
+                if let Some(t) = &f.curve {
+                    let shown: Vec<String> = t
+                        .knots
+                        .iter()
+                        .zip(&t.values)
+                        .map(|(k, v)| format!("{k:.2}→{v:.3}"))
+                        .collect();
+                    let _ = write!(
+                        evidence,
+                        "; its shape differs from the library's form: a {:?} curve over {} fits better ({})",
+                        t.kind,
+                        t.on.name(),
+                        shown.join(", ")
+                    );
+                }
                 FindingJson {
+                    form: if f.curve.is_some() { "flexible" } else { "parametric" },
+                    curve: f.curve.clone(),
                     joint_with: f.joint_with.clone(),
                     effect: f.effect.clone(),
                     params: f.params.clone(),

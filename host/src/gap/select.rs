@@ -6,9 +6,11 @@
 use std::collections::BTreeMap;
 
 use super::effects::{self, library, EffectFit, ALL, JOINT_PAIRS};
+use super::flexible;
 use super::likelihood::Density;
 use super::model::{eval_frame, frame_nlls, Prepared};
 use super::stats::{fixed_sequence, grid_golden_min, holm, sign_flip_p};
+use crate::sim::learned::Term;
 use crate::sim::SimConfig;
 
 /// Range of the kernel floor fitted for the final estimate ([`Ctx::fit_kernel`]), metres.
@@ -72,6 +74,9 @@ pub struct Finding {
     pub confounded_with: Vec<String>,
     /// Effects accepted jointly with this one (a [`Joint`] pair).
     pub joint_with: Vec<String>,
+    /// The fitted curve where the flexible form fitted better than the parametric one
+    /// (`params` and `ci` are then empty).
+    pub curve: Option<Term>,
 }
 
 /// A confounded pair.
@@ -196,9 +201,47 @@ impl Ctx<'_> {
             .sum::<usize>() as f64
     }
 
+    /// Fits effect family `c` in `model`, other effects fixed: its parametric form
+    /// ([`Ctx::fit_parametric`]) and, where the family has one, its flexible form (a curve over
+    /// its covariate, [`super::flexible`]); keeps the one with the lower training NLL plus one
+    /// nat per fitted parameter (Akaike), so the parametric form wins when it fits as well.
+    pub fn fit_one(&self, model: &SimConfig, c: &EffectFit, opts: &SelectOptions) -> SimConfig {
+        let mut plain = model.clone();
+        flexible::remove(&mut plain, c.name);
+        let par = self.fit_parametric(&plain, c, opts);
+        let Some(form) = flexible::form(c.name) else {
+            return par;
+        };
+        let mut off = plain;
+        c.set(&mut off, None);
+        let term = flexible::estimate(
+            form,
+            &off,
+            self.base,
+            self.frames,
+            &self.train,
+            self.density.kernel_m,
+        );
+        let Some(term) = term else {
+            return par;
+        };
+        let flex = flexible::with_term(&off, term);
+        let aic = |m: &SimConfig, k: usize| self.train_nll(m) + k as f64;
+        if aic(&flex, flexible::BINS) < aic(&par, c.params.len()) {
+            flex
+        } else {
+            par
+        }
+    }
+
     /// Fits effect `c` in `model` (switched on if off), other effects fixed: per continuous
     /// parameter a grid scan then golden-section refinement ([`grid_golden_min`]).
-    pub fn fit_one(&self, model: &SimConfig, c: &EffectFit, opts: &SelectOptions) -> SimConfig {
+    pub fn fit_parametric(
+        &self,
+        model: &SimConfig,
+        c: &EffectFit,
+        opts: &SelectOptions,
+    ) -> SimConfig {
         let mut m = model.clone();
         let mut v = if c.enabled(&m) {
             c.get(&m)
@@ -337,7 +380,7 @@ impl Ctx<'_> {
         let sweep = |m: &SimConfig| {
             cands
                 .iter()
-                .fold(m.clone(), |m, c| self.fit_one(&m, c, opts))
+                .fold(m.clone(), |m, c| self.fit_parametric(&m, c, opts))
         };
         let params = |m: &SimConfig| -> Vec<f64> { cands.iter().flat_map(|c| c.get(m)).collect() };
         let put = |m: &mut SimConfig, v: &[f64]| {
@@ -745,6 +788,7 @@ fn prune(
         let rest: Vec<&'static str> = accepted.iter().copied().filter(|&n| n != name).collect();
         let mut without = model.clone();
         library(name).set(&mut without, None);
+        flexible::remove(&mut without, name);
         let without = if rest.is_empty() {
             without
         } else {
@@ -827,7 +871,9 @@ fn finding(
     let f0 = full.train_nll(estimate);
     let mut params = BTreeMap::new();
     let mut ci = BTreeMap::new();
-    for (i, s) in c.params.iter().enumerate() {
+    let curve = flexible::term(estimate, c.name).cloned();
+    let parametric = if curve.is_some() { &[][..] } else { c.params };
+    for (i, s) in parametric.iter().enumerate() {
         params.insert(s.field.to_string(), v[i]);
         if s.integer {
             continue;
@@ -883,6 +929,7 @@ fn finding(
             .filter(|j| j.effects.iter().any(|e| e == c.name))
             .flat_map(|j| j.effects.iter().filter(|e| *e != c.name).cloned())
             .collect(),
+        curve,
     }
 }
 

@@ -318,14 +318,14 @@ impl ShapeResult {
 }
 
 /// Runs one case: a plain simulation of `scenes`, the shape injected, the tool run against
-/// `base`.
+/// `base`; also returns the tool's analysis.
 pub fn run_shape_case(
     scenes: &[SceneFrame],
     base: &SimConfig,
     case: &ShapeCase,
     opts: &GapOptions,
     seed: u64,
-) -> Result<ShapeResult, GapError> {
+) -> Result<(ShapeResult, super::Analysis), GapError> {
     let mut real = make_real(scenes, base, seed, None)?;
     let (rows, cols) = (usize::from(base.grid.rows), usize::from(base.grid.cols));
     let facts: Vec<Vec<ZoneFacts>> = real
@@ -349,7 +349,7 @@ pub fn run_shape_case(
         }
     }
     let an = analyze(&real, base, opts, &|_| {})?;
-    Ok(ShapeResult {
+    let r = ShapeResult {
         case: case.clone(),
         amplitude: a,
         named: an
@@ -365,7 +365,8 @@ pub fn run_shape_case(
             .iter()
             .map(|f| f.heldout_gain)
             .collect(),
-    })
+    };
+    Ok((r, an))
 }
 
 /// Every shape at `size` on each scene set in `sets`, `repeats` times (own seeds), and `nulls`

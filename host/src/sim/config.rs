@@ -26,6 +26,7 @@ use super::error::SimError;
 use super::frame::ZoneEffect;
 use super::grid::{GridConfig, OverallDistribution};
 use super::halving::DepthHalving;
+use super::learned::Learned;
 use super::range::RangeAspect;
 use super::signal_loss::SignalLoss;
 use super::surfaces::{Surface, SurfaceAspect};
@@ -121,6 +122,10 @@ pub struct SimConfig {
     /// Sim-to-real: dropout rising toward the grid's corners.
     #[serde(default)]
     pub border_dropout: BorderDropout,
+    /// Sim-to-real physics fitted as curves over zone covariates (the gap tool's flexible forms,
+    /// `super::learned`).
+    #[serde(default)]
+    pub learned: Learned,
 }
 
 impl SimConfig {
@@ -148,6 +153,7 @@ impl SimConfig {
             range_dropout: RangeDropout::default(),
             dark_dropout: DarkDropout::default(),
             border_dropout: BorderDropout::default(),
+            learned: Learned::default(),
         }
     }
 
@@ -155,7 +161,7 @@ impl SimConfig {
     /// projection error that moves background measurements, then sensor-level random anomalies,
     /// then the sim-to-real effects of the gap tool's library (distance transforms, noise,
     /// dropouts; all off unless a fitted configuration switches them on).
-    pub(crate) fn zone_effects(&self) -> [Box<dyn ZoneEffect + '_>; 17] {
+    pub(crate) fn zone_effects(&self) -> [Box<dyn ZoneEffect + '_>; 18] {
         [
             Box::new(Surface::transparent(&self.transparent)),
             Box::new(Surface::specular(&self.specular)),
@@ -174,6 +180,7 @@ impl SimConfig {
             Box::new(&self.range_dropout),
             Box::new(&self.dark_dropout),
             Box::new(&self.border_dropout),
+            Box::new(&self.learned),
         ]
     }
 

@@ -42,6 +42,7 @@ pub mod error;
 mod frame;
 pub mod grid;
 pub mod halving;
+pub mod learned;
 pub mod presets;
 pub mod range;
 pub mod signal_loss;

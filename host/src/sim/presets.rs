@@ -93,6 +93,7 @@ fn l5() -> SimConfig {
         range_dropout: Default::default(),
         dark_dropout: Default::default(),
         border_dropout: Default::default(),
+        learned: Default::default(),
     }
 }
 
@@ -148,6 +149,7 @@ fn phone() -> SimConfig {
         range_dropout: Default::default(),
         dark_dropout: Default::default(),
         border_dropout: Default::default(),
+        learned: Default::default(),
     }
 }
 

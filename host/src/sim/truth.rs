@@ -49,6 +49,8 @@ events! {
     NOISE = 14;
     /// The zone was blanked at random.
     BLANK = 15;
+    /// The return was lost to a `learned` dropout term.
+    LEARNED_LOSS = 16;
 }
 
 impl ZoneEvents {

@@ -1,0 +1,260 @@
+//! Flexible forms (docs/gap.md "Flexible forms"): for each effect family a curve over the
+//! family's covariate, estimated in closed form on the fitting frames, beside the library's
+//! parametric form. A real loss that cuts off sharply in range, a noise growing faster than
+//! linearly or a bias only beyond some range has a shape the parametric forms cannot take; the
+//! curve can, so the family whose covariate explains the residual still shows a held-out gain
+//! and gets the name. The curves are [`crate::sim::learned::Term`]s: `depthor sim --config` runs
+//! them.
+//!
+//! Estimation per family, on equal-count bins of the covariate over the fitting frames' zones
+//! (the draws transformed by the current model, [`super::model::transform`]):
+//! - dropout: `L_b = 1 − Σ observed valid / Σ predicted survival` in bin `b`, then weighted
+//!   isotonic regression (non-decreasing in range and radius, non-increasing in brightness);
+//! - bias: the median residual (real − predicted mean distance) of the valid zones in the bin;
+//! - noise: `√(max(0, (1.4826·MAD)² − predicted variance − kernel²))` of those residuals, then
+//!   non-decreasing in range.
+
+use super::model::{transform, Prepared};
+use crate::sim::learned::{isotonic, Term, TermCovariate, TermKind};
+use crate::sim::SimConfig;
+
+/// Bins of a curve (its knots).
+pub const BINS: usize = 6;
+
+/// One flexible form: the family it stands for, what it changes, over which covariate, and the
+/// direction its curve is constrained to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Form {
+    /// The library family it is a flexible form of.
+    pub family: &'static str,
+    /// What the curve changes.
+    pub kind: TermKind,
+    /// Its covariate.
+    pub on: TermCovariate,
+    /// `Some(true)`: non-decreasing; `Some(false)`: non-increasing; `None`: free.
+    pub monotone: Option<bool>,
+}
+
+/// The flexible forms, one per family that has one.
+pub const FORMS: [Form; 5] = [
+    Form {
+        family: "range_dropout",
+        kind: TermKind::Dropout,
+        on: TermCovariate::Range,
+        monotone: Some(true),
+    },
+    Form {
+        family: "dark_dropout",
+        kind: TermKind::Dropout,
+        on: TermCovariate::Brightness,
+        monotone: Some(false),
+    },
+    Form {
+        family: "border_dropout",
+        kind: TermKind::Dropout,
+        on: TermCovariate::Radius,
+        monotone: Some(true),
+    },
+    Form {
+        family: "range_noise",
+        kind: TermKind::Noise,
+        on: TermCovariate::Range,
+        monotone: Some(true),
+    },
+    Form {
+        family: "range_bias",
+        kind: TermKind::Bias,
+        on: TermCovariate::Range,
+        monotone: None,
+    },
+];
+
+/// The flexible form of `family`, if it has one.
+pub fn form(family: &str) -> Option<&'static Form> {
+    FORMS.iter().find(|f| f.family == family)
+}
+
+/// What one zone of a fitting frame contributes.
+struct ZoneObs {
+    /// Covariate value.
+    x: f32,
+    /// Predicted survival probability (mean of the draws' `p`).
+    p: f64,
+    /// Observed: a valid real return.
+    valid: bool,
+    /// Real − predicted mean distance (valid zones with a predicted return).
+    resid: Option<f64>,
+    /// Predicted variance of the distance (draw spread and noise scales).
+    var: f64,
+}
+
+fn observations(
+    form: &Form,
+    model: &SimConfig,
+    base: &SimConfig,
+    frames: &[Prepared],
+    idx: &[usize],
+) -> Vec<ZoneObs> {
+    let mut out = Vec::new();
+    for &f in idx {
+        let prep = &frames[f];
+        let draws = transform(model, base, prep, [0, 0]);
+        let z_n = prep.zones();
+        for z in 0..z_n {
+            let c = &prep.cov[z];
+            let (mut sp, mut sd, mut sd2, mut ss2) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+            for k in 0..prep.k {
+                let d = &draws[k * z_n + z];
+                let (p, x) = (f64::from(d.p), f64::from(d.d));
+                sp += p;
+                sd += p * x;
+                sd2 += p * x * x;
+                ss2 += p * f64::from(d.s) * f64::from(d.s);
+            }
+            let mean_d = if sp > 0.0 { sd / sp } else { 0.0 };
+            // Range: where the draws put the return (what the forward model reads), else the
+            // window's mean reference depth.
+            let x = match form.on {
+                TermCovariate::Range if sp > 0.0 => mean_d as f32,
+                TermCovariate::Range if c.mean_m > 0.0 => c.mean_m,
+                TermCovariate::Range => continue,
+                TermCovariate::Brightness => c.brightness,
+                TermCovariate::Radius => c.radius,
+            };
+            let real = prep.real[z];
+            out.push(ZoneObs {
+                x,
+                p: sp / prep.k as f64,
+                valid: real.is_some(),
+                resid: real.filter(|_| sp > 0.0).map(|y| f64::from(y) - mean_d),
+                var: if sp > 0.0 {
+                    (sd2 / sp - mean_d * mean_d).max(0.0) + ss2 / sp
+                } else {
+                    0.0
+                },
+            });
+        }
+    }
+    out
+}
+
+/// Median of `v` (0 when empty).
+fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        (v[n / 2 - 1] + v[n / 2]) / 2.0
+    }
+}
+
+/// Estimates `form`'s curve on frames `idx` on top of `model` (the draws simulated under
+/// `base`), with kernel floor `kernel_m`; `None` when the frames give fewer than two bins.
+pub fn estimate(
+    form: &Form,
+    model: &SimConfig,
+    base: &SimConfig,
+    frames: &[Prepared],
+    idx: &[usize],
+    kernel_m: f64,
+) -> Option<Term> {
+    let mut obs = observations(form, model, base, frames, idx);
+    if form.kind != TermKind::Dropout {
+        obs.retain(|o| o.resid.is_some());
+    }
+    obs.sort_by(|a, b| a.x.total_cmp(&b.x));
+    let n = obs.len();
+    if n < 2 * BINS {
+        return None;
+    }
+    let (mut knots, mut values, mut weights) = (Vec::new(), Vec::new(), Vec::new());
+    for b in 0..BINS {
+        let bin = &obs[b * n / BINS..(b + 1) * n / BINS];
+        let x = bin.iter().map(|o| f64::from(o.x)).sum::<f64>() / bin.len() as f64;
+        if knots.last().is_some_and(|&k: &f32| x as f32 <= k) {
+            continue; // ties: a covariate with few distinct values
+        }
+        let (v, w) = match form.kind {
+            TermKind::Dropout => {
+                let pred: f64 = bin.iter().map(|o| o.p).sum();
+                let seen = bin.iter().filter(|o| o.valid).count() as f64;
+                let loss = if pred > 0.0 {
+                    (1.0 - seen / pred).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                (loss, pred)
+            }
+            TermKind::Bias => {
+                let mut r: Vec<f64> = bin.iter().filter_map(|o| o.resid).collect();
+                (median(&mut r), bin.len() as f64)
+            }
+            TermKind::Noise => {
+                let mut r: Vec<f64> = bin.iter().filter_map(|o| o.resid).collect();
+                let m = median(&mut r);
+                let mut dev: Vec<f64> = r.iter().map(|x| (x - m).abs()).collect();
+                let mad = 1.4826 * median(&mut dev);
+                let var = bin.iter().map(|o| o.var).sum::<f64>() / bin.len() as f64;
+                (
+                    (mad * mad - var - kernel_m * kernel_m).max(0.0).sqrt(),
+                    bin.len() as f64,
+                )
+            }
+        };
+        knots.push(x as f32);
+        values.push(v);
+        weights.push(w);
+    }
+    if knots.len() < 2 {
+        return None;
+    }
+    let values = match form.monotone {
+        Some(true) => isotonic(&values, &weights),
+        Some(false) => {
+            let neg: Vec<f64> = values.iter().map(|v| -v).collect();
+            isotonic(&neg, &weights).into_iter().map(|v| -v).collect()
+        }
+        None => values,
+    };
+    Some(Term {
+        family: Some(form.family.to_string()),
+        kind: form.kind,
+        on: form.on,
+        knots,
+        values: values.into_iter().map(|v| v as f32).collect(),
+    })
+}
+
+/// `model` with `term` as the learned term of its family (replacing one there), switched on.
+pub fn with_term(model: &SimConfig, term: Term) -> SimConfig {
+    let mut m = model.clone();
+    if let Some(f) = term.family.clone() {
+        remove(&mut m, &f);
+    }
+    m.learned.enabled = true;
+    m.learned.terms.push(term);
+    m
+}
+
+/// Removes `family`'s learned term from `model` (switching the learned effect off when none is
+/// left).
+pub fn remove(model: &mut SimConfig, family: &str) {
+    model
+        .learned
+        .terms
+        .retain(|t| t.family.as_deref() != Some(family));
+    model.learned.enabled &= !model.learned.terms.is_empty();
+}
+
+/// `family`'s learned term in `model`, if any.
+pub fn term<'m>(model: &'m SimConfig, family: &str) -> Option<&'m Term> {
+    model
+        .learned
+        .terms
+        .iter()
+        .find(|t| t.family.as_deref() == Some(family))
+}
