@@ -7,6 +7,7 @@ use depthor_host::gap::bench::{
     case_seed, dark_far, real_cases, real_scenes, render_scenes, run_case, standard_cases, table,
     SceneSet,
 };
+use depthor_host::gap::leave_one_out;
 use depthor_host::gap::shapes::{run_shape_case, shape_cases, shape_table};
 use depthor_host::gap::units::{calibrate, CalibrateOptions, UnitTable};
 use depthor_host::gap::{effects, GapOptions};
@@ -89,9 +90,18 @@ pub struct Args {
     /// Size multiple of the shape benchmark.
     #[arg(long, default_value_t = 2.0)]
     shape_size: f64,
-    /// Recordings per shape and scene set in the shape benchmark (each on its own seed).
+    /// Recordings per shape and scene set in the shape benchmark (each on its own seed), or per
+    /// left-out effect.
     #[arg(long, default_value_t = 1)]
     repeats: usize,
+    /// Run the leave-one-out benchmark instead (docs/gap.md): each of range_dropout,
+    /// dark_dropout, border_dropout, range_bias and radial_distance hidden at `--loo-size` ×
+    /// its unit on rendered scenes and removed from the tool's candidates.
+    #[arg(long)]
+    leave_one_out: bool,
+    /// Size multiple of the leave-one-out benchmark.
+    #[arg(long, default_value_t = 4.0)]
+    loo_size: f64,
 }
 
 /// Runs `depthor gap-bench`.
@@ -116,6 +126,9 @@ pub fn handle(args: Args) -> anyhow::Result<()> {
     }
     if args.shapes {
         return shape_bench(&args);
+    }
+    if args.leave_one_out {
+        return leave_one_out_bench(&args);
     }
     let t0 = Instant::now();
     let base = preset("mcu")?;
@@ -329,6 +342,41 @@ fn shape_bench(args: &Args) -> anyhow::Result<()> {
         args.shape_size,
         scenes.len(),
         real.len(),
+        args.width,
+        args.height,
+        args.seed,
+        t0.elapsed().as_secs_f64()
+    ));
+    println!("{t}");
+    if let Some(p) = &args.out {
+        super::common::OutFile::new(p, "gap_bench.md").write(t.as_bytes(), args.overwrite)?;
+    }
+    Ok(())
+}
+
+/// `depthor gap-bench --leave-one-out`: physics outside the library, each effect in turn.
+fn leave_one_out_bench(args: &Args) -> anyhow::Result<()> {
+    let t0 = Instant::now();
+    let base = preset("mcu")?;
+    let scenes = render_scenes(args.frames, args.width, args.height, args.seed);
+    let opts = GapOptions {
+        draws: args.draws,
+        ..GapOptions::default()
+    };
+    let verbose = args.verbose;
+    let mut log = |label: &str, lines: &[String]| {
+        if verbose {
+            eprintln!("{label}\n  {}", lines.join("\n  "));
+        }
+    };
+    let sizes = (args.loo_size, args.repeats, args.seed);
+    let results = leave_one_out::run(&scenes, &base, &opts, sizes, &mut log)?;
+    let mut t = leave_one_out::table(&results);
+    t.push_str(&format!(
+        "\n{} cases at {}× the unit; {} rendered frames of {}×{} per recording; seed {}; wall time {:.0} s.\n",
+        results.len(),
+        args.loo_size,
+        scenes.len(),
         args.width,
         args.height,
         args.seed,

@@ -258,3 +258,55 @@ pub fn term<'m>(model: &'m SimConfig, family: &str) -> Option<&'m Term> {
         .iter()
         .find(|t| t.family.as_deref() == Some(family))
 }
+
+/// Name of a finding fitted from the residual alone (physics outside the library).
+pub const LEARNED: &str = "learned";
+
+/// The forms a residual curve may take: a loss or a bias curve over range, brightness or grid
+/// radius (unconstrained in direction).
+pub fn residual_forms() -> Vec<Form> {
+    let mut v = Vec::new();
+    for kind in [TermKind::Dropout, TermKind::Bias] {
+        for on in [
+            TermCovariate::Range,
+            TermCovariate::Brightness,
+            TermCovariate::Radius,
+        ] {
+            v.push(Form {
+                family: LEARNED,
+                kind,
+                on,
+                monotone: None,
+            });
+        }
+    }
+    v
+}
+
+/// The residual term in words: what it changes, which way, along which covariate.
+pub fn describe(t: &Term) -> String {
+    let (first, last) = (
+        t.values.first().copied().unwrap_or(0.0),
+        t.values.last().copied().unwrap_or(0.0),
+    );
+    let way = if last >= first { "rising" } else { "falling" };
+    let what = match t.kind {
+        TermKind::Dropout => format!(
+            "extra loss of returns {way} with {} ({first:.3} → {last:.3})",
+            t.on.name()
+        ),
+        TermKind::Bias => format!(
+            "distance bias {way} with {} ({:+.1} → {:+.1} cm)",
+            t.on.name(),
+            100.0 * first,
+            100.0 * last
+        ),
+        TermKind::Noise => format!(
+            "extra noise {way} with {} ({:.1} → {:.1} cm)",
+            t.on.name(),
+            100.0 * first,
+            100.0 * last
+        ),
+    };
+    format!("outside the library: {what}")
+}

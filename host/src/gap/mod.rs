@@ -13,6 +13,7 @@ pub mod bench;
 pub mod data;
 pub mod effects;
 pub mod flexible;
+pub mod leave_one_out;
 pub mod likelihood;
 pub mod localise;
 pub mod model;

@@ -265,9 +265,25 @@ pub fn markdown(a: &Analysis, r: &Report) -> String {
         s.push_str("\n**No significant missing physics**: no effect of the library improves the held-out likelihood significantly.\n");
     }
     for f in &r.findings {
-        let c = library(&f.effect);
         let _ = writeln!(s, "\n## `{}`\n", f.effect);
-        let _ = writeln!(s, "Physics: {}.\n", c.physics);
+        let physics = match (&f.curve, f.effect.as_str()) {
+            (Some(t), super::flexible::LEARNED) => super::flexible::describe(t),
+            _ => library(&f.effect).physics.to_string(),
+        };
+        let _ = writeln!(s, "Physics: {physics}.\n");
+        if let Some(t) = &f.curve {
+            let _ = writeln!(
+                s,
+                "Fitted as a curve ({:?} over {}):\n",
+                t.kind,
+                t.on.name()
+            );
+            s.push_str("| covariate | value |\n|---|---|\n");
+            for (k, v) in t.knots.iter().zip(&t.values) {
+                let _ = writeln!(s, "| {k:.3} | {v:.4} |");
+            }
+            s.push('\n');
+        }
         s.push_str("| parameter | fitted | ≈95 % interval |\n|---|---|---|\n");
         for (k, v) in &f.params {
             let ci =
@@ -282,11 +298,13 @@ pub fn markdown(a: &Analysis, r: &Report) -> String {
             100.0 * f.zones_affected,
             f.evidence
         );
+        let stratum = match &f.curve {
+            Some(t) if f.effect == super::flexible::LEARNED => t.on.name(),
+            _ => library(&f.effect).stratum.name(),
+        };
         let _ = writeln!(
             s,
-            "Before/after in its stratum: ![{}](covariate_{}.png)",
-            c.stratum.name(),
-            c.stratum.name()
+            "Before/after in its stratum: ![{stratum}](covariate_{stratum}.png)"
         );
     }
     let unexplained: Vec<&Slice> = a.slices_after.iter().filter(|x| x.significant).collect();

@@ -36,6 +36,9 @@ pub struct SelectOptions {
     pub joint_trigger: f64,
     /// Predictive density constants.
     pub density: Density,
+    /// Library effects not offered as candidates (the leave-one-out benchmark: physics the
+    /// library lacks).
+    pub exclude: Vec<String>,
 }
 
 impl Default for SelectOptions {
@@ -51,6 +54,7 @@ impl Default for SelectOptions {
             grid: 16,
             joint_trigger: 3.0,
             density: Density::default(),
+            exclude: Vec::new(),
         }
     }
 }
@@ -201,6 +205,36 @@ impl Ctx<'_> {
             .sum::<usize>() as f64
     }
 
+    /// Fits effect `name` in `model`: a library family ([`Ctx::fit_one`]) or the residual
+    /// curve [`flexible::LEARNED`] ([`Ctx::fit_learned`]; `model` unchanged where no curve can
+    /// be estimated).
+    pub fn fit_named(&self, model: &SimConfig, name: &str, opts: &SelectOptions) -> SimConfig {
+        if name == flexible::LEARNED {
+            self.fit_learned(model).unwrap_or_else(|| model.clone())
+        } else {
+            self.fit_one(model, library(name), opts)
+        }
+    }
+
+    /// Physics outside the library: under `model` (its residual curve removed), a loss curve and
+    /// a bias curve over each of range, brightness and grid radius that vary in these frames
+    /// ([`flexible::residual_forms`]) are estimated on the fitting frames and the one with the
+    /// lowest training NLL is kept: its covariate is the one that explains the residual. The
+    /// held-out gate decides, as for every candidate. `None`: no curve could be estimated.
+    pub fn fit_learned(&self, model: &SimConfig) -> Option<SimConfig> {
+        let mut m = model.clone();
+        flexible::remove(&mut m, flexible::LEARNED);
+        let k = self.density.kernel_m;
+        flexible::residual_forms()
+            .iter()
+            .filter(|f| super::localise::varies(self.frames, f.on.covariate()))
+            .filter_map(|f| flexible::estimate(f, &m, self.base, self.frames, &self.train, k))
+            .map(|t| flexible::with_term(&m, t))
+            .map(|c| (self.train_nll(&c), c))
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .map(|(_, c)| c)
+    }
+
     /// Fits effect family `c` in `model`, other effects fixed: its parametric form
     /// ([`Ctx::fit_parametric`]) and, where the family has one, its flexible form (a curve over
     /// its covariate, [`super::flexible`]); keeps the one with the lower training NLL plus one
@@ -320,7 +354,7 @@ impl Ctx<'_> {
         let sweeps = if names.len() > 1 { 2 } else { 1 };
         for _ in 0..sweeps {
             for n in names {
-                m = self.fit_one(&m, library(n), opts);
+                m = self.fit_named(&m, n, opts);
             }
         }
         m
@@ -496,7 +530,9 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
     // labels) cannot be told from the base: it is not a candidate.
     let mut pool: Vec<&'static EffectFit> = Vec::new();
     for c in ALL.iter().filter(|c| !c.enabled(ctx.base)) {
-        if super::localise::varies(ctx.frames, c.stratum) {
+        if opts.exclude.iter().any(|e| e == c.name) {
+            log.push(format!("{}: not a candidate, excluded", c.name));
+        } else if super::localise::varies(ctx.frames, c.stratum) {
             pool.push(c);
         } else {
             log.push(format!(
@@ -513,11 +549,20 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
             .iter()
             .filter(|c| !accepted.contains(&c.name))
             .collect();
-        if cands.is_empty() {
+        let learned_open = !accepted.contains(&flexible::LEARNED);
+        if cands.is_empty() && !learned_open {
             break;
         }
         let seed = 17 + round as u64;
-        let trials = fit_trials(ctx, opts, &model, &cur, &cands, round, progress);
+        let trials = fit_trials(
+            ctx,
+            opts,
+            &model,
+            &cur,
+            &cands,
+            (round, learned_open),
+            progress,
+        );
         for t in &trials {
             log.push(format!(
                 "round {} {:<18} gain {:+.4} nats/zone  p {:.4}  (training gain {:+.1} nats)",
@@ -601,6 +646,19 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
         .iter()
         .filter_map(|&a| {
             let (g, p, without) = cond.get(a)?;
+            if a == flexible::LEARNED {
+                return Some(Finding {
+                    effect: a.to_string(),
+                    params: BTreeMap::new(),
+                    ci: BTreeMap::new(),
+                    heldout_gain: *g,
+                    p_value: *p,
+                    zones_affected: zones_affected(ctx, &model, without),
+                    confounded_with: Vec::new(),
+                    joint_with: Vec::new(),
+                    curve: flexible::term(&estimate, a).cloned(),
+                });
+            }
             let c = library(a);
             Some(finding(
                 ctx, &full, &joints, &model, &estimate, without, c, *g, *p, &confounds,
@@ -626,7 +684,7 @@ fn fit_trials(
     model: &SimConfig,
     cur: &[f64],
     cands: &[&&EffectFit],
-    round: usize,
+    (round, learned_open): (usize, bool),
     progress: &mut dyn FnMut(&str),
 ) -> Vec<Trial> {
     let seed = 17 + round as u64;
@@ -635,7 +693,7 @@ fn fit_trials(
         let train_gain = train_cur - ctx.train_nll(&m);
         let after = ctx.test_nlls(&m);
         let (gain, p) = ctx.gain(cur, &after, opts.permutations, seed);
-        let dims = names.iter().map(|n| library(n).params.len()).sum();
+        let dims = names.iter().map(|n| dims_of(n)).sum();
         Trial {
             names,
             model: m,
@@ -650,6 +708,13 @@ fn fit_trials(
     for c in cands {
         progress(&format!("round {} · fitting {}", round + 1, c.name));
         trials.push(trial(vec![c.name], ctx.fit_one(model, c, opts)));
+    }
+    // Physics outside the library, beside the library's effects (only while not accepted).
+    if learned_open {
+        progress(&format!("round {} · fitting the residual", round + 1));
+        if let Some(m) = ctx.fit_learned(model) {
+            trials.push(trial(vec![flexible::LEARNED], m));
+        }
     }
     // Joint pairs, fitted only when one of their effects alone shows training evidence (the
     // pair's joint pattern leaves a structured residual the single fit half explains).
@@ -722,7 +787,7 @@ fn attribute<'t>(
                 round + 1,
                 t.names[0]
             ));
-            let m = flipped.fit_one(model, library(t.names[0]), opts);
+            let m = flipped.fit_named(model, t.names[0], opts);
             base_train - flipped.test_nlls(&m).iter().sum::<f64>()
         })
         .collect();
@@ -787,7 +852,9 @@ fn prune(
         progress(&format!("pruning {name}"));
         let rest: Vec<&'static str> = accepted.iter().copied().filter(|&n| n != name).collect();
         let mut without = model.clone();
-        library(name).set(&mut without, None);
+        if name != flexible::LEARNED {
+            library(name).set(&mut without, None);
+        }
         flexible::remove(&mut without, name);
         let without = if rest.is_empty() {
             without
@@ -832,7 +899,8 @@ fn confounding(
         };
         let base_nll = ctx.test_nlls(without);
         for (&b, &(gb, sig_b)) in solo {
-            if accepted.contains(&b) || !sig_b || gb < 0.25 * ga {
+            let learned = a == flexible::LEARNED || b == flexible::LEARNED;
+            if learned || accepted.contains(&b) || !sig_b || gb < 0.25 * ga {
                 continue;
             }
             progress(&format!("confounding {a} / {b}"));
@@ -903,22 +971,13 @@ fn finding(
         };
         ci.insert(s.field.to_string(), [bound(s.lo), bound(s.hi)]);
     }
-    let (mut changed, mut total) = (0usize, 0usize);
-    for &f in &ctx.test {
-        let a = eval_frame(&ctx.density, model, ctx.base, &ctx.frames[f], true);
-        let b = eval_frame(&ctx.density, without, ctx.base, &ctx.frames[f], true);
-        for (x, y) in a.zones.iter().zip(&b.zones) {
-            total += 1;
-            changed += usize::from((x.nll - y.nll).abs() > 0.05);
-        }
-    }
     Finding {
         effect: c.name.to_string(),
         params,
         ci,
         heldout_gain: gain,
         p_value: p,
-        zones_affected: changed as f64 / total.max(1) as f64,
+        zones_affected: zones_affected(ctx, model, without),
         confounded_with: confounds
             .iter()
             .filter(|k| k.kept == c.name)
@@ -931,6 +990,30 @@ fn finding(
             .collect(),
         curve,
     }
+}
+
+/// Fitted parameters of effect `name` (a curve's bins for [`flexible::LEARNED`]).
+fn dims_of(name: &str) -> usize {
+    if name == flexible::LEARNED {
+        flexible::BINS
+    } else {
+        library(name).params.len()
+    }
+}
+
+/// Fraction of the held-out zones whose NLL differs by more than 0.05 nats between `model` and
+/// `without`.
+pub fn zones_affected(ctx: &Ctx<'_>, model: &SimConfig, without: &SimConfig) -> f64 {
+    let (mut changed, mut total) = (0usize, 0usize);
+    for &f in &ctx.test {
+        let a = eval_frame(&ctx.density, model, ctx.base, &ctx.frames[f], true);
+        let b = eval_frame(&ctx.density, without, ctx.base, &ctx.frames[f], true);
+        for (x, y) in a.zones.iter().zip(&b.zones) {
+            total += 1;
+            changed += usize::from((x.nll - y.nll).abs() > 0.05);
+        }
+    }
+    changed as f64 / total.max(1) as f64
 }
 
 #[cfg(test)]

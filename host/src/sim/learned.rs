@@ -46,6 +46,16 @@ impl TermCovariate {
         }
     }
 
+    /// The gap tool's covariate of the same quantity.
+    pub fn covariate(self) -> super::covariates::Covariate {
+        use super::covariates::Covariate;
+        match self {
+            TermCovariate::Range => Covariate::Range,
+            TermCovariate::Brightness => Covariate::Brightness,
+            TermCovariate::Radius => Covariate::Radius,
+        }
+    }
+
     /// Name in reports (the gap tool's covariate names).
     pub fn name(self) -> &'static str {
         match self {
