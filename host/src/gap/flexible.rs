@@ -10,11 +10,12 @@
 //! (the draws transformed by the current model, [`super::model::transform`]):
 //! - dropout: `L_b = 1 − Σ observed valid / Σ predicted survival` in bin `b`, then weighted
 //!   isotonic regression (non-decreasing in range and radius, non-increasing in brightness);
-//! - bias: the median residual (real − predicted mean distance) of the valid zones in the bin;
-//! - noise: `√(max(0, (1.4826·MAD)² − predicted variance − kernel²))` of those residuals, then
-//!   non-decreasing in range.
+//! - bias and noise: per bin, the shift of the draws (or the extra Gaussian σ) that maximises
+//!   the likelihood of the bin's valid real distances under the tool's kernel mixture (grid scan
+//!   then golden section), then non-decreasing in range for noise.
 
-use super::model::{transform, Prepared};
+use super::model::{transform, Prepared, T3_SCALE_OF_GAUSSIAN};
+use super::stats::grid_golden_min;
 use crate::sim::learned::{isotonic, Term, TermCovariate, TermKind};
 use crate::sim::SimConfig;
 
@@ -82,10 +83,9 @@ struct ZoneObs {
     p: f64,
     /// Observed: a valid real return.
     valid: bool,
-    /// Real − predicted mean distance (valid zones with a predicted return).
-    resid: Option<f64>,
-    /// Predicted variance of the distance (draw spread and noise scales).
-    var: f64,
+    /// The real distance and the draws `(p, d, s)` with a return (valid zones with a predicted
+    /// return; bias and noise curves only).
+    fit: Option<(f64, Vec<(f64, f64, f64)>)>,
 }
 
 fn observations(
@@ -102,14 +102,11 @@ fn observations(
         let z_n = prep.zones();
         for z in 0..z_n {
             let c = &prep.cov[z];
-            let (mut sp, mut sd, mut sd2, mut ss2) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+            let (mut sp, mut sd) = (0.0f64, 0.0f64);
             for k in 0..prep.k {
                 let d = &draws[k * z_n + z];
-                let (p, x) = (f64::from(d.p), f64::from(d.d));
-                sp += p;
-                sd += p * x;
-                sd2 += p * x * x;
-                ss2 += p * f64::from(d.s) * f64::from(d.s);
+                sp += f64::from(d.p);
+                sd += f64::from(d.p) * f64::from(d.d);
             }
             let mean_d = if sp > 0.0 { sd / sp } else { 0.0 };
             // Range: where the draws put the return (what the forward model reads), else the
@@ -122,34 +119,45 @@ fn observations(
                 TermCovariate::Radius => c.radius,
             };
             let real = prep.real[z];
+            let fit = real
+                .filter(|_| sp > 0.0 && form.kind != TermKind::Dropout)
+                .map(|y| {
+                    let ds = (0..prep.k)
+                        .map(|k| draws[k * z_n + z])
+                        .filter(|d| d.p > 0.0)
+                        .map(|d| (f64::from(d.p), f64::from(d.d), f64::from(d.s)))
+                        .collect();
+                    (f64::from(y), ds)
+                });
             out.push(ZoneObs {
                 x,
                 p: sp / prep.k as f64,
                 valid: real.is_some(),
-                resid: real.filter(|_| sp > 0.0).map(|y| f64::from(y) - mean_d),
-                var: if sp > 0.0 {
-                    (sd2 / sp - mean_d * mean_d).max(0.0) + ss2 / sp
-                } else {
-                    0.0
-                },
+                fit,
             });
         }
     }
     out
 }
 
-/// Median of `v` (0 when empty).
-fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        (v[n / 2 - 1] + v[n / 2]) / 2.0
-    }
+/// Negative log-likelihood of the real distances of `bin` under their draws shifted by `bias`
+/// with `sd` of extra Gaussian noise: the tool's Student-t₃ kernel mixture (kernel floor
+/// `kernel_m`) without its outlier term, floored at 1e-9 per zone.
+fn bin_nll(bin: &[ZoneObs], kernel_m: f64, bias: f64, sd: f64) -> f64 {
+    let extra = f64::from(T3_SCALE_OF_GAUSSIAN) * sd;
+    bin.iter()
+        .filter_map(|o| o.fit.as_ref())
+        .map(|(y, ds)| {
+            let (mut num, mut den) = (0.0, 0.0);
+            for &(p, d, s) in ds {
+                let sc = (kernel_m * kernel_m + s * s + extra * extra).sqrt();
+                let z = (y - d - bias) / sc;
+                num += p * (1.0 + z * z / 3.0).powi(-2) / sc;
+                den += p;
+            }
+            -(num / f64::max(den, 1e-12) + 1e-9).ln()
+        })
+        .sum()
 }
 
 /// Estimates `form`'s curve on frames `idx` on top of `model` (the draws simulated under
@@ -164,7 +172,7 @@ pub fn estimate(
 ) -> Option<Term> {
     let mut obs = observations(form, model, base, frames, idx);
     if form.kind != TermKind::Dropout {
-        obs.retain(|o| o.resid.is_some());
+        obs.retain(|o| o.fit.is_some());
     }
     obs.sort_by(|a, b| a.x.total_cmp(&b.x));
     let n = obs.len();
@@ -190,19 +198,12 @@ pub fn estimate(
                 (loss, pred)
             }
             TermKind::Bias => {
-                let mut r: Vec<f64> = bin.iter().filter_map(|o| o.resid).collect();
-                (median(&mut r), bin.len() as f64)
+                let nll = |b: f64| bin_nll(bin, kernel_m, b, 0.0);
+                (grid_golden_min(nll, -0.3, 0.3, 24, 16).0, bin.len() as f64)
             }
             TermKind::Noise => {
-                let mut r: Vec<f64> = bin.iter().filter_map(|o| o.resid).collect();
-                let m = median(&mut r);
-                let mut dev: Vec<f64> = r.iter().map(|x| (x - m).abs()).collect();
-                let mad = 1.4826 * median(&mut dev);
-                let var = bin.iter().map(|o| o.var).sum::<f64>() / bin.len() as f64;
-                (
-                    (mad * mad - var - kernel_m * kernel_m).max(0.0).sqrt(),
-                    bin.len() as f64,
-                )
+                let nll = |sd: f64| bin_nll(bin, kernel_m, 0.0, sd);
+                (grid_golden_min(nll, 0.0, 0.5, 24, 16).0, bin.len() as f64)
             }
         };
         knots.push(x as f32);
