@@ -601,12 +601,7 @@ pub fn table(results: &[CaseResult]) -> String {
     let is_null = |r: &&CaseResult| r.case.hidden.is_empty() && !r.case.outside;
     let fp_line = |what: &str, nulls: &[&CaseResult]| {
         let fp = nulls.iter().filter(|r| r.false_positives() > 0).count();
-        format!(
-            "Nulls ({what}): {} cases, {fp} with a false positive ({:.1} %; one-sided 95 % Clopper–Pearson upper bound {:.1} %).\n",
-            nulls.len(),
-            100.0 * fp as f64 / nulls.len() as f64,
-            100.0 * clopper_pearson_upper(fp, nulls.len(), 0.05)
-        )
+        null_line(what, nulls.len(), fp)
     };
     let mut sets = 0;
     for set in [SceneSet::Sim, SceneSet::Real, SceneSet::DarkFar] {
@@ -624,16 +619,31 @@ pub fn table(results: &[CaseResult]) -> String {
         let nulls: Vec<&CaseResult> = results.iter().filter(is_null).collect();
         s.push_str(&fp_line("all", &nulls));
     }
-    let gains: Vec<f64> = results
-        .iter()
-        .flat_map(|r| r.finding_gains.iter().copied())
-        .collect();
-    s.push_str(&format!(
+    s.push_str(&gains_line(
+        results.iter().flat_map(|r| r.finding_gains.iter().copied()),
+    ));
+    s
+}
+
+/// The table line of `n` null cases, `fp` of them with a finding, with the one-sided 95 %
+/// Clopper–Pearson upper bound of the false-positive rate.
+pub fn null_line(what: &str, n: usize, fp: usize) -> String {
+    format!(
+        "Nulls ({what}): {n} cases, {fp} with a false positive ({:.1} %; one-sided 95 % Clopper–Pearson upper bound {:.1} %).\n",
+        100.0 * fp as f64 / n.max(1) as f64,
+        100.0 * clopper_pearson_upper(fp, n, 0.05)
+    )
+}
+
+/// The table line counting accepted findings (their held-out `gains`) that improved the
+/// held-out NLL.
+pub fn gains_line(gains: impl Iterator<Item = f64>) -> String {
+    let gains: Vec<f64> = gains.collect();
+    format!(
         "Accepted findings with a positive held-out gain: {} of {}.\n",
         gains.iter().filter(|&&g| g > 0.0).count(),
         gains.len()
-    ));
-    s
+    )
 }
 
 #[cfg(test)]

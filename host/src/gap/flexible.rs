@@ -85,8 +85,11 @@ struct ZoneObs {
     valid: bool,
     /// The real distance and the draws `(p, d, s)` with a return (valid zones with a predicted
     /// return; bias and noise curves only).
-    fit: Option<(f64, Vec<(f64, f64, f64)>)>,
+    fit: Option<(f64, Vec<DrawPds>)>,
 }
+
+/// A draw's survival probability, distance and extra noise scale.
+type DrawPds = (f64, f64, f64);
 
 fn observations(
     form: &Form,
@@ -282,6 +285,14 @@ pub fn residual_forms() -> Vec<Form> {
         }
     }
     v
+}
+
+/// The library family whose flexible form has `form`'s kind and covariate, if any.
+pub fn family_of(form: &Form) -> Option<&'static str> {
+    FORMS
+        .iter()
+        .find(|f| f.kind == form.kind && f.on == form.on)
+        .map(|f| f.family)
 }
 
 /// The residual term in words: what it changes, which way, along which covariate.

@@ -210,7 +210,8 @@ impl Ctx<'_> {
     /// be estimated).
     pub fn fit_named(&self, model: &SimConfig, name: &str, opts: &SelectOptions) -> SimConfig {
         if name == flexible::LEARNED {
-            self.fit_learned(model).unwrap_or_else(|| model.clone())
+            self.fit_learned(model, opts)
+                .unwrap_or_else(|| model.clone())
         } else {
             self.fit_one(model, library(name), opts)
         }
@@ -218,16 +219,26 @@ impl Ctx<'_> {
 
     /// Physics outside the library: under `model` (its residual curve removed), a loss curve and
     /// a bias curve over each of range, brightness and grid radius that vary in these frames
-    /// ([`flexible::residual_forms`]) are estimated on the fitting frames and the one with the
-    /// lowest training NLL is kept: its covariate is the one that explains the residual. The
-    /// held-out gate decides, as for every candidate. `None`: no curve could be estimated.
-    pub fn fit_learned(&self, model: &SimConfig) -> Option<SimConfig> {
+    /// ([`flexible::residual_forms`]; not those that are the flexible form of a family among
+    /// the candidates) are estimated on the fitting frames and the one with the lowest training
+    /// NLL is kept: its covariate is the one that explains the residual. The held-out gate
+    /// decides, as for every candidate. `None`: no curve could be estimated.
+    pub fn fit_learned(&self, model: &SimConfig, opts: &SelectOptions) -> Option<SimConfig> {
         let mut m = model.clone();
         flexible::remove(&mut m, flexible::LEARNED);
         let k = self.density.kernel_m;
+        // A form that is a library family's flexible form belongs to that family while the
+        // family is a candidate (it is fitted there, under the family's name).
+        let offered = |name: &str| {
+            let c = library(name);
+            !c.enabled(self.base)
+                && !opts.exclude.iter().any(|e| e == name)
+                && super::localise::varies(self.frames, c.stratum)
+        };
         flexible::residual_forms()
             .iter()
             .filter(|f| super::localise::varies(self.frames, f.on.covariate()))
+            .filter(|f| flexible::family_of(f).is_none_or(|n| !offered(n)))
             .filter_map(|f| flexible::estimate(f, &m, self.base, self.frames, &self.train, k))
             .map(|t| flexible::with_term(&m, t))
             .map(|c| (self.train_nll(&c), c))
@@ -712,7 +723,7 @@ fn fit_trials(
     // Physics outside the library, beside the library's effects (only while not accepted).
     if learned_open {
         progress(&format!("round {} · fitting the residual", round + 1));
-        if let Some(m) = ctx.fit_learned(model) {
+        if let Some(m) = ctx.fit_learned(model, opts) {
             trials.push(trial(vec![flexible::LEARNED], m));
         }
     }
@@ -801,7 +812,14 @@ fn attribute<'t>(
             f + r
         ));
     }
-    best_cross_fitted(&forward, &reverse).map(|i| contenders[i])
+    // A fitted parameter costs one nat on each half (Akaike), so a 6-bin curve (`learned`)
+    // takes the name from a library effect only when it explains clearly more.
+    let charged: Vec<f64> = contenders
+        .iter()
+        .zip(&forward)
+        .map(|(t, f)| f - 2.0 * t.dims as f64)
+        .collect();
+    best_cross_fitted(&charged, &reverse).map(|i| contenders[i])
 }
 
 /// A joint pair passed by the gate (`sig`) wins when it also beats, by the same test at α/2, the

@@ -12,10 +12,9 @@
 
 use rayon::prelude::*;
 
-use super::bench::{at_size, make_real};
+use super::bench::{at_size, gains_line, make_real, null_line};
 use super::data::{GapData, GapFrame};
 use super::effects::library;
-use super::stats::clopper_pearson_upper;
 use super::{analyze, GapError, GapOptions};
 use crate::rng::Rng;
 use crate::scene::SceneFrame;
@@ -476,21 +475,10 @@ pub fn shape_table(results: &[ShapeResult]) -> String {
             continue;
         }
         let fp = nulls.iter().filter(|r| !r.named.is_empty()).count();
-        s.push_str(&format!(
-            "Nulls ({set}): {} cases, {fp} with a finding ({:.1} %; one-sided 95 % Clopper–Pearson upper bound {:.1} %).\n",
-            nulls.len(),
-            100.0 * fp as f64 / nulls.len() as f64,
-            100.0 * clopper_pearson_upper(fp, nulls.len(), 0.05)
-        ));
+        s.push_str(&null_line(set, nulls.len(), fp));
     }
-    let gains: Vec<f64> = results
-        .iter()
-        .flat_map(|r| r.finding_gains.iter().copied())
-        .collect();
-    s.push_str(&format!(
-        "Accepted findings with a positive held-out gain: {} of {}.\n",
-        gains.iter().filter(|&&g| g > 0.0).count(),
-        gains.len()
+    s.push_str(&gains_line(
+        results.iter().flat_map(|r| r.finding_gains.iter().copied()),
     ));
     s
 }
