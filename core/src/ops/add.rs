@@ -1,7 +1,7 @@
 //! `add` (docs/graph.md): int8 + int8 of one shape, each operand rescaled to the output's
 //! quantisation. Kernel: [`crate::kernels::elementwise::add`].
 
-use super::{first, typed, typed_mut, ConstCtx, Eval, PlanCtx, Types};
+use super::{first, typed, typed_mut, write_first, ConstCtx, Eval, PlanCtx, Types};
 use crate::blob::BlobError;
 use crate::engine::plan::{OpPlan, PlanError};
 use crate::engine::Error;
@@ -29,15 +29,12 @@ pub(crate) fn plan(c: &PlanCtx, p: &mut OpPlan) -> Result<(), PlanError> {
 
 /// The [`AddQuant`].
 pub(crate) fn write_consts(c: &ConstCtx, region: &mut [u8]) -> Result<(), Error> {
-    let dst: &mut [AddQuant] = typed_mut(region, c.i)?;
-    if let Some(d) = dst.first_mut() {
-        *d = AddQuant::new(
-            c.q(c.op.inputs[0])?,
-            c.q(c.op.inputs[1])?,
-            c.q(c.op.output)?,
-        );
-    }
-    Ok(())
+    let q = AddQuant::new(
+        c.q(c.op.inputs[0])?,
+        c.q(c.op.inputs[1])?,
+        c.q(c.op.output)?,
+    );
+    write_first(region, c.i, q)
 }
 
 /// Adds the operands.

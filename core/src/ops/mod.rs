@@ -347,6 +347,15 @@ pub(crate) fn first<T: Pod + Default>(b: &[u8], op: usize) -> Result<T, Error> {
     typed::<T>(b, op)?.first().copied().ok_or(bad_op(op))
 }
 
+/// Writes `v` as the first `T` of `region` (an op's one persistent constant; nothing where the
+/// region holds none).
+pub(crate) fn write_first<T: Pod>(region: &mut [u8], op: usize, v: T) -> Result<(), Error> {
+    if let Some(d) = typed_mut::<T>(region, op)?.first_mut() {
+        *d = v;
+    }
+    Ok(())
+}
+
 /// Splits `act` into two disjoint mutable ranges (`m1`, `m2`) and read-only `ins` (each of which
 /// must lie outside both; the plan guarantees it, this checks it).
 pub(crate) fn split<'b>(

@@ -2,7 +2,7 @@
 //! (broadcast over channels) or `[C, 1, 1]` (over space). Kernel:
 //! [`crate::kernels::elementwise::mul`].
 
-use super::{first, typed, typed_mut, ConstCtx, Eval, PlanCtx, Types};
+use super::{first, typed, typed_mut, write_first, ConstCtx, Eval, PlanCtx, Types};
 use crate::blob::BlobError;
 use crate::engine::plan::{OpPlan, PlanError};
 use crate::engine::Error;
@@ -39,15 +39,12 @@ pub(crate) fn plan(c: &PlanCtx, p: &mut OpPlan) -> Result<(), PlanError> {
 
 /// The [`MulQuant`].
 pub(crate) fn write_consts(c: &ConstCtx, region: &mut [u8]) -> Result<(), Error> {
-    let dst: &mut [MulQuant] = typed_mut(region, c.i)?;
-    if let Some(d) = dst.first_mut() {
-        *d = MulQuant::new(
-            c.q(c.op.inputs[0])?,
-            c.q(c.op.inputs[1])?,
-            c.q(c.op.output)?,
-        );
-    }
-    Ok(())
+    let q = MulQuant::new(
+        c.q(c.op.inputs[0])?,
+        c.q(c.op.inputs[1])?,
+        c.q(c.op.output)?,
+    );
+    write_first(region, c.i, q)
 }
 
 /// Multiplies the operands.

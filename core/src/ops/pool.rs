@@ -2,7 +2,7 @@
 //! `channel_max` (over channels: `[1, H, W]` out), int8 (docs/graph.md). Kernels:
 //! [`crate::kernels::pool`].
 
-use super::{first, typed, typed_mut, ConstCtx, Eval, PlanCtx, Types};
+use super::{first, typed, typed_mut, write_first, ConstCtx, Eval, PlanCtx, Types};
 use crate::blob::format::opcode;
 use crate::blob::BlobError;
 use crate::engine::plan::{OpPlan, PlanError};
@@ -48,16 +48,10 @@ pub(crate) fn write_consts(c: &ConstCtx, region: &mut [u8]) -> Result<(), Error>
             } else {
                 s.h * s.w
             };
-            let dst: &mut [MeanQuant] = typed_mut(region, c.i)?;
-            if let Some(d) = dst.first_mut() {
-                *d = MeanQuant::new(in_q, out_q, n);
-            }
+            write_first(region, c.i, MeanQuant::new(in_q, out_q, n))?;
         }
         _ => {
-            let dst: &mut [Rescale] = typed_mut(region, c.i)?;
-            if let Some(d) = dst.first_mut() {
-                *d = Rescale::new(in_q, out_q);
-            }
+            write_first(region, c.i, Rescale::new(in_q, out_q))?;
         }
     }
     Ok(())
