@@ -76,6 +76,34 @@ effect_tests! {
     names_multipath: "multipath",
 }
 
+/// A periodic range error of the opposite sign and a quarter period off the library's phase is
+/// still `bin_wiggle`, both amplitudes recovered (with one amplitude bounded at 0 and a fixed
+/// phase, such a wiggle fitted to exactly zero).
+#[test]
+fn names_bin_wiggle_of_another_phase() {
+    let a = sized("bin_wiggle", 4.0).unwrap()[0];
+    let truth = vec![-0.6 * a, 0.8 * a];
+    let case = Case {
+        label: "bin_wiggle@4x-phase".into(),
+        hidden: vec![("bin_wiggle", truth.clone())],
+        size: 4.0,
+        outside: false,
+        scenes: SceneSet::Sim,
+    };
+    let base = preset("mcu").unwrap();
+    let (r, an) = run_case(scenes(), &base, &case, &GapOptions::default(), 78).unwrap();
+    let log = an.selection.log.join("\n");
+    assert_eq!(
+        r.named.first().map(String::as_str),
+        Some("bin_wiggle"),
+        "{log}"
+    );
+    let fitted = r.fitted.clone().unwrap();
+    for (f, t) in fitted.iter().zip(&truth) {
+        assert!((f - t).abs() <= 0.25 * a, "fitted {fitted:?} vs {truth:?}");
+    }
+}
+
 #[test]
 fn null_names_nothing() {
     let base = preset("mcu").unwrap();

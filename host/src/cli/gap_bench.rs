@@ -8,7 +8,9 @@ use depthor_host::gap::bench::{
     SceneSet,
 };
 use depthor_host::gap::leave_one_out;
-use depthor_host::gap::shapes::{run_shape_case, shape_cases, shape_table};
+use depthor_host::gap::shapes::{
+    self, run_shape_case, shape_cases, shape_table, shape_unit, SHAPES,
+};
 use depthor_host::gap::units::{calibrate, CalibrateOptions, UnitTable};
 use depthor_host::gap::{effects, GapOptions};
 use depthor_host::sim::preset;
@@ -18,6 +20,8 @@ use depthor_host::sim::preset;
 #[command(after_help = "Examples:
   depthor gap-bench --frames 40 --sizes 1,2,4 --nulls 20 --seed 1000 --out bench   # bench/gap_bench.md
   depthor gap-bench --calibrate-units --frames 40 --trials 4 --out units            # units/gap_units.json
+  depthor gap-bench --calibrate-units --shapes --trials 4 --out host/data/gap_shape_units.json
+  depthor gap-bench --shapes --frames 40 --repeats 2 --nulls 30 --real-nulls 30 --seed 9300
 Method and results: docs/gap.md.")]
 pub struct Args {
     /// Frames per "real" recording.
@@ -45,6 +49,10 @@ pub struct Args {
     /// Leave out the cases on the real RGB-D frames.
     #[arg(long)]
     no_real: bool,
+    /// Keep the real RGB-D frames at their native resolutions (per-frame cameras) instead of
+    /// resampling them to `--width` × `--height`.
+    #[arg(long)]
+    native: bool,
     /// Only cases whose label contains this.
     #[arg(long)]
     only: Option<String>,
@@ -84,9 +92,15 @@ pub struct Args {
     refine: usize,
     /// Run the misspecified-shape benchmark instead (docs/gap.md "Shape bench"): every effect
     /// family injected with forward models other than the library's, by the benchmark's own
-    /// code, at `--shape-size` × the family's unit; `--nulls` / `--real-nulls` null cases.
+    /// code, at `--shape-size` × the shape's measured detection limit
+    /// (`host/data/gap_shape_units.json`); `--nulls` / `--real-nulls` null cases. With
+    /// `--calibrate-units`: measure those detection limits instead.
     #[arg(long)]
     shapes: bool,
+    /// Size the shape benchmark by the library form's unit instead of each shape's own
+    /// detection limit (the same mean effect as the library's case at that size).
+    #[arg(long)]
+    library_units: bool,
     /// Size multiple of the shape benchmark.
     #[arg(long, default_value_t = 2.0)]
     shape_size: f64,
@@ -108,7 +122,9 @@ pub struct Args {
 pub fn handle(args: Args) -> anyhow::Result<()> {
     // Refused before the (long) run, not after it.
     if let Some(p) = &args.out {
-        let name = if args.calibrate_units {
+        let name = if args.calibrate_units && args.shapes {
+            "gap_shape_units.json"
+        } else if args.calibrate_units {
             "gap_units.json"
         } else {
             "gap_bench.md"
@@ -189,12 +205,13 @@ pub fn handle(args: Args) -> anyhow::Result<()> {
     bar.finish_and_clear();
     let mut t = table(&results);
     t.push_str(&format!(
-        "\n{} cases; {} rendered frames and {} real-set frames of {}×{} per recording; wall time {:.0} s.\n",
+        "\n{} cases; {} rendered frames of {}×{} and {} real-set frames ({}) per recording; wall time {:.0} s.\n",
         results.len(),
         scenes.len(),
-        real.len(),
         args.width,
         args.height,
+        real.len(),
+        real_sizes(&real),
         t0.elapsed().as_secs_f64()
     ));
     println!("{t}");
@@ -219,11 +236,16 @@ fn calibrate_units(args: &Args) -> anyhow::Result<()> {
     let sets: Vec<_> = (0..k)
         .map(|t| render_scenes(args.frames, args.width, args.height, cal0 + t * n))
         .collect();
-    let names: Vec<&'static str> = effects::ALL
-        .iter()
-        .map(|c| c.name)
-        .filter(|n| args.only.as_ref().is_none_or(|o| n.contains(o.as_str())))
-        .collect();
+    let keep = |n: &str| args.only.as_ref().is_none_or(|o| n.contains(o.as_str()));
+    let names: Vec<String> = if args.shapes {
+        SHAPES.iter().map(shapes::key).filter(|n| keep(n)).collect()
+    } else {
+        effects::ALL
+            .iter()
+            .map(|c| c.name.to_string())
+            .filter(|n| keep(n))
+            .collect()
+    };
     let bar = super::progress(names.len() as u64, "effects");
     let opts = CalibrateOptions {
         threshold: 0.5,
@@ -237,10 +259,25 @@ fn calibrate_units(args: &Args) -> anyhow::Result<()> {
     };
     let mut units = std::collections::BTreeMap::new();
     for name in names {
-        bar.set_message(name);
-        units.extend(calibrate(&base, &sets, &[name], &opts, |m| {
-            bar.suspend(|| eprintln!("{m}"))
-        })?);
+        bar.set_message(name.clone());
+        let log = |m: &str| bar.suspend(|| eprintln!("{m}"));
+        if let Some(sh) = SHAPES
+            .iter()
+            .find(|s| args.shapes && shapes::key(s) == name)
+        {
+            let ladder = (opts.threshold, opts.step, opts.refine, 16.0);
+            units.extend(shapes::calibrate(
+                &base,
+                &sets,
+                &[*sh],
+                &opts.gap,
+                ladder,
+                opts.seed,
+                log,
+            )?);
+        } else if let Some(c) = effects::ALL.iter().find(|c| c.name == name) {
+            units.extend(calibrate(&base, &sets, &[c.name], &opts, log)?);
+        }
         bar.inc(1);
     }
     bar.finish_and_clear();
@@ -264,10 +301,29 @@ fn calibrate_units(args: &Args) -> anyhow::Result<()> {
     let json = serde_json::to_string_pretty(&table)?;
     println!("{json}");
     if let Some(p) = &args.out {
-        super::common::OutFile::new(p, "gap_units.json")
-            .write((json + "\n").as_bytes(), args.overwrite)?;
+        let name = if args.shapes {
+            "gap_shape_units.json"
+        } else {
+            "gap_units.json"
+        };
+        super::common::OutFile::new(p, name).write((json + "\n").as_bytes(), args.overwrite)?;
     }
     Ok(())
+}
+
+/// The image sizes of `frames` in words (`160×120`, or `native, 346×243 to 1920×1440`).
+fn real_sizes(frames: &[depthor_host::scene::SceneFrame]) -> String {
+    let px = |f: &&depthor_host::scene::SceneFrame| u64::from(f.width) * u64::from(f.height);
+    match (frames.iter().min_by_key(px), frames.iter().max_by_key(px)) {
+        (Some(a), Some(b)) if (a.width, a.height) == (b.width, b.height) => {
+            format!("{}×{}", a.width, a.height)
+        }
+        (Some(a), Some(b)) => format!(
+            "native, {}×{} to {}×{}",
+            a.width, a.height, b.width, b.height
+        ),
+        _ => "none".into(),
+    }
 }
 
 /// The real-set frames of `args` (empty with `--no-real` or without the folder, with a note).
@@ -275,7 +331,8 @@ fn load_real(args: &Args) -> Vec<depthor_host::scene::SceneFrame> {
     if args.no_real {
         Vec::new()
     } else if args.real_data.is_dir() {
-        let (r, notes) = real_scenes(&args.real_data, args.width, args.height);
+        let size = (!args.native).then_some((args.width, args.height));
+        let (r, notes) = real_scenes(&args.real_data, size);
         for n in notes {
             eprintln!("note: {n}");
         }
@@ -296,13 +353,21 @@ fn shape_bench(args: &Args) -> anyhow::Result<()> {
     let base = preset("mcu")?;
     let scenes = render_scenes(args.frames, args.width, args.height, args.seed);
     let real = load_real(args);
-    let mut cases = shape_cases(&["sim"], args.shape_size, args.repeats, args.nulls);
+    let unit = |s: &shapes::Shape| {
+        if args.library_units {
+            1.0
+        } else {
+            shape_unit(s)
+        }
+    };
+    let mut cases = shape_cases(&["sim"], args.shape_size, args.repeats, args.nulls, unit);
     if real.len() >= 8 {
         cases.extend(shape_cases(
             &["real"],
             args.shape_size,
             args.repeats,
             args.real_nulls,
+            unit,
         ));
     }
     cases.retain(|c| {
@@ -337,13 +402,19 @@ fn shape_bench(args: &Args) -> anyhow::Result<()> {
     bar.finish_and_clear();
     let mut t = shape_table(&results);
     t.push_str(&format!(
-        "\n{} cases at {}× the family's unit; {} rendered frames and {} real-set frames of {}×{} per recording; seed {}; wall time {:.0} s.\n",
+        "\n{} cases at {}× the {}; {} rendered frames of {}×{} and {} real-set frames ({}) per recording; seed {}; wall time {:.0} s.\n",
         results.len(),
         args.shape_size,
+        if args.library_units {
+            "library form's unit"
+        } else {
+            "shape's measured detection limit (host/data/gap_shape_units.json)"
+        },
         scenes.len(),
-        real.len(),
         args.width,
         args.height,
+        real.len(),
+        real_sizes(&real),
         args.seed,
         t0.elapsed().as_secs_f64()
     ));

@@ -188,12 +188,13 @@ fn resample_frame(
     }
 }
 
-/// Frames of the real RGB-D sets under `root` (`data/real`) as `width × height` scenes: each
-/// image twice, first its largest centred crop of the target aspect, then a mirrored 80 % crop
-/// toward its lower right. The two views of an image are `m` frames apart (`m` images), so with
-/// an even `m` both fall on the same side of the even/odd train/test split. No material labels
-/// (all diffuse). Sets that fail to load are skipped and named in the returned notes.
-pub fn real_scenes(root: &Path, width: u32, height: u32) -> (Vec<SceneFrame>, Vec<String>) {
+/// Frames of the real RGB-D sets under `root` (`data/real`) as scenes of `size` (`None`: each
+/// image at its native resolution, with its own camera): each image twice, first its largest
+/// centred crop of the target aspect (native: the whole image), then a mirrored 80 % crop toward
+/// its lower right. The two views of an image are `m` frames apart (`m` images), so with an even
+/// `m` both fall on the same side of the even/odd train/test split. No material labels (all
+/// diffuse). Sets that fail to load are skipped and named in the returned notes.
+pub fn real_scenes(root: &Path, size: Option<(u32, u32)>) -> (Vec<SceneFrame>, Vec<String>) {
     let mut imgs = Vec::new();
     let mut notes = Vec::new();
     for (kind, folder) in REAL_SETS {
@@ -205,24 +206,30 @@ pub fn real_scenes(root: &Path, width: u32, height: u32) -> (Vec<SceneFrame>, Ve
     if imgs.len() % 2 == 1 {
         imgs.pop();
     }
-    let aspect = width as f32 / height as f32;
-    let crop = |f: &import::ImportedFrame, zoom: f32, at: f32| {
+    let view = |f: &import::ImportedFrame, zoom: f32, at: f32, mirror: bool| {
         let (sw, sh) = (f.rgb.width() as f32, f.rgb.height() as f32);
+        let (width, height) = size.unwrap_or((
+            ((sw * zoom).round() as u32).max(1),
+            ((sh * zoom).round() as u32).max(1),
+        ));
+        let aspect = width as f32 / height as f32;
         let (cw, ch) = if sw / sh > aspect {
             (sh * aspect, sh)
         } else {
             (sw, sw / aspect)
         };
-        let (cw, ch) = (cw * zoom, ch * zoom);
-        [(sw - cw) * at, (sh - ch) * at, cw, ch]
+        let (cw, ch) = if size.is_some() {
+            (cw * zoom, ch * zoom)
+        } else {
+            (cw, ch)
+        };
+        let crop = [(sw - cw) * at, (sh - ch) * at, cw, ch];
+        resample_frame(f, crop, mirror, width, height)
     };
-    let mut out: Vec<SceneFrame> = imgs
-        .par_iter()
-        .map(|f| resample_frame(f, crop(f, 1.0, 0.5), false, width, height))
-        .collect();
+    let mut out: Vec<SceneFrame> = imgs.par_iter().map(|f| view(f, 1.0, 0.5, false)).collect();
     out.extend(
         imgs.par_iter()
-            .map(|f| resample_frame(f, crop(f, 0.8, 0.8), true, width, height))
+            .map(|f| view(f, 0.8, 0.8, true))
             .collect::<Vec<_>>(),
     );
     (out, notes)

@@ -2,19 +2,28 @@
 //! each effect family injected with forward models that differ from the one the tool fits
 //! (dropout with a logistic or step cut-off in range, dark loss below a brightness threshold or
 //! along a quadratic ramp, border loss as a step or a linear ramp in radius, range noise growing
-//! with d² or as a constant plus d, range bias growing with d² or only beyond the median range).
+//! with d² or as a constant plus d, range bias growing with d² or only beyond the median range,
+//! a periodic range error a quarter period off the library's phase or with a sawtooth profile).
 //! The injection is this file's own code, applied to the "real" zones after a plain simulation:
 //! it reads its own zone facts (mean reference depth, mean HSV value, grid radius) and never
 //! calls the simulator's effect modules. Each shape is sized to the library form's mean effect
 //! at a multiple of its unit (`units.rs`) on the same recording (mean loss probability, mean
 //! added σ or mean |bias| over the valid zones), so "2×" means the same strength as the
-//! library's 2× case. A case is right when the tool's first finding is the family's name.
+//! library's 2× case; a dropout shape whose amplitude would exceed 1 moves its cut-off (10 %
+//! of the zones per step) instead of being clamped. Each shape's own detection limit is measured
+//! (`--calibrate-units --shapes`, [`calibrate`], committed as `host/data/gap_shape_units.json`)
+//! and the bench runs at a multiple of it. A case is right when the tool's first finding is the
+//! family's name.
 
 use rayon::prelude::*;
+
+use std::collections::BTreeMap;
+use std::sync::OnceLock;
 
 use super::bench::{at_size, gains_line, make_real, null_line};
 use super::data::{GapData, GapFrame};
 use super::effects::library;
+use super::units::{ladder_search, needed, rung, CalibratedUnit, UnitTable};
 use super::{analyze, GapError, GapOptions};
 use crate::rng::Rng;
 use crate::scene::SceneFrame;
@@ -37,21 +46,21 @@ const fn s(family: &'static str, name: &'static str, what: &'static str) -> Shap
 }
 
 /// Every shape, by family.
-pub const SHAPES: [Shape; 11] = [
+pub const SHAPES: [Shape; 13] = [
     s(
         "range_dropout",
         "logistic",
-        "p = a·σ((d − d70)/0.15 m): a sharp cut-off at the 70th range percentile",
+        "p = a·σ((d − d70)/0.15 m): a sharp cut-off at the 70th range percentile of the valid zones",
     ),
     s(
         "range_dropout",
         "step",
-        "p = a beyond the 70th range percentile, 0 nearer",
+        "p = a beyond the 70th range percentile of the valid zones, 0 nearer",
     ),
     s(
         "dark_dropout",
         "threshold",
-        "p = a below the 30th brightness percentile, 0 above",
+        "p = a below the 30th brightness percentile of the valid zones, 0 above",
     ),
     s(
         "dark_dropout",
@@ -80,6 +89,16 @@ pub const SHAPES: [Shape; 11] = [
         "range_bias",
         "far_ramp",
         "bias = a·(d − d50)₊: growing beyond the median range",
+    ),
+    s(
+        "bin_wiggle",
+        "quadrature",
+        "bias = a·cos(2πd/0.3 m) of the measured d: the library's period, a quarter period off its phase",
+    ),
+    s(
+        "bin_wiggle",
+        "sawtooth",
+        "bias = a·(2·frac(d/0.3 m) − 1) of the measured d: a sawtooth over each 0.3 m bin",
     ),
 ];
 
@@ -149,47 +168,71 @@ fn quantile(v: &mut [f32], q: f64) -> f32 {
     v[((q * (v.len() - 1) as f64).round() as usize).min(v.len() - 1)]
 }
 
-/// Recording-level thresholds the shapes use: 70th and 50th range percentiles, 30th and 60th
-/// brightness percentiles (over zones with depth).
+/// Recording-level thresholds the shapes use, over the zones with depth that the plain
+/// simulation left valid: the range cut-off (70th percentile), the median range, the dark
+/// threshold (30th brightness percentile), the end of the dark ramp (60th), the border radius
+/// (0.75). `widen` steps move each dropout cut-off by 10 % of the zones (0.1 in radius) towards
+/// more affected zones.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Thresholds {
     d70: f32,
     d50: f32,
     v30: f32,
     v60: f32,
+    r75: f32,
+    /// Steps the dropout cut-offs were moved.
+    pub widen: u8,
 }
 
 impl Thresholds {
-    /// From every zone of every frame.
-    pub fn of(facts: &[Vec<ZoneFacts>]) -> Self {
-        let all: Vec<&ZoneFacts> = facts.iter().flatten().filter(|z| z.range_m > 0.0).collect();
+    /// From the zones of every frame of `plain` (facts `facts`), cut-offs moved `widen` steps.
+    pub fn of(plain: &GapData, facts: &[Vec<ZoneFacts>], widen: u8) -> Self {
+        let all: Vec<&ZoneFacts> = plain
+            .frames
+            .iter()
+            .zip(facts)
+            .flat_map(|(f, zf)| {
+                zf.iter()
+                    .enumerate()
+                    .filter(|(zi, z)| {
+                        f.real_valid.get(*zi).copied().unwrap_or(false) && z.range_m > 0.0
+                    })
+                    .map(|(_, z)| z)
+            })
+            .collect();
         let mut d: Vec<f32> = all.iter().map(|z| z.range_m).collect();
         let mut v: Vec<f32> = all.iter().map(|z| z.v).collect();
+        let k = f64::from(widen) * 0.1;
         Thresholds {
-            d70: quantile(&mut d, 0.7),
+            d70: quantile(&mut d, (0.7 - k).max(0.0)),
             d50: quantile(&mut d, 0.5),
-            v30: quantile(&mut v, 0.3),
-            v60: quantile(&mut v, 0.6).max(1e-3),
+            v30: quantile(&mut v, (0.3 + k).min(1.0)),
+            v60: quantile(&mut v, (0.6 + k).min(1.0)).max(1e-3),
+            r75: (0.75 - k as f32).max(0.0),
+            widen,
         }
     }
 }
 
-/// The shape's value at unit amplitude for zone `z` (a loss probability factor, a σ in metres
-/// per unit, or a bias in metres per unit).
-pub fn unit_value(shape: &Shape, t: &Thresholds, z: &ZoneFacts) -> f32 {
+/// The shape's value at unit amplitude for zone `z` whose measured distance is `measured_m` (a
+/// loss probability factor, a σ in metres per unit, or a signed bias in metres per unit).
+pub fn unit_value(shape: &Shape, t: &Thresholds, z: &ZoneFacts, measured_m: f32) -> f32 {
     let d = z.range_m;
+    let bin = measured_m / 0.3;
     match (shape.family, shape.name) {
         ("range_dropout", "logistic") => 1.0 / (1.0 + (-(d - t.d70) / 0.15).exp()),
         ("range_dropout", _) => f32::from(u8::from(d > t.d70)),
         ("dark_dropout", "threshold") => f32::from(u8::from(z.v < t.v30)),
         ("dark_dropout", _) => (1.0 - z.v / t.v60).max(0.0).powi(2),
-        ("border_dropout", "step") => f32::from(u8::from(z.radius > 0.75)),
+        ("border_dropout", "step") => f32::from(u8::from(z.radius > t.r75)),
         ("border_dropout", _) => z.radius,
         ("range_noise", "quadratic") => d * d,
         ("range_noise", _) => 0.5 + d,
         ("range_bias", "quadratic") => d * d,
         ("range_bias", "far_step") => f32::from(u8::from(d > t.d50)),
         ("range_bias", _) => (d - t.d50).max(0.0),
+        ("bin_wiggle", "quadrature") => (core::f32::consts::TAU * bin).cos(),
+        ("bin_wiggle", _) => 2.0 * (bin - bin.floor()) - 1.0,
         _ => 0.0,
     }
 }
@@ -209,6 +252,7 @@ fn library_value(
         "border_dropout" => lib.border_dropout.loss_probability(cov.radius),
         "range_noise" => lib.range_noise.sigma(d),
         "range_bias" => (lib.range_bias.distance(d) - d).abs(),
+        "bin_wiggle" => (lib.bin_wiggle.distance(d) - d).abs(),
         _ => 0.0,
     }
 }
@@ -245,7 +289,7 @@ pub fn amplitude(
             }
             let cov = zone_covariates(&input, &px, 1.0, zi, rows, cols);
             lib_sum += f64::from(library_value(shape.family, &lib, z, &cov));
-            unit_sum += f64::from(unit_value(shape, t, z));
+            unit_sum += f64::from(unit_value(shape, t, z, f.real_m[zi]).abs());
             n += 1;
         }
     }
@@ -253,7 +297,7 @@ pub fn amplitude(
 }
 
 /// Applies `shape` at amplitude `a` to the zones of `f` (facts `zf`): dropout clears a valid
-/// zone with probability `min(a·u, 1)`, noise adds `a·u·N(0, 1)`, bias adds `a·u`.
+/// zone with probability `min(a·u, 1)`, noise adds `a·u·N(0, 1)`, bias and wiggle add `a·u`.
 pub fn inject(
     shape: &Shape,
     a: f32,
@@ -266,10 +310,10 @@ pub fn inject(
         if !f.real_valid.get(zi).copied().unwrap_or(false) {
             continue;
         }
-        let u = unit_value(shape, t, z);
+        let u = unit_value(shape, t, z, f.real_m[zi]);
         match shape.family {
             "range_noise" => f.real_m[zi] = (f.real_m[zi] + a * u * rng.normal()).max(1e-3),
-            "range_bias" => f.real_m[zi] = (f.real_m[zi] + a * u).max(1e-3),
+            "range_bias" | "bin_wiggle" => f.real_m[zi] = (f.real_m[zi] + a * u).max(1e-3),
             _ => {
                 if rng.f32() < (a * u).min(1.0) {
                     f.real_valid[zi] = false;
@@ -286,8 +330,10 @@ pub struct ShapeCase {
     pub label: String,
     /// The injected shape.
     pub shape: Option<Shape>,
-    /// Size multiple of the family's unit.
+    /// Size multiple of the shape's unit (its measured detection limit).
     pub size: f64,
+    /// The shape's unit as a multiple of the library form's unit ([`shape_unit`]).
+    pub unit: f64,
     /// Scene set name (`sim`, `real`).
     pub scenes: &'static str,
 }
@@ -299,6 +345,8 @@ pub struct ShapeResult {
     pub case: ShapeCase,
     /// The amplitude injected.
     pub amplitude: f32,
+    /// Steps the dropout cut-off was moved to keep the loss probability ≤ 1.
+    pub widen: u8,
     /// Effects named, most important first.
     pub named: Vec<String>,
     /// Whether report.json would say the held-out frames can reach significance.
@@ -332,10 +380,15 @@ pub fn run_shape_case(
         .par_iter()
         .map(|f| zone_facts(f, &base.grid.zone_rects_px(f.width, f.height), rows, cols))
         .collect();
-    let t = Thresholds::of(&facts);
+    let mut t = Thresholds::of(&real, &facts, 0);
     let mut a = 0.0;
     if let Some(shape) = &case.shape {
-        a = amplitude(shape, case.size, base, &real, &facts, &t).unwrap_or(0.0);
+        let size = case.size * case.unit;
+        a = amplitude(shape, size, base, &real, &facts, &t).unwrap_or(0.0);
+        while shape.family.ends_with("_dropout") && a > 1.0 && t.widen < 6 {
+            t = Thresholds::of(&real, &facts, t.widen + 1);
+            a = amplitude(shape, size, base, &real, &facts, &t).unwrap_or(0.0);
+        }
         for (i, (f, zf)) in real.frames.iter_mut().zip(&facts).enumerate() {
             inject(
                 shape,
@@ -351,6 +404,7 @@ pub fn run_shape_case(
     let r = ShapeResult {
         case: case.clone(),
         amplitude: a,
+        widen: t.widen,
         named: an
             .selection
             .findings
@@ -368,13 +422,14 @@ pub fn run_shape_case(
     Ok((r, an))
 }
 
-/// Every shape at `size` on each scene set in `sets`, `repeats` times (own seeds), and `nulls`
-/// null cases per set.
+/// Every shape at `size` × its unit (`unit(shape)`, a multiple of the library form's unit) on
+/// each scene set in `sets`, `repeats` times (own seeds), and `nulls` null cases per set.
 pub fn shape_cases(
     sets: &[&'static str],
     size: f64,
     repeats: usize,
     nulls: usize,
+    unit: impl Fn(&Shape) -> f64,
 ) -> Vec<ShapeCase> {
     let mut v = Vec::new();
     for &set in sets {
@@ -389,6 +444,7 @@ pub fn shape_cases(
                     label: format!("{pre}{}/{}@{size}x#{r}", sh.family, sh.name),
                     shape: Some(sh),
                     size,
+                    unit: unit(&sh),
                     scenes: set,
                 });
             }
@@ -398,6 +454,7 @@ pub fn shape_cases(
                 label: format!("{pre}null#{k}"),
                 shape: None,
                 size: 0.0,
+                unit: 1.0,
                 scenes: set,
             });
         }
@@ -405,21 +462,109 @@ pub fn shape_cases(
     v
 }
 
+/// The shape's key in the unit table (`family/name`).
+pub fn key(shape: &Shape) -> String {
+    format!("{}/{}", shape.family, shape.name)
+}
+
+/// The committed shape units (`host/data/gap_shape_units.json`, written by `depthor gap-bench
+/// --calibrate-units --shapes`); empty when it does not parse.
+pub fn calibrated() -> &'static UnitTable {
+    static T: OnceLock<UnitTable> = OnceLock::new();
+    T.get_or_init(|| {
+        serde_json::from_str(include_str!("../../data/gap_shape_units.json")).unwrap_or_default()
+    })
+}
+
+/// The shape's unit (its measured detection limit) as a multiple of the library form's unit;
+/// 1 when the committed table lacks it.
+pub fn shape_unit(shape: &Shape) -> f64 {
+    calibrated()
+        .units
+        .get(&key(shape))
+        .and_then(|u| u.params.first().copied())
+        .unwrap_or(1.0)
+}
+
+/// Measures each shape's detection limit: the smallest multiple of the library form's unit at
+/// which the tool names the shape's family first in ≥ `threshold` of the recordings made from
+/// `scene_sets` (one per trial; seeds disjoint from the benchmark's), by the ladder of
+/// [`ladder_search`] from 1 (`step`, `refine`, at most `max`). `progress` gets a line per rung.
+#[allow(clippy::too_many_arguments)]
+pub fn calibrate(
+    base: &SimConfig,
+    scene_sets: &[Vec<SceneFrame>],
+    shapes: &[Shape],
+    opts: &GapOptions,
+    (threshold, step, refine, max): (f64, f64, usize, f64),
+    seed: u64,
+    mut progress: impl FnMut(&str),
+) -> Result<BTreeMap<String, CalibratedUnit>, GapError> {
+    let k = scene_sets.len();
+    let mut out = BTreeMap::new();
+    for sh in shapes {
+        let mut ladder = Vec::new();
+        let (multiple, bracketed) =
+            ladder_search(1.0, step, max, refine, |m| -> Result<bool, GapError> {
+                let (hits, runs) = rung(k, threshold, |t| {
+                    let label = format!("calibrate:{}@{m:.4}#{t}", key(sh));
+                    let case = ShapeCase {
+                        label: label.clone(),
+                        shape: Some(*sh),
+                        size: m,
+                        unit: 1.0,
+                        scenes: "sim",
+                    };
+                    let seed = super::bench::case_seed(seed, &label);
+                    Ok::<_, GapError>(
+                        run_shape_case(&scene_sets[t], base, &case, opts, seed)?
+                            .0
+                            .top1(),
+                    )
+                })?;
+                progress(&format!(
+                    "{} × {m:.3}: named first in {hits} of {runs}",
+                    key(sh)
+                ));
+                ladder.push((m, hits, runs));
+                Ok(hits >= needed(k, threshold))
+            })?;
+        out.insert(
+            key(sh),
+            CalibratedUnit {
+                params: vec![multiple],
+                multiple,
+                ladder,
+                bracketed,
+            },
+        );
+    }
+    Ok(out)
+}
+
 /// Markdown tables of `results`: one row per case; top-1 attribution per scene set and family;
 /// false positives on the nulls with a one-sided 95 % upper bound; findings with a positive
 /// held-out gain.
 pub fn shape_table(results: &[ShapeResult]) -> String {
     let mut s = String::from(
-        "| case | shape | amplitude | named | top-1 | conclusive | findings with gain > 0 |\n|---|---|---|---|---|---|---|\n",
+        "| case | shape | unit (× library's) | amplitude | cut-off moved | named | top-1 | conclusive | findings with gain > 0 |\n|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in results {
         s.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {} | {}/{} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {}/{} |\n",
             r.case.label,
             r.case.shape.map_or("—", |x| x.what),
             r.case
                 .shape
+                .map_or("—".into(), |_| format!("{:.2}", r.case.unit)),
+            r.case
+                .shape
                 .map_or("—".into(), |_| format!("{:.4}", r.amplitude)),
+            if r.widen > 0 {
+                format!("{} × 10 %", r.widen)
+            } else {
+                "—".into()
+            },
             if r.named.is_empty() {
                 "—".into()
             } else {
@@ -529,6 +674,8 @@ mod tests {
             d50: 2.0,
             v30: 0.2,
             v60: 0.5,
+            r75: 0.75,
+            widen: 0,
         };
         let near = ZoneFacts {
             range_m: 1.0,
@@ -540,8 +687,11 @@ mod tests {
             v: 0.1,
             radius: 0.9,
         };
-        for sh in SHAPES {
-            let (a, b) = (unit_value(&sh, &t, &near), unit_value(&sh, &t, &far));
+        for sh in SHAPES.iter().filter(|s| s.family != "bin_wiggle") {
+            let (a, b) = (
+                unit_value(sh, &t, &near, 1.0),
+                unit_value(sh, &t, &far, 5.0),
+            );
             assert!(
                 b > a,
                 "{} / {}: far or dark or outer zones get more",
@@ -552,7 +702,10 @@ mod tests {
         // Steps are exactly 0 / 1: not the library's smooth forms.
         let step = SHAPES.iter().find(|x| x.name == "step").unwrap();
         assert_eq!(
-            (unit_value(step, &t, &near), unit_value(step, &t, &far)),
+            (
+                unit_value(step, &t, &near, 1.0),
+                unit_value(step, &t, &far, 5.0)
+            ),
             (0.0, 1.0)
         );
         let mut f = frame(5.0, 20);
@@ -563,8 +716,30 @@ mod tests {
         let drop = SHAPES.iter().find(|x| x.family == "dark_dropout").unwrap();
         inject(drop, 1.0, &t, &zf, &mut f, &mut Rng::new(1));
         assert!(f.real_valid.iter().all(|v| !v), "p = 1 clears every zone");
-        let cases = shape_cases(&["sim", "real"], 2.0, 2, 3);
+        // The periodic shapes follow the measured distance over 0.3 m bins: a quarter period
+        // off the library's sine (cos), and a sawtooth rising across each bin.
+        let q = SHAPES.iter().find(|x| x.name == "quadrature").unwrap();
+        let saw = SHAPES.iter().find(|x| x.name == "sawtooth").unwrap();
+        for (m, cos, tooth) in [(0.6, 1.0, -1.0), (0.675, 0.0, -0.5), (0.75, -1.0, 0.0)] {
+            assert!((unit_value(q, &t, &near, m) - cos).abs() < 1e-5, "{m}");
+            assert!((unit_value(saw, &t, &near, m) - tooth).abs() < 1e-4, "{m}");
+        }
+        let mut f = frame(2.0, 20);
+        f.real_m = vec![0.6; 4];
+        inject(q, 0.01, &t, &zf, &mut f, &mut Rng::new(1));
+        assert!(f.real_m.iter().all(|&d| (d - 0.61).abs() < 1e-6));
+        let cases = shape_cases(&["sim", "real"], 2.0, 2, 3, |s| {
+            if s.family == "range_noise" {
+                1.5
+            } else {
+                1.0
+            }
+        });
         assert_eq!(cases.len(), 2 * (2 * SHAPES.len() + 3));
+        assert!(cases
+            .iter()
+            .filter(|c| c.shape.is_some_and(|s| s.family == "range_noise"))
+            .all(|c| c.unit == 1.5));
         assert!(cases
             .iter()
             .all(|c| c.scenes == "sim" || c.label.starts_with("real:")));

@@ -164,6 +164,31 @@ pub fn ladder_search<E>(
     Ok((hi, true))
 }
 
+/// Trials out of `k` a rung must detect to pass at detection rate `threshold` (at least one).
+pub fn needed(k: usize, threshold: f64) -> usize {
+    ((threshold * k as f64).ceil() as usize).max(1)
+}
+
+/// One calibration rung: runs `trial(t)` for `t` in `0..k` until the outcome at `threshold` is
+/// settled (enough detections, or too many misses to reach them); returns (detections, trials
+/// run).
+pub fn rung<E>(
+    k: usize,
+    threshold: f64,
+    mut trial: impl FnMut(usize) -> Result<bool, E>,
+) -> Result<(usize, usize), E> {
+    let need = needed(k, threshold);
+    let (mut hits, mut runs) = (0, 0);
+    for t in 0..k {
+        if hits >= need || runs - hits > k - need {
+            break;
+        }
+        hits += usize::from(trial(t)?);
+        runs += 1;
+    }
+    Ok((hits, runs))
+}
+
 /// Knobs of [`calibrate`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct CalibrateOptions {
@@ -191,7 +216,6 @@ pub fn calibrate(
     mut progress: impl FnMut(&str),
 ) -> Result<BTreeMap<String, CalibratedUnit>, GapError> {
     let k = scene_sets.len();
-    let need = ((opts.threshold * k as f64).ceil() as usize).max(1);
     let mut out = BTreeMap::new();
     for &name in names {
         let start = start_unit(name)?;
@@ -203,11 +227,8 @@ pub fn calibrate(
             opts.refine,
             |m| -> Result<bool, GapError> {
                 let params = scale(name, &start, m)?;
-                let (mut hits, mut runs) = (0, 0);
-                for (t, scenes) in scene_sets.iter().enumerate() {
-                    if hits >= need || runs - hits > k - need {
-                        break;
-                    }
+                let (hits, runs) = rung(k, opts.threshold, |t| {
+                    let scenes = &scene_sets[t];
                     let label = format!("calibrate:{name}@{m:.4}#{t}");
                     let case = Case {
                         label: label.clone(),
@@ -223,12 +244,11 @@ pub fn calibrate(
                         &opts.gap,
                         super::bench::case_seed(opts.seed, &label),
                     )?;
-                    runs += 1;
-                    hits += usize::from(r.detected());
-                }
+                    Ok::<_, GapError>(r.detected())
+                })?;
                 progress(&format!("{name} × {m:.3}: named in {hits} of {runs}"));
                 ladder.push((m, hits, runs));
-                Ok(hits >= need)
+                Ok(hits >= needed(k, opts.threshold))
             },
         )?;
         out.insert(

@@ -1,5 +1,8 @@
 //! `bin_wiggle` (gap-tool library, docs/design.md): the histogram's time bins leave a periodic range
-//! error. Forward model: `d' = d + amplitude_m · sin(2π d / period_m)`.
+//! error. Forward model: `d' = d + amplitude_m · sin(2π d / period_m) + quadrature_m · cos(2π d /
+//! period_m)`: the period is the sensor's bin width (known), the phase is not, so the error is
+//! fitted as two signed amplitudes, in phase and in quadrature (one amplitude bounded at 0 with a
+//! fixed phase fitted a wiggle of the opposite sign, or a quarter period off, to exactly zero).
 use serde::{Deserialize, Serialize};
 
 use super::{param, Covariate, EffectFit};
@@ -13,8 +16,11 @@ use crate::sim::frame::{Scene, ZoneEffect, ZoneGrid};
 pub struct BinWiggle {
     /// Switch.
     pub enabled: bool,
-    /// Amplitude, metres.
+    /// Signed amplitude of the sine term, metres.
     pub amplitude_m: f32,
+    /// Signed amplitude of the cosine term (the phase the sine term does not cover), metres.
+    #[serde(default)]
+    pub quadrature_m: f32,
     /// Period in range, metres (ours: 0.3 m, a 2 ns bin).
     pub period_m: f32,
 }
@@ -25,6 +31,7 @@ impl Default for BinWiggle {
         BinWiggle {
             enabled: false,
             amplitude_m: 0.0,
+            quadrature_m: 0.0,
             period_m: 0.3,
         }
     }
@@ -33,7 +40,8 @@ impl Default for BinWiggle {
 impl BinWiggle {
     /// The reported distance of a return at `d` metres.
     pub fn distance(&self, d: f32) -> f32 {
-        (d + self.amplitude_m * (core::f32::consts::TAU * d / self.period_m).sin()).max(1e-3)
+        let (s, c) = (core::f32::consts::TAU * d / self.period_m).sin_cos();
+        (d + self.amplitude_m * s + self.quadrature_m * c).max(1e-3)
     }
 }
 
@@ -49,7 +57,14 @@ impl ZoneEffect for BinWiggle {
             self.name(),
             "amplitude_m",
             self.amplitude_m,
-            [0.0, 1.0],
+            [-1.0, 1.0],
+            " m",
+        )?;
+        check_in(
+            self.name(),
+            "quadrature_m",
+            self.quadrature_m,
+            [-1.0, 1.0],
             " m",
         )?;
         check_above(self.name(), "period_m", self.period_m, [0.0, 10.0], " m")
@@ -66,16 +81,19 @@ impl ZoneEffect for BinWiggle {
 /// Fit description for the gap tool ([`super::ALL`]).
 pub const FIT: EffectFit = EffectFit {
     name: "bin_wiggle",
-    physics: "periodic range error from histogram binning: d + A·sin(2πd/0.3 m)",
-    params: &[param("amplitude_m", 0.0, 0.1)],
+    physics: "periodic range error from histogram binning: d + A·sin(2πd/0.3 m) + B·cos(2πd/0.3 m)",
+    params: &[
+        param("amplitude_m", -0.1, 0.1),
+        param("quadrature_m", -0.1, 0.1),
+    ],
     stratum: Covariate::Range,
     separating_data: "a wall swept finely in range (periodic pattern)",
-    start_unit: &[0.005],
+    start_unit: &[0.005, 0.0],
     config: |c| &c.bin_wiggle,
     config_mut: |c| &mut c.bin_wiggle,
 };
 
-f32_params!(BinWiggle: amplitude_m);
+f32_params!(BinWiggle: amplitude_m, quadrature_m);
 
 #[cfg(test)]
 mod tests {
@@ -86,10 +104,11 @@ mod tests {
         let w = BinWiggle {
             enabled: true,
             amplitude_m: 0.02,
+            quadrature_m: -0.01,
             period_m: 0.4,
         };
-        // 2.1 m is a quarter period past 2.0 m: sin = 1.
+        // 2.1 m is a quarter period past 2.0 m: sin = 1, cos = 0; at 2.0 m sin = 0, cos = 1.
         assert!((w.distance(2.1) - 2.12).abs() < 1e-5);
-        assert!((w.distance(2.0) - 2.0).abs() < 1e-5);
+        assert!((w.distance(2.0) - 1.99).abs() < 1e-5);
     }
 }
