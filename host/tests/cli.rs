@@ -245,3 +245,24 @@ fn unknown_frame_id_is_an_error() {
     assert_eq!(String::from_utf8_lossy(&o.stderr).lines().count(), 1);
     assert!(!out.exists());
 }
+
+/// A reader that closes the pipe before `depthor` writes (as `depthor … | head` does) ends it
+/// quietly: without the default SIGPIPE action the first `println!` panicked with a backtrace.
+#[cfg(unix)]
+#[test]
+fn closed_stdout_ends_quietly_not_in_a_panic() {
+    use std::process::{Command, Stdio};
+    let tmp = tempfile::tempdir().unwrap();
+    let rec = write_hand_made(&tmp.path().join("rec"));
+    let mut child = Command::new(env!("CARGO_BIN_EXE_depthor"))
+        .args(["info", "--recording", s(&rec)])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    assert_ne!(out.status.code(), Some(101), "{err}");
+}

@@ -265,16 +265,7 @@ fn calibrate_units(args: &Args) -> anyhow::Result<()> {
             .iter()
             .find(|s| args.shapes && shapes::key(s) == name)
         {
-            let ladder = (opts.threshold, opts.step, opts.refine, 16.0);
-            units.extend(shapes::calibrate(
-                &base,
-                &sets,
-                &[*sh],
-                &opts.gap,
-                ladder,
-                opts.seed,
-                log,
-            )?);
+            units.extend(shapes::calibrate(&base, &sets, &[*sh], &opts, log)?);
         } else if let Some(c) = effects::ALL.iter().find(|c| c.name == name) {
             units.extend(calibrate(&base, &sets, &[c.name], &opts, log)?);
         }

@@ -23,7 +23,7 @@ use std::sync::OnceLock;
 use super::bench::{at_size, gains_line, make_real, null_line};
 use super::data::{GapData, GapFrame};
 use super::effects::library;
-use super::units::{ladder_search, needed, rung, CalibratedUnit, UnitTable};
+use super::units::{ladder_search, needed, rung, CalibrateOptions, CalibratedUnit, UnitTable};
 use super::{analyze, GapError, GapOptions};
 use crate::rng::Rng;
 use crate::scene::SceneFrame;
@@ -486,27 +486,33 @@ pub fn shape_unit(shape: &Shape) -> f64 {
         .unwrap_or(1.0)
 }
 
+/// The most a shape's unit may be, as a multiple of the library form's unit (the top of the
+/// calibration ladder).
+pub const MAX_UNIT: f64 = 16.0;
+
 /// Measures each shape's detection limit: the smallest multiple of the library form's unit at
-/// which the tool names the shape's family first in ≥ `threshold` of the recordings made from
-/// `scene_sets` (one per trial; seeds disjoint from the benchmark's), by the ladder of
-/// [`ladder_search`] from 1 (`step`, `refine`, at most `max`). `progress` gets a line per rung.
-#[allow(clippy::too_many_arguments)]
+/// which the tool names the shape's family first in ≥ `opts.threshold` of the recordings made
+/// from `scene_sets` (one per trial; seeds disjoint from the benchmark's), by the ladder of
+/// [`ladder_search`] from 1 up to [`MAX_UNIT`], with the same knobs as the library's units
+/// ([`units::calibrate`](super::units::calibrate)). `progress` gets a line per rung.
 pub fn calibrate(
     base: &SimConfig,
     scene_sets: &[Vec<SceneFrame>],
     shapes: &[Shape],
-    opts: &GapOptions,
-    (threshold, step, refine, max): (f64, f64, usize, f64),
-    seed: u64,
+    opts: &CalibrateOptions,
     mut progress: impl FnMut(&str),
 ) -> Result<BTreeMap<String, CalibratedUnit>, GapError> {
     let k = scene_sets.len();
     let mut out = BTreeMap::new();
     for sh in shapes {
         let mut ladder = Vec::new();
-        let (multiple, bracketed) =
-            ladder_search(1.0, step, max, refine, |m| -> Result<bool, GapError> {
-                let (hits, runs) = rung(k, threshold, |t| {
+        let (multiple, bracketed) = ladder_search(
+            1.0,
+            opts.step,
+            MAX_UNIT,
+            opts.refine,
+            |m| -> Result<bool, GapError> {
+                let (hits, runs) = rung(k, opts.threshold, |t| {
                     let label = format!("calibrate:{}@{m:.4}#{t}", key(sh));
                     let case = ShapeCase {
                         label: label.clone(),
@@ -515,9 +521,9 @@ pub fn calibrate(
                         unit: 1.0,
                         scenes: "sim",
                     };
-                    let seed = super::bench::case_seed(seed, &label);
+                    let seed = super::bench::case_seed(opts.seed, &label);
                     Ok::<_, GapError>(
-                        run_shape_case(&scene_sets[t], base, &case, opts, seed)?
+                        run_shape_case(&scene_sets[t], base, &case, &opts.gap, seed)?
                             .0
                             .top1(),
                     )
@@ -527,8 +533,9 @@ pub fn calibrate(
                     key(sh)
                 ));
                 ladder.push((m, hits, runs));
-                Ok(hits >= needed(k, threshold))
-            })?;
+                Ok(hits >= needed(k, opts.threshold))
+            },
+        )?;
         out.insert(
             key(sh),
             CalibratedUnit {
