@@ -233,28 +233,33 @@ fn gap_run(
     (o, report, out)
 }
 
-/// Eight frames (four held out) with a 6 cm range bias: the sign-flip test cannot reach
-/// p ≤ α/2 = 0.005, so the run ends in the right name or in "inconclusive" with the frames needed,
+/// Eight frames with a 6 cm range bias (the Middlebury case): cross-fitted, all eight
+/// are scored and the sign-flip test can reach 2^−8 ≤ α/2 = 0.005, so the run names the bias.
+/// Five frames cannot (2^−5 > 0.005): the run ends in "inconclusive" with the frames needed,
 /// never in "no significant missing physics".
 #[test]
-fn too_few_frames_is_inconclusive_not_a_null() {
+fn few_frames_are_named_or_inconclusive_never_a_null() {
     let tmp = tempfile::tempdir().unwrap();
     let mut hidden = preset("mcu").unwrap();
     hidden.set_effect("range_bias", Some(&[0.06, 0.0])).unwrap();
     let data = make_real(&scenes()[..8], &hidden, 5, None).unwrap();
-    let (o, report, out) = gap_run(tmp.path(), &data, 8);
+    let (_, report, out) = gap_run(&tmp.path().join("eight"), &data, 8);
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
     assert!(!md.contains("No significant missing physics"), "{md}");
-    if report["conclusive"] == false {
-        assert_eq!(report["heldout_frames"], 4);
-        assert_eq!(report["min_achievable_p"], 1.0 / 16.0);
-        // 2^−8 = 0.0039 ≤ 0.005 < 2^−7: eight held-out frames, sixteen in all.
-        assert_eq!(report["frames_needed"], 16);
-        assert!(md.starts_with("**Inconclusive**"), "{md}");
-        assert!(String::from_utf8_lossy(&o.stdout).contains("inconclusive"));
-    } else {
-        assert_eq!(report["findings"][0]["effect"], "range_bias", "{report:#}");
-    }
+    assert_eq!(report["conclusive"], true, "{report:#}");
+    assert_eq!(report["heldout_frames"], 8);
+    assert_eq!(report["findings"][0]["effect"], "range_bias", "{report:#}");
+
+    let (o, report, out) = gap_run(&tmp.path().join("five"), &data, 5);
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert_eq!(report["conclusive"], false, "{report:#}");
+    assert_eq!(report["heldout_frames"], 5);
+    assert_eq!(report["min_achievable_p"], 1.0 / 32.0);
+    // 2^−8 = 0.0039 ≤ 0.005 < 2^−7: eight frames.
+    assert_eq!(report["frames_needed"], 8);
+    assert!(md.starts_with("**Inconclusive**"), "{md}");
+    assert!(!md.contains("No significant missing physics"), "{md}");
+    assert!(String::from_utf8_lossy(&o.stdout).contains("inconclusive"));
 }
 
 #[test]

@@ -5,9 +5,9 @@
 //!
 //! Pipeline: [`model::prepare`] (Monte-Carlo draws of the base simulator per frame, zone
 //! covariates) → [`likelihood`] (per-zone dropout probability and heavy-tailed density) →
-//! [`select::select`] (fit on even frames, test on odd frames, Holm-controlled acceptance, joint
-//! refit, pruning, confounding) → [`localise`] (residual slices with BH control, PIT, zone maps)
-//! → [`report`] (report.md, report.json, plots, fitted `sim_config`).
+//! [`select::select`] (fit on even frames and test on odd ones, and the reverse: 2-fold
+//! cross-fitting; Holm-controlled acceptance, joint refit, pruning, confounding) →
+//! [`localise`] (residual slices with BH control, PIT, zone maps) → [`report`] (report.md, report.json, plots, fitted `sim_config`).
 
 pub mod bench;
 pub mod data;
@@ -132,7 +132,7 @@ pub fn analyze(
         grid: (usize::from(base.grid.rows), usize::from(base.grid.cols)),
         split: (ctx.train.len(), ctx.test.len()),
         power: power::Power::of(
-            ctx.test.len(),
+            n,
             opts.select.permutations,
             opts.select.alpha / 2.0,
             !selection.findings.is_empty(),

@@ -1,7 +1,9 @@
-//! Selection: fit each candidate effect on the training frames, accept it only if its held-out
-//! gain is significantly positive (paired sign-flip test over held-out frames, Holm across the
-//! candidates of a round; pairs that a calibration can hide from one-at-a-time search are also
-//! fitted jointly), refit the accepted effects jointly, prune, and flag confounded pairs.
+//! Selection: fit each candidate effect on one half of the frames and score it on the other, both
+//! ways round (2-fold cross-fitting: every frame is held out from one fit), accept it only if its
+//! held-out gain is significantly positive (paired sign-flip test over all frames, Holm or a
+//! fixed sequence across the candidates of a round; pairs that a calibration can hide from
+//! one-at-a-time search are also fitted jointly), refit the accepted effects jointly, prune, and
+//! flag confounded pairs.
 
 use std::collections::BTreeMap;
 
@@ -31,8 +33,8 @@ pub struct SelectOptions {
     pub iters: usize,
     /// Grid points scanned per parameter before the golden-section refinement.
     pub grid: usize,
-    /// Training NLL gain (nats) one effect of a [`JOINT_PAIRS`] pair must reach alone before the
-    /// pair is fitted jointly (≈ a likelihood-ratio p of 0.01 for one parameter).
+    /// Training NLL gain (nats, per fold) one effect of a [`JOINT_PAIRS`] pair must reach alone
+    /// before the pair is fitted jointly (≈ a likelihood-ratio p of 0.01 for one parameter).
     pub joint_trigger: f64,
     /// Predictive density constants.
     pub density: Density,
@@ -492,22 +494,84 @@ impl Ctx<'_> {
 }
 
 /// One candidate of a selection round: a single effect or a joint pair fitted on top of the
-/// current model.
+/// current model, in each fold.
 struct Trial {
     /// Effect(s) fitted.
     names: Vec<&'static str>,
-    /// The current model with them fitted.
-    model: SimConfig,
-    /// Per-frame held-out NLL.
-    after: Vec<f64>,
-    /// Held-out gain over the current model, nats per zone.
+    /// The current model of each fold with them fitted on that fold's fitting half.
+    models: [SimConfig; 2],
+    /// Per-frame NLL of each fold's held-out half.
+    after: [Vec<f64>; 2],
+    /// Cross-fitted held-out gain over the current model, nats per zone.
     gain: f64,
     /// Its sign-flip p-value.
     p: f64,
-    /// Training NLL gain, nats.
+    /// Held-out gain of each fold, nats.
+    fold_gain: [f64; 2],
+    /// Training NLL gain, nats, summed over the folds.
     train_gain: f64,
     /// Number of fitted parameters.
     dims: usize,
+}
+
+/// The two folds of 2-fold cross-fitting: `ctx` itself (fit on the even frames, score the odd
+/// ones) and its [`Ctx::swapped`] twin. Every frame is scored once, by the fit of the other half:
+/// twice the held-out frames of one split, which the sign-flip test needs when few frames carry
+/// an effect (real sets repeat an image in several frames, so 40 frames may hold 10 distinct
+/// held-out images per half).
+struct Folds<'c, 'a> {
+    ctx: [&'c Ctx<'a>; 2],
+}
+
+impl Folds<'_, '_> {
+    /// Per-frame held-out NLL of each fold under its model.
+    fn nlls(&self, models: &[SimConfig; 2]) -> [Vec<f64>; 2] {
+        [
+            self.ctx[0].test_nlls(&models[0]),
+            self.ctx[1].test_nlls(&models[1]),
+        ]
+    }
+
+    /// Every zone of the recording (each is held out once).
+    fn zones(&self) -> f64 {
+        self.ctx[0].test_zones() + self.ctx[1].test_zones()
+    }
+
+    /// Cross-fitted gain of `after` over `before` (per-frame held-out NLLs of both folds): nats
+    /// per zone, its sign-flip p over every frame, and each fold's total in nats.
+    fn gain(
+        &self,
+        before: &[Vec<f64>; 2],
+        after: &[Vec<f64>; 2],
+        perms: usize,
+        seed: u64,
+    ) -> (f64, f64, [f64; 2]) {
+        let per_frame: Vec<Vec<f64>> = before
+            .iter()
+            .zip(after)
+            .map(|(b, a)| b.iter().zip(a).map(|(b, a)| b - a).collect())
+            .collect();
+        let all: Vec<f64> = per_frame.concat();
+        let fold = [per_frame[0].iter().sum(), per_frame[1].iter().sum()];
+        (
+            all.iter().sum::<f64>() / self.zones(),
+            sign_flip_p(&all, perms, seed),
+            fold,
+        )
+    }
+
+    /// Each fold's `model` with `names` refitted jointly on its fitting half.
+    fn refit(
+        &self,
+        models: &[SimConfig; 2],
+        names: &[&'static str],
+        opts: &SelectOptions,
+    ) -> [SimConfig; 2] {
+        [
+            self.ctx[0].refit(&models[0], names, opts),
+            self.ctx[1].refit(&models[1], names, opts),
+        ]
+    }
 }
 
 /// Order of the fixed-sequence gate: by training gain less the number of fitted parameters
@@ -533,14 +597,16 @@ pub fn best_cross_fitted(forward: &[f64], reverse: &[f64]) -> Option<usize> {
 }
 
 /// Runs forward selection (single effects and the [`JOINT_PAIRS`]), joint refits, pruning and
-/// the confounding check.
+/// the confounding check, every candidate cross-fitted over `ctx` and its swapped twin.
 pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str)) -> Selection {
     let progress: &mut dyn FnMut(&str) = &mut progress;
-    let mut model = ctx.base.clone();
+    let rev = ctx.swapped();
+    let folds = Folds { ctx: [ctx, &rev] };
+    let mut models = [ctx.base.clone(), ctx.base.clone()];
     let mut accepted: Vec<&'static str> = Vec::new();
     let mut joints: Vec<Joint> = Vec::new();
     let mut log = Vec::new();
-    let mut cur = ctx.test_nlls(&model);
+    let mut cur = folds.nlls(&models);
     // An effect whose covariate takes one value in these frames (material on imports without
     // labels) cannot be told from the base: it is not a candidate.
     let mut pool: Vec<&'static EffectFit> = Vec::new();
@@ -570,21 +636,22 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
         }
         let seed = 17 + round as u64;
         let trials = fit_trials(
-            ctx,
+            &folds,
             opts,
-            &model,
-            &cur,
+            (&models, &cur),
             &cands,
             (round, learned_open),
             progress,
         );
         for t in &trials {
             log.push(format!(
-                "round {} {:<18} gain {:+.4} nats/zone  p {:.4}  (training gain {:+.1} nats)",
+                "round {} {:<18} gain {:+.4} nats/zone  p {:.4}  (held-out {:+.1} + {:+.1} nats; training gain {:+.1} nats)",
                 round + 1,
                 t.names.join("+"),
                 t.gain,
                 t.p,
+                t.fold_gain[0],
+                t.fold_gain[1],
                 t.train_gain
             ));
         }
@@ -606,8 +673,8 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
         {
             break;
         }
-        let best = attribute(ctx, opts, &model, &trials, round, &mut log, progress);
-        let chosen = if let Some((t, g, p)) = best_joint(ctx, opts, &trials, &sig, best, seed) {
+        let best = attribute(opts, &trials, round, &mut log);
+        let chosen = if let Some((t, g, p)) = best_joint(&folds, opts, &trials, &sig, best, seed) {
             let why = JOINT_PAIRS
                 .iter()
                 .find(|j| t.names == [j.0, j.1])
@@ -629,17 +696,18 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
             b
         };
         accepted.extend(&chosen.names);
-        model = ctx.refit(&chosen.model, &accepted, opts);
-        cur = ctx.test_nlls(&model);
+        models = folds.refit(&chosen.models, &accepted, opts);
+        cur = folds.nlls(&models);
     }
     let cond = prune(
-        ctx,
+        &folds,
         opts,
-        (&mut model, &mut cur),
+        (&mut models, &mut cur),
         &mut accepted,
         &mut log,
         progress,
     );
+    let [model, _] = models;
     // A joint pair stands only while pruning kept both of its effects.
     joints.retain(|j| j.effects.iter().all(|e| accepted.contains(&e.as_str())));
     let confounds = confounding(ctx, opts, &accepted, &cond, &solo, progress);
@@ -691,43 +759,54 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
     }
 }
 
-/// Round `round`'s trials on top of `model` (whose held-out NLLs are `cur`): every candidate
-/// fitted alone, then the [`JOINT_PAIRS`] whose single fits show training evidence.
+/// Round `round`'s trials on top of each fold's current model `models` (whose held-out NLLs are
+/// `cur`): every candidate fitted alone, then the [`JOINT_PAIRS`] whose single fits show
+/// training evidence.
 fn fit_trials(
-    ctx: &Ctx<'_>,
+    folds: &Folds<'_, '_>,
     opts: &SelectOptions,
-    model: &SimConfig,
-    cur: &[f64],
+    (models, cur): (&[SimConfig; 2], &[Vec<f64>; 2]),
     cands: &[&&EffectFit],
     (round, learned_open): (usize, bool),
     progress: &mut dyn FnMut(&str),
 ) -> Vec<Trial> {
     let seed = 17 + round as u64;
-    let train_cur = ctx.train_nll(model);
-    let trial = |names: Vec<&'static str>, m: SimConfig| {
-        let train_gain = train_cur - ctx.train_nll(&m);
-        let after = ctx.test_nlls(&m);
-        let (gain, p) = ctx.gain(cur, &after, opts.permutations, seed);
+    let train_cur = [
+        folds.ctx[0].train_nll(&models[0]),
+        folds.ctx[1].train_nll(&models[1]),
+    ];
+    let trial = |names: Vec<&'static str>, fitted: [SimConfig; 2]| {
+        let train_gain = (0..2)
+            .map(|k| train_cur[k] - folds.ctx[k].train_nll(&fitted[k]))
+            .sum();
+        let after = folds.nlls(&fitted);
+        let (gain, p, fold_gain) = folds.gain(cur, &after, opts.permutations, seed);
         let dims = names.iter().map(|n| dims_of(n)).sum();
         Trial {
             names,
-            model: m,
+            models: fitted,
             after,
             gain,
             p,
+            fold_gain,
             train_gain,
             dims,
         }
     };
+    let both = |f: &dyn Fn(&Ctx<'_>, &SimConfig) -> Option<SimConfig>| -> Option<[SimConfig; 2]> {
+        Some([f(folds.ctx[0], &models[0])?, f(folds.ctx[1], &models[1])?])
+    };
     let mut trials = Vec::new();
     for c in cands {
         progress(&format!("round {} · fitting {}", round + 1, c.name));
-        trials.push(trial(vec![c.name], ctx.fit_one(model, c, opts)));
+        if let Some(m) = both(&|x, m| Some(x.fit_one(m, c, opts))) {
+            trials.push(trial(vec![c.name], m));
+        }
     }
     // Physics outside the library, beside the library's effects (only while not accepted).
     if learned_open {
         progress(&format!("round {} · fitting the residual", round + 1));
-        if let Some(m) = ctx.fit_learned(model, opts) {
+        if let Some(m) = both(&|x, m| x.fit_learned(m, opts)) {
             trials.push(trial(vec![flexible::LEARNED], m));
         }
     }
@@ -738,26 +817,29 @@ fn fit_trials(
         let (Some(ta), Some(tb)) = (single(a), single(b)) else {
             continue;
         };
-        if ta.train_gain.max(tb.train_gain) < opts.joint_trigger {
+        // Training gains are summed over the two folds.
+        if ta.train_gain.max(tb.train_gain) < 2.0 * opts.joint_trigger {
             continue;
         }
         progress(&format!("round {} · fitting {a}+{b} jointly", round + 1));
         let pair = [a, b];
-        trials.push(trial(pair.to_vec(), ctx.fit_joint(model, &pair, opts)));
+        if let Some(m) = both(&|x, m| Some(x.fit_joint(m, &pair, opts))) {
+            trials.push(trial(pair.to_vec(), m));
+        }
     }
     trials
 }
 
 /// Which trials pass the gate: Holm at α/2 (no candidate favoured) or fixed-sequence at α/2 in
-/// the order of training gain (set on the training frames, before any held-out p is seen:
-/// powerful for an effect confined to a few frames, whose p cannot reach Holm's α/m).
-/// Bonferroni over the two keeps the family-wise error ≤ α. Joint pairs are members of the
-/// family.
+/// the order of training gain (set on the fitting halves, not on the held-out scores: powerful
+/// for an effect confined to a few frames, whose p cannot reach Holm's α/m). Bonferroni over
+/// the two keeps the family-wise error ≤ α. Joint pairs are members of the family.
 fn gate(trials: &[Trial], opts: &SelectOptions) -> Vec<bool> {
     let ps: Vec<f64> = trials.iter().map(|t| t.p).collect();
+    // The training gains are summed over the two folds: each parameter is charged twice.
     let order = gate_order(
         &trials.iter().map(|t| t.train_gain).collect::<Vec<_>>(),
-        &trials.iter().map(|t| t.dims).collect::<Vec<_>>(),
+        &trials.iter().map(|t| 2 * t.dims).collect::<Vec<_>>(),
     );
     let fixed = fixed_sequence(&ps, &order, opts.alpha / 2.0);
     holm(&ps, opts.alpha / 2.0)
@@ -768,18 +850,14 @@ fn gate(trials: &[Trial], opts: &SelectOptions) -> Vec<bool> {
 }
 
 /// Attribution among the single effects significant on their own: look-alikes (range vs dark
-/// dropout where far surfaces are dark) reach similar held-out gains, and a split of 20 held-out
-/// frames decides between them by chance. Each contender is also fitted on the held-out frames
-/// and scored on the training frames (2-fold cross-fitting): twice the evidence, each half
-/// scored on frames its fit did not see.
+/// dropout where far surfaces are dark) reach similar held-out gains, and one split of 20
+/// held-out frames decides between them by chance; the cross-fitted gain (both folds) is twice
+/// the evidence, each half scored on frames its fit did not see.
 fn attribute<'t>(
-    ctx: &Ctx<'_>,
     opts: &SelectOptions,
-    model: &SimConfig,
     trials: &'t [Trial],
     round: usize,
     log: &mut Vec<String>,
-    progress: &mut dyn FnMut(&str),
 ) -> Option<&'t Trial> {
     let contenders: Vec<&Trial> = trials
         .iter()
@@ -788,41 +866,23 @@ fn attribute<'t>(
     if contenders.len() <= 1 {
         return contenders.first().copied();
     }
-    let flipped = ctx.swapped();
-    let base_train: f64 = flipped.test_nlls(model).iter().sum();
-    let forward: Vec<f64> = contenders
-        .iter()
-        .map(|t| t.gain * ctx.test_zones())
-        .collect();
-    let reverse: Vec<f64> = contenders
-        .iter()
-        .map(|t| {
-            progress(&format!(
-                "round {} · cross-fitting {}",
-                round + 1,
-                t.names[0]
-            ));
-            let m = flipped.fit_named(model, t.names[0], opts);
-            base_train - flipped.test_nlls(&m).iter().sum::<f64>()
-        })
-        .collect();
-    for ((t, f), r) in contenders.iter().zip(&forward).zip(&reverse) {
+    for t in &contenders {
         log.push(format!(
             "round {} cross-fitted {:<18} {:+.1} + {:+.1} = {:+.1} nats",
             round + 1,
             t.names[0],
-            f,
-            r,
-            f + r
+            t.fold_gain[0],
+            t.fold_gain[1],
+            t.fold_gain[0] + t.fold_gain[1]
         ));
     }
     // A fitted parameter costs one nat on each half (Akaike), so a 6-bin curve (`learned`)
     // takes the name from a library effect only when it explains clearly more.
     let charged: Vec<f64> = contenders
         .iter()
-        .zip(&forward)
-        .map(|(t, f)| f - 2.0 * t.dims as f64)
+        .map(|t| t.fold_gain[0] - 2.0 * t.dims as f64)
         .collect();
+    let reverse: Vec<f64> = contenders.iter().map(|t| t.fold_gain[1]).collect();
     best_cross_fitted(&charged, &reverse).map(|i| contenders[i])
 }
 
@@ -834,7 +894,7 @@ fn attribute<'t>(
 /// the pair could no longer beat the curve by the test on 16 held-out frames, though it beat
 /// each of its own effects).
 fn best_joint<'t>(
-    ctx: &Ctx<'_>,
+    folds: &Folds<'_, '_>,
     opts: &SelectOptions,
     trials: &'t [Trial],
     sig: &[bool],
@@ -853,8 +913,8 @@ fn best_joint<'t>(
                             .is_some_and(|b| b.names == r.names && b.names != [flexible::LEARNED]))
             });
             let (g, p) = rivals
-                .map(|r| ctx.gain(&r.after, &t.after, opts.permutations, seed + 1000))
-                .fold((f64::INFINITY, 0.0f64), |(g, p), (gr, pr)| {
+                .map(|r| folds.gain(&r.after, &t.after, opts.permutations, seed + 1000))
+                .fold((f64::INFINITY, 0.0f64), |(g, p), (gr, pr, _)| {
                     (g.min(gr), p.max(pr))
                 });
             (g >= opts.min_gain && p <= opts.alpha / 2.0).then_some((t, g, p))
@@ -862,13 +922,13 @@ fn best_joint<'t>(
         .max_by(|a, b| a.0.gain.total_cmp(&b.0.gain))
 }
 
-/// Drops accepted effects whose conditional held-out gain is no longer significant, refitting
-/// `model` (and its held-out NLLs `cur`) after each drop; returns each kept effect's conditional
-/// gain, p and the model refitted without it.
+/// Drops accepted effects whose conditional cross-fitted gain is no longer significant,
+/// refitting each fold's model (and its held-out NLLs `cur`) after each drop; returns each kept
+/// effect's conditional gain, p and the first fold's model refitted without it.
 fn prune(
-    ctx: &Ctx<'_>,
+    folds: &Folds<'_, '_>,
     opts: &SelectOptions,
-    (model, cur): (&mut SimConfig, &mut Vec<f64>),
+    (models, cur): (&mut [SimConfig; 2], &mut [Vec<f64>; 2]),
     accepted: &mut Vec<&'static str>,
     log: &mut Vec<String>,
     progress: &mut dyn FnMut(&str),
@@ -879,39 +939,37 @@ fn prune(
         let name = accepted[k];
         progress(&format!("pruning {name}"));
         let rest: Vec<&'static str> = accepted.iter().copied().filter(|&n| n != name).collect();
-        let mut without = model.clone();
-        if name != flexible::LEARNED {
-            library(name).set(&mut without, None);
+        let mut without = models.clone();
+        for m in &mut without {
+            if name != flexible::LEARNED {
+                library(name).set(m, None);
+            }
+            flexible::remove(m, name);
         }
-        flexible::remove(&mut without, name);
         let without = if rest.is_empty() {
             without
         } else {
-            ctx.refit(&without, &rest, opts)
+            folds.refit(&without, &rest, opts)
         };
-        let (g, p) = ctx.gain(
-            &ctx.test_nlls(&without),
-            cur,
-            opts.permutations,
-            99 + k as u64,
-        );
+        let (g, p, _) = folds.gain(&folds.nlls(&without), cur, opts.permutations, 99 + k as u64);
         if p > opts.alpha || g < opts.min_gain {
             log.push(format!("pruned {name}: conditional gain {g:+.4}, p {p:.4}"));
             accepted.remove(k);
-            *model = without;
-            *cur = ctx.test_nlls(model);
+            *models = without;
+            *cur = folds.nlls(models);
             cond.clear();
             k = 0;
             continue;
         }
-        cond.insert(name, (g, p, without));
+        let [first, _] = without;
+        cond.insert(name, (g, p, first));
         k += 1;
     }
     cond
 }
 
 /// Confounding: a look-alike (significant alone in the first round) that, in an accepted
-/// effect's place, reaches ≥ half its gain.
+/// effect's place, reaches ≥ half its gain (on the first fold's held-out frames).
 fn confounding(
     ctx: &Ctx<'_>,
     opts: &SelectOptions,

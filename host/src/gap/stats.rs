@@ -4,13 +4,29 @@
 use crate::rng::Rng;
 
 /// One-sided paired sign-flip (randomisation) test that the mean of `gains` is > 0: the share of
-/// `rounds` random sign patterns whose mean is at least the observed one (plus one, over
-/// `rounds + 1`). Exact under the null that each gain is symmetric about 0; no normality needed.
+/// sign patterns whose sum is at least the observed one. Every one of the `2^n` patterns when
+/// there are no more than `rounds + 1` of them (exact: all positive gives `2^−n`), otherwise
+/// `rounds` random patterns plus the observed one, over `rounds + 1`. Exact under the null that
+/// each gain is symmetric about 0; no normality needed.
 pub fn sign_flip_p(gains: &[f64], rounds: usize, seed: u64) -> f64 {
     if gains.is_empty() {
         return 1.0;
     }
     let obs: f64 = gains.iter().sum();
+    let n = gains.len();
+    if n < 24 && (1usize << n) <= rounds + 1 {
+        let hits = (0..1u32 << n)
+            .filter(|pattern| {
+                let s: f64 = gains
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &g)| if pattern >> i & 1 == 0 { g } else { -g })
+                    .sum();
+                s >= obs - 1e-12
+            })
+            .count();
+        return hits as f64 / (1u64 << n) as f64;
+    }
     let mut rng = Rng::new(seed);
     let mut hits = 0usize;
     for _ in 0..rounds {
@@ -249,6 +265,17 @@ mod tests {
         assert!(p < 0.01, "{p}");
         let p = sign_flip_p(&[1.0, -1.0, 1.0, -1.0], 999, 1);
         assert!(p > 0.3, "{p}");
+    }
+
+    #[test]
+    fn sign_flip_enumerates_small_samples_exactly() {
+        // 8 positive gains: 256 patterns, only the observed one reaches the sum.
+        assert_eq!(sign_flip_p(&[1.0; 8], 4999, 1), 1.0 / 256.0);
+        // {3, −1, 2}: patterns with sum ≥ 4 are (+,−,+) and (+,+,+): 2 of 8.
+        assert_eq!(sign_flip_p(&[3.0, -1.0, 2.0], 4999, 1), 2.0 / 8.0);
+        // Too many patterns for the rounds: the Monte-Carlo estimate, floored at 1/(rounds + 1).
+        let p = sign_flip_p(&[1.0; 8], 99, 1);
+        assert!((0.01..0.06).contains(&p), "{p}");
     }
 
     #[test]
