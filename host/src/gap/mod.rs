@@ -7,7 +7,8 @@
 //! covariates) → [`likelihood`] (per-zone dropout probability and heavy-tailed density) →
 //! [`select::select`] (fit on even frames and test on odd ones, and the reverse: 2-fold
 //! cross-fitting; Holm-controlled acceptance, joint refit, pruning, confounding) →
-//! [`localise`] (residual slices with BH control, PIT, zone maps) → [`report`] (report.md, report.json, plots, fitted `sim_config`).
+//! [`localise`] (residual slices with BH control, PIT, zone maps) → [`report`] (report.md,
+//! report.json, plots, fitted `sim_config`).
 
 pub mod bench;
 pub mod data;

@@ -120,8 +120,8 @@ pub struct Joint {
 /// The result of selection.
 #[derive(Clone, Debug)]
 pub struct Selection {
-    /// Base plus the accepted effects, fitted on the training frames: what the held-out
-    /// figures score.
+    /// Base plus the accepted effects, fitted on the even frames (the first fold): what
+    /// `fit_after` scores on the odd frames.
     pub model: SimConfig,
     /// The same effects refitted on every frame, training and held-out (selection and the
     /// held-out gains are settled by then): the reported parameters and `sim_config`, with half

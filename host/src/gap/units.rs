@@ -44,7 +44,7 @@ pub struct CalibratedUnit {
 pub struct UnitTable {
     /// The command that wrote the table.
     pub command: String,
-    /// Frames per recording (even frames fit, odd frames test).
+    /// Frames per recording (cross-fitted: each half fits, the other half scores).
     pub frames: usize,
     /// Trials per rung (each on its own scene set).
     pub trials: usize,
