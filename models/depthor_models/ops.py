@@ -23,6 +23,7 @@ from torch import Tensor, nn
 # ---------------------------------------------------------------------------------------------
 
 _ACTIVE: "Recorder | None" = None
+_FAKE_QUANT = None  # a qat.FakeQuant while a quantisation-aware forward pass runs
 
 
 @dataclass
@@ -181,10 +182,23 @@ def recording(root: nn.Module):
         yield rec
 
 
+def set_fake_quant(fq) -> None:
+    """Installs (or with None removes) the int8 rounding of :mod:`depthor_models.qat`."""
+    global _FAKE_QUANT
+    _FAKE_QUANT = fq
+
+
 def _rec(op, inputs, out, attrs=None, params=None, owner=None) -> Tensor:
     if _ACTIVE is not None:
         _ACTIVE.record(op, inputs, out, attrs, params, owner)
+    elif _FAKE_QUANT is not None:
+        out = _FAKE_QUANT.value(op, out)
     return out
+
+
+def _w(weight: Tensor) -> Tensor:
+    """A parametrised op's weight as the forward pass uses it (int8-rounded under QAT)."""
+    return weight if _FAKE_QUANT is None else _FAKE_QUANT.weight(weight)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -362,9 +376,10 @@ def refine_math(
         offs = neighbour_offsets(size)
         if aff.shape[1] != len(offs):
             raise ValueError(f"refine: aff{size} needs {len(offs)} channels, got {aff.shape[1]}")
-        d2 = torch.tensor([float(dy * dy + dx * dx) for dy, dx in offs], dtype=d0.dtype)
+        d2 = torch.tensor([float(dy * dy + dx * dx) for dy, dx in offs], dtype=d0.dtype,
+                          device=d0.device)
         g = torch.exp(-d2 / (2.0 * sigmas[k] * sigmas[k])).view(1, -1, 1, 1)
-        rj = F.relu(aff) * g * _inside_mask(offs, h, w, d0.dtype)
+        rj = F.relu(aff) * g * _inside_mask(offs, h, w, d0.dtype).to(d0.device)
         wj = rj / (1.0 + rj.sum(dim=1, keepdim=True))
         wc = 1.0 - wj.sum(dim=1, keepdim=True)
         # weights in _window_stack's channel order (column-major, centre included)
@@ -419,7 +434,7 @@ class Conv(nn.Conv2d):
         self.alpha = alpha
 
     def forward(self, x: Tensor) -> Tensor:
-        y = apply_activation(F.conv2d(x, self.weight, self.bias, self.stride, self.padding,
+        y = apply_activation(F.conv2d(x, _w(self.weight), self.bias, self.stride, self.padding,
                                       self.dilation, self.groups), self.activation, self.alpha)
         attrs = {
             "out_channels": self.out_channels,
@@ -452,7 +467,7 @@ class Linear(nn.Linear):
         self.alpha = alpha
 
     def forward(self, x: Tensor) -> Tensor:
-        y = F.conv2d(x, self.weight[:, :, None, None], self.bias)
+        y = F.conv2d(x, _w(self.weight)[:, :, None, None], self.bias)
         y = apply_activation(y, self.activation, self.alpha)
         attrs = {"activation": self.activation, "alpha": self.alpha}
         return _rec("linear", [x], y, attrs, {"weight": "weight", "bias": "bias"}, self)
@@ -469,7 +484,8 @@ class BinsHead(nn.Module):
         nn.init.kaiming_uniform_(self.weight, a=math.sqrt(5))
 
     def forward(self, feat: Tensor, bin_logits: Tensor) -> Tensor:
-        y = bins_head_math(feat, bin_logits, self.weight, self.bias, self.min_depth, self.max_depth)
+        y = bins_head_math(feat, bin_logits, _w(self.weight), self.bias, self.min_depth,
+                           self.max_depth)
         attrs = {"n_bins": self.n_bins, "min_depth_m": self.min_depth, "max_depth_m": self.max_depth}
         return _rec("bins_head", [feat, bin_logits], y, attrs,
                     {"weight": "weight", "bias": "bias"}, self)
@@ -490,7 +506,7 @@ class Refine(nn.Module):
     def forward(self, d0, aff3, aff5, aff7, kmix, tmix) -> Tensor:
         y = refine_math(d0, [aff3, aff5, aff7], kmix, tmix, self.sigma, self.SIZES, self.iterations)
         if _ACTIVE is None:
-            return y
+            return _rec("refine", [], y)
         attrs = {"iterations": self.iterations,
                  "sigma": [float(s) for s in self.sigma.detach().cpu()]}
         return _rec("refine", [d0, aff3, aff5, aff7, kmix, tmix], y, attrs, None, self)

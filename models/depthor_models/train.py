@@ -33,6 +33,10 @@ depthor_models.train …` runs data-parallel (DistributedDataParallel; gloo on C
 function of the global step. Rank 0 writes the checkpoint and the logs and evaluates;
 `--resume` works with any process count that divides the batch. `--data stream` decodes
 frames in DataLoader workers instead of holding the set in memory.
+
+`--qat` trains quantisation-aware (`qat.FakeQuant`: the int8 rounding of the host quantizer in
+the forward pass, batch norm on its running statistics); the tracked ranges are kept in the
+checkpoint, `model_final.pt` stays the float weights the export takes.
 """
 
 from __future__ import annotations
@@ -50,7 +54,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from . import data, dist
+from . import data, dist, qat
 from .net import VARIANTS, Depthor, build
 
 MIN_DEPTH_M = 0.1
@@ -617,6 +621,16 @@ def _train(args: argparse.Namespace, d: dist.Dist) -> dict:
     elif args.init:
         net.load_state_dict(load_weights(args.init))
         say(f"initialised from {args.init}")
+    fq = None
+    if getattr(args, "qat", False):
+        h, w = net.cfg.height, net.cfg.width
+        dev = next(net.parameters()).device
+        fq = qat.FakeQuant(net, torch.rand(1, 3, h, w, device=dev, dtype=dtype),
+                           torch.zeros(1, 1, h, w, device=dev, dtype=dtype)).attach()
+        if args.resume and ckpt_path.exists() and "qat" in ck:
+            fq.load_state_dict(ck["qat"])
+        say(f"quantisation-aware: {sum(k in ('int8', 'unit') for k in fq.kind)} of "
+            f"{len(fq.kind)} node outputs rounded to int8")
     if not args.resume or step == 0:
         torch.manual_seed(args.seed)
     if args.batch % d.world:
@@ -666,7 +680,7 @@ def _train(args: argparse.Namespace, d: dist.Dist) -> dict:
         _atomic_save({"model": state, "optimizer": opt.state_dict(),
                       "scheduler": sched.state_dict(), "step": step, "wall_s": wall,
                       "rng": {"torch": torch.get_rng_state()}, "args": vars(args),
-                      "world": d.world}, ckpt_path)
+                      "world": d.world, **({"qat": fq.state_dict()} if fq else {})}, ckpt_path)
         if teacher is not None:
             teacher.save()
         row = {}
@@ -901,6 +915,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=2,
                     help="DataLoader worker processes per training process with --data stream "
                          "(0 = decode in the training process)")
+    ap.add_argument("--qat", action="store_true",
+                    help="quantisation-aware training (int8 rounding simulated; see qat.py)")
     ap.add_argument("--resume", action="store_true", help="continue from <out>/ckpt.pt")
     ap.add_argument("--switch-train", action="store_true",
                     help="with --resume: keep the schedule but draw the remaining batches from "

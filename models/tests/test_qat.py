@@ -1,0 +1,87 @@
+"""Quantisation-aware training (`depthor_models.qat`): the rounding plan follows the host
+quantizer's folding, the fake-quantised forward stays near the float one and trains, and
+detaching restores the float network exactly."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+from depthor_models import build, qat, random_inputs
+from depthor_models.ops import Node
+
+
+@pytest.fixture(scope="module")
+def lite():
+    net = build("mcu_lite", seed=0)
+    rgb, sparse = random_inputs(net.cfg, torch.Generator().manual_seed(1))
+    return net, rgb, sparse
+
+
+def test_plan_folds_like_the_quantizer():
+    """conv → batch_norm → relu stores one int8 value (the relu's); f32 heads stay f32."""
+    conv = {"activation": "none"}
+    nodes = [
+        Node("conv2d", "c", ["rgb"], "c", conv),
+        Node("batch_norm", "b", ["c"], "b"),
+        Node("relu", "r", ["b"], "r"),
+        Node("conv2d", "c2", ["r"], "c2", conv),  # read twice: stored
+        Node("relu", "r2", ["c2"], "r2"),
+        Node("add", "a", ["c2", "r2"], "a"),
+        Node("conv2d", "s", ["a"], "s", {"activation": "sigmoid"}),
+        Node("minmax_norm", "m", ["s"], "m"),
+        Node("upsample_bilinear", "u", ["m"], "u"),
+        Node("bins_head", "h", ["u", "a"], "h"),
+        Node("upsample_bilinear", "hu", ["h"], "hu"),
+    ]
+    assert qat.int8_values(nodes) == [
+        "fused", "fused", "int8", "int8", "int8", "int8", "unit", "unit", "same", "f32", "f32"]
+
+
+def test_lite_plan_covers_every_node(lite):
+    net, rgb, sparse = lite
+    fq = qat.FakeQuant(net, rgb, sparse)
+    assert fq.ops[-1] == "upsample_bilinear" and fq.kind[-1] == "f32"
+    assert "refine" in fq.ops and fq.kind[fq.ops.index("refine")] == "f32"
+    assert fq.kind.count("fused") >= 10
+    assert fq.kind.count("int8") >= 20
+
+
+def test_fake_quant_forward_trains_and_detaches(lite):
+    net, rgb, sparse = lite
+    net.eval()
+    with torch.no_grad():
+        ref = net(rgb, sparse)
+    fq = qat.FakeQuant(net, rgb, sparse).attach()
+    try:
+        net.train()
+        out = net(rgb, sparse)  # first training pass sets the ranges
+        out.mean().backward()
+        grads = [p.grad for p in net.parameters() if p.grad is not None]
+        assert grads and any(float(g.abs().sum()) > 0 for g in grads)
+        net.zero_grad(set_to_none=True)
+        net.eval()
+        with torch.no_grad():
+            q = net(rgb, sparse)
+        # batch norm was kept on its running statistics: only rounding separates q from ref
+        assert not torch.equal(q, ref)
+        rel = float((q - ref).abs().mean() / ref.abs().mean())
+        assert rel < 0.05, rel
+        assert len(fq.seen) == len(fq.kind) and any(fq.seen)
+        with pytest.raises(ValueError):
+            fq.load_state_dict({**fq.state_dict(), "ops": ["conv2d"]})
+    finally:
+        fq.detach()
+    with torch.no_grad():
+        assert torch.equal(net(rgb, sparse), ref)
+
+
+def test_weight_rounding_is_per_channel_symmetric():
+    w = torch.randn(4, 3, 3, 3) * torch.tensor([1e-3, 1.0, 10.0, 0.5]).view(4, 1, 1, 1)
+    q = qat.FakeQuant.weight(w)
+    for o in range(4):
+        m = w[o].abs().max()
+        assert torch.isclose(q[o].abs().max(), m)
+        codes = torch.round(q[o] / (m / 127))
+        assert torch.allclose(codes * (m / 127), q[o], atol=1e-6 * float(m))
+        assert float((q[o] - w[o]).abs().max()) <= float(m) / 254 * 1.0001
