@@ -1,6 +1,6 @@
 //! `depthor quantize` on the committed `mcu` export: calibration frames from a scene
-//! configuration are counted and drawn, the blob is written, and a bad scene configuration is one
-//! clean error naming its file.
+//! configuration or a recording are counted and drawn, the blob is written, the report runs on a
+//! recording's frames, and a bad scene configuration or recording is one clean error naming it.
 
 mod common;
 
@@ -66,5 +66,88 @@ fn bad_scene_config_names_its_file_and_writes_nothing() {
     assert!(!o.status.success());
     assert!(err.contains("bad_scenes.json"), "{err}");
     assert!(err.contains("room_depth_m"), "{err}");
+    assert!(!out.exists());
+}
+
+/// A 2-frame rendered recording at the mcu preset's size.
+fn tiny_recording(dir: &std::path::Path) -> PathBuf {
+    let rec = dir.join("rec");
+    depthor_ok(&[
+        "sim",
+        "--preset",
+        "mcu",
+        "--scenes",
+        "2",
+        "--seed",
+        "77",
+        "--out",
+        arg(&rec),
+    ]);
+    rec
+}
+
+#[test]
+fn recording_frames_join_the_calibration_and_the_report() {
+    let tmp = tempfile::tempdir().unwrap();
+    let rec = tiny_recording(tmp.path());
+    let graph = models().join("mcu/graph.json");
+    let plain = tmp.path().join("plain.dblob");
+    depthor_ok(&[
+        "quantize",
+        "--graph",
+        arg(&graph),
+        "--out",
+        arg(&plain),
+        "--frames",
+        "1",
+    ]);
+    let out = tmp.path().join("m.dblob");
+    let stdout = depthor_ok(&[
+        "quantize",
+        "--graph",
+        arg(&graph),
+        "--out",
+        arg(&out),
+        "--frames",
+        "1",
+        "--calibration-recording",
+        arg(&rec),
+        "--report",
+        "--report-recording",
+        arg(&rec),
+        "--eval-frames",
+        "1",
+    ]);
+    assert!(
+        stdout.contains("calibration: 3 frames (2 of them from recording"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("int8 vs f32 on 1 frames (recording"),
+        "{stdout}"
+    );
+    // the recording's frames moved some activation ranges
+    assert_ne!(std::fs::read(&out).unwrap(), std::fs::read(&plain).unwrap());
+}
+
+#[test]
+fn missing_calibration_recording_names_it_and_writes_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let missing = tmp.path().join("no_such_recording");
+    let out = tmp.path().join("m.dblob");
+    let o = depthor(&[
+        "quantize",
+        "--graph",
+        arg(&models().join("mcu/graph.json")),
+        "--out",
+        arg(&out),
+        "--frames",
+        "1",
+        "--calibration-recording",
+        arg(&missing),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(err.contains("no_such_recording"), "{err}");
     assert!(!out.exists());
 }

@@ -85,3 +85,21 @@ def test_weight_rounding_is_per_channel_symmetric():
         codes = torch.round(q[o] / (m / 127))
         assert torch.allclose(codes * (m / 127), q[o], atol=1e-6 * float(m))
         assert float((q[o] - w[o]).abs().max()) <= float(m) / 254 * 1.0001
+
+
+def test_qat_training_keeps_its_ranges_across_a_resume(tmp_path):
+    """`train --qat` writes the tracked ranges into the checkpoint and a resume picks them up."""
+    from depthor_models import train as T
+    from test_train import _args, write_recording
+
+    rec_dir = write_recording(tmp_path / "rec", n=4)
+    out = tmp_path / "run"
+    T.main(_args(rec_dir, out, "--qat", "--stop-after", "2"))
+    ck = torch.load(out / "ckpt.pt", weights_only=False)
+    st = ck["qat"]
+    assert ck["step"] == 2 and any(st["seen"])
+    assert bool((st["hi"] >= st["lo"]).all()) and float(st["hi"].max()) > 0
+    T.main(_args(rec_dir, out, "--qat", "--resume"))
+    ck = torch.load(out / "ckpt.pt", weights_only=False)
+    assert ck["step"] == 3 and ck["qat"]["ops"] == st["ops"]
+    assert (out / "model_final.pt").exists()

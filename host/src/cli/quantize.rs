@@ -4,13 +4,14 @@
 
 use anyhow::{Context, Result};
 use depthor_core::engine::required_arena_bytes;
-use depthor_host::quantize::calibrate::{simulated_frames, simulated_frames_in, RangeRule};
+use depthor_host::evaluation::RecordingFrames;
+use depthor_host::quantize::calibrate::{simulated_frames, simulated_frames_in, Frame, RangeRule};
 use depthor_host::quantize::check::{compare, golden_diff, op_fidelity};
 use depthor_host::quantize::fold::fold;
 use depthor_host::quantize::golden::read_golden;
 use depthor_host::quantize::graph::Graph;
 use depthor_host::quantize::quantize_with;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// docs/design.md budgets of the `mcu` variant (bytes).
 const MCU_WEIGHTS_BUDGET: usize = 512 * 1024;
@@ -22,7 +23,8 @@ const MCU_ARENA_GOAL: usize = 384 * 1024;
 #[command(after_help = "Examples:
   depthor quantize --graph models/mcu/graph.json --out build/mcu          # build/mcu/depthor.dblob
   depthor quantize --graph models/mcu/graph.json --out models/mcu --overwrite --report \\
-      --scene-config models/scenes/close_range.json --scene-config-frames 16")]
+      --scene-config models/scenes/close_range.json --scene-config-frames 16
+  depthor quantize --graph models/mcu/graph.json --out build/mcu --calibration-recording rec/photo")]
 pub struct Args {
     /// graph.json of the Python export.
     #[arg(long)]
@@ -54,6 +56,14 @@ pub struct Args {
     /// Calibration frames drawn from `--scene-config`, seeds after the default ones.
     #[arg(long, default_value_t = 0)]
     scene_config_frames: usize,
+    /// A recording whose frames are added to the calibration set (repeatable): e.g. rendered
+    /// frames with photometric changes, or captures from the device the model will serve.
+    /// Frames are resampled to the model's input as `depthor eval` does.
+    #[arg(long, value_name = "DIR")]
+    calibration_recording: Vec<PathBuf>,
+    /// At most this many frames from each `--calibration-recording` (its first ones).
+    #[arg(long, default_value_t = 64)]
+    calibration_recording_frames: usize,
     /// dToF simulator preset (default: the graph's variant).
     #[arg(long)]
     preset: Option<String>,
@@ -63,6 +73,10 @@ pub struct Args {
     /// Evaluation frames for `--report` (scenes after the calibration ones).
     #[arg(long, default_value_t = 20)]
     eval_frames: usize,
+    /// `--report` on this recording's frames instead of new scenes (e.g. captures from the
+    /// target camera, to see which ops lose the most on them; at most `--eval-frames`).
+    #[arg(long, value_name = "DIR", requires = "report")]
+    report_recording: Option<PathBuf>,
 }
 
 /// Quantises, writes the blob, prints sizes (and the report).
@@ -81,6 +95,15 @@ pub fn handle(args: Args) -> Result<()> {
             net.width,
             args.scene_config_frames,
             seed,
+        )?);
+    }
+    for dir in &args.calibration_recording {
+        frames.extend(recording_frames(
+            dir,
+            &preset,
+            net.height,
+            net.width,
+            args.calibration_recording_frames,
         )?);
     }
     let target = super::common::OutFile::new(&args.out, "depthor.dblob");
@@ -110,19 +133,36 @@ pub fn handle(args: Args) -> Result<()> {
         net.values.len(),
         q.blob.len()
     );
-    let extra = match &args.scene_config {
-        Some(p) => format!(
-            " ({} of them from {})",
-            args.scene_config_frames,
-            p.display()
-        ),
-        None => String::new(),
+    let mut sources: Vec<String> = Vec::new();
+    if let Some(p) = &args.scene_config {
+        sources.push(format!("{} from {}", args.scene_config_frames, p.display()));
+    }
+    for dir in &args.calibration_recording {
+        let n = RecordingFrames::open(dir, &preset)?.len();
+        sources.push(format!(
+            "{} from recording {}",
+            n.min(args.calibration_recording_frames),
+            dir.display()
+        ));
+    }
+    let extra = if sources.is_empty() {
+        String::new()
+    } else {
+        format!(
+            " ({})",
+            sources.join(", ").replacen(" from ", " of them from ", 1)
+        )
     };
+    let scenes = args.frames
+        + args
+            .scene_config
+            .as_ref()
+            .map_or(0, |_| args.scene_config_frames);
     println!(
-        "calibration: {} frames{extra} (preset {preset}, seeds {}..{}), activation ranges = {}",
+        "calibration: {} frames{extra} (preset {preset}, scene seeds {}..{}), activation ranges = {}",
         frames.len(),
         args.seed,
-        args.seed + frames.len() as u64,
+        args.seed + scenes as u64,
         match args.ranges {
             RangeRule::MinMax => "min/max",
             RangeRule::Mse => "MSE-clipped",
@@ -155,14 +195,23 @@ pub fn handle(args: Args) -> Result<()> {
             println!("golden: f32 graph vs Python {name}: max |diff| {d:.3e}");
         }
     }
-    let eval_seed = args.seed + frames.len() as u64;
-    let eval = simulated_frames(&preset, net.height, net.width, args.eval_frames, eval_seed)?;
+    let eval_seed = args.seed + scenes as u64;
+    let (eval, source) = match &args.report_recording {
+        Some(dir) => (
+            recording_frames(dir, &preset, net.height, net.width, args.eval_frames)?,
+            format!("recording {}", dir.display()),
+        ),
+        None => (
+            simulated_frames(&preset, net.height, net.width, args.eval_frames, eval_seed)?,
+            format!("seeds {eval_seed}.."),
+        ),
+    };
     let c = compare(&q.blob, &net, &eval)?;
     let (m, lo) = c.depth_mean_min();
     let (cm, clo) = c.centred_mean_min();
     let worst = c.depth_max_abs_m.iter().copied().fold(0f32, f32::max);
     println!(
-        "int8 vs f32 on {} frames (seeds {eval_seed}..): depth SQNR pooled {:.1} dB, per frame mean {m:.1} dB, min {lo:.1} dB; \
+        "int8 vs f32 on {} frames ({source}): depth SQNR pooled {:.1} dB, per frame mean {m:.1} dB, min {lo:.1} dB; \
          depth − mean: mean {cm:.1} dB, min {clo:.1} dB; max |err| {worst:.3} m",
         eval.len(),
         c.depth_pooled_db()
@@ -190,4 +239,35 @@ pub fn handle(args: Args) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The first `max` frames of the recording `dir` as calibration inputs at `height × width`.
+fn recording_frames(
+    dir: &Path,
+    preset: &str,
+    height: usize,
+    width: usize,
+    max: usize,
+) -> Result<Vec<Frame>> {
+    let rec = RecordingFrames::open(dir, preset)
+        .with_context(|| format!("--calibration-recording {}", dir.display()))?;
+    if !rec.has_rgb() {
+        anyhow::bail!(
+            "--calibration-recording {}: the recording has no colour images",
+            dir.display()
+        );
+    }
+    (0..rec.len().min(max))
+        .map(|i| {
+            let f = rec
+                .frame(i, width as u32, height as u32)
+                .with_context(|| format!("{}: frame {i}", dir.display()))?;
+            Ok(Frame {
+                height,
+                width,
+                sparse_m: f.sparse_m(),
+                rgb: f.rgb.into_raw(),
+            })
+        })
+        .collect()
 }
