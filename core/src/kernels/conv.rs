@@ -704,7 +704,119 @@ fn depthwise_conv(
             // SAFETY: AVX2 is available (checked).
             unsafe { depthwise_avx2(isa, op, input, in_shape, out, dst, output, scratch) }
         }
+        Isa::ArmDsp => depthwise_pixels(isa, op, input, in_shape, out, dst, output, scratch),
         _ => depthwise_rows(isa, op, input, in_shape, out, dst, output, scratch),
+    }
+}
+
+/// [`depthwise_pixels`]' sums for `KW` adjacent taps per row (dilation 1 across): fixed-size
+/// windows, so the taps unroll without bounds checks. `taps` holds `kh` rows of `KW`.
+#[inline(always)]
+fn pixel_sums<const KW: usize>(
+    strip: &[i32],
+    width: usize,
+    taps: &[i32],
+    sx: usize,
+    acc: &mut [i32],
+) {
+    for (ox, a) in acc.iter_mut().enumerate() {
+        let mut sum = 0i32;
+        for (row, w) in strip.chunks_exact(width).zip(taps.chunks_exact(KW)) {
+            let (Some(x), Ok(w)) = (row.get(ox * sx..ox * sx + KW), <&[i32; KW]>::try_from(w))
+            else {
+                continue;
+            };
+            for k in 0..KW {
+                sum = sum.wrapping_add(w[k].wrapping_mul(x[k]));
+            }
+        }
+        *a = sum;
+    }
+}
+
+/// Taps a [`depthwise_pixels`] kernel keeps in registers (7 × 7).
+const MAX_DEPTHWISE_TAPS: usize = 49;
+
+/// Depthwise convolution for cores without vector units (Cortex-M): per channel and output row
+/// the `kh` input rows are copied once as `x − zp` words into a zero-padded strip, then every
+/// output pixel sums its taps in a register (a load and a multiply-accumulate per tap, no
+/// per-tap row of sums to load and store as [`depthwise_rows`] has). Same sums, same bits.
+/// Falls back to [`depthwise_rows`] for kernels over [`MAX_DEPTHWISE_TAPS`] taps or a scratch
+/// too small for the strip.
+#[allow(clippy::too_many_arguments)]
+fn depthwise_pixels(
+    isa: Isa,
+    op: &Conv2d,
+    input: &[i8],
+    in_shape: Shape,
+    out: Shape,
+    dst: &OutRows,
+    output: &mut [i8],
+    scratch: &mut [i32],
+) {
+    let g = &op.geometry;
+    let (kh, kw) = (g.kernel[0], g.kernel[1]);
+    let (sy, sx) = (g.stride[0], g.stride[1]);
+    let (dy, dx) = (g.dilation[0], g.dilation[1]);
+    let (ih, iw) = (in_shape.h, in_shape.w);
+    let width = (out.w - 1) * sx + (kw - 1) * dx + 1;
+    let acc_len = out.w.div_ceil(PB) * PB;
+    if kh * kw > MAX_DEPTHWISE_TAPS || scratch.len() < acc_len + kh * width {
+        return depthwise_rows(isa, op, input, in_shape, out, dst, output, scratch);
+    }
+    let zp = op.quant.input_zero_point;
+    let (acc, rest) = scratch.split_at_mut(acc_len);
+    let strip = &mut rest[..kh * width];
+    let mut block: Acc = [0; NB * PB];
+    let mut taps = [0i32; MAX_DEPTHWISE_TAPS];
+    for c in 0..out.c {
+        let chan = &input[c * ih * iw..(c + 1) * ih * iw];
+        for (t, &w) in taps
+            .iter_mut()
+            .zip(&op.weights[c * kh * kw..(c + 1) * kh * kw])
+        {
+            *t = i32::from(w);
+        }
+        let rq = [op.row_quant(c, op.channels[c].bias)];
+        for oy in dst.rows.clone() {
+            for (ky, row) in strip.chunks_exact_mut(width).enumerate() {
+                let iy = (oy * sy + ky * dy) as isize - g.padding[0] as isize;
+                row.fill(0);
+                if iy < 0 || iy >= ih as isize {
+                    continue;
+                }
+                let src = &chan[iy as usize * iw..(iy as usize + 1) * iw];
+                // strip column p holds input column p − padding (zero outside the image)
+                let first = g.padding[1].min(width);
+                for (d, &x) in row[first..].iter_mut().zip(src) {
+                    *d = i32::from(x) - zp;
+                }
+            }
+            let acc = &mut acc[..out.w];
+            match (kw, dx) {
+                (3, 1) => pixel_sums::<3>(strip, width, &taps[..kh * 3], sx, acc),
+                (5, 1) => pixel_sums::<5>(strip, width, &taps[..kh * 5], sx, acc),
+                _ => {
+                    for (ox, a) in acc.iter_mut().enumerate() {
+                        let mut sum = 0i32;
+                        for (ky, row) in strip.chunks_exact(width).enumerate() {
+                            let at = &row[ox * sx..];
+                            let w = &taps[ky * kw..(ky + 1) * kw];
+                            for (kx, &wv) in w.iter().enumerate() {
+                                sum = sum.wrapping_add(wv.wrapping_mul(at[kx * dx]));
+                            }
+                        }
+                        *a = sum;
+                    }
+                }
+            }
+            for ox0 in (0..out.w).step_by(PB) {
+                let n = PB.min(out.w - ox0);
+                block[..n].copy_from_slice(&acc[ox0..ox0 + n]);
+                let at = c * dst.stride + (oy - dst.rows.start) * out.w + ox0;
+                op.finish_block(isa, &rq, c, &block, n, output, at, dst.stride);
+            }
+        }
     }
 }
 
@@ -1394,7 +1506,59 @@ pub(crate) mod tests {
                 let (_, y) = run(&case, f);
                 assert_eq!(y, yr, "{} k{k} s{s} d{d} p{p} {h}x{w}", isa.name());
             }
+            // The Cortex-M path on every host, whole and in two row bands.
+            let (_, y) = run(&case, pixels);
+            assert_eq!(y, yr, "depthwise_pixels k{k} s{s} d{d} p{p} {h}x{w}");
+            let (_, y) = run(&case, pixels_in_bands);
+            assert_eq!(
+                y, yr,
+                "depthwise_pixels (bands) k{k} s{s} d{d} p{p} {h}x{w}"
+            );
         }
+    }
+
+    /// [`depthwise_pixels`] (the arm-dsp depthwise path) with the portable requantisation.
+    fn pixels(
+        op: &Conv2d,
+        x: &[i8],
+        s: Shape,
+        y: &mut [i8],
+        t: &mut [i32],
+    ) -> Result<Shape, KernelError> {
+        let out = op.check(s)?;
+        let plane = out.h * out.w;
+        let dst = OutRows {
+            rows: 0..out.h,
+            stride: plane,
+        };
+        depthwise_pixels(Isa::Portable, op, x, s, out, &dst, y, t);
+        Ok(out)
+    }
+
+    /// [`pixels`] computed as rows `0..h/2` and `h/2..h` into one output.
+    fn pixels_in_bands(
+        op: &Conv2d,
+        x: &[i8],
+        s: Shape,
+        y: &mut [i8],
+        t: &mut [i32],
+    ) -> Result<Shape, KernelError> {
+        let out = op.check(s)?;
+        let plane = out.h * out.w;
+        let cut = out.h / 2;
+        for rows in [0..cut, cut..out.h] {
+            let mut band = std::vec![0i8; out.c * plane];
+            let dst = OutRows {
+                rows: rows.clone(),
+                stride: plane,
+            };
+            depthwise_pixels(Isa::Portable, op, x, s, out, &dst, &mut band, t);
+            for c in 0..out.c {
+                let n = rows.len() * out.w;
+                y[c * plane + rows.start * out.w..][..n].copy_from_slice(&band[c * plane..][..n]);
+            }
+        }
+        Ok(out)
     }
 
     /// Extremes that could saturate a 16-bit pair sum or the biased byte path: all inputs at

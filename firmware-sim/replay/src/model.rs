@@ -1,4 +1,5 @@
-//! The `mcu` model both builds run: the int8 blob `models/mcu/depthor.dblob`, embedded with
+//! The `mcu` model both builds run: the int8 blob `models/mcu/depthor.dblob` (or the one the
+//! build-time variable `DEPTHOR_MODEL_BLOB` names, see `build.rs`), embedded with
 //! `include_bytes!` (in the firmware it lies in flash, in `.rodata`), and the arena size the
 //! firmware reserves for it.
 //!
@@ -13,10 +14,8 @@ use depthor_core::engine::{self, Engine, Memory};
 #[repr(C, align(16))]
 pub struct Align16<B: ?Sized>(pub B);
 
-static ALIGNED_BLOB: &Align16<[u8]> = &Align16(*include_bytes!(concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../models/mcu/depthor.dblob"
-)));
+static ALIGNED_BLOB: &Align16<[u8]> =
+    &Align16(*include_bytes!(concat!(env!("OUT_DIR"), "/model.dblob")));
 
 /// The `mcu` int8 model blob (16-byte aligned).
 pub static MCU_BLOB: &[u8] = &ALIGNED_BLOB.0;
