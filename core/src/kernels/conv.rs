@@ -709,6 +709,29 @@ fn depthwise_conv(
     }
 }
 
+/// Requantises output row `oy` of depthwise channel `c` from its sums `acc` (`out.w` of them).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn finish_depthwise_row(
+    isa: Isa,
+    op: &Conv2d,
+    rq: &[RowQuant; 1],
+    c: usize,
+    oy: usize,
+    acc: &[i32],
+    out: Shape,
+    dst: &OutRows,
+    output: &mut [i8],
+) {
+    let mut block: Acc = [0; NB * PB];
+    for ox0 in (0..out.w).step_by(PB) {
+        let n = PB.min(out.w - ox0);
+        block[..n].copy_from_slice(&acc[ox0..ox0 + n]);
+        let at = c * dst.stride + (oy - dst.rows.start) * out.w + ox0;
+        op.finish_block(isa, rq, c, &block, n, output, at, dst.stride);
+    }
+}
+
 /// [`depthwise_pixels`]' sums for `KW` adjacent taps per row (dilation 1 across): fixed-size
 /// windows, so the taps unroll without bounds checks. `taps` holds `kh` rows of `KW`.
 #[inline(always)]
@@ -767,7 +790,6 @@ fn depthwise_pixels(
     let zp = op.quant.input_zero_point;
     let (acc, rest) = scratch.split_at_mut(acc_len);
     let strip = &mut rest[..kh * width];
-    let mut block: Acc = [0; NB * PB];
     let mut taps = [0i32; MAX_DEPTHWISE_TAPS];
     for c in 0..out.c {
         let chan = &input[c * ih * iw..(c + 1) * ih * iw];
@@ -810,12 +832,7 @@ fn depthwise_pixels(
                     }
                 }
             }
-            for ox0 in (0..out.w).step_by(PB) {
-                let n = PB.min(out.w - ox0);
-                block[..n].copy_from_slice(&acc[ox0..ox0 + n]);
-                let at = c * dst.stride + (oy - dst.rows.start) * out.w + ox0;
-                op.finish_block(isa, &rq, c, &block, n, output, at, dst.stride);
-            }
+            finish_depthwise_row(isa, op, &rq, c, oy, acc, out, dst, output);
         }
     }
 }
@@ -854,7 +871,6 @@ fn depthwise_rows(
     let zp = op.quant.input_zero_point;
     let (acc, rest) = scratch.split_at_mut(out.w.div_ceil(PB) * PB);
     let xrow = &mut rest[..iw];
-    let mut block: Acc = [0; NB * PB];
     for c in 0..out.c {
         let chan = &input[c * ih * iw..(c + 1) * ih * iw];
         let w = &op.weights[c * kh * kw..(c + 1) * kh * kw];
@@ -891,12 +907,7 @@ fn depthwise_rows(
                     }
                 }
             }
-            for ox0 in (0..out.w).step_by(PB) {
-                let n = PB.min(out.w - ox0);
-                block[..n].copy_from_slice(&acc[ox0..ox0 + n]);
-                let at = c * dst.stride + (oy - dst.rows.start) * out.w + ox0;
-                op.finish_block(isa, &rq, c, &block, n, output, at, dst.stride);
-            }
+            finish_depthwise_row(isa, op, &rq, c, oy, acc, out, dst, output);
         }
     }
 }
