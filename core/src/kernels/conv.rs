@@ -722,13 +722,13 @@ fn finish_depthwise_row(
     out: Shape,
     dst: &OutRows,
     output: &mut [i8],
+    block: &mut Acc,
 ) {
-    let mut block: Acc = [0; NB * PB];
     for ox0 in (0..out.w).step_by(PB) {
         let n = PB.min(out.w - ox0);
         block[..n].copy_from_slice(&acc[ox0..ox0 + n]);
         let at = c * dst.stride + (oy - dst.rows.start) * out.w + ox0;
-        op.finish_block(isa, rq, c, &block, n, output, at, dst.stride);
+        op.finish_block(isa, rq, c, block, n, output, at, dst.stride);
     }
 }
 
@@ -790,6 +790,7 @@ fn depthwise_pixels(
     let zp = op.quant.input_zero_point;
     let (acc, rest) = scratch.split_at_mut(acc_len);
     let strip = &mut rest[..kh * width];
+    let mut block: Acc = [0; NB * PB];
     let mut taps = [0i32; MAX_DEPTHWISE_TAPS];
     for c in 0..out.c {
         let chan = &input[c * ih * iw..(c + 1) * ih * iw];
@@ -832,7 +833,7 @@ fn depthwise_pixels(
                     }
                 }
             }
-            finish_depthwise_row(isa, op, &rq, c, oy, acc, out, dst, output);
+            finish_depthwise_row(isa, op, &rq, c, oy, acc, out, dst, output, &mut block);
         }
     }
 }
@@ -871,6 +872,7 @@ fn depthwise_rows(
     let zp = op.quant.input_zero_point;
     let (acc, rest) = scratch.split_at_mut(out.w.div_ceil(PB) * PB);
     let xrow = &mut rest[..iw];
+    let mut block: Acc = [0; NB * PB];
     for c in 0..out.c {
         let chan = &input[c * ih * iw..(c + 1) * ih * iw];
         let w = &op.weights[c * kh * kw..(c + 1) * kh * kw];
@@ -907,7 +909,7 @@ fn depthwise_rows(
                     }
                 }
             }
-            finish_depthwise_row(isa, op, &rq, c, oy, acc, out, dst, output);
+            finish_depthwise_row(isa, op, &rq, c, oy, acc, out, dst, output, &mut block);
         }
     }
 }
