@@ -92,6 +92,24 @@ VARIANTS: dict[str, NetConfig] = {
         cspn_channels=8,
         refine_scale=2,
     ),
+    # issue 16: ≤ 250 M MACs at 320×240 (40×30 zones): the mcu_lite structure, wider.
+    "phone_lite": NetConfig(
+        variant="phone_lite",
+        height=320,
+        width=240,
+        arch="lite",
+        prior=PriorConfig(widths=(16, 32, 48, 64), mde_channels=16, kind="lite",
+                          blocks=(0, 1, 2, 2), expand=3),
+        rgb_widths=(16, 32, 48, 64, 96),
+        rgb_blocks=(0, 1, 2, 2, 1),
+        depth_stem=0,
+        depth_widths=(8, 16, 32, 48, 64),
+        dec_widths=(64, 48, 32, 24, 16),
+        mlp_hidden=96,
+        n_bins=64,
+        cspn_channels=8,
+        refine_scale=2,
+    ),
 }
 
 

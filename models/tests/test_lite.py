@@ -35,6 +35,16 @@ def test_mcu_lite_budget():
     assert b["depthwise_macs"] > 0
 
 
+def test_phone_lite_budget():
+    """Issue 16: the phone model ≤ 250 M MACs per 320×240 frame."""
+    b = budget.budget("phone_lite")
+    print("\n" + budget.table(b))
+    assert (b["height"], b["width"]) == (320, 240)
+    assert b["macs"] <= 250e6
+    assert b["macs"] == b["count"]["macs"]
+    assert b["depthwise_macs"] > 0
+
+
 def test_budget_counter_on_the_dense_mcu_matches_the_readme():
     """The same counter on the shipped `mcu` graph: 0.312 G MACs (models/README.md)."""
     b = budget.budget("mcu")
