@@ -6,6 +6,8 @@
 #   strip -o d target/release/depthor && gzip -9c d > .devcarry/depthor.gz   # here
 #   BATCH=64 TOTAL=530 bash models/gpu_run.sh                                   # there
 # The run of 2026-12-04 (models/mcu_lite/train/gpu_a, gpu_b) is this script with those values.
+# Other variants: VARIANT=phone_lite PRESET=phone TEACHER_VARIANT=phone INIT= CLOSE= (INIT empty:
+# from the seeded random network; CLOSE empty: no close-range half of the data).
 set -u -o pipefail
 export PYTHONUNBUFFERED=1 PYTHONPATH=$PWD/models
 T0=$(date +%s)
@@ -14,6 +16,11 @@ TOTAL=${TOTAL:-560}          # seconds this script may use in all
 N=${N:-20000}                # frames per training seed
 NS=${NS:-8}                  # shards per seed
 DEV=${DEV:-cuda}
+VARIANT=${VARIANT:-mcu_lite}
+PRESET=${PRESET:-mcu}
+TEACHER_VARIANT=${TEACHER_VARIANT:-mcu}
+INIT0=${INIT-models/mcu_lite/train/model_final.pt}
+CLOSE=${CLOSE-models/scenes/close_range.json}
 BATCH=${BATCH:-32}
 THREADS=${THREADS:-8}
 OUT=${OUT:-/tmp/out}
@@ -27,20 +34,27 @@ python3 -c "import torch; print('torch', torch.__version__, 'cuda', torch.cuda.i
 el "simulating $N + $N training frames in $NS + $NS shards, and the 48 + 48 check frames"
 export RAYON_NUM_THREADS=2
 TRAIN=""
+TEST="$D/v"
 for k in $(seq 0 $((NS - 1))); do
-  "$B" sim --preset mcu --scenes "$N" --seed 1000 --shard "$k/$NS" --out "$D/tr$k" >/dev/null &
-  "$B" sim --preset mcu --scenes "$N" --seed 3000000 --shard "$k/$NS" \
-    --scene-config models/scenes/close_range.json --out "$D/cl$k" >/dev/null &
-  TRAIN="$TRAIN,$D/tr$k,$D/cl$k"
+  "$B" sim --preset "$PRESET" --scenes "$N" --seed 1000 --shard "$k/$NS" --out "$D/tr$k" >/dev/null &
+  TRAIN="$TRAIN,$D/tr$k"
+  if [ -n "$CLOSE" ]; then
+    "$B" sim --preset "$PRESET" --scenes "$N" --seed 3000000 --shard "$k/$NS" \
+      --scene-config "$CLOSE" --out "$D/cl$k" >/dev/null &
+    TRAIN="$TRAIN,$D/cl$k"
+  fi
 done
-"$B" sim --preset mcu --scenes 48 --seed 800000 --out "$D/v" >/dev/null &
-"$B" sim --preset mcu --scenes 48 --seed 3800000 --scene-config models/scenes/close_range.json \
-  --out "$D/cv" >/dev/null &
+"$B" sim --preset "$PRESET" --scenes 48 --seed 800000 --out "$D/v" >/dev/null &
+if [ -n "$CLOSE" ]; then
+  "$B" sim --preset "$PRESET" --scenes 48 --seed 3800000 --scene-config "$CLOSE" \
+    --out "$D/cv" >/dev/null &
+  TEST="$D/cv,$D/v"
+fi
 wait
 TRAIN=${TRAIN#,}
 unset RAYON_NUM_THREADS
 el "decoding frames into the training caches"
-python3 - "$TRAIN,$D/v,$D/cv" <<'EOF'
+python3 - "$TRAIN,$TEST" <<'EOF'
 import sys
 from multiprocessing import Pool
 from depthor_models import data
@@ -53,20 +67,21 @@ el "data ready"
 du -sh "$D"
 
 left() { echo $(( TOTAL - ($(date +%s) - T0) )); }
-COMMON=(--variant mcu_lite --stage depthor --teacher models/mcu/train/model_final.pt
-        --teacher-variant mcu --kd-weight 1 --train "$TRAIN" --test "$D/cv,$D/v"
+COMMON=(--variant "$VARIANT" --stage depthor --teacher "models/$TEACHER_VARIANT/train/model_final.pt"
+        --teacher-variant "$TEACHER_VARIANT" --kd-weight 1 --train "$TRAIN" --test "$TEST"
         --batch "$BATCH" --threads "$THREADS" --steps 1000000 --augment --ckpt-every-s 90
         --device "$DEV")
 # a: float; b: QAT. Overheads (start, data, final eval, cache save) ≈ 45 s per phase.
 SA=$(( ($(left) - 90) * 55 / 100 ))
 el "phase a: float, $SA s of steps"
-python3 -m depthor_models.train "${COMMON[@]}" --init models/mcu_lite/train/model_final.pt \
+INIT_ARGS=(); [ -n "$INIT0" ] && INIT_ARGS=(--init "$INIT0")
+python3 -m depthor_models.train "${COMMON[@]}" "${INIT_ARGS[@]}" \
   --out "$R/a" --max-lr 3e-4 --seed 21 --schedule-s "$SA" --time-limit-s $((SA + 20)) \
   2>&1 | tee "$R/a.log" | awk '!/^step [0-9]+ loss/ || $2 % 500 == 0' 
 cp "$R/a/model_final.pt" "$OUT/a_model_final.pt"
 (cd "$R" && tar czf "$OUT/a_run.tgz" a.log a/train.csv a/eval.csv a/args.json a/loss.png)
 el "phase a done"
-INIT=$R/a/model_final.pt; [ -f "$INIT" ] || INIT=models/mcu_lite/train/model_final.pt
+INIT=$R/a/model_final.pt; [ -f "$INIT" ] || INIT=$INIT0
 mkdir -p "$R/b"
 for f in teacher_cache.npy teacher_cache.done.npy; do
   [ -f "$R/a/$f" ] && ln -s "$R/a/$f" "$R/b/$f"
