@@ -5,7 +5,8 @@
 # (a_model_final.pt, a_run.tgz, b_model_final.pt, b_run.tgz). Run from the repository root:
 #   strip -o d target/release/depthor && gzip -9c d > .devcarry/depthor.gz   # here
 #   BATCH=64 TOTAL=530 bash models/gpu_run.sh                                   # there
-# The run of 2026-12-04 (models/mcu_lite/train/gpu_a, gpu_b) is this script with those values.
+# The run of 2026-12-04 (models/mcu_lite/train/gpu_a, gpu_b) is this script with those values,
+# before --prefetch was added.
 # Other variants: VARIANT=phone_lite PRESET=phone TEACHER_VARIANT=phone INIT= CLOSE= (INIT empty:
 # from the seeded random network; CLOSE empty: no close-range half of the data).
 set -u -o pipefail
@@ -69,7 +70,7 @@ du -sh "$D"
 left() { echo $(( TOTAL - ($(date +%s) - T0) )); }
 COMMON=(--variant "$VARIANT" --stage depthor --teacher "models/$TEACHER_VARIANT/train/model_final.pt"
         --teacher-variant "$TEACHER_VARIANT" --kd-weight 1 --train "$TRAIN" --test "$TEST"
-        --batch "$BATCH" --threads "$THREADS" --steps 1000000 --augment --ckpt-every-s 90
+        --batch "$BATCH" --threads "$THREADS" --steps 1000000 --augment --prefetch --ckpt-every-s 90
         --device "$DEV")
 # a: float; b: QAT. Overheads (start, data, final eval, cache save) ≈ 45 s per phase.
 SA=$(( ($(left) - 90) * 55 / 100 ))

@@ -298,3 +298,14 @@ def test_prior_stage_trains_only_the_prior_then_depthor_starts_from_it(tmp_path)
     T.main(_args(rec_dir, tmp_path / "main", "--init", str(tmp_path / "prior" / "model_final.pt")))
     final = torch.load(tmp_path / "main" / "model_final.pt")
     assert any(not torch.equal(after[k], final[k]) for k in after if not k.startswith("prior."))
+
+
+def test_prefetch_trains_the_same_batches(tmp_path):
+    """`--prefetch` (next batch assembled in a thread) gives the weights of a plain run."""
+    rec_dir = write_recording(tmp_path / "rec", n=5)
+    T.main(_args(rec_dir, tmp_path / "plain", "--augment"))
+    T.main(_args(rec_dir, tmp_path / "pre", "--augment", "--prefetch"))
+    a = torch.load(tmp_path / "plain" / "model_final.pt")
+    b = torch.load(tmp_path / "pre" / "model_final.pt")
+    for k in a:
+        assert torch.equal(a[k], b[k]), k
