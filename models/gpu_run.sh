@@ -6,7 +6,7 @@
 #   strip -o d target/release/depthor && gzip -9c d > .devcarry/depthor.gz   # here
 #   BATCH=64 TOTAL=530 bash models/gpu_run.sh                                   # there
 # The run of 2026-12-04 (models/mcu_lite/train/gpu_a, gpu_b) is this script with those values,
-# before --prefetch was added.
+# before --prefetch and the variant settings were added.
 # Other variants: VARIANT=phone_lite PRESET=phone TEACHER_VARIANT=phone INIT= CLOSE= (INIT empty:
 # from the seeded random network; CLOSE empty: no close-range half of the data).
 set -u -o pipefail

@@ -335,14 +335,14 @@ def neighbour_offsets(size: int) -> list[tuple[int, int]]:
     return [(dy, dx) for dy in range(-r, r + 1) for dx in range(-r, r + 1) if (dy, dx) != (0, 0)]
 
 
-def _inside_mask(offsets: list[tuple[int, int]], h: int, w: int, dtype) -> Tensor:
+def _inside_mask(offsets: list[tuple[int, int]], h: int, w: int, dtype, device=None) -> Tensor:
     """[1, n, H, W] with 1 where neighbour (dy, dx) of (y, x) lies inside the image: a product of
-    a row mask and a column mask, both small trace-time constants."""
+    a row mask and a column mask, both small trace-time constants (made on `device`)."""
     rows = [[1.0 if 0 <= y + dy < h else 0.0 for y in range(h)] for dy, _ in offsets]
     cols = [[1.0 if 0 <= x + dx < w else 0.0 for x in range(w)] for _, dx in offsets]
     n = len(offsets)
-    return (torch.tensor(rows, dtype=dtype).view(1, n, h, 1)
-            * torch.tensor(cols, dtype=dtype).view(1, n, 1, w))
+    return (torch.tensor(rows, dtype=dtype, device=device).view(1, n, h, 1)
+            * torch.tensor(cols, dtype=dtype, device=device).view(1, n, 1, w))
 
 
 def _window_stack(d: Tensor, size: int, h: int, w: int) -> Tensor:
@@ -379,7 +379,7 @@ def refine_math(
         d2 = torch.tensor([float(dy * dy + dx * dx) for dy, dx in offs], dtype=d0.dtype,
                           device=d0.device)
         g = torch.exp(-d2 / (2.0 * sigmas[k] * sigmas[k])).view(1, -1, 1, 1)
-        rj = F.relu(aff) * g * _inside_mask(offs, h, w, d0.dtype).to(d0.device)
+        rj = F.relu(aff) * g * _inside_mask(offs, h, w, d0.dtype, d0.device)
         wj = rj / (1.0 + rj.sum(dim=1, keepdim=True))
         wc = 1.0 - wj.sum(dim=1, keepdim=True)
         # weights in _window_stack's channel order (column-major, centre included)

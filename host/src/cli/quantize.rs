@@ -97,14 +97,18 @@ pub fn handle(args: Args) -> Result<()> {
             seed,
         )?);
     }
+    // frames taken from each --calibration-recording, for the summary line
+    let mut from_recordings = Vec::with_capacity(args.calibration_recording.len());
     for dir in &args.calibration_recording {
-        frames.extend(recording_frames(
+        let taken = recording_frames(
             dir,
             &preset,
             net.height,
             net.width,
             args.calibration_recording_frames,
-        )?);
+        )?;
+        from_recordings.push(taken.len());
+        frames.extend(taken);
     }
     let target = super::common::OutFile::new(&args.out, "depthor.dblob");
     if target.path.exists() && !args.overwrite {
@@ -137,13 +141,8 @@ pub fn handle(args: Args) -> Result<()> {
     if let Some(p) = &args.scene_config {
         sources.push(format!("{} from {}", args.scene_config_frames, p.display()));
     }
-    for dir in &args.calibration_recording {
-        let n = RecordingFrames::open(dir, &preset)?.len();
-        sources.push(format!(
-            "{} from recording {}",
-            n.min(args.calibration_recording_frames),
-            dir.display()
-        ));
+    for (dir, n) in args.calibration_recording.iter().zip(&from_recordings) {
+        sources.push(format!("{n} from recording {}", dir.display()));
     }
     let extra = if sources.is_empty() {
         String::new()
