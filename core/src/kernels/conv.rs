@@ -704,7 +704,11 @@ fn depthwise_conv(
             // SAFETY: AVX2 is available (checked).
             unsafe { depthwise_avx2(isa, op, input, in_shape, out, dst, output, scratch) }
         }
-        Isa::ArmDsp => depthwise_pixels(isa, op, input, in_shape, out, dst, output, scratch),
+        Isa::ArmDsp => {
+            if !depthwise_ring3(isa, op, input, in_shape, out, dst, output, scratch) {
+                depthwise_pixels(isa, op, input, in_shape, out, dst, output, scratch)
+            }
+        }
         _ => depthwise_rows(isa, op, input, in_shape, out, dst, output, scratch),
     }
 }
@@ -835,6 +839,117 @@ fn depthwise_pixels(
             }
             finish_depthwise_row(isa, op, &rq, c, oy, acc, out, dst, output, &mut block);
         }
+    }
+}
+
+/// Halfwords per strip column of [`depthwise_ring3`]: the three held input rows and a zero.
+const RING_COLUMN: usize = 4;
+
+/// 3×3 depthwise convolution (dilation 1, column stride 1 or 2) for cores with 16-bit pair
+/// multiply-accumulates (Cortex-M `SMLAD`): the three input rows an output row reads are held
+/// interleaved in a strip of 16-bit `x − zp`, column by column (`[row a, row b, row c, 0]`),
+/// each input row in slot `iy mod 3`, so that the next output row rewrites only the rows it
+/// adds (one per row at stride 1). A pixel's nine taps are then 12 consecutive halfwords, read
+/// as six words against six weight words ordered to match the slots (six `SMLAD`). Same sums
+/// as the reference, same bits. `false` (nothing written) for other geometries or a scratch
+/// too small for the strip.
+#[allow(clippy::too_many_arguments)]
+fn depthwise_ring3(
+    isa: Isa,
+    op: &Conv2d,
+    input: &[i8],
+    in_shape: Shape,
+    out: Shape,
+    dst: &OutRows,
+    output: &mut [i8],
+    scratch: &mut [i32],
+) -> bool {
+    let g = &op.geometry;
+    let sx = g.stride[1];
+    if g.kernel != [3, 3] || g.dilation != [1, 1] || !(1..=2).contains(&sx) || out.w == 0 {
+        return false;
+    }
+    let (sy, ph, pw) = (g.stride[0], g.padding[0] as isize, g.padding[1]);
+    let (ih, iw) = (in_shape.h, in_shape.w);
+    let width = (out.w - 1) * sx + 3;
+    let acc_len = out.w.div_ceil(PB) * PB;
+    let strip_words = (RING_COLUMN * width).div_ceil(2);
+    if scratch.len() < acc_len + strip_words || op.weights.len() < out.c * 9 {
+        return false;
+    }
+    let zp = op.quant.input_zero_point;
+    let (acc, rest) = scratch.split_at_mut(acc_len);
+    let (strip, _) = take::<i16>(rest, RING_COLUMN * width);
+    let acc = &mut acc[..out.w];
+    let mut block: Acc = [0; NB * PB];
+    // Strip columns `pw .. pw + iw` hold input columns `0 .. iw`; the rest stay zero.
+    let (first, last) = (pw.min(width), (pw + iw).min(width));
+    for c in 0..out.c {
+        let chan = &input[c * ih * iw..(c + 1) * ih * iw];
+        let w = &op.weights[c * 9..(c + 1) * 9];
+        let rq = [op.row_quant(c, op.channels[c].bias)];
+        strip.fill(0);
+        // Input row held in each slot (none yet).
+        let mut held = [isize::MIN; 3];
+        for oy in dst.rows.clone() {
+            // ky of the kernel row held in each slot.
+            let mut kernel_row = [0usize; 3];
+            for ky in 0..3 {
+                let iy = (oy * sy + ky) as isize - ph;
+                let slot = iy.rem_euclid(3) as usize;
+                kernel_row[slot] = ky;
+                if held[slot] == iy {
+                    continue;
+                }
+                held[slot] = iy;
+                let cols =
+                    strip[first * RING_COLUMN..last * RING_COLUMN].chunks_exact_mut(RING_COLUMN);
+                if (0..ih as isize).contains(&iy) {
+                    let src = &chan[iy as usize * iw..][..iw];
+                    for (col, &x) in cols.zip(src) {
+                        col[slot] = (i32::from(x) - zp) as i16;
+                    }
+                } else {
+                    for col in cols {
+                        col[slot] = 0;
+                    }
+                }
+            }
+            // Weights in the strip's order: per kx, the slots' rows then a zero.
+            let mut taps = [0i16; 3 * RING_COLUMN];
+            for (kx, t) in taps.chunks_exact_mut(RING_COLUMN).enumerate() {
+                for (slot, &ky) in kernel_row.iter().enumerate() {
+                    t[slot] = i16::from(w[ky * 3 + kx]);
+                }
+            }
+            ring3_row(isa, strip, &taps, sx, acc);
+            finish_depthwise_row(isa, op, &rq, c, oy, acc, out, dst, output, &mut block);
+        }
+    }
+    true
+}
+
+/// The sums of one output row of [`depthwise_ring3`]: `acc[ox]` = the 12 halfwords of the strip
+/// from column `ox·sx` against `taps`. The arm-dsp set uses `SMLAD`; same sums.
+fn ring3_row(isa: Isa, strip: &[i16], taps: &[i16; 3 * RING_COLUMN], sx: usize, acc: &mut [i32]) {
+    let span = (acc.len().saturating_sub(1) * sx + 3) * RING_COLUMN;
+    if acc.is_empty() || strip.len() < span {
+        return;
+    }
+    #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+    if isa == Isa::ArmDsp && (strip.as_ptr() as usize).is_multiple_of(4) {
+        // SAFETY: the strip holds the `span` halfwords every pixel reads (checked), 4-aligned.
+        unsafe { super::arm::dsp::ring3_row(strip.as_ptr(), taps, sx, acc) };
+        return;
+    }
+    let _ = isa;
+    for (ox, a) in acc.iter_mut().enumerate() {
+        let window = &strip[ox * sx * RING_COLUMN..][..3 * RING_COLUMN];
+        let mut sum = 0i32;
+        for (&x, &t) in window.iter().zip(taps) {
+            sum = sum.wrapping_add(i32::from(x) * i32::from(t));
+        }
+        *a = sum;
     }
 }
 
@@ -1472,6 +1587,9 @@ pub(crate) mod tests {
             (5, 1, 2, 4, 7, 33),
             (3, 1, 1, 0, 5, 6),
             (7, 2, 1, 3, 12, 70),
+            (3, 2, 1, 0, 9, 8),
+            (3, 1, 1, 2, 4, 3),
+            (3, 2, 1, 1, 1, 1),
         ] {
             let c = 5;
             let geometry = ConvGeometry {
@@ -1519,7 +1637,11 @@ pub(crate) mod tests {
                 let (_, y) = run(&case, f);
                 assert_eq!(y, yr, "{} k{k} s{s} d{d} p{p} {h}x{w}", isa.name());
             }
-            // The Cortex-M path on every host, whole and in two row bands.
+            // The Cortex-M paths on every host, whole and in two row bands.
+            let (_, y) = run(&case, ring3);
+            assert_eq!(y, yr, "depthwise_ring3 k{k} s{s} d{d} p{p} {h}x{w}");
+            let (_, y) = run(&case, ring3_in_bands);
+            assert_eq!(y, yr, "depthwise_ring3 (bands) k{k} s{s} d{d} p{p} {h}x{w}");
             let (_, y) = run(&case, pixels);
             assert_eq!(y, yr, "depthwise_pixels k{k} s{s} d{d} p{p} {h}x{w}");
             let (_, y) = run(&case, pixels_in_bands);
@@ -1545,6 +1667,73 @@ pub(crate) mod tests {
             stride: plane,
         };
         depthwise_pixels(Isa::Portable, op, x, s, out, &dst, y, t);
+        Ok(out)
+    }
+
+    /// [`depthwise_ring3`] with the portable sums, or [`depthwise_pixels`] where it declines.
+    fn ring3(
+        op: &Conv2d,
+        x: &[i8],
+        s: Shape,
+        y: &mut [i8],
+        t: &mut [i32],
+    ) -> Result<Shape, KernelError> {
+        in_bands(op, x, s, y, t, 1, ring3_or_pixels)
+    }
+
+    /// [`ring3`] computed in three row bands into one output.
+    fn ring3_in_bands(
+        op: &Conv2d,
+        x: &[i8],
+        s: Shape,
+        y: &mut [i8],
+        t: &mut [i32],
+    ) -> Result<Shape, KernelError> {
+        in_bands(op, x, s, y, t, 3, ring3_or_pixels)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn ring3_or_pixels(
+        op: &Conv2d,
+        x: &[i8],
+        s: Shape,
+        out: Shape,
+        dst: &OutRows,
+        y: &mut [i8],
+        t: &mut [i32],
+    ) {
+        if !depthwise_ring3(Isa::Portable, op, x, s, out, dst, y, t) {
+            depthwise_pixels(Isa::Portable, op, x, s, out, dst, y, t);
+        }
+    }
+
+    /// A depthwise path run over `bands` row bands of the output, each into its own buffer,
+    /// gathered into `y`.
+    fn in_bands(
+        op: &Conv2d,
+        x: &[i8],
+        s: Shape,
+        y: &mut [i8],
+        t: &mut [i32],
+        bands: usize,
+        path: fn(&Conv2d, &[i8], Shape, Shape, &OutRows, &mut [i8], &mut [i32]),
+    ) -> Result<Shape, KernelError> {
+        let out = op.check(s)?;
+        let plane = out.h * out.w;
+        let step = out.h.div_ceil(bands).max(1);
+        for start in (0..out.h).step_by(step) {
+            let rows = start..(start + step).min(out.h);
+            let mut band = std::vec![0i8; out.c * plane];
+            let dst = OutRows {
+                rows: rows.clone(),
+                stride: plane,
+            };
+            path(op, x, s, out, &dst, &mut band, t);
+            for c in 0..out.c {
+                let n = rows.len() * out.w;
+                y[c * plane + rows.start * out.w..][..n].copy_from_slice(&band[c * plane..][..n]);
+            }
+        }
         Ok(out)
     }
 

@@ -482,3 +482,61 @@ pub fn requant_row_signed(
     }
     true
 }
+
+/// One output row of the 3×3 depthwise ring strip (`conv::depthwise_ring3`): `acc[ox]` = the
+/// 12 halfwords from `strip + 8·sx·ox` bytes (three columns of `[row, row, row, 0]`) against
+/// the 12 halfwords of `taps`, as six `SMLAD` over word pairs: 13 instructions per pixel
+/// (nine multiply-accumulates).
+///
+/// # Safety
+/// `strip` is 4-aligned and `((acc.len() − 1)·sx + 3)·4` halfwords from it are readable;
+/// `sx` is 1 or 2.
+pub unsafe fn ring3_row(strip: *const i16, taps: &[i16; 12], sx: usize, acc: &mut [i32]) {
+    if acc.is_empty() {
+        return;
+    }
+    // Halfword pairs as words, the lower address in the low half (as `LDRD` reads the strip).
+    let w: [u32; 6] = core::array::from_fn(|k| {
+        (taps[2 * k] as u16 as u32) | ((taps[2 * k + 1] as u16 as u32) << 16)
+    });
+    if sx == 1 {
+        ring3::<8>(strip, &w, acc);
+    } else {
+        ring3::<16>(strip, &w, acc);
+    }
+}
+
+/// [`ring3_row`] with the pixel step `STEP` bytes as an immediate.
+#[inline(always)]
+unsafe fn ring3<const STEP: usize>(strip: *const i16, w: &[u32; 6], acc: &mut [i32]) {
+    core::arch::asm!(
+        "2:",
+        "ldrd {x0}, {x1}, [{p}]",
+        "smuad {s}, {x0}, {w0}",
+        "smlad {s}, {x1}, {w1}, {s}",
+        "ldrd {x0}, {x1}, [{p}, #8]",
+        "smlad {s}, {x0}, {w2}, {s}",
+        "smlad {s}, {x1}, {w3}, {s}",
+        "ldrd {x0}, {x1}, [{p}, #16]",
+        "smlad {s}, {x0}, {w4}, {s}",
+        "smlad {s}, {x1}, {w5}, {s}",
+        "add {p}, {p}, #{step}",
+        "str {s}, [{a}], #4",
+        "cmp {a}, {end}",
+        "bne 2b",
+        step = const STEP,
+        p = inout(reg) strip => _,
+        a = inout(reg) acc.as_mut_ptr() => _,
+        end = in(reg) acc.as_mut_ptr().add(acc.len()),
+        w0 = in(reg) w[0],
+        w1 = in(reg) w[1],
+        w2 = in(reg) w[2],
+        w3 = in(reg) w[3],
+        w4 = in(reg) w[4],
+        w5 = in(reg) w[5],
+        x0 = out(reg) _,
+        x1 = out(reg) _,
+        s = out(reg) _,
+        options(nostack),
+    );
+}
