@@ -168,6 +168,36 @@ pub(crate) fn exp_f32(x: f32) -> f32 {
     p * pow2i(k1) * pow2i(k2)
 }
 
+/// [`exp_f32`] for the softmax's `x = l − max ≤ 0` (bit for bit, every input): for `x ≤ 0` the
+/// overflow test and the sign branch of the rounding drop out (`(kf + 0.5)` truncates to the
+/// same `k` as `(kf − 0.5)` at `kf = ±0`, the only non-positive `kf` that branch takes), so the
+/// loop body is shorter on a Cortex-M; anything else (NaN, `x > 0`) takes [`exp_f32`].
+#[inline(always)]
+pub(crate) fn exp_f32_nonpositive(x: f32) -> f32 {
+    const LOG2_E: f32 = core::f32::consts::LOG2_E;
+    const LN2_HI: f32 = 0.693_145_75;
+    const LN2_LO: f32 = 1.428_606_8e-6;
+    if !(x <= 0.0) {
+        return exp_f32(x);
+    }
+    if x < -103.972_08 {
+        return 0.0;
+    }
+    let k = (x * LOG2_E - 0.5) as i32;
+    let r = (x - k as f32 * LN2_HI) - k as f32 * LN2_LO;
+    let p = 1.0
+        + r * (1.0
+            + r * (0.5
+                + r * (1.0 / 6.0
+                    + r * (1.0 / 24.0
+                        + r * (1.0 / 120.0 + r * (1.0 / 720.0 + r * (1.0 / 5040.0)))))));
+    if k >= -126 {
+        return p * pow2i(k);
+    }
+    let k1 = k / 2;
+    p * pow2i(k1) * pow2i(k - k1)
+}
+
 /// `2^k` for `k ∈ [−126, 127]` from the exponent bits.
 fn pow2i(k: i32) -> f32 {
     f32::from_bits(((k + 127) as u32) << 23)
@@ -206,6 +236,38 @@ mod tests {
         assert_eq!(exp_f32(100.0), f32::INFINITY);
         assert!(exp_f32(f32::NAN).is_nan());
         assert!(exp_f32(-100.0) > 0.0, "subnormal results kept");
+    }
+
+    /// The non-positive fast path gives `exp_f32`'s bits on a dense sweep of `x ≤ 0` (every
+    /// exponent, the underflow edge, ±0) and on NaN and positive inputs.
+    #[test]
+    fn exp_nonpositive_equals_exp() {
+        let mut bits = 0x8000_0000u32;
+        while bits < 0xff80_0000 {
+            let x = f32::from_bits(bits);
+            assert_eq!(
+                exp_f32_nonpositive(x).to_bits(),
+                exp_f32(x).to_bits(),
+                "x {x}"
+            );
+            bits += 4099;
+        }
+        for x in [
+            0.0,
+            -0.0,
+            -103.972_08,
+            -103.972_09,
+            -87.34,
+            1.5,
+            100.0,
+            f32::NAN,
+        ] {
+            let (a, b) = (exp_f32_nonpositive(x), exp_f32(x));
+            assert!(
+                a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()),
+                "x {x}"
+            );
+        }
     }
 
     /// The one-multiply scaling for `k ∈ [−126, 127]` gives the bits of the two-step form

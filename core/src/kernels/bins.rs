@@ -12,7 +12,7 @@
 //! (Rust never contracts `a*b+c`), so host and MCU give the same bits. The output map is f32 metres.
 
 use super::isa::Isa;
-use super::scalar::exp;
+use super::scalar::exp_nonpositive;
 use super::{need, KernelError, Shape};
 
 /// Most bins supported (stack arrays of this size hold logits and centres).
@@ -73,9 +73,16 @@ pub fn expected_depth(logits: &[f32], centres: &[f32]) -> f32 {
     let m = logits
         .iter()
         .fold(f32::NEG_INFINITY, |a, &b| if b > a { b } else { a });
+    expectation(logits, m, centres)
+}
+
+/// [`expected_depth`] given the logits' maximum `m` (as its fold finds it).
+#[inline(always)]
+fn expectation(logits: &[f32], m: f32, centres: &[f32]) -> f32 {
     let (mut s, mut d) = (0.0f32, 0.0f32);
     for (&l, &c) in logits.iter().zip(centres) {
-        let e = exp(l - m);
+        // `l − m ≤ 0` (or NaN): the same bits as `exp`.
+        let e = exp_nonpositive(l - m);
         s += e;
         d += e * c;
     }
@@ -142,10 +149,15 @@ pub fn bins_head_i8(
             if !dsp::dot_rows(weights, c, &words[..c / 2], &mut sums[..n]) {
                 break;
             }
+            // The logits and their maximum in one pass (the fold of `expected_depth`).
+            let mut m = f32::NEG_INFINITY;
             for ((l, &s), ch) in logits[..n].iter_mut().zip(&sums[..n]).zip(channels) {
                 *l = s as f32 * ch.scale;
+                if *l > m {
+                    m = *l;
+                }
             }
-            *o = expected_depth(&logits[..n], &centres[..n]);
+            *o = expectation(&logits[..n], m, &centres[..n]);
             done = i + 1;
         }
         if done == p {

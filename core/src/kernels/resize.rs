@@ -128,6 +128,8 @@ pub fn upsample_bilinear(
 ) -> Result<(), KernelError> {
     check(input, in_shape, out, out_shape)?;
     let (ih, iw) = (in_shape.h, in_shape.w);
+    // The column blend of `narrow_row`, one past the row (made once per call).
+    let mut blend = [0i32; ROW + 1];
     for c in 0..out_shape.c {
         let chan = &input[c * ih * iw..(c + 1) * ih * iw];
         for oy in 0..out_shape.h {
@@ -140,7 +142,7 @@ pub fn upsample_bilinear(
             // |sum| ≤ 128·dx·dy: in 32 bits (a hardware divide on Cortex-M) unless huge.
             let narrow = cols.den * dy <= 1 << 23;
             if narrow && iw <= ROW {
-                narrow_row(r0, r1, fy as i32, dy as i32, &cols, orow);
+                narrow_row(r0, r1, fy as i32, dy as i32, &cols, orow, &mut blend);
                 continue;
             }
             for o in orow.iter_mut() {
@@ -166,25 +168,42 @@ pub fn upsample_bilinear(
 const ROW: usize = 256;
 
 /// One output row in 32 bits: the two input rows blended once per input column,
-/// `v[x] = r0[x]·(dy − fy) + r1[x]·fy`, then `v[x0]·(dx − fx) + v[x1]·fx` per output column,
-/// the same integer as the reference's `top·(dy − fy) + bot·fy` (exact), so the same bits.
-/// `cols` is at its first column; `|sum| ≤ 128·dx·dy < 2^31` and `r0.len() ≤ ROW`.
-fn narrow_row(r0: &[i8], r1: &[i8], fy: i32, dy: i32, cols: &Coords, orow: &mut [i8]) {
+/// `v[x] = r0[x]·(dy − fy) + r1[x]·fy` (with `v[iw] = v[iw − 1]`, the clamped right
+/// neighbour), then `v[x0]·(dx − fx) + v[x0 + 1]·fx` per output column, the same integer as the
+/// reference's `top·(dy − fy) + bot·fy` (exact), rounded half away from zero without a branch
+/// on the sign: the same bits. `cols` is at its first column; `|sum| ≤ 128·dx·dy < 2^31` and
+/// `r0.len() ≤ ROW`.
+fn narrow_row(
+    r0: &[i8],
+    r1: &[i8],
+    fy: i32,
+    dy: i32,
+    cols: &Coords,
+    orow: &mut [i8],
+    v: &mut [i32; ROW + 1],
+) {
     let iw = r0.len().min(r1.len()).min(ROW);
     if iw == 0 {
         return;
     }
-    let mut v = [0i32; ROW];
     for ((v, &a), &b) in v.iter_mut().zip(r0).zip(r1) {
         *v = i32::from(a) * (dy - fy) + i32::from(b) * fy;
     }
+    v[iw] = v[iw - 1];
     let (step, den) = (cols.step as i32, cols.den as i32);
     let d = den * dy;
+    let half = d / 2;
     let (mut x0, mut f) = (0usize, 0i32);
     for o in orow.iter_mut() {
-        let x1 = (x0 + 1).min(iw - 1);
-        let n = v[x0.min(iw - 1)] * (den - f) + v[x1] * f;
-        *o = div_round_i32(n, d).clamp(-128, 127) as i8;
+        let (a, b) = match v.get(x0..x0 + 2) {
+            Some(&[a, b]) => (a, b),
+            _ => (v[iw - 1], v[iw - 1]),
+        };
+        let n = a * (den - f) + b * f;
+        // |n| rounded half up, then the sign back: `div_round_i32(n, d)`.
+        let sign = n >> 31;
+        let q = ((((n ^ sign) - sign) + half) / d ^ sign) - sign;
+        *o = q.clamp(-128, 127) as i8;
         f += step;
         while f >= den {
             f -= den;
@@ -246,7 +265,9 @@ pub fn upsample_bilinear_f32_row(
     for o in dst[..out_shape.w].iter_mut() {
         let (x0, fx, dx) = cols.next();
         let x1 = (x0 + 1).min(iw - 1);
-        let wx = fx as f32 / dx as f32;
+        // Both are below 2^31 (a row of `out_shape.w` values exists): the same f32 through
+        // i32, without a 64-bit conversion call.
+        let wx = fx as i32 as f32 / dx as i32 as f32;
         let top = r0[x0] * (1.0 - wx) + r0[x1] * wx;
         let bot = r1[x0] * (1.0 - wx) + r1[x1] * wx;
         *o = top * (1.0 - wy) + bot * wy;
