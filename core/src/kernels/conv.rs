@@ -381,7 +381,9 @@ fn requant_row(k: &RowQuant, acc: &[i32], dst: &mut [i8]) {
         #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
         {
             let (pos, neg) = ((k.pos_m, k.pos_r), (k.neg_m, k.neg_r));
-            if super::arm::dsp::requant_row_signed(acc, dst, base, pos, neg, zp, k.min, k.max) {
+            if super::arm::dsp::requant_row_signed(
+                acc, dst, base, pos, neg, zp, k.min, k.max, k.narrow,
+            ) {
                 return;
             }
         }

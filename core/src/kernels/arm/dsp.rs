@@ -300,15 +300,15 @@ pub fn pack_pixel(x: impl Iterator<Item = i32>, out: &mut [u32]) {
 }
 
 /// The end of every requantisation loop: from the high product `{x}`, the rounding right shift
-/// by `{e}` (`{half}` = 2^(e−1)), the zero point, int8 saturation, the activation floor `{min}`,
-/// the store, and the loop back to `2:`.
+/// by `{e}` with the zero point (`{half}` = 2^(e−1) + zp·2^e: adding `zp·2^e` before the
+/// arithmetic shift adds exactly `zp` after it, and with `|x| ≤ 2^30` nothing overflows), int8
+/// saturation, the activation floor `{min}`, the store, and the loop back to `2:`.
 macro_rules! requant_tail {
     () => {
         concat!(
             "add {lo}, {x}, {half}\n",
             "sub {lo}, {lo}, {x}, lsr #31\n",
             "asr {lo}, {lo}, {e}\n",
-            "add {lo}, {lo}, {zp}\n",
             "ssat {lo}, #8, {lo}\n",
             "cmp {lo}, {min}\n",
             "it lt\n",
@@ -323,8 +323,8 @@ macro_rules! requant_tail {
 /// `requant_one` of the conv over a row for one multiplier `m ≥ 0` and right shift `e`
 /// (`1 ..= 22`), `max` 127: `dst[i] = max(min, sat8(zp + rdbpot(srdhm(base + acc[i], m), e)))`.
 /// `narrow` (every `|base + acc[i]| < 2^30`): `SMMULR` of the doubled sum is the doubling high
-/// multiply, `(2x·m + 2^31) >> 32 = ⌊(x·m + 2^30) / 2^31⌋`, 14 instructions per element;
-/// otherwise `SMLAL` and an `SSAT` pre-clamp, 19. `false` (nothing written) outside those cases.
+/// multiply, `(2x·m + 2^31) >> 32 = ⌊(x·m + 2^30) / 2^31⌋`, 13 instructions per element;
+/// otherwise `SMLAL` and an `SSAT` pre-clamp, 18. `false` (nothing written) outside those cases.
 ///
 /// The pre-clamp of the high product `q` to `[−2^30, 2^30 − 1]` keeps `q + 2^(e−1)` in i32 and
 /// changes no result: beyond it `|q| / 2^e ≥ 2^30 / 2^22 = 256`, which saturates either way
@@ -344,7 +344,7 @@ pub fn requant_row(
     if !(1..=22).contains(&e) || m < 0 || max != 127 || !(-128..=127).contains(&min) || n == 0 {
         return n == 0;
     }
-    let half = 1i32 << (e - 1);
+    let half = (1i32 << (e - 1)) + (zp << e);
     if narrow {
         // SAFETY: `n` words of `acc` and `n` bytes of `dst` exist (n ≤ both lengths).
         unsafe {
@@ -361,7 +361,6 @@ pub fn requant_row(
                 m = in(reg) m,
                 half = in(reg) half,
                 e = in(reg) e,
-                zp = in(reg) zp,
                 min = in(reg) min,
                 x = out(reg) _,
                 lo = out(reg) _,
@@ -390,7 +389,6 @@ pub fn requant_row(
             m = in(reg) m,
             half = in(reg) half,
             e = in(reg) e,
-            zp = in(reg) zp,
             min = in(reg) min,
             x = out(reg) _,
             lo = out(reg) _,
@@ -401,7 +399,8 @@ pub fn requant_row(
     true
 }
 
-/// One sign's constants of [`requant_row_signed`]: multiplier, right shift, `2^(shift − 1)`.
+/// One sign's constants of [`requant_row_signed`]: multiplier, right shift, `2^(shift − 1)`
+/// plus `zp·2^shift` (the zero point folded in, as in `requant_tail!`).
 #[repr(C)]
 struct SignQuant {
     m: i32,
@@ -410,8 +409,9 @@ struct SignQuant {
 }
 
 /// [`requant_row`] with a multiplier and shift per sign of `base + acc[i]` (`pos` for ≥ 0,
-/// `neg` below: the leaky ReLU's two slopes), 26 instructions per element. `false` (nothing
-/// written) unless both shifts are `1 ..= 22`, both multipliers ≥ 0 and `max` is 127.
+/// `neg` below: the leaky ReLU's two slopes): with `narrow` the doubled sum's `SMMULR`, 20
+/// instructions per element, otherwise `SMLAL` and the pre-clamp, 25. `false` (nothing written)
+/// unless both shifts are `1 ..= 22`, both multipliers ≥ 0 and `max` is 127.
 #[allow(clippy::too_many_arguments)]
 pub fn requant_row_signed(
     acc: &[i32],
@@ -422,6 +422,7 @@ pub fn requant_row_signed(
     zp: i32,
     min: i32,
     max: i32,
+    narrow: bool,
 ) -> bool {
     let n = acc.len().min(dst.len());
     let ok = |(m, e): (i32, i32)| m >= 0 && (1..=22).contains(&e);
@@ -431,46 +432,90 @@ pub fn requant_row_signed(
     let k = |(m, e): (i32, i32)| SignQuant {
         m,
         e,
-        half: 1 << (e - 1),
+        half: (1 << (e - 1)) + (zp << e),
     };
     let table = [k(pos), k(neg)];
-    // SAFETY: `n` words of `acc` and `n` bytes of `dst` exist (n ≤ both lengths); `table` holds
-    // the 12-byte constants of both signs (`neg` at byte 12).
+    // The sign picks the constants (`{k}`: `pos`, or `neg` 12 bytes on); the high product
+    // `{x}` from the sum.
+    macro_rules! pick {
+        () => {
+            concat!(
+                "mov {k}, {kp}\n",
+                "cmp {x}, #0\n",
+                "it lt\n",
+                "addlt {k}, {kp}, #12\n",
+                "ldr {m}, [{k}]\n",
+            )
+        };
+    }
+    // The rounding shift, zero point, saturation, floor, store and loop (`requant_tail!` with
+    // the shift and `half` read from the table).
+    macro_rules! tail {
+        () => {
+            concat!(
+                "ldr {hi}, [{k}, #8]\n",
+                "add {lo}, {x}, {hi}\n",
+                "sub {lo}, {lo}, {x}, lsr #31\n",
+                "ldr {hi}, [{k}, #4]\n",
+                "asr {lo}, {lo}, {hi}\n",
+                "ssat {lo}, #8, {lo}\n",
+                "cmp {lo}, {min}\n",
+                "it lt\n",
+                "movlt {lo}, {min}\n",
+                "strb {lo}, [{d}], #1\n",
+                "subs {n}, {n}, #1\n",
+                "bne 2b\n",
+            )
+        };
+    }
+    if narrow {
+        // SAFETY: `n` words of `acc` and `n` bytes of `dst` exist (n ≤ both lengths); `table`
+        // holds the 12-byte constants of both signs (`neg` at byte 12). Every |base + acc| <
+        // 2^30 (`narrow`), so doubling it keeps its sign and `SMMULR` is the doubling high
+        // multiply (as in `requant_row`).
+        unsafe {
+            core::arch::asm!(
+                "2:",
+                "ldr {x}, [{a}], #4",
+                "add {x}, {base2}, {x}, lsl #1",
+                pick!(),
+                "smmulr {x}, {x}, {m}",
+                tail!(),
+                a = inout(reg) acc.as_ptr() => _,
+                d = inout(reg) dst.as_mut_ptr() => _,
+                n = inout(reg) n => _,
+                base2 = in(reg) base.wrapping_mul(2),
+                kp = in(reg) table.as_ptr(),
+                min = in(reg) min,
+                x = out(reg) _,
+                lo = out(reg) _,
+                hi = out(reg) _,
+                k = out(reg) _,
+                m = out(reg) _,
+                options(nostack),
+            );
+        }
+        return true;
+    }
+    // SAFETY: as above, without the narrow bound: `SMLAL` and the 31-bit pre-clamp.
     unsafe {
         core::arch::asm!(
             "2:",
             "ldr {x}, [{a}], #4",
             "add {x}, {x}, {base}",
-            "mov {k}, {kp}",
-            "cmp {x}, #0",
-            "it lt",
-            "addlt {k}, {kp}, #12",
-            "ldr {m}, [{k}]",
+            pick!(),
             "mov {lo}, #0x40000000",
             "mov {hi}, #0",
             "smlal {lo}, {hi}, {x}, {m}",
             "lsr {lo}, {lo}, #31",
             "orr {x}, {lo}, {hi}, lsl #1",
             "ssat {x}, #31, {x}",
-            "ldr {hi}, [{k}, #8]",
-            "add {lo}, {x}, {hi}",
-            "sub {lo}, {lo}, {x}, lsr #31",
-            "ldr {hi}, [{k}, #4]",
-            "asr {lo}, {lo}, {hi}",
-            "add {lo}, {lo}, {zp}",
-            "ssat {lo}, #8, {lo}",
-            "cmp {lo}, {min}",
-            "it lt",
-            "movlt {lo}, {min}",
-            "strb {lo}, [{d}], #1",
-            "subs {n}, {n}, #1",
-            "bne 2b",
+            tail!(),
             a = inout(reg) acc.as_ptr() => _,
             d = inout(reg) dst.as_mut_ptr() => _,
             n = inout(reg) n => _,
             base = in(reg) base,
             kp = in(reg) table.as_ptr(),
-            zp = in(reg) zp,
             min = in(reg) min,
             x = out(reg) _,
             lo = out(reg) _,
