@@ -193,6 +193,41 @@ impl MulQuant {
             127,
         )
     }
+
+    /// [`MulQuant::apply`] with its constants unpacked once per call.
+    fn product(&self) -> Product {
+        Product {
+            zp: self.zp,
+            m: self.m.multiplier.max(0) as u64,
+            right: (31 - self.m.shift).clamp(1, 62) as u32,
+        }
+    }
+}
+
+/// [`MulQuant::apply`] for a loop: the rounded product `(|p|·M + 2^(r−1)) >> r` of
+/// `p = (a − zp_a)(b − zp_b)` is one unsigned 32×32 → 64-bit multiply (`M < 2^31`), and any
+/// magnitude past 1024 saturates the int8 result either way: the same bits without the signed
+/// 64-bit steps.
+#[derive(Clone, Copy)]
+struct Product {
+    zp: [i32; 3],
+    m: u64,
+    right: u32,
+}
+
+impl Product {
+    #[inline(always)]
+    fn apply(&self, a: i8, b: i8) -> i8 {
+        let p = (a as i32 - self.zp[0]) * (b as i32 - self.zp[1]);
+        let half = 1u64 << (self.right - 1);
+        let magnitude = ((u64::from(p.unsigned_abs()) * self.m + half) >> self.right).min(1024);
+        let r = if p < 0 {
+            -(magnitude as i32)
+        } else {
+            magnitude as i32
+        };
+        (r + self.zp[2]).clamp(-128, 127) as i8
+    }
 }
 
 /// Reference `mul` with `b` broadcast per [`Broadcast`] (docs/graph.md: `[1,1,H,W]` or `[1,C,1,1]`).
@@ -232,6 +267,12 @@ pub fn mul(
     if p == 0 {
         return Ok(());
     }
+    // A multiplier below zero never comes from `Requant::from_real` of a product of scales;
+    // `mul_ref`'s function handles it (and anything else) element by element.
+    if q.m.multiplier < 0 {
+        return mul_ref(q, a, shape, b, bc, out);
+    }
+    let f = q.product();
     for (c, (oc, ac)) in out[..n]
         .chunks_exact_mut(p)
         .zip(a[..n].chunks_exact(p))
@@ -240,12 +281,12 @@ pub fn mul(
         match bc {
             Broadcast::None => {
                 for ((o, &x), &y) in oc.iter_mut().zip(ac).zip(&b[c * p..(c + 1) * p]) {
-                    *o = q.apply(x, y);
+                    *o = f.apply(x, y);
                 }
             }
             Broadcast::OverChannels => {
                 for ((o, &x), &y) in oc.iter_mut().zip(ac).zip(b) {
-                    *o = q.apply(x, y);
+                    *o = f.apply(x, y);
                 }
             }
             Broadcast::OverSpace => {
@@ -526,6 +567,33 @@ mod tests {
             mul_ref(&mq, &c.a, c.shape, &c.b, c.bc, &mut y1).unwrap();
             mul(&mq, &c.a, c.shape, &c.b, c.bc, &mut y2).unwrap();
             assert_eq!(y1, y2);
+        }
+    }
+
+    /// The loop form of `mul` gives `MulQuant::apply`'s bits on every pair of codes, for zero
+    /// points at both ends and scale ratios from far below one code to far above.
+    #[test]
+    fn product_equals_apply_on_every_code_pair() {
+        for (zp, ratio) in [
+            ([0, 0, 0], 1.0f64),
+            ([-128, 127, -5], 1.0 / 65_536.0),
+            ([127, -128, 3], 0.37),
+            ([-3, 7, -128], 3.9),
+            ([5, -9, 127], 900.0),
+            ([-128, -128, 0], 1e-9),
+        ] {
+            let q = |z: i32| QParams {
+                scale: 1.0,
+                zero_point: z,
+            };
+            let mut mq = MulQuant::new(q(zp[0]), q(zp[1]), q(zp[2]));
+            mq.m = Requant::from_real(ratio);
+            let f = mq.product();
+            for a in i8::MIN..=i8::MAX {
+                for b in i8::MIN..=i8::MAX {
+                    assert_eq!(f.apply(a, b), mq.apply(a, b), "{a}·{b} zp {zp:?} m {ratio}");
+                }
+            }
         }
     }
 
