@@ -177,7 +177,7 @@ pub(crate) fn exp_f32_nonpositive(x: f32) -> f32 {
     const LOG2_E: f32 = core::f32::consts::LOG2_E;
     const LN2_HI: f32 = 0.693_145_75;
     const LN2_LO: f32 = 1.428_606_8e-6;
-    if !(x <= 0.0) {
+    if x.is_nan() || x > 0.0 {
         return exp_f32(x);
     }
     if x < -103.972_08 {

@@ -1709,6 +1709,9 @@ pub(crate) mod tests {
         }
     }
 
+    /// A depthwise path: operator, input, its shape, the output shape, rows, output, scratch.
+    type DepthwisePath = fn(&Conv2d, &[i8], Shape, Shape, &OutRows, &mut [i8], &mut [i32]);
+
     /// A depthwise path run over `bands` row bands of the output, each into its own buffer,
     /// gathered into `y`.
     fn in_bands(
@@ -1718,7 +1721,7 @@ pub(crate) mod tests {
         y: &mut [i8],
         t: &mut [i32],
         bands: usize,
-        path: fn(&Conv2d, &[i8], Shape, Shape, &OutRows, &mut [i8], &mut [i32]),
+        path: DepthwisePath,
     ) -> Result<Shape, KernelError> {
         let out = op.check(s)?;
         let plane = out.h * out.w;

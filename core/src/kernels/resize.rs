@@ -202,7 +202,7 @@ fn narrow_row(
         let n = a * (den - f) + b * f;
         // |n| rounded half up, then the sign back: `div_round_i32(n, d)`.
         let sign = n >> 31;
-        let q = ((((n ^ sign) - sign) + half) / d ^ sign) - sign;
+        let q = (((((n ^ sign) - sign) + half) / d) ^ sign) - sign;
         *o = q.clamp(-128, 127) as i8;
         f += step;
         while f >= den {
