@@ -12,6 +12,8 @@
 //! accurate to about 2 ULP, built from `+`, `−`, `×` and bit operations only, so it gives the same
 //! bits on every IEEE-754 target (Rust never fuses `a·b + c` into an FMA on its own).
 
+use core::cmp::Ordering;
+
 /// `sqrt(x)`: NaN for negative or NaN input, `+inf` for `+inf`, exact zero for zero.
 ///
 /// Seeds from halving the exponent bits (within about 4 %), then five Newton steps
@@ -132,9 +134,6 @@ pub(crate) fn tan_half_fov(x: f64) -> f64 {
 /// exponent bits in two steps so that `k` down to −150 and up to 128 scale without overflow.
 #[inline(always)] // hot in the bins head and the mixing tables; not worth a call
 pub(crate) fn exp_f32(x: f32) -> f32 {
-    const LOG2_E: f32 = core::f32::consts::LOG2_E;
-    const LN2_HI: f32 = 0.693_145_75; // 0x3f31_7200, 16 significant bits: k·LN2_HI is exact
-    const LN2_LO: f32 = 1.428_606_8e-6;
     if x.is_nan() {
         return x;
     }
@@ -150,13 +149,33 @@ pub(crate) fn exp_f32(x: f32) -> f32 {
     } else {
         (kf - 0.5) as i32
     };
-    let r = (x - k as f32 * LN2_HI) - k as f32 * LN2_LO;
-    let p = 1.0
-        + r * (1.0
+    exp_reduced(x, k)
+}
+
+/// `log2 e` in f32.
+const LOG2_E: f32 = core::f32::consts::LOG2_E;
+
+/// `ln 2` split for the Cody–Waite reduction: 16 significant bits (`0x3f31_7200`, so `k·LN2_HI`
+/// is exact) and the rest.
+const LN2_HI: f32 = 0.693_145_75;
+const LN2_LO: f32 = 1.428_606_8e-6;
+
+/// `e^r` for the reduced `|r| ≤ ln2/2`: the degree-7 Taylor polynomial in Horner form.
+#[inline(always)]
+fn exp_poly(r: f32) -> f32 {
+    1.0 + r
+        * (1.0
             + r * (0.5
                 + r * (1.0 / 6.0
                     + r * (1.0 / 24.0
-                        + r * (1.0 / 120.0 + r * (1.0 / 720.0 + r * (1.0 / 5040.0)))))));
+                        + r * (1.0 / 120.0 + r * (1.0 / 720.0 + r * (1.0 / 5040.0)))))))
+}
+
+/// `e^x` from its rounded `k = round(x·log2 e)` (half away from zero): the reduction, the
+/// polynomial and the scaling of [`exp_f32`].
+#[inline(always)]
+fn exp_reduced(x: f32, k: i32) -> f32 {
+    let p = exp_poly((x - k as f32 * LN2_HI) - k as f32 * LN2_LO);
     if (-126..=127).contains(&k) {
         // One exact power of two: the same single rounding as the two-step form below, whose
         // first product is exact for every k.
@@ -174,28 +193,18 @@ pub(crate) fn exp_f32(x: f32) -> f32 {
 /// loop body is shorter on a Cortex-M; anything else (NaN, `x > 0`) takes [`exp_f32`].
 #[inline(always)]
 pub(crate) fn exp_f32_nonpositive(x: f32) -> f32 {
-    const LOG2_E: f32 = core::f32::consts::LOG2_E;
-    const LN2_HI: f32 = 0.693_145_75;
-    const LN2_LO: f32 = 1.428_606_8e-6;
-    if x.is_nan() || x > 0.0 {
+    if !matches!(x.partial_cmp(&0.0), Some(Ordering::Less | Ordering::Equal)) {
         return exp_f32(x);
     }
     if x < -103.972_08 {
         return 0.0;
     }
     let k = (x * LOG2_E - 0.5) as i32;
-    let r = (x - k as f32 * LN2_HI) - k as f32 * LN2_LO;
-    let p = 1.0
-        + r * (1.0
-            + r * (0.5
-                + r * (1.0 / 6.0
-                    + r * (1.0 / 24.0
-                        + r * (1.0 / 120.0 + r * (1.0 / 720.0 + r * (1.0 / 5040.0)))))));
+    let p = exp_poly((x - k as f32 * LN2_HI) - k as f32 * LN2_LO);
     if k >= -126 {
         return p * pow2i(k);
     }
-    let k1 = k / 2;
-    p * pow2i(k1) * pow2i(k - k1)
+    p * pow2i(k / 2) * pow2i(k - k / 2)
 }
 
 /// `2^k` for `k ∈ [−126, 127]` from the exponent bits.
