@@ -294,6 +294,37 @@ impl Conv2d<'_> {
         }
     }
 
+    /// Requantises one output channel's sums `acc` (any number) into `dst`, as
+    /// [`Conv2d::finish_block`] does a row of a block: the same bits.
+    fn finish_run(&self, isa: Isa, rq: &RowQuant, o: usize, acc: &[i32], dst: &mut [i8]) {
+        let n = acc.len().min(dst.len());
+        #[cfg(target_arch = "x86_64")]
+        if matches!(isa, Isa::Avx2 | Isa::Avx512Vnni) && Isa::Avx2.available() && rq.simple {
+            let rq = core::slice::from_ref(rq);
+            // SAFETY: AVX2 is available; `acc` and `dst` hold `n` each (one row, at 0).
+            unsafe {
+                if Isa::Avx512Vnni.available() && isa == Isa::Avx512Vnni {
+                    super::x86_64::requant::block512(rq, acc, n, n, dst, 0, n, |k, v| {
+                        requant_one(k, v)
+                    })
+                } else {
+                    super::x86_64::requant::block(rq, acc, n, n, dst, 0, n, |k, v| {
+                        requant_one(k, v)
+                    })
+                }
+            };
+            return;
+        }
+        let _ = isa;
+        if rq.simple {
+            requant_row(rq, &acc[..n], &mut dst[..n]);
+        } else {
+            for (d, &v) in dst[..n].iter_mut().zip(acc) {
+                *d = self.finish(o, rq.base.wrapping_add(v));
+            }
+        }
+    }
+
     #[inline]
     fn finish(&self, o: usize, acc: i32) -> i8 {
         let cq = &self.channels[o];
@@ -711,7 +742,11 @@ fn depthwise_conv(
                 depthwise_pixels(isa, op, input, in_shape, out, dst, output, scratch)
             }
         }
-        _ => depthwise_rows(isa, op, input, in_shape, out, dst, output, scratch),
+        _ => {
+            if !depthwise_bands(isa, op, input, in_shape, out, dst, output, scratch) {
+                depthwise_rows(isa, op, input, in_shape, out, dst, output, scratch)
+            }
+        }
     }
 }
 
@@ -844,6 +879,133 @@ fn depthwise_pixels(
     }
 }
 
+/// Depthwise convolution for cores with vector units, over bands of output rows: per channel
+/// and band, the input rows the band reads are converted once to 16-bit `x − zp` (zero
+/// outside the image), split by column phase `ix mod sx` so that every tap of an output row is
+/// one contiguous run of them; then each tap adds `w · x` (exact in 16 bits) to the band's rows
+/// of i32 sums, a loop the compiler vectorises over the whole row. Same sums, same bits. The
+/// band is as tall as the scratch allows; `false` (nothing written) if not one row fits.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn depthwise_bands(
+    isa: Isa,
+    op: &Conv2d,
+    input: &[i8],
+    in_shape: Shape,
+    out: Shape,
+    dst: &OutRows,
+    output: &mut [i8],
+    scratch: &mut [i32],
+) -> bool {
+    let g = &op.geometry;
+    let (kh, kw) = (g.kernel[0], g.kernel[1]);
+    let (sy, sx) = (g.stride[0], g.stride[1]);
+    let (dy, dx) = (g.dilation[0], g.dilation[1]);
+    let (ih, iw) = (in_shape.h, in_shape.w);
+    let ow = out.w;
+    if ow == 0 || sx == 0 || sy == 0 || op.weights.len() < out.c * kh * kw {
+        return false;
+    }
+    // One phase of a converted row: the output columns plus the widest tap reach.
+    let phase_w = ow + (kw - 1) * dx / sx;
+    let row_w = sx * phase_w;
+    // At stride 1 the sums of a band are kept `row_w` apart, as the converted rows are, so that
+    // each tap is one loop over the whole band; they are packed to `ow` apart before the
+    // requantisation.
+    let merged = sx == 1 && sy == 1;
+    let pitch = if merged { row_w } else { ow };
+    // Input rows of a band of `r` output rows, and its scratch (i32 units: the sums, then the
+    // 16-bit rows).
+    let rows_for = |r: usize| (r - 1) * sy + (kh - 1) * dy + 1;
+    let need = |r: usize| r * pitch + (rows_for(r) * row_w).div_ceil(2);
+    let mut band = dst.rows.len().max(1);
+    while band > 1 && need(band) > scratch.len() {
+        band = band.div_ceil(2);
+    }
+    if need(band) > scratch.len() {
+        return false;
+    }
+    let zp = op.quant.input_zero_point;
+    let (sums, rest) = scratch.split_at_mut(band * pitch);
+    let (x16, _) = take::<i16>(rest, rows_for(band) * row_w);
+    let (ph, pw) = (g.padding[0] as isize, g.padding[1] as isize);
+    for c in 0..out.c {
+        let chan = &input[c * ih * iw..(c + 1) * ih * iw];
+        let w = &op.weights[c * kh * kw..(c + 1) * kh * kw];
+        let rq = [op.row_quant(c, op.channels[c].bias)];
+        let mut oy0 = dst.rows.start;
+        while oy0 < dst.rows.end {
+            let n = band.min(dst.rows.end - oy0);
+            let first_iy = (oy0 * sy) as isize - ph;
+            // The band's input rows, phase by phase: column p of phase φ is input column
+            // p·sx + φ − pw.
+            for (r, row) in x16.chunks_exact_mut(row_w).take(rows_for(n)).enumerate() {
+                let iy = first_iy + r as isize;
+                let src = (0..ih as isize)
+                    .contains(&iy)
+                    .then(|| &chan[iy as usize * iw..][..iw]);
+                for (phase, dst_phase) in row.chunks_exact_mut(phase_w).enumerate() {
+                    // Columns p_lo .. p_hi of this phase lie inside the image.
+                    let off = phase as isize - pw;
+                    let (p_lo, p_hi) = match (src, pack::valid_cols(off, sx, iw, phase_w)) {
+                        (Some(_), Some((lo, hi))) => (lo, hi + 1),
+                        _ => (0, 0),
+                    };
+                    dst_phase[..p_lo].fill(0);
+                    dst_phase[p_hi..].fill(0);
+                    if let Some(src) = src.filter(|_| p_lo < p_hi) {
+                        let first = (p_lo as isize * sx as isize + off) as usize;
+                        let d = &mut dst_phase[p_lo..p_hi];
+                        if sx == 1 {
+                            for (d, &x) in d.iter_mut().zip(&src[first..]) {
+                                *d = (i32::from(x) - zp) as i16;
+                            }
+                        } else {
+                            for (d, &x) in d.iter_mut().zip(src[first..].iter().step_by(sx)) {
+                                *d = (i32::from(x) - zp) as i16;
+                            }
+                        }
+                    }
+                }
+            }
+            // Row j's sums at `j·pitch`; `span` covers the last row's `ow`.
+            let span = (n - 1) * pitch + ow;
+            let sums = &mut sums[..span];
+            sums.fill(0);
+            for ky in 0..kh {
+                for kx in 0..kw {
+                    let wv = i16::from(w[ky * kw + kx]);
+                    let col = (kx * dx) % sx * phase_w + kx * dx / sx;
+                    // |w| ≤ 128 and |x − zp| ≤ 255: the product fits i16 exactly.
+                    let tap = |acc: &mut [i32], x: &[i16]| {
+                        for (a, &x) in acc.iter_mut().zip(x) {
+                            *a = a.wrapping_add(i32::from(wv.wrapping_mul(x)));
+                        }
+                    };
+                    if merged {
+                        let at = ky * dy * row_w + col;
+                        tap(sums, &x16[at..at + span]);
+                    } else {
+                        for (j, acc) in sums.chunks_mut(pitch).enumerate() {
+                            let at = (j * sy + ky * dy) * row_w + col;
+                            tap(&mut acc[..ow], &x16[at..at + ow]);
+                        }
+                    }
+                }
+            }
+            for j in 1..n {
+                sums.copy_within(j * pitch..j * pitch + ow, j * ow);
+            }
+            let sums = &sums[..n * ow];
+            // The band's output rows are contiguous in the channel's plane.
+            let at = c * dst.stride + (oy0 - dst.rows.start) * ow;
+            op.finish_run(isa, &rq[0], c, sums, &mut output[at..at + n * ow]);
+            oy0 += n;
+        }
+    }
+    true
+}
+
 /// Halfwords per strip column of [`depthwise_ring3`]: the three held input rows and a zero.
 const RING_COLUMN: usize = 4;
 
@@ -968,7 +1130,9 @@ unsafe fn depthwise_avx2(
     output: &mut [i8],
     scratch: &mut [i32],
 ) {
-    depthwise_rows(isa, op, input, in_shape, out, dst, output, scratch)
+    if !depthwise_bands(isa, op, input, in_shape, out, dst, output, scratch) {
+        depthwise_rows(isa, op, input, in_shape, out, dst, output, scratch)
+    }
 }
 
 #[inline(always)]
@@ -1639,7 +1803,12 @@ pub(crate) mod tests {
                 let (_, y) = run(&case, f);
                 assert_eq!(y, yr, "{} k{k} s{s} d{d} p{p} {h}x{w}", isa.name());
             }
-            // The Cortex-M paths on every host, whole and in two row bands.
+            // The vector cores' band path and the Cortex-M paths on every host, whole and in
+            // row bands.
+            let (_, y) = run(&case, bands);
+            assert_eq!(y, yr, "depthwise_bands k{k} s{s} d{d} p{p} {h}x{w}");
+            let (_, y) = run(&case, bands_in_bands);
+            assert_eq!(y, yr, "depthwise_bands (bands) k{k} s{s} d{d} p{p} {h}x{w}");
             let (_, y) = run(&case, ring3);
             assert_eq!(y, yr, "depthwise_ring3 k{k} s{s} d{d} p{p} {h}x{w}");
             let (_, y) = run(&case, ring3_in_bands);
@@ -1670,6 +1839,53 @@ pub(crate) mod tests {
         };
         depthwise_pixels(Isa::Portable, op, x, s, out, &dst, y, t);
         Ok(out)
+    }
+
+    /// [`depthwise_bands`] with the portable requantisation.
+    fn bands(
+        op: &Conv2d,
+        x: &[i8],
+        s: Shape,
+        y: &mut [i8],
+        t: &mut [i32],
+    ) -> Result<Shape, KernelError> {
+        in_bands(op, x, s, y, t, 1, bands_or_rows)
+    }
+
+    /// [`bands`] computed in three row bands into one output, with a scratch that holds a band
+    /// of two rows at most.
+    fn bands_in_bands(
+        op: &Conv2d,
+        x: &[i8],
+        s: Shape,
+        y: &mut [i8],
+        t: &mut [i32],
+    ) -> Result<Shape, KernelError> {
+        in_bands(op, x, s, y, t, 3, |op, x, s, out, dst, y, t| {
+            let g = &op.geometry;
+            let phase_w = out.w + (g.kernel[1] - 1) * g.dilation[1] / g.stride[1];
+            let rows = g.stride[0] + (g.kernel[0] - 1) * g.dilation[0] + 1;
+            let pitch = if g.stride == [1, 1] { phase_w } else { out.w };
+            let two = 2 * pitch + (rows * g.stride[1] * phase_w).div_ceil(2);
+            let len = two.min(t.len());
+            bands_or_rows(op, x, s, out, dst, y, &mut t[..len])
+        })
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn bands_or_rows(
+        op: &Conv2d,
+        x: &[i8],
+        s: Shape,
+        out: Shape,
+        dst: &OutRows,
+        y: &mut [i8],
+        t: &mut [i32],
+    ) {
+        assert!(
+            depthwise_bands(Isa::Portable, op, x, s, out, dst, y, t),
+            "the scratch holds a band of one row"
+        );
     }
 
     /// [`depthwise_ring3`] with the portable sums, or [`depthwise_pixels`] where it declines.
