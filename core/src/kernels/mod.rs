@@ -22,6 +22,7 @@ pub mod arm;
 pub mod bins;
 pub mod broadcast;
 pub mod conv;
+mod depthwise;
 pub mod dot;
 pub mod elementwise;
 pub mod float;

@@ -528,7 +528,7 @@ pub fn requant_row_signed(
     true
 }
 
-/// One output row of the 3×3 depthwise ring strip (`conv::depthwise_ring3`): `acc[ox]` = the
+/// One output row of the 3×3 depthwise ring strip (`depthwise::ring3`): `acc[ox]` = the
 /// 12 halfwords from `strip + 8·sx·ox` bytes (three columns of `[row, row, row, 0]`) against
 /// the 12 halfwords of `taps`, as six `SMLAD` over word pairs: 13 instructions per pixel
 /// (nine multiply-accumulates).

@@ -1,0 +1,489 @@
+//! Depthwise convolution (one input and one output channel per group) for [`super::conv`]:
+//! per kernel set, the sums of each channel's taps in 32 bits (16-bit products, exact), then the
+//! conv's requantisation; every path gives the reference's bits.
+//!
+//! - [`bands`] (vector cores: x86 AVX2 and the portable set): bands of output rows, each tap one
+//!   vectorised loop over the band;
+//! - [`ring3`] (Cortex-M `SMLAD`, 3×3): a strip of interleaved 16-bit rows, six `SMLAD` per pixel;
+//! - [`pixels`] (Cortex-M, other kernels): per pixel, the taps summed in a register;
+//! - `rows`: per row and tap, the fallback where a scratch holds no band.
+
+use super::conv::{take, Conv2d, OutRows, RowQuant};
+use super::dot::Acc;
+use super::isa::Isa;
+use super::pack::{self, NB, PB};
+use super::Shape;
+
+/// One depthwise call: the operator, its input and the output rows to write (`dst`, as
+/// [`super::conv::conv2d_rows_with`] takes them).
+#[derive(Clone, Copy)]
+pub(super) struct Depthwise<'a, 'w> {
+    /// Kernel set.
+    pub isa: Isa,
+    /// The operator.
+    pub op: &'a Conv2d<'w>,
+    /// Input codes `[C, H, W]`.
+    pub input: &'a [i8],
+    /// Input shape.
+    pub in_shape: Shape,
+    /// Output shape.
+    pub out: Shape,
+    /// Output rows and channel stride.
+    pub dst: &'a OutRows,
+}
+
+/// Depthwise convolution (one input and one output channel per group): per channel and output
+/// row, every tap adds `w · (x − zp)` to a row of i32 sums (16-bit products, exact), which the
+/// compiler vectorises across the row; then the row is requantised like a conv block.
+pub(super) fn conv(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) {
+    let isa = call.isa;
+    match isa {
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2 | Isa::Avx512Vnni if Isa::Avx2.available() => {
+            // SAFETY: AVX2 is available (checked).
+            unsafe { avx2(call, output, scratch) }
+        }
+        Isa::ArmDsp => {
+            if !ring3(call, output, scratch) {
+                pixels(call, output, scratch)
+            }
+        }
+        _ => {
+            if !bands(call, output, scratch) {
+                rows(call, output, scratch)
+            }
+        }
+    }
+}
+
+/// Requantises output row `oy` of depthwise channel `c` from its sums `acc` (`out.w` of them).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn finish_row(
+    isa: Isa,
+    op: &Conv2d,
+    rq: &[RowQuant; 1],
+    c: usize,
+    oy: usize,
+    acc: &[i32],
+    out: Shape,
+    dst: &OutRows,
+    output: &mut [i8],
+    block: &mut Acc,
+) {
+    for ox0 in (0..out.w).step_by(PB) {
+        let n = PB.min(out.w - ox0);
+        block[..n].copy_from_slice(&acc[ox0..ox0 + n]);
+        let at = c * dst.stride + (oy - dst.rows.start) * out.w + ox0;
+        op.finish_block(isa, rq, c, block, n, output, at, dst.stride);
+    }
+}
+
+/// [`pixels`]' sums for `KW` adjacent taps per row (dilation 1 across): fixed-size
+/// windows, so the taps unroll without bounds checks. `taps` holds `kh` rows of `KW`.
+#[inline(always)]
+fn pixel_sums<const KW: usize>(
+    strip: &[i32],
+    width: usize,
+    taps: &[i32],
+    sx: usize,
+    acc: &mut [i32],
+) {
+    for (ox, a) in acc.iter_mut().enumerate() {
+        let mut sum = 0i32;
+        for (row, w) in strip.chunks_exact(width).zip(taps.chunks_exact(KW)) {
+            let (Some(x), Ok(w)) = (row.get(ox * sx..ox * sx + KW), <&[i32; KW]>::try_from(w))
+            else {
+                continue;
+            };
+            for k in 0..KW {
+                sum = sum.wrapping_add(w[k].wrapping_mul(x[k]));
+            }
+        }
+        *a = sum;
+    }
+}
+
+/// Taps a [`pixels`] kernel keeps in registers (7 × 7).
+const MAX_DEPTHWISE_TAPS: usize = 49;
+
+/// Depthwise convolution for cores without vector units (Cortex-M): per channel and output row
+/// the `kh` input rows are copied once as `x − zp` words into a zero-padded strip, then every
+/// output pixel sums its taps in a register (a load and a multiply-accumulate per tap, no
+/// per-tap row of sums to load and store as [`rows`] has). Same sums, same bits.
+/// Falls back to [`rows`] for kernels over [`MAX_DEPTHWISE_TAPS`] taps or a scratch
+/// too small for the strip.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn pixels(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) {
+    let Depthwise {
+        isa,
+        op,
+        input,
+        in_shape,
+        out,
+        dst,
+    } = *call;
+    let g = &op.geometry;
+    let (kh, kw) = (g.kernel[0], g.kernel[1]);
+    let (sy, sx) = (g.stride[0], g.stride[1]);
+    let (dy, dx) = (g.dilation[0], g.dilation[1]);
+    let (ih, iw) = (in_shape.h, in_shape.w);
+    let width = (out.w - 1) * sx + (kw - 1) * dx + 1;
+    let acc_len = out.w.div_ceil(PB) * PB;
+    if kh * kw > MAX_DEPTHWISE_TAPS || scratch.len() < acc_len + kh * width {
+        return rows(call, output, scratch);
+    }
+    let zp = op.quant.input_zero_point;
+    let (acc, rest) = scratch.split_at_mut(acc_len);
+    let strip = &mut rest[..kh * width];
+    let mut block: Acc = [0; NB * PB];
+    let mut taps = [0i32; MAX_DEPTHWISE_TAPS];
+    for c in 0..out.c {
+        let chan = &input[c * ih * iw..(c + 1) * ih * iw];
+        for (t, &w) in taps
+            .iter_mut()
+            .zip(&op.weights[c * kh * kw..(c + 1) * kh * kw])
+        {
+            *t = i32::from(w);
+        }
+        let rq = [op.row_quant(c, op.channels[c].bias)];
+        for oy in dst.rows.clone() {
+            for (ky, row) in strip.chunks_exact_mut(width).enumerate() {
+                let iy = (oy * sy + ky * dy) as isize - g.padding[0] as isize;
+                row.fill(0);
+                if iy < 0 || iy >= ih as isize {
+                    continue;
+                }
+                let src = &chan[iy as usize * iw..(iy as usize + 1) * iw];
+                // strip column p holds input column p − padding (zero outside the image)
+                let first = g.padding[1].min(width);
+                for (d, &x) in row[first..].iter_mut().zip(src) {
+                    *d = i32::from(x) - zp;
+                }
+            }
+            let acc = &mut acc[..out.w];
+            match (kw, dx) {
+                (3, 1) => pixel_sums::<3>(strip, width, &taps[..kh * 3], sx, acc),
+                (5, 1) => pixel_sums::<5>(strip, width, &taps[..kh * 5], sx, acc),
+                _ => {
+                    for (ox, a) in acc.iter_mut().enumerate() {
+                        let mut sum = 0i32;
+                        for (ky, row) in strip.chunks_exact(width).enumerate() {
+                            let at = &row[ox * sx..];
+                            let w = &taps[ky * kw..(ky + 1) * kw];
+                            for (kx, &wv) in w.iter().enumerate() {
+                                sum = sum.wrapping_add(wv.wrapping_mul(at[kx * dx]));
+                            }
+                        }
+                        *a = sum;
+                    }
+                }
+            }
+            finish_row(isa, op, &rq, c, oy, acc, out, dst, output, &mut block);
+        }
+    }
+}
+
+/// Depthwise convolution for cores with vector units, over bands of output rows: per channel
+/// and band, the input rows the band reads are converted once to 16-bit `x − zp` (zero
+/// outside the image), split by column phase `ix mod sx` so that every tap of an output row is
+/// one contiguous run of them; then each tap adds `w · x` (exact in 16 bits) to the band's rows
+/// of i32 sums, a loop the compiler vectorises over the whole row. Same sums, same bits. The
+/// band is as tall as the scratch allows; `false` (nothing written) if not one row fits.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub(super) fn bands(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) -> bool {
+    let Depthwise {
+        isa,
+        op,
+        input,
+        in_shape,
+        out,
+        dst,
+    } = *call;
+    let g = &op.geometry;
+    let (kh, kw) = (g.kernel[0], g.kernel[1]);
+    let (sy, sx) = (g.stride[0], g.stride[1]);
+    let (dy, dx) = (g.dilation[0], g.dilation[1]);
+    let (ih, iw) = (in_shape.h, in_shape.w);
+    let ow = out.w;
+    if ow == 0 || sx == 0 || sy == 0 || op.weights.len() < out.c * kh * kw {
+        return false;
+    }
+    // One phase of a converted row: the output columns plus the widest tap reach.
+    let phase_w = ow + (kw - 1) * dx / sx;
+    let row_w = sx * phase_w;
+    // At stride 1 the sums of a band are kept `row_w` apart, as the converted rows are, so that
+    // each tap is one loop over the whole band; they are packed to `ow` apart before the
+    // requantisation.
+    let merged = sx == 1 && sy == 1;
+    let pitch = if merged { row_w } else { ow };
+    // Input rows of a band of `r` output rows, and its scratch (i32 units: the sums, then the
+    // 16-bit rows).
+    let rows_for = |r: usize| (r - 1) * sy + (kh - 1) * dy + 1;
+    let need = |r: usize| r * pitch + (rows_for(r) * row_w).div_ceil(2);
+    let mut band = dst.rows.len().max(1);
+    while band > 1 && need(band) > scratch.len() {
+        band = band.div_ceil(2);
+    }
+    if need(band) > scratch.len() {
+        return false;
+    }
+    let zp = op.quant.input_zero_point;
+    let (sums, rest) = scratch.split_at_mut(band * pitch);
+    let (x16, _) = take::<i16>(rest, rows_for(band) * row_w);
+    let (ph, pw) = (g.padding[0] as isize, g.padding[1] as isize);
+    for c in 0..out.c {
+        let chan = &input[c * ih * iw..(c + 1) * ih * iw];
+        let w = &op.weights[c * kh * kw..(c + 1) * kh * kw];
+        let rq = [op.row_quant(c, op.channels[c].bias)];
+        let mut oy0 = dst.rows.start;
+        while oy0 < dst.rows.end {
+            let n = band.min(dst.rows.end - oy0);
+            let first_iy = (oy0 * sy) as isize - ph;
+            // The band's input rows, phase by phase: column p of phase φ is input column
+            // p·sx + φ − pw.
+            for (r, row) in x16.chunks_exact_mut(row_w).take(rows_for(n)).enumerate() {
+                let iy = first_iy + r as isize;
+                let src = (0..ih as isize)
+                    .contains(&iy)
+                    .then(|| &chan[iy as usize * iw..][..iw]);
+                for (phase, dst_phase) in row.chunks_exact_mut(phase_w).enumerate() {
+                    // Columns p_lo .. p_hi of this phase lie inside the image.
+                    let off = phase as isize - pw;
+                    let (p_lo, p_hi) = match (src, pack::valid_cols(off, sx, iw, phase_w)) {
+                        (Some(_), Some((lo, hi))) => (lo, hi + 1),
+                        _ => (0, 0),
+                    };
+                    dst_phase[..p_lo].fill(0);
+                    dst_phase[p_hi..].fill(0);
+                    if let Some(src) = src.filter(|_| p_lo < p_hi) {
+                        let first = (p_lo as isize * sx as isize + off) as usize;
+                        let d = &mut dst_phase[p_lo..p_hi];
+                        if sx == 1 {
+                            for (d, &x) in d.iter_mut().zip(&src[first..]) {
+                                *d = (i32::from(x) - zp) as i16;
+                            }
+                        } else {
+                            for (d, &x) in d.iter_mut().zip(src[first..].iter().step_by(sx)) {
+                                *d = (i32::from(x) - zp) as i16;
+                            }
+                        }
+                    }
+                }
+            }
+            // Row j's sums at `j·pitch`; `span` covers the last row's `ow`.
+            let span = (n - 1) * pitch + ow;
+            let sums = &mut sums[..span];
+            sums.fill(0);
+            for ky in 0..kh {
+                for kx in 0..kw {
+                    let wv = i16::from(w[ky * kw + kx]);
+                    let col = (kx * dx) % sx * phase_w + kx * dx / sx;
+                    // |w| ≤ 128 and |x − zp| ≤ 255: the product fits i16 exactly.
+                    let tap = |acc: &mut [i32], x: &[i16]| {
+                        for (a, &x) in acc.iter_mut().zip(x) {
+                            *a = a.wrapping_add(i32::from(wv.wrapping_mul(x)));
+                        }
+                    };
+                    if merged {
+                        let at = ky * dy * row_w + col;
+                        tap(sums, &x16[at..at + span]);
+                    } else {
+                        for (j, acc) in sums.chunks_mut(pitch).enumerate() {
+                            let at = (j * sy + ky * dy) * row_w + col;
+                            tap(&mut acc[..ow], &x16[at..at + ow]);
+                        }
+                    }
+                }
+            }
+            for j in 1..n {
+                sums.copy_within(j * pitch..j * pitch + ow, j * ow);
+            }
+            let sums = &sums[..n * ow];
+            // The band's output rows are contiguous in the channel's plane.
+            let at = c * dst.stride + (oy0 - dst.rows.start) * ow;
+            op.finish_run(isa, &rq[0], c, sums, &mut output[at..at + n * ow]);
+            oy0 += n;
+        }
+    }
+    true
+}
+
+/// Halfwords per strip column of [`ring3`]: the three held input rows and a zero.
+const RING_COLUMN: usize = 4;
+
+/// 3×3 depthwise convolution (dilation 1, column stride 1 or 2) for cores with 16-bit pair
+/// multiply-accumulates (Cortex-M `SMLAD`): the three input rows an output row reads are held
+/// interleaved in a strip of 16-bit `x − zp`, column by column (`[row a, row b, row c, 0]`),
+/// each input row in slot `iy mod 3`, so that the next output row rewrites only the rows it
+/// adds (one per row at stride 1). A pixel's nine taps are then 12 consecutive halfwords, read
+/// as six words against six weight words ordered to match the slots (six `SMLAD`). Same sums
+/// as the reference, same bits. `false` (nothing written) for other geometries or a scratch
+/// too small for the strip.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn ring3(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) -> bool {
+    let Depthwise {
+        isa,
+        op,
+        input,
+        in_shape,
+        out,
+        dst,
+    } = *call;
+    let g = &op.geometry;
+    let sx = g.stride[1];
+    if g.kernel != [3, 3] || g.dilation != [1, 1] || !(1..=2).contains(&sx) || out.w == 0 {
+        return false;
+    }
+    let (sy, ph, pw) = (g.stride[0], g.padding[0] as isize, g.padding[1]);
+    let (ih, iw) = (in_shape.h, in_shape.w);
+    let width = (out.w - 1) * sx + 3;
+    let acc_len = out.w.div_ceil(PB) * PB;
+    let strip_words = (RING_COLUMN * width).div_ceil(2);
+    if scratch.len() < acc_len + strip_words || op.weights.len() < out.c * 9 {
+        return false;
+    }
+    let zp = op.quant.input_zero_point;
+    let (acc, rest) = scratch.split_at_mut(acc_len);
+    let (strip, _) = take::<i16>(rest, RING_COLUMN * width);
+    let acc = &mut acc[..out.w];
+    let mut block: Acc = [0; NB * PB];
+    // Strip columns `pw .. pw + iw` hold input columns `0 .. iw`; the rest stay zero.
+    let (first, last) = (pw.min(width), (pw + iw).min(width));
+    for c in 0..out.c {
+        let chan = &input[c * ih * iw..(c + 1) * ih * iw];
+        let w = &op.weights[c * 9..(c + 1) * 9];
+        let rq = [op.row_quant(c, op.channels[c].bias)];
+        strip.fill(0);
+        // Input row held in each slot (none yet).
+        let mut held = [isize::MIN; 3];
+        for oy in dst.rows.clone() {
+            // ky of the kernel row held in each slot.
+            let mut kernel_row = [0usize; 3];
+            for ky in 0..3 {
+                let iy = (oy * sy + ky) as isize - ph;
+                let slot = iy.rem_euclid(3) as usize;
+                kernel_row[slot] = ky;
+                if held[slot] == iy {
+                    continue;
+                }
+                held[slot] = iy;
+                let cols =
+                    strip[first * RING_COLUMN..last * RING_COLUMN].chunks_exact_mut(RING_COLUMN);
+                if (0..ih as isize).contains(&iy) {
+                    let src = &chan[iy as usize * iw..][..iw];
+                    for (col, &x) in cols.zip(src) {
+                        col[slot] = (i32::from(x) - zp) as i16;
+                    }
+                } else {
+                    for col in cols {
+                        col[slot] = 0;
+                    }
+                }
+            }
+            // Weights in the strip's order: per kx, the slots' rows then a zero.
+            let mut taps = [0i16; 3 * RING_COLUMN];
+            for (kx, t) in taps.chunks_exact_mut(RING_COLUMN).enumerate() {
+                for (slot, &ky) in kernel_row.iter().enumerate() {
+                    t[slot] = i16::from(w[ky * 3 + kx]);
+                }
+            }
+            ring3_row(isa, strip, &taps, sx, acc);
+            finish_row(isa, op, &rq, c, oy, acc, out, dst, output, &mut block);
+        }
+    }
+    true
+}
+
+/// The sums of one output row of [`ring3`]: `acc[ox]` = the 12 halfwords of the strip
+/// from column `ox·sx` against `taps`. The arm-dsp set uses `SMLAD`; same sums.
+fn ring3_row(isa: Isa, strip: &[i16], taps: &[i16; 3 * RING_COLUMN], sx: usize, acc: &mut [i32]) {
+    let span = (acc.len().saturating_sub(1) * sx + 3) * RING_COLUMN;
+    if acc.is_empty() || strip.len() < span {
+        return;
+    }
+    #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+    if isa == Isa::ArmDsp && (strip.as_ptr() as usize).is_multiple_of(4) {
+        // SAFETY: the strip holds the `span` halfwords every pixel reads (checked), 4-aligned.
+        unsafe { super::arm::dsp::ring3_row(strip.as_ptr(), taps, sx, acc) };
+        return;
+    }
+    let _ = isa;
+    for (ox, a) in acc.iter_mut().enumerate() {
+        let window = &strip[ox * sx * RING_COLUMN..][..3 * RING_COLUMN];
+        let mut sum = 0i32;
+        for (&x, &t) in window.iter().zip(taps) {
+            sum = sum.wrapping_add(i32::from(x) * i32::from(t));
+        }
+        *a = sum;
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn avx2(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) {
+    if !bands(call, output, scratch) {
+        rows(call, output, scratch)
+    }
+}
+
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn rows(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) {
+    let Depthwise {
+        isa,
+        op,
+        input,
+        in_shape,
+        out,
+        dst,
+    } = *call;
+    let g = &op.geometry;
+    let (kh, kw) = (g.kernel[0], g.kernel[1]);
+    let (ih, iw) = (in_shape.h, in_shape.w);
+    let zp = op.quant.input_zero_point;
+    let (acc, rest) = scratch.split_at_mut(out.w.div_ceil(PB) * PB);
+    let xrow = &mut rest[..iw];
+    let mut block: Acc = [0; NB * PB];
+    for c in 0..out.c {
+        let chan = &input[c * ih * iw..(c + 1) * ih * iw];
+        let w = &op.weights[c * kh * kw..(c + 1) * kh * kw];
+        let rq = [op.row_quant(c, op.channels[c].bias)];
+        for oy in dst.rows.clone() {
+            acc.fill(0);
+            for ky in 0..kh {
+                let iy = (oy * g.stride[0] + ky * g.dilation[0]) as isize - g.padding[0] as isize;
+                if iy < 0 || iy >= ih as isize {
+                    continue;
+                }
+                let row = &chan[iy as usize * iw..(iy as usize + 1) * iw];
+                for (d, &x) in xrow.iter_mut().zip(row) {
+                    *d = x as i32 - zp;
+                }
+                for kx in 0..kw {
+                    let off = (kx * g.dilation[1]) as isize - g.padding[1] as isize;
+                    let Some((lo, hi)) = pack::valid_cols(off, g.stride[1], iw, out.w) else {
+                        continue;
+                    };
+                    let first = (lo as isize * g.stride[1] as isize + off) as usize;
+                    let wv = w[ky * kw + kx] as i16;
+                    let dst = &mut acc[lo..=hi];
+                    if g.stride[1] == 1 {
+                        // |w| ≤ 128 and |x − zp| ≤ 255: the product fits i16 exactly.
+                        for (a, &x) in dst.iter_mut().zip(&xrow[first..]) {
+                            *a = a.wrapping_add(i32::from(wv.wrapping_mul(x as i16)));
+                        }
+                    } else {
+                        let xs = xrow[first..].iter().step_by(g.stride[1]);
+                        for (a, &x) in dst.iter_mut().zip(xs) {
+                            *a = a.wrapping_add(i32::from(wv.wrapping_mul(x as i16)));
+                        }
+                    }
+                }
+            }
+            finish_row(isa, op, &rq, c, oy, acc, out, dst, output, &mut block);
+        }
+    }
+}
