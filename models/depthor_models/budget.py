@@ -19,7 +19,7 @@ import numpy as np
 import torch
 
 from . import graph_export
-from .net import build, random_inputs
+from .net import build, parse_overrides, random_inputs
 
 MAC_BUDGET = {"mcu_lite": 40e6}
 WEIGHT_BUDGET_BYTES = {"mcu_lite": 256 * 1024}
@@ -118,11 +118,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="NetConfig override (int/float/tuple literal), e.g. refine_scale=1")
     a = ap.parse_args(argv)
     torch.set_num_threads(1)
-    import ast
-    overrides = {}
-    for kv in a.set:
-        k, v = kv.split("=", 1)
-        overrides[k] = ast.literal_eval(v)
+    overrides = parse_overrides(a.set)
     for v in a.variant or ["mcu_lite"]:
         b = budget(v, **overrides)
         print(json.dumps(b, indent=1) if a.json else table(b))

@@ -24,7 +24,7 @@ import torch
 from torch import Tensor, nn
 
 from . import golden, graph_export
-from .net import VARIANTS, Depthor, build, random_inputs
+from .net import VARIANTS, Depthor, build, parse_overrides, random_inputs
 
 TRACT_VERSION = "0.23.9"  # the tract of requirements.txt and host/Cargo.toml, which load the export
 DEFAULT_SEED = 0
@@ -90,12 +90,13 @@ def export_nnef(model: nn.Module, args: tuple[Tensor, ...], path: str | Path,
     return out
 
 
-def build_trained(variant: str, weights: str | Path) -> Depthor:
-    """The variant with trained weights from a training checkpoint (`{"model": state_dict}`,
-    e.g. runs/mcu/ckpt.pt) or a plain state-dict file, in eval mode."""
+def build_trained(variant: str, weights: str | Path, **overrides) -> Depthor:
+    """The variant (with NetConfig `overrides`, as trained with `--set`) with trained weights
+    from a training checkpoint (`{"model": state_dict}`, e.g. runs/mcu/ckpt.pt) or a plain
+    state-dict file, in eval mode."""
     obj = torch.load(weights, map_location="cpu", weights_only=False)
     state = obj["model"] if isinstance(obj, dict) and "model" in obj else obj
-    net = build(variant, calibrate_bn=False)
+    net = build(variant, calibrate_bn=False, **overrides)
     net.load_state_dict(state)
     return net.eval()
 
@@ -103,14 +104,15 @@ def build_trained(variant: str, weights: str | Path) -> Depthor:
 def export_variant(variant: str, out_dir: str | Path, seed: int = DEFAULT_SEED,
                    golden_seed: int = GOLDEN_SEED, nnef: bool = True,
                    tract_cli: str | Path | None = None, net: Depthor | None = None,
-                   weights: str | Path | None = None) -> dict:
+                   weights: str | Path | None = None, overrides: dict | None = None) -> dict:
     """Writes every artefact of `variant` into out_dir and returns the summary dict. With
     `weights` (a training checkpoint or state dict) the trained network is exported instead of
-    the seeded random one."""
+    the seeded random one; `overrides`: NetConfig fields as trained (`--set`)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    o = overrides or {}
     if net is None:
-        net = build_trained(variant, weights) if weights else build(variant, seed=seed)
+        net = build_trained(variant, weights, **o) if weights else build(variant, seed=seed, **o)
     cfg = net.cfg
     rgb, sparse = random_inputs(cfg, torch.Generator().manual_seed(golden_seed))
     traced = graph_export.trace(net, rgb, sparse)
@@ -164,11 +166,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--weights", default=None,
                     help="trained weights (training checkpoint or state dict; default: random)")
     ap.add_argument("--no-nnef", action="store_true", help="skip the NNEF exports")
+    ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
+                    help="NetConfig override, as the weights were trained with (train --set)")
     ap.add_argument("--tract-cli", default=os.environ.get("DEPTHOR_TRACT_CLI"),
                     help="real tract CLI to check NNEF outputs with (default: none, no check)")
     a = ap.parse_args(argv)
     s = export_variant(a.variant, a.out, a.seed, nnef=not a.no_nnef, tract_cli=a.tract_cli,
-                       weights=a.weights)
+                       weights=a.weights, overrides=parse_overrides(a.set))
     print(json.dumps({k: s[k] for k in ("variant", "params_deployed", "params_prior", "macs",
                                          "macs_prior", "files", "export_timings")}, indent=1))
     return 0

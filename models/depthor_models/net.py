@@ -131,6 +131,20 @@ def config(variant: str, **overrides) -> NetConfig:
     return replace(VARIANTS[variant], **overrides)
 
 
+def parse_overrides(items: list[str]) -> dict:
+    """`FIELD=VALUE` strings (int/float/tuple literals) → NetConfig overrides for `config`;
+    unknown fields are errors."""
+    import ast
+    fields = set(NetConfig.__dataclass_fields__)
+    out = {}
+    for kv in items:
+        k, sep, v = kv.partition("=")
+        if not sep or k not in fields:
+            raise ValueError(f"--set {kv!r}: expected FIELD=VALUE with FIELD a NetConfig field")
+        out[k] = ast.literal_eval(v)
+    return out
+
+
 class RgbEncoder(nn.Module):
     """Stem conv-BN-relu (stride 2) then BasicBlock stages: features at 1/2 … 1/32."""
 

@@ -59,7 +59,7 @@ import torch
 from torch import Tensor
 
 from . import data, dist, qat
-from .net import VARIANTS, Depthor, build
+from .net import VARIANTS, Depthor, build, parse_overrides
 
 MIN_DEPTH_M = 0.1
 MAX_DEPTH_M = 10.0
@@ -440,9 +440,10 @@ def parse_crop(text: str | None) -> tuple[int, int] | None:
     return h, w
 
 
-def make_model(variant: str, seed: int) -> Depthor:
-    """A fresh trainable network: default PyTorch init (no random BN calibration), train mode."""
-    net = build(variant, seed=seed, calibrate_bn=False)
+def make_model(variant: str, seed: int, overrides: dict | None = None) -> Depthor:
+    """A fresh trainable network: default PyTorch init (no random BN calibration), train mode;
+    `overrides`: NetConfig fields that differ from the variant's (`--set`)."""
+    net = build(variant, seed=seed, calibrate_bn=False, **(overrides or {}))
     return net.train()
 
 
@@ -589,7 +590,7 @@ def _train(args: argparse.Namespace, d: dist.Dist) -> dict:
     if d.main:
         out.mkdir(parents=True, exist_ok=True)
     ckpt_path = out / "ckpt.pt"
-    net = make_model(args.variant, args.seed)
+    net = make_model(args.variant, args.seed, parse_overrides(getattr(args, "set", None) or []))
     prior_only = args.stage == "prior"
     trained = net.prior if prior_only else net
     net.requires_grad_(not prior_only)
@@ -957,6 +958,9 @@ def main(argv: list[str] | None = None) -> int:
                          "--train instead of the checkpoint's training set (e.g. once more "
                          "generated frames are ready)")
     ap.add_argument("--init", default=None, help="start from these weights with a fresh schedule")
+    ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
+                    help="NetConfig override of the variant (ablations), e.g. n_bins=32; "
+                         "export with the same --set")
     ap.add_argument("--plot-only", action="store_true", help="only redraw <out>/loss.png")
     ap.add_argument("--eval-only", default=None, metavar="WEIGHTS",
                     help="only evaluate these weights on --test (first --eval-frames) and exit")
@@ -968,7 +972,7 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--test is required, and --train unless --eval-only is given")
     if a.eval_only:
         torch.set_num_threads(a.threads)
-        net = make_model(a.variant, a.seed)
+        net = make_model(a.variant, a.seed, parse_overrides(a.set))
         net.load_state_dict(load_weights(a.eval_only))
         net.to(dist.pick_device(a.device))
         size = (net.cfg.height, net.cfg.width)

@@ -1,0 +1,45 @@
+"""`--set` overrides and the bin-merging starting point of the `n_bins` ablation."""
+import pytest
+import torch
+
+from depthor_models.net import build, parse_overrides
+from depthor_models.rebin import merge_bins
+
+
+def test_overrides_parse_literals_and_reject_unknown_fields():
+    assert parse_overrides(["n_bins=32", "iterations=4"]) == {"n_bins": 32, "iterations": 4}
+    with pytest.raises(ValueError):
+        parse_overrides(["no_such_field=1"])
+    with pytest.raises(ValueError):
+        parse_overrides(["n_bins"])
+
+
+def test_merged_bins_keep_widths_and_probabilities_of_the_groups():
+    torch.manual_seed(0)
+    net = build("mcu_lite", seed=3)
+    state = net.state_dict()
+    merged = merge_bins(state, 32)
+    small = build("mcu_lite", seed=3, n_bins=32)
+    small.load_state_dict(merged)  # the shapes of a 32-bin network
+    # Widths: with positive member logits, the merged width is the sum of the members'.
+    h = torch.rand(5, state["bins_fc2.weight"].shape[1])
+    w64 = torch.relu(h @ state["bins_fc2.weight"].T + state["bins_fc2.bias"]) + 0.1
+    l32 = h @ merged["bins_fc2.weight"].T + merged["bins_fc2.bias"]
+    pos = (h @ state["bins_fc2.weight"].T + state["bins_fc2.bias"] > 0).reshape(5, 32, 2).all(2)
+    sums = w64.reshape(5, 32, 2).sum(2)
+    assert torch.allclose((torch.relu(l32) + 0.1)[pos], sums[pos], atol=1e-5)
+    # Logits: the mean of each pair.
+    assert torch.allclose(merged["bins_head.bias"], state["bins_head.bias"].reshape(32, 2).mean(1))
+    with pytest.raises(ValueError):
+        merge_bins(state, 48)
+
+
+def test_export_applies_the_overrides(tmp_path):
+    import json
+
+    from depthor_models.export import export_variant
+
+    export_variant("mcu_lite", tmp_path, nnef=False, overrides={"n_bins": 32, "iterations": 4})
+    nodes = json.loads((tmp_path / "graph.json").read_text())["nodes"]
+    attrs = {n["op"]: n["attrs"] for n in nodes if n["op"] in ("bins_head", "refine")}
+    assert attrs["bins_head"]["n_bins"] == 32 and attrs["refine"]["iterations"] == 4
