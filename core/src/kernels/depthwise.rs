@@ -32,6 +32,20 @@ pub(super) struct Depthwise<'a, 'w> {
     pub dst: &'a OutRows,
 }
 
+impl<'a, 'w> Depthwise<'a, 'w> {
+    /// The fields, in declaration order (for the paths to name them locally).
+    fn parts(&self) -> (Isa, &'a Conv2d<'w>, &'a [i8], Shape, Shape, &'a OutRows) {
+        (
+            self.isa,
+            self.op,
+            self.input,
+            self.in_shape,
+            self.out,
+            self.dst,
+        )
+    }
+}
+
 /// Depthwise convolution (one input and one output channel per group): per channel and output
 /// row, every tap adds `w · (x − zp)` to a row of i32 sums (16-bit products, exact), which the
 /// compiler vectorises across the row; then the row is requantised like a conv block.
@@ -113,16 +127,8 @@ const MAX_DEPTHWISE_TAPS: usize = 49;
 /// per-tap row of sums to load and store as [`rows`] has). Same sums, same bits.
 /// Falls back to [`rows`] for kernels over [`MAX_DEPTHWISE_TAPS`] taps or a scratch
 /// too small for the strip.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn pixels(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) {
-    let Depthwise {
-        isa,
-        op,
-        input,
-        in_shape,
-        out,
-        dst,
-    } = *call;
+    let (isa, op, input, in_shape, out, dst) = call.parts();
     let g = &op.geometry;
     let (kh, kw) = (g.kernel[0], g.kernel[1]);
     let (sy, sx) = (g.stride[0], g.stride[1]);
@@ -191,16 +197,8 @@ pub(super) fn pixels(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) {
 /// of i32 sums, a loop the compiler vectorises over the whole row. Same sums, same bits. The
 /// band is as tall as the scratch allows; `false` (nothing written) if not one row fits.
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
 pub(super) fn bands(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) -> bool {
-    let Depthwise {
-        isa,
-        op,
-        input,
-        in_shape,
-        out,
-        dst,
-    } = *call;
+    let (isa, op, input, in_shape, out, dst) = call.parts();
     let g = &op.geometry;
     let (kh, kw) = (g.kernel[0], g.kernel[1]);
     let (sy, sx) = (g.stride[0], g.stride[1]);
@@ -321,16 +319,8 @@ const RING_COLUMN: usize = 4;
 /// as six words against six weight words ordered to match the slots (six `SMLAD`). Same sums
 /// as the reference, same bits. `false` (nothing written) for other geometries or a scratch
 /// too small for the strip.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn ring3(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) -> bool {
-    let Depthwise {
-        isa,
-        op,
-        input,
-        in_shape,
-        out,
-        dst,
-    } = *call;
+    let (isa, op, input, in_shape, out, dst) = call.parts();
     let g = &op.geometry;
     let sx = g.stride[1];
     if g.kernel != [3, 3] || g.dilation != [1, 1] || !(1..=2).contains(&sx) || out.w == 0 {
@@ -422,7 +412,6 @@ fn ring3_row(isa: Isa, strip: &[i16], taps: &[i16; 3 * RING_COLUMN], sx: usize, 
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-#[allow(clippy::too_many_arguments)]
 unsafe fn avx2(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) {
     if !bands(call, output, scratch) {
         rows(call, output, scratch)
@@ -430,16 +419,8 @@ unsafe fn avx2(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) {
 }
 
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
 fn rows(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) {
-    let Depthwise {
-        isa,
-        op,
-        input,
-        in_shape,
-        out,
-        dst,
-    } = *call;
+    let (isa, op, input, in_shape, out, dst) = call.parts();
     let g = &op.geometry;
     let (kh, kw) = (g.kernel[0], g.kernel[1]);
     let (ih, iw) = (in_shape.h, in_shape.w);
