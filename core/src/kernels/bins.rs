@@ -254,6 +254,35 @@ mod tests {
         assert!((expected_depth(&[1.0986123, 0.0], &[2.0, 4.0]) - 2.5).abs() < 1e-3);
     }
 
+    /// Every kernel set gives the portable bits with many bins and features (the AVX2 head's
+    /// weight pairs then do not fit its stack table and are made per chunk of pixels).
+    #[test]
+    fn wide_heads_agree_across_sets() {
+        let (c, n, h, w) = (40usize, 256usize, 2usize, 9usize);
+        let shape = Shape::new(c, h, w);
+        let feats: Vec<i8> = (0..c * h * w).map(|i| ((i * 73 + 5) % 251) as i8).collect();
+        let wq: Vec<i8> = (0..n * c).map(|i| ((i * 31 + 7) % 253) as i8).collect();
+        let chans: Vec<BinChannel> = (0..n)
+            .map(|i| BinChannel {
+                bias: i as i32 * 13 - 1600,
+                scale: 1e-4 * (1.0 + (i % 7) as f32),
+            })
+            .collect();
+        let centres: Vec<f32> = (0..n).map(|i| 0.1 + 0.04 * i as f32).collect();
+        let mut want = std::vec![0f32; h * w];
+        let (f, ch, ce) = (&feats, &chans, &centres);
+        bins_head_i8(Isa::Portable, f, shape, 3, &wq, ch, ce, &mut want).unwrap();
+        for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+            let mut got = std::vec![0f32; h * w];
+            bins_head_i8(isa, f, shape, 3, &wq, ch, ce, &mut got).unwrap();
+            let same = got
+                .iter()
+                .zip(&want)
+                .all(|(a, b)| a.to_bits() == b.to_bits());
+            assert!(same, "{} differs from the portable head", isa.name());
+        }
+    }
+
     #[test]
     fn int8_head_matches_float_head() {
         let (c, n, h, w) = (6usize, 16usize, 3usize, 4usize);

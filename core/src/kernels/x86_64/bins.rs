@@ -27,7 +27,24 @@ pub unsafe fn head(
     let n = channels.len().min(centres.len()).min(MAX_BINS);
     let c = c.min(MAX_BIN_FEATURES);
     let pairs = c.div_ceil(2);
-    // Weight pairs (w[b][2k], w[b][2k+1]) as i32 words, built once.
+    // Weight pairs (w[b][2k], w[b][2k+1]) as i32 words: all bins' built once where they fit
+    // `all` (16 KiB of stack), otherwise each bin's per chunk of pixels into `wp`.
+    let pair_words = |b: usize, wp: &mut [i32]| {
+        let row = &weights[b * c..(b + 1) * c];
+        for (k, w) in wp[..pairs].iter_mut().enumerate() {
+            let w0 = row[2 * k] as i16 as u16 as u32;
+            let w1 = row.get(2 * k + 1).map_or(0, |&v| v as i16 as u16 as u32);
+            *w = (w0 | (w1 << 16)) as i32;
+        }
+    };
+    const ALL: usize = 4096;
+    let mut all = [0i32; ALL];
+    let hoisted = n * pairs <= ALL;
+    if hoisted {
+        for (b, wp) in all.chunks_exact_mut(pairs.max(1)).take(n).enumerate() {
+            pair_words(b, wp);
+        }
+    }
     let mut wp = [0i32; MAX_BIN_FEATURES / 2];
     let mut x = [_mm256_setzero_si256(); MAX_BIN_FEATURES / 2];
     let mut logits = [_mm256_setzero_ps(); MAX_BINS];
@@ -51,14 +68,14 @@ pub unsafe fn head(
             );
         }
         for (b, (lg, ch)) in logits[..n].iter_mut().zip(channels).enumerate() {
-            let row = &weights[b * c..(b + 1) * c];
-            for (k, w) in wp[..pairs].iter_mut().enumerate() {
-                let w0 = row[2 * k] as i16 as u16 as u32;
-                let w1 = row.get(2 * k + 1).map_or(0, |&v| v as i16 as u16 as u32);
-                *w = (w0 | (w1 << 16)) as i32;
-            }
+            let words = if hoisted {
+                &all[b * pairs..(b + 1) * pairs]
+            } else {
+                pair_words(b, &mut wp);
+                &wp[..pairs]
+            };
             let mut acc = _mm256_set1_epi32(ch.bias);
-            for (xk, &w) in x[..pairs].iter().zip(&wp[..pairs]) {
+            for (xk, &w) in x[..pairs].iter().zip(words) {
                 acc = _mm256_add_epi32(acc, _mm256_madd_epi16(*xk, _mm256_set1_epi32(w)));
             }
             *lg = _mm256_mul_ps(_mm256_cvtepi32_ps(acc), _mm256_set1_ps(ch.scale));
