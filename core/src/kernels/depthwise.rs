@@ -46,9 +46,8 @@ impl<'a, 'w> Depthwise<'a, 'w> {
     }
 }
 
-/// Depthwise convolution (one input and one output channel per group): per channel and output
-/// row, every tap adds `w · (x − zp)` to a row of i32 sums (16-bit products, exact), which the
-/// compiler vectorises across the row; then the row is requantised like a conv block.
+/// Depthwise convolution of `call` into `output`: the kernel set's path (module doc), or its
+/// fallback where the geometry or the scratch does not suit it.
 pub(super) fn conv(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) {
     let isa = call.isa;
     match isa {
@@ -410,6 +409,10 @@ fn ring3_row(isa: Isa, strip: &[i16], taps: &[i16; 3 * RING_COLUMN], sx: usize, 
     }
 }
 
+/// [`bands`] (or `rows`) compiled for AVX2, so that the loops vectorise with 256-bit vectors.
+///
+/// # Safety
+/// The CPU must have AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 unsafe fn avx2(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) {
@@ -418,6 +421,9 @@ unsafe fn avx2(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) {
     }
 }
 
+/// Per channel and output row, every tap adds `w · (x − zp)` to a row of i32 sums (16-bit
+/// products, exact), which the compiler vectorises across the row; then the row is
+/// requantised like a conv block. Needs only a row of sums and one input row of scratch.
 #[inline(always)]
 fn rows(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) {
     let (isa, op, input, in_shape, out, dst) = call.parts();
