@@ -816,6 +816,10 @@ def _train(args: argparse.Namespace, d: dist.Dist) -> dict:
     last_row = checkpoint(evaluate=True) or last_row
     torch.save({k: v.cpu() for k, v in net.state_dict().items()}, out / "model_final.pt")
     print(f"stopped at step {step}/{args.steps}; checkpoint {ckpt_path}", flush=True)
+    if by_time and step >= args.steps and wall < args.schedule_s:
+        print(f"warning: --steps {args.steps} ended the run after {wall:.0f} s of the "
+              f"{args.schedule_s:.0f} s schedule, before its learning rate annealed; "
+              f"pass a larger --steps with --schedule-s", flush=True)
     return last_row
 
 

@@ -204,6 +204,13 @@ def test_schedule_by_time_stops_when_spent(tmp_path):
     assert ck["step"] == 1 and ck["args"]["schedule_s"] == 1e-9
 
 
+def test_step_cap_before_the_time_schedule_ends_is_reported(tmp_path, capsys):
+    rec_dir = write_recording(tmp_path / "rec", n=5)
+    T.main(_args(rec_dir, tmp_path / "run", "--schedule-s", "1e9"))
+    out = capsys.readouterr().out
+    assert "stopped at step 3/3" in out and "warning: --steps 3 ended the run" in out
+
+
 def test_export_loads_trained_weights(tmp_path):
     from depthor_models.export import build_trained
 
