@@ -26,6 +26,7 @@ def test_merged_bins_keep_widths_and_probabilities_of_the_groups():
     w64 = torch.relu(h @ state["bins_fc2.weight"].T + state["bins_fc2.bias"]) + 0.1
     l32 = h @ merged["bins_fc2.weight"].T + merged["bins_fc2.bias"]
     pos = (h @ state["bins_fc2.weight"].T + state["bins_fc2.bias"] > 0).reshape(5, 32, 2).all(2)
+    assert pos.any(), "no group with positive member logits to compare"
     sums = w64.reshape(5, 32, 2).sum(2)
     assert torch.allclose((torch.relu(l32) + 0.1)[pos], sums[pos], atol=1e-5)
     # Logits: the mean of each pair.

@@ -133,6 +133,9 @@ pub(super) fn pixels(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) {
     let (sy, sx) = (g.stride[0], g.stride[1]);
     let (dy, dx) = (g.dilation[0], g.dilation[1]);
     let (ih, iw) = (in_shape.h, in_shape.w);
+    if out.w == 0 {
+        return;
+    }
     let width = (out.w - 1) * sx + (kw - 1) * dx + 1;
     let acc_len = out.w.div_ceil(PB) * PB;
     if kh * kw > MAX_DEPTHWISE_TAPS || scratch.len() < acc_len + kh * width {
