@@ -3,10 +3,11 @@
 
 mod common;
 
-use common::{fix_crc, frame, rgb_planar, tiny_net};
+use common::{fix_crc, frame, rgb_planar, tiny_net, tiny_net_with};
 use depthor_core::blob::format::HEADER_LEN;
 use depthor_core::blob::{parse, BlobError};
 use depthor_core::engine::{required_arena_bytes, Engine, Error};
+use depthor_core::kernels::refine::Neighbourhood;
 use proptest::prelude::*;
 use std::sync::OnceLock;
 
@@ -96,6 +97,43 @@ fn corrupt_fields_with_valid_crc_are_bad_blob() {
     let mut b = blob().to_vec();
     b[8..12].copy_from_slice(&u32::MAX.to_le_bytes());
     assert!(matches!(parse(&b), Err(BlobError::Bad { offset: 8, .. })));
+}
+
+/// Where the refine op's attributes start: `T = 4`, the neighbourhood code, σ = 1, 1.5, 2.
+fn refine_attrs_at(b: &[u8], code: u16) -> usize {
+    let mut want = Vec::from(4u16.to_le_bytes());
+    want.extend(code.to_le_bytes());
+    for s in [1.0f32, 1.5, 2.0] {
+        want.extend(s.to_le_bytes());
+    }
+    let at = b.windows(want.len()).position(|w| w == want.as_slice());
+    at.expect("the tiny net's refine attributes")
+}
+
+#[test]
+fn refine_neighbourhood_code_is_checked() {
+    // An unknown code is named.
+    let mut b = blob().to_vec();
+    let at = refine_attrs_at(&b, 0) + 2;
+    b[at] = 7;
+    fix_crc(&mut b);
+    assert!(matches!(
+        parse(&b),
+        Err(BlobError::Bad { offset, what: "refine: neighbourhood must be 0 (window) or 1 (dilated)" }) if offset == at
+    ));
+    // The dilated code on heads of 8, 24, 48 channels: the types do not match.
+    b[at] = 1;
+    fix_crc(&mut b);
+    assert!(matches!(parse(&b), Err(BlobError::Bad { .. })));
+    // And the dilated net read as a window one.
+    let net = tiny_net_with(12, 16, Neighbourhood::Dilated);
+    let (rgb, sparse) = frame(12, 16);
+    let mut d = net.to_blob(&net.run_float(&rgb_planar(&rgb, 12, 16), &sparse));
+    assert!(parse(&d).is_ok());
+    let at = refine_attrs_at(&d, 1) + 2;
+    d[at] = 0;
+    fix_crc(&mut d);
+    assert!(matches!(parse(&d), Err(BlobError::Bad { .. })));
 }
 
 #[test]

@@ -3,15 +3,20 @@
 
 mod common;
 
-use common::{frame, rgb_planar, sqnr_db, tiny_net};
+use common::{frame, rgb_planar, sqnr_db, tiny_net, tiny_net_with};
 use depthor_core::blob::parse;
 use depthor_core::engine::{plan, required_arena_bytes, Engine, Error};
+use depthor_core::kernels::refine::Neighbourhood;
 
 const H: usize = 12;
 const W: usize = 16;
 
 fn blob_and_float() -> (Vec<u8>, Vec<f32>, Vec<u8>, Vec<f32>) {
-    let net = tiny_net(H, W);
+    blob_and_float_with(Neighbourhood::Window)
+}
+
+fn blob_and_float_with(nb: Neighbourhood) -> (Vec<u8>, Vec<f32>, Vec<u8>, Vec<f32>) {
+    let net = tiny_net_with(H, W, nb);
     let (rgb, sparse) = frame(H, W);
     let vals = net.run_float(&rgb_planar(&rgb, H, W), &sparse);
     let blob = net.to_blob(&vals);
@@ -27,14 +32,20 @@ const MIN_AC_SQNR_DB: f64 = 22.0;
 
 #[test]
 fn int8_engine_matches_float_network() {
-    let (blob, want, rgb, sparse) = blob_and_float();
+    for nb in [Neighbourhood::Window, Neighbourhood::Dilated] {
+        engine_matches_float_network(nb);
+    }
+}
+
+fn engine_matches_float_network(nb: Neighbourhood) {
+    let (blob, want, rgb, sparse) = blob_and_float_with(nb);
     let need = required_arena_bytes(&blob, H, W).unwrap();
     let mut arena = vec![0u8; need];
     let mut eng = Engine::new(&blob, &mut arena).unwrap();
     assert_eq!(eng.input_shape(), (H, W));
     let mut out = vec![0f32; H * W];
     let stats = eng.run(&rgb, &sparse, &mut out).unwrap();
-    assert_eq!(stats.ops, tiny_net(H, W).ops.len());
+    assert_eq!(stats.ops, tiny_net_with(H, W, nb).ops.len());
     assert!(stats.macs > 0);
     let db = sqnr_db(&want, &out);
     // Also against the depth *variation* (mean removed), which a constant output cannot fake.
@@ -43,7 +54,7 @@ fn int8_engine_matches_float_network() {
     let ac_out: Vec<f32> = out.iter().map(|v| v - mean).collect();
     let ac_db = sqnr_db(&ac_want, &ac_out);
     let spread = want.iter().fold(0f32, |m, v| m.max(v - mean).max(mean - v));
-    println!("depth SQNR int8 vs f32: {db:.1} dB ({ac_db:.1} dB on the variation, ±{spread:.3} m), arena {need} B, macs {}", stats.macs);
+    println!("{nb:?}: depth SQNR int8 vs f32: {db:.1} dB ({ac_db:.1} dB on the variation, ±{spread:.3} m), arena {need} B, macs {}", stats.macs);
     assert!(
         spread > 0.05,
         "float depth is nearly constant: the test would be weak"
@@ -206,10 +217,22 @@ fn arena_at_mcu_size() {
 /// less arena.
 #[test]
 fn streamed_refinement_equals_whole_maps() {
+    for nb in [Neighbourhood::Window, Neighbourhood::Dilated] {
+        streamed_equals_whole(nb);
+    }
+}
+
+fn streamed_equals_whole(nb: Neighbourhood) {
     use depthor_core::engine::{plan_with, required_arena_bytes_with, Memory};
-    let (blob, _, rgb, sparse) = blob_and_float();
+    let (blob, _, rgb, sparse) = blob_and_float_with(nb);
     let g = parse(&blob).unwrap();
-    let streamed = plan_with(&g, H, W, Memory::Streamed).unwrap();
+    // With 8 neighbours per branch the affinity maps of a 12×16 image are smaller than the
+    // rings that replace them, so the planner fuses only at a larger size.
+    let (ph, pw) = match nb {
+        Neighbourhood::Window => (H, W),
+        Neighbourhood::Dilated => (120, 160),
+    };
+    let streamed = plan_with(&g, ph, pw, Memory::Streamed).unwrap();
     let refine = (0..g.ops.len())
         .find(|&i| streamed.fused_heads(i).is_some())
         .expect("the test net's refinement has three single-use conv heads");
@@ -222,7 +245,8 @@ fn streamed_refinement_equals_whole_maps() {
     );
     let whole = plan_with(&g, H, W, Memory::Whole).unwrap();
     assert!((0..g.ops.len()).all(|i| whole.fused_into(i).is_none()));
-    for (h, w) in [(H, W), (36, 20)] {
+    let sizes = [(H, W), (36, 20), (ph, pw)];
+    for &(h, w) in &sizes[..if (ph, pw) == (H, W) { 2 } else { 3 }] {
         let (rgb, sparse) = if (h, w) == (H, W) {
             (rgb.clone(), sparse.clone())
         } else {
@@ -243,7 +267,10 @@ fn streamed_refinement_equals_whole_maps() {
                 .iter()
                 .zip(&other.1)
                 .all(|(a, b)| a.to_bits() == b.to_bits());
-            assert!(same, "{h}x{w}: plan {k}'s output differs from whole maps");
+            assert!(
+                same,
+                "{nb:?} {h}x{w}: plan {k}'s output differs from whole maps"
+            );
         }
         assert!(
             outs[1].0 < outs[0].0,
@@ -256,5 +283,5 @@ fn streamed_refinement_equals_whole_maps() {
         required_arena_bytes_with(&blob, 120, 160, Memory::Whole).unwrap(),
         required_arena_bytes_with(&blob, 120, 160, Memory::Streamed).unwrap(),
     );
-    println!("tiny net at 120x160: arena whole {a} B, streamed {b} B");
+    println!("{nb:?} tiny net at 120x160: arena whole {a} B, streamed {b} B");
 }

@@ -100,9 +100,6 @@ def load(graph_path: str | Path, weights_path: str | Path | None = None):
 # Counting
 # ---------------------------------------------------------------------------------------------
 
-N_NEIGHBOURS = {3: 8, 5: 24, 7: 48}
-
-
 def node_macs(node: dict, shapes: dict[str, tuple[int, ...]], graph: dict) -> int:
     """Multiply-accumulates of one node (conv/linear/bins_head/refine/upsample; 0 for the
     elementwise and pooling ops and for batch_norm, which the quantizer folds)."""
@@ -119,7 +116,8 @@ def node_macs(node: dict, shapes: dict[str, tuple[int, ...]], graph: dict) -> in
         c = shapes[node["inputs"][0]][1]
         return numel * a["n_bins"] * (c + 1)
     if op == "refine":
-        per_iter = sum(n + 1 for n in N_NEIGHBOURS.values())
+        nb = a.get("neighbourhood", "window")
+        per_iter = sum(len(ops.neighbour_offsets(s, nb)) + 1 for s in (3, 5, 7))
         return numel * a["iterations"] * per_iter
     if op == "upsample_bilinear":
         return 4 * numel

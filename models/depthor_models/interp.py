@@ -94,10 +94,16 @@ def bins_head(feat, bin_logits, weight, bias, min_d, max_d):
     return (centre @ p).reshape(1, h, w)
 
 
-def offsets(size: int):
-    """(dy, dx) over the size×size window in raster order, centre skipped."""
+def offsets(size: int, neighbourhood: str = "window"):
+    """(dy, dx) over the size×size window in raster order, centre skipped; "dilated" keeps those
+    whose coordinates are multiples of the radius (the 3×3 ring dilated by size // 2)."""
     r = size // 2
-    return [(dy, dx) for dy in range(-r, r + 1) for dx in range(-r, r + 1) if (dy, dx) != (0, 0)]
+    every = [(dy, dx) for dy in range(-r, r + 1) for dx in range(-r, r + 1) if (dy, dx) != (0, 0)]
+    if neighbourhood == "window":
+        return every
+    if neighbourhood == "dilated":
+        return [(dy, dx) for dy, dx in every if dy % r == 0 and dx % r == 0]
+    raise ValueError(f"refine: unknown neighbourhood {neighbourhood!r}")
 
 
 def _neighbour(a, dy, dx):
@@ -113,12 +119,14 @@ def _neighbour(a, dy, dx):
     return out, mask
 
 
-def refine(d0, affs, kmix, tmix, iterations, sigmas):
+def refine(d0, affs, kmix, tmix, iterations, sigmas, neighbourhood="window"):
     """docs/graph.md refine (three kernels 3/5/7)."""
     d0 = d0[0]
     weights = []
     for size, aff, sigma in zip((3, 5, 7), affs, sigmas):
-        offs = offsets(size)
+        offs = offsets(size, neighbourhood)
+        if aff.shape[0] != len(offs):
+            raise ValueError(f"refine: aff{size} has {aff.shape[0]} channels, needs {len(offs)}")
         rs = []
         for c, (dy, dx) in enumerate(offs):
             g = math.exp(-(dx * dx + dy * dy) / (2.0 * sigma * sigma))
@@ -193,7 +201,8 @@ def eval_node(node: dict, weights: dict, xs: list[np.ndarray]) -> np.ndarray:
         return bins_head(x, xs[1], W[p["weight"]], W[p["bias"]], a["min_depth_m"],
                          a["max_depth_m"])
     if op == "refine":
-        return refine(xs[0], xs[1:4], xs[4], xs[5], a["iterations"], a["sigma"])
+        return refine(xs[0], xs[1:4], xs[4], xs[5], a["iterations"], a["sigma"],
+                      a.get("neighbourhood", "window"))
     raise ValueError(f"node {node['name']}: unknown op {op!r}")
 
 

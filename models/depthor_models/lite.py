@@ -133,12 +133,13 @@ class DepthorLite(nn.Module):
         self.guide_cbam = CBAM(guide, cfg.cbam_reduction)
         gout = c if cfg.refine_scale == 2 else 4 * c
         self.guide_conv = SepConv(guide, gout, act="leaky_relu", alpha=a, order="pw_dw")
-        self.aff3 = ops.Conv(c, 8, 1, padding=0)
-        self.aff5 = ops.Conv(c, 24, 1, padding=0)
-        self.aff7 = ops.Conv(c, 48, 1, padding=0)
+        n3, n5, n7 = (len(ops.neighbour_offsets(s, cfg.refine_neighbourhood)) for s in (3, 5, 7))
+        self.aff3 = ops.Conv(c, n3, 1, padding=0)
+        self.aff5 = ops.Conv(c, n5, 1, padding=0)
+        self.aff7 = ops.Conv(c, n7, 1, padding=0)
         self.kmix = ops.Conv(c, 3, 1, padding=0)
         self.tmix = ops.Conv(c, 3, 1, padding=0)
-        self.refine = ops.Refine(cfg.iterations, cfg.sigmas)
+        self.refine = ops.Refine(cfg.iterations, cfg.sigmas, cfg.refine_neighbourhood)
 
     def forward(self, rgb: Tensor, sparse: Tensor) -> Tensor:
         h, w = int(rgb.shape[2]), int(rgb.shape[3])

@@ -38,6 +38,8 @@ class NetConfig:
     cspn_channels: int = 8
     iterations: int = 6
     sigmas: tuple[float, float, float] = (1.0, 2.0, 3.0)
+    # refine's neighbours per window: "window" (8/24/48, the paper's) or "dilated" (8 each)
+    refine_neighbourhood: str = "window"
     cbam_reduction: int = 4
     leaky_alpha: float = 0.1
     # "dense": `Depthor` below (the paper's blocks); "lite": `lite.DepthorLite` (depthwise-
@@ -53,6 +55,8 @@ class NetConfig:
                 raise ValueError(f"{name} needs 5 entries (1/2 … 1/32)")
         if any(b < 1 for b in self.rgb_blocks[1:]):
             raise ValueError("rgb_blocks[1:] must be >= 1 (the strided block)")
+        if self.refine_neighbourhood not in ("window", "dilated"):
+            raise ValueError("refine_neighbourhood must be 'window' or 'dilated'")
         if self.height % 2 or self.width % 2:
             raise ValueError("height and width must be even (pixel_shuffle(2) back to full size)")
 
@@ -132,8 +136,8 @@ def config(variant: str, **overrides) -> NetConfig:
 
 
 def parse_overrides(items: list[str]) -> dict:
-    """`FIELD=VALUE` strings (int/float/tuple literals) → NetConfig overrides for `config`;
-    unknown fields are errors."""
+    """`FIELD=VALUE` strings (int/float/tuple literals, or a bare word for a string field) →
+    NetConfig overrides for `config`; unknown fields are errors."""
     import ast
     fields = set(NetConfig.__dataclass_fields__)
     out = {}
@@ -141,7 +145,10 @@ def parse_overrides(items: list[str]) -> dict:
         k, sep, v = kv.partition("=")
         if not sep or k not in fields:
             raise ValueError(f"--set {kv!r}: expected FIELD=VALUE with FIELD a NetConfig field")
-        out[k] = ast.literal_eval(v)
+        try:
+            out[k] = ast.literal_eval(v)
+        except (ValueError, SyntaxError):
+            out[k] = v  # a bare word: a string field such as refine_neighbourhood
     return out
 
 
@@ -214,12 +221,13 @@ class Depthor(nn.Module):
         self.guide_cbam = CBAM(guide, cfg.cbam_reduction)
         self.guide_conv = ConvBNAct(guide, 4 * cfg.cspn_channels, 3, 1, act="leaky_relu", alpha=a)
         c = cfg.cspn_channels
-        self.aff3 = ops.Conv(c, 8, 3)
-        self.aff5 = ops.Conv(c, 24, 3)
-        self.aff7 = ops.Conv(c, 48, 3)
+        n3, n5, n7 = (len(ops.neighbour_offsets(s, cfg.refine_neighbourhood)) for s in (3, 5, 7))
+        self.aff3 = ops.Conv(c, n3, 3)
+        self.aff5 = ops.Conv(c, n5, 3)
+        self.aff7 = ops.Conv(c, n7, 3)
         self.kmix = ops.Conv(c, 3, 3)
         self.tmix = ops.Conv(c, 3, 3)
-        self.refine = ops.Refine(cfg.iterations, cfg.sigmas)
+        self.refine = ops.Refine(cfg.iterations, cfg.sigmas, cfg.refine_neighbourhood)
 
     def forward(self, rgb: Tensor, sparse: Tensor) -> Tensor:
         h, w = int(rgb.shape[2]), int(rgb.shape[3])

@@ -329,10 +329,18 @@ def bins_head_math(
     return (e * centres).sum(dim=1, keepdim=True) / e.sum(dim=1, keepdim=True)
 
 
-def neighbour_offsets(size: int) -> list[tuple[int, int]]:
-    """(dy, dx) of the s*s window in raster order, centre skipped (channel c <-> c-th entry)."""
+NEIGHBOURHOODS = ("window", "dilated")
+
+
+def neighbour_offsets(size: int, neighbourhood: str = "window") -> list[tuple[int, int]]:
+    """(dy, dx) of the s*s window's neighbours in raster order, centre skipped (channel c <-> c-th
+    entry): every pixel ("window", s*s - 1) or the 3×3 ring dilated by s // 2 ("dilated", 8)."""
+    if neighbourhood not in NEIGHBOURHOODS:
+        raise ValueError(f"refine: neighbourhood must be one of {NEIGHBOURHOODS}")
     r = size // 2
-    return [(dy, dx) for dy in range(-r, r + 1) for dx in range(-r, r + 1) if (dy, dx) != (0, 0)]
+    step = r if neighbourhood == "dilated" and r > 0 else 1
+    return [(dy, dx) for dy in range(-r, r + 1, step) for dx in range(-r, r + 1, step)
+            if (dy, dx) != (0, 0)]
 
 
 def _inside_mask(offsets: list[tuple[int, int]], h: int, w: int, dtype, device=None) -> Tensor:
@@ -363,17 +371,20 @@ def refine_math(
     sigmas: Tensor,
     sizes: tuple[int, ...] = (3, 5, 7),
     iterations: int = 6,
+    neighbourhood: str = "window",
 ) -> Tensor:
     """docs/graph.md refine semantics with F.pad + shifted slices (neighbours outside the image add 0).
 
-    `sigmas` is a 1-D tensor [σ3, σ5, σ7] (learnable in training, constants in the graph).
+    `sigmas` is a 1-D tensor [σ3, σ5, σ7] (learnable in training, constants in the graph);
+    `neighbourhood` picks each window's neighbours (`neighbour_offsets`); window pixels that are
+    not neighbours get weight 0.
     """
     if iterations % 2 != 0:
         raise ValueError("refine: iterations must be even")
     h, w = int(d0.shape[2]), int(d0.shape[3])
     kernels = []
     for k, (size, aff) in enumerate(zip(sizes, affs)):
-        offs = neighbour_offsets(size)
+        offs = neighbour_offsets(size, neighbourhood)
         if aff.shape[1] != len(offs):
             raise ValueError(f"refine: aff{size} needs {len(offs)} channels, got {aff.shape[1]}")
         d2 = torch.tensor([float(dy * dy + dx * dx) for dy, dx in offs], dtype=d0.dtype,
@@ -385,10 +396,16 @@ def refine_math(
         # weights in _window_stack's channel order (column-major, centre included)
         r = size // 2
         full = []
+        zero = torch.zeros_like(wc)
         for b in range(size):
             for a in range(size):
                 dy, dx = a - r, b - r
-                full.append(wc if (dy, dx) == (0, 0) else wj.narrow(1, offs.index((dy, dx)), 1))
+                if (dy, dx) == (0, 0):
+                    full.append(wc)
+                elif (dy, dx) in offs:
+                    full.append(wj.narrow(1, offs.index((dy, dx)), 1))
+                else:
+                    full.append(zero)
         kernels.append((size, torch.cat(full, dim=1)))
     ksm = channel_softmax(kmix)
     tsm = channel_softmax(tmix)
@@ -492,21 +509,33 @@ class BinsHead(nn.Module):
 
 
 class Refine(nn.Module):
-    """docs/graph.md refine: 3/5/7 affinity propagation, T iterations, per-pixel kernel/time mixing."""
+    """docs/graph.md refine: 3/5/7 affinity propagation, T iterations, per-pixel kernel/time mixing;
+    each window's neighbours as `neighbourhood` says (`neighbour_offsets`)."""
 
     SIZES = (3, 5, 7)
 
-    def __init__(self, iterations: int = 6, sigmas: tuple[float, float, float] = (1.0, 2.0, 3.0)):
+    def __init__(self, iterations: int = 6, sigmas: tuple[float, float, float] = (1.0, 2.0, 3.0),
+                 neighbourhood: str = "window"):
         super().__init__()
         if iterations % 2 != 0 or iterations < 2:
             raise ValueError("refine: iterations must be even and >= 2")
+        if neighbourhood not in NEIGHBOURHOODS:
+            raise ValueError(f"refine: neighbourhood must be one of {NEIGHBOURHOODS}")
         self.iterations = iterations
+        self.neighbourhood = neighbourhood
         self.sigma = nn.Parameter(torch.tensor(sigmas, dtype=torch.float32))
 
+    def neighbours(self) -> list[int]:
+        """Affinity channels of the three branches."""
+        return [len(neighbour_offsets(s, self.neighbourhood)) for s in self.SIZES]
+
     def forward(self, d0, aff3, aff5, aff7, kmix, tmix) -> Tensor:
-        y = refine_math(d0, [aff3, aff5, aff7], kmix, tmix, self.sigma, self.SIZES, self.iterations)
+        y = refine_math(d0, [aff3, aff5, aff7], kmix, tmix, self.sigma, self.SIZES, self.iterations,
+                        self.neighbourhood)
         if _ACTIVE is None:
             return _rec("refine", [], y)
         attrs = {"iterations": self.iterations,
                  "sigma": [float(s) for s in self.sigma.detach().cpu()]}
+        if self.neighbourhood != "window":
+            attrs["neighbourhood"] = self.neighbourhood
         return _rec("refine", [d0, aff3, aff5, aff7, kmix, tmix], y, attrs, None, self)

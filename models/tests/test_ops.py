@@ -124,3 +124,41 @@ def test_recorder_refuses_unrecorded_tensors():
         rec.add_input("x", torch.zeros(1, 1, 4, 4))
         with pytest.raises(RuntimeError, match="not produced by a recorded graph op"):
             conv(torch.ones(1, 1, 4, 4))
+
+
+def test_dilated_neighbourhood_is_the_ring_of_each_window():
+    for size in (3, 5, 7):
+        r = size // 2
+        offs = ops.neighbour_offsets(size, "dilated")
+        assert offs == [(dy, dx) for dy in (-r, 0, r) for dx in (-r, 0, r) if (dy, dx) != (0, 0)]
+        assert offs == interp.offsets(size, "dilated")
+        assert set(offs) <= set(ops.neighbour_offsets(size))
+    with pytest.raises(ValueError):
+        ops.neighbour_offsets(5, "ring")
+
+
+def test_dilated_refine_torch_matches_interpreter_and_ignores_the_rest_of_the_window():
+    g = torch.Generator().manual_seed(5)
+    h, w = 10, 13
+    d0 = 1 + torch.rand(1, 1, h, w, generator=g)
+    affs = [torch.randn(1, 8, h, w, generator=g) for _ in range(3)]
+    kmix, tmix = torch.randn(1, 3, h, w, generator=g), torch.randn(1, 3, h, w, generator=g)
+    sig = [0.9, 1.6, 2.4]
+    out = ops.refine_math(d0, affs, kmix, tmix, torch.tensor(sig), iterations=4,
+                          neighbourhood="dilated")
+    ref = interp.refine(d0[0].double().numpy(), [a[0].double().numpy() for a in affs],
+                        kmix[0].double().numpy(), tmix[0].double().numpy(), 4, sig, "dilated")
+    assert np.abs(out[0].double().numpy() - ref).max() < 1e-5
+    # The same as the whole window with the non-ring channels' affinities at zero (relu → 0).
+    full = []
+    for size, a in zip((3, 5, 7), affs):
+        window, ring = ops.neighbour_offsets(size), ops.neighbour_offsets(size, "dilated")
+        f = torch.full((1, len(window), h, w), -1.0)
+        for c, o in enumerate(ring):
+            f[:, window.index(o)] = a[:, c]
+        full.append(f)
+    same = ops.refine_math(d0, full, kmix, tmix, torch.tensor(sig), iterations=4)
+    assert torch.allclose(out, same, atol=1e-6)
+    with pytest.raises(ValueError):
+        ops.refine_math(d0, full, kmix, tmix, torch.tensor(sig), iterations=4,
+                        neighbourhood="dilated")

@@ -44,3 +44,27 @@ def test_export_applies_the_overrides(tmp_path):
     nodes = json.loads((tmp_path / "graph.json").read_text())["nodes"]
     attrs = {n["op"]: n["attrs"] for n in nodes if n["op"] in ("bins_head", "refine")}
     assert attrs["bins_head"]["n_bins"] == 32 and attrs["refine"]["iterations"] == 4
+
+
+def test_dilated_heads_keep_the_ring_channels_and_export(tmp_path):
+    import json
+
+    from depthor_models import ops
+    from depthor_models.dilate import dilated_heads
+    from depthor_models.export import export_variant
+
+    assert parse_overrides(["refine_neighbourhood=dilated"]) == {"refine_neighbourhood": "dilated"}
+    state = build("mcu_lite", seed=4).state_dict()
+    cut = dilated_heads(state)
+    net = build("mcu_lite", seed=4, refine_neighbourhood="dilated")
+    net.load_state_dict(cut)  # the shapes of the dilated network
+    window, ring = ops.neighbour_offsets(7), ops.neighbour_offsets(7, "dilated")
+    for c, o in enumerate(ring):
+        assert torch.equal(cut["aff7.weight"][c], state["aff7.weight"][window.index(o)])
+        assert cut["aff7.bias"][c] == state["aff7.bias"][window.index(o)]
+    with pytest.raises(ValueError):
+        dilated_heads(cut)
+    export_variant("mcu_lite", tmp_path, nnef=False, overrides={"refine_neighbourhood": "dilated"})
+    nodes = json.loads((tmp_path / "graph.json").read_text())["nodes"]
+    refine = next(n for n in nodes if n["op"] == "refine")
+    assert refine["attrs"]["neighbourhood"] == "dilated"

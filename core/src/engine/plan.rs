@@ -456,7 +456,7 @@ impl RefineScratch {
 fn refine_scratch(
     f: &FusedRefine,
     (h, w): (usize, usize),
-    iterations: usize,
+    attrs: &refine::RefineAttrs,
     head_scratch: &[usize],
     head_consts: &[usize],
 ) -> Result<RefineScratch, PlanError> {
@@ -467,8 +467,8 @@ fn refine_scratch(
             .and_then(round_up)
     };
     let mut s = RefineScratch {
-        windows: bytes(refine::scratch_len(w, iterations))?,
-        ring: round_up(refine::ring_bytes(h, w, iterations))?,
+        windows: bytes(refine::scratch_len(w, attrs.iterations))?,
+        ring: round_up(refine::ring_bytes(h, w, attrs))?,
         aff_consts: f.aff.map(|j| at(head_consts, j)),
         aff_conv: round_up(
             f.aff
@@ -480,7 +480,7 @@ fn refine_scratch(
         mix: [[0; 3]; 2],
     };
     if let Some(mix) = f.mix {
-        let ring = round_up(refine::MixConvRows::ring_bytes(h, w, iterations))?;
+        let ring = round_up(refine::MixConvRows::ring_bytes(h, w, attrs.iterations))?;
         for (m, &j) in s.mix.iter_mut().zip(&mix) {
             *m = [ring, at(head_consts, j), round_up(at(head_scratch, j))?];
         }
@@ -752,7 +752,7 @@ fn plan_fused(
                     scratch: RefineScratch::default(),
                 };
                 let hw = (p.out.h, p.out.w);
-                f.scratch = refine_scratch(&f, hw, attrs.iterations, &head_scratch, &head_consts)?;
+                f.scratch = refine_scratch(&f, hw, attrs, &head_scratch, &head_consts)?;
                 p.scratch = f.scratch.total()?;
                 fused.push(f).map_err(|_| PlanError::TooLarge)?;
                 // The fused ops' inputs are read while the refinement runs.

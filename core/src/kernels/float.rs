@@ -248,9 +248,9 @@ pub fn refine(
     scratch: &mut [f32],
 ) -> Result<(), KernelError> {
     let p = h.checked_mul(w).ok_or(KernelError::Shape)?;
-    let a3 = F32Map::new(aff[0], 8, p)?;
-    let a5 = F32Map::new(aff[1], 24, p)?;
-    let a7 = F32Map::new(aff[2], 48, p)?;
+    let a3 = F32Map::new(aff[0], attrs.neighbours(0), p)?;
+    let a5 = F32Map::new(aff[1], attrs.neighbours(1), p)?;
+    let a7 = F32Map::new(aff[2], attrs.neighbours(2), p)?;
     let km = F32Map::new(kmix, 3, p)?;
     let tm = F32Map::new(tmix, 3, p)?;
     refine::refine(d0, h, w, [&a3, &a5, &a7], &km, &tm, attrs, out, scratch)

@@ -12,8 +12,8 @@ use crate::engine::plan::{OpPlan, Plan, PlanError};
 use crate::engine::{Error, FusedRefine};
 use crate::kernels::isa::Isa;
 use crate::kernels::refine::{
-    self, refine_with, AffinityRows, ConvRows, DepthRows, I8Map, MixConvRows, RefineAttrs, Sources,
-    UpsampledDepth, WholeDepth, WholeMaps, WholeMix, KERNELS, MAX_ITERATIONS,
+    self, refine_with, AffinityRows, ConvRows, DepthRows, I8Map, MixConvRows, Neighbourhood,
+    RefineAttrs, Sources, UpsampledDepth, WholeDepth, WholeMaps, WholeMix, MAX_ITERATIONS,
 };
 use crate::kernels::KernelError;
 use core::ops::Range;
@@ -21,11 +21,18 @@ use core::ops::Range;
 /// `D_0`, the affinities of kernels 3, 5, 7, kmix, tmix.
 pub(crate) const ARITY: (usize, usize) = (6, 6);
 
-/// `T`, reserved u16, `σ3, σ5, σ7`.
+/// `T`, the neighbourhood's code (u16), `σ3, σ5, σ7`.
 pub(crate) fn read_attrs(a: &mut Reader) -> Result<(Attrs, [u32; 3]), BlobError> {
     let at = a.pos;
     let iterations = a.u16("refine: iterations")? as usize;
-    a.zero16("refine: reserved")?;
+    let nb_at = a.pos;
+    let neighbourhood =
+        Neighbourhood::from_code(a.u16("refine: neighbourhood")?).ok_or_else(|| {
+            bad(
+                nb_at,
+                "refine: neighbourhood must be 0 (window) or 1 (dilated)",
+            )
+        })?;
     let sigma = [
         a.f32("refine: sigma3")?,
         a.f32("refine: sigma5")?,
@@ -40,16 +47,25 @@ pub(crate) fn read_attrs(a: &mut Reader) -> Result<(Attrs, [u32; 3]), BlobError>
             "refine: iterations must be even and <= 64, sigmas finite and > 0",
         ));
     }
-    Ok((Attrs::Refine(RefineAttrs { iterations, sigma }), [NONE; 3]))
+    let attrs = RefineAttrs {
+        iterations,
+        sigma,
+        neighbourhood,
+    };
+    Ok((Attrs::Refine(attrs), [NONE; 3]))
 }
 
-/// f32 `D_0`, int8 maps of 8, 24, 48, 3, 3 channels; one f32 channel out.
+/// f32 `D_0`, int8 affinity maps of one channel per neighbour (8, 24, 48 for the whole
+/// windows, 8 each dilated), int8 kmix and tmix of 3; one f32 channel out.
 pub(crate) fn types_ok(k: &Types) -> Result<bool, BlobError> {
+    let Attrs::Refine(attrs) = &k.op.attrs else {
+        return Ok(false);
+    };
     let want = [
         (DType::F32, 1),
-        (DType::I8, 8),
-        (DType::I8, 24),
-        (DType::I8, 48),
+        (DType::I8, attrs.neighbours(0)),
+        (DType::I8, attrs.neighbours(1)),
+        (DType::I8, attrs.neighbours(2)),
         (DType::I8, 3),
         (DType::I8, 3),
     ];
@@ -89,9 +105,9 @@ pub(crate) fn eval(e: Eval) -> Result<(), Error> {
         I8Map::new(typed(e.ins[k], i)?, e.q(e.op.inputs[k])?, c, p).map_err(kerr)
     };
     let aff = [
-        m(1, KERNELS[0] * KERNELS[0] - 1)?,
-        m(2, KERNELS[1] * KERNELS[1] - 1)?,
-        m(3, KERNELS[2] * KERNELS[2] - 1)?,
+        m(1, attrs.neighbours(0))?,
+        m(2, attrs.neighbours(1))?,
+        m(3, attrs.neighbours(2))?,
     ];
     let (km, tm) = (m(4, 3)?, m(5, 3)?);
     let (h, w) = (e.x.h, e.x.w);
@@ -167,7 +183,6 @@ pub(crate) fn eval_streamed<'a>(
     let shape = plan.shape(op.output).ok_or(bad)?;
     let (h, w) = (shape.h, shape.w);
     let p = shape.plane().ok_or(bad)?;
-    let t = attrs.iterations;
     let sz = f.scratch;
     let (win_b, rest) = take(scr_b, sz.windows, i)?;
     let (ring_b, rest) = take(rest, sz.ring, i)?;
@@ -182,7 +197,7 @@ pub(crate) fn eval_streamed<'a>(
         hd(f.aff[2], c2, 5)?,
     ];
     let (ring, conv) = (typed_mut(ring_b, i)?, typed_mut(conv_b, i)?);
-    let mut aff = ConvRows::new(isa, hs, h, w, t, ring, conv).map_err(e)?;
+    let mut aff = ConvRows::new(isa, hs, (h, w), attrs, ring, conv).map_err(e)?;
     let scratch: &mut [f32] = typed_mut(win_b, i)?;
     let mut depth = match f.depth {
         Some(_) => {

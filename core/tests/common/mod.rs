@@ -16,7 +16,7 @@ use depthor_core::kernels::bins::BinsAttrs;
 use depthor_core::kernels::conv::{Activation, ConvGeometry};
 use depthor_core::kernels::elementwise::build_lut;
 use depthor_core::kernels::float::{self, Broadcast};
-use depthor_core::kernels::refine::RefineAttrs;
+use depthor_core::kernels::refine::{Neighbourhood, RefineAttrs};
 use depthor_core::kernels::requant::QParams;
 use depthor_core::kernels::resize::upsample_bilinear_f32;
 use depthor_core::kernels::Shape;
@@ -406,7 +406,8 @@ impl Net {
                     bw.op(opcode::BINS_HEAD, &[*f as u16, *logits as u16], out, &a);
                 }
                 Op::Refine { ins, attrs } => {
-                    let a = refine_attrs(attrs.iterations as u16, attrs.sigma);
+                    let nb = attrs.neighbourhood.code();
+                    let a = refine_attrs(attrs.iterations as u16, nb, attrs.sigma);
                     bw.op(opcode::REFINE, &ins.map(|v| v as u16), out, &a);
                 }
             }
@@ -440,6 +441,11 @@ fn quantize_rows(
 
 /// The test network at `h × w` (both divisible by 2): every op of the blob vocabulary appears.
 pub fn tiny_net(h: usize, w: usize) -> Net {
+    tiny_net_with(h, w, Neighbourhood::Window)
+}
+
+/// [`tiny_net`] with the refinement's neighbourhood `hood`.
+pub fn tiny_net_with(h: usize, w: usize, hood: Neighbourhood) -> Net {
     let mut rng = Lcg(7);
     let mut n = Net {
         h,
@@ -527,9 +533,9 @@ pub fn tiny_net(h: usize, w: usize) -> Net {
         padding: [1, 1],
         ..ConvGeometry::POINTWISE
     };
-    let a3 = n.conv(&mut rng, gcat, 12, 8, g3, Activation::None);
-    let a5 = n.conv(&mut rng, gcat, 12, 24, g3, Activation::None);
-    let a7 = n.conv(&mut rng, gcat, 12, 48, g3, Activation::None);
+    let a3 = n.conv(&mut rng, gcat, 12, hood.neighbours(3), g3, Activation::None);
+    let a5 = n.conv(&mut rng, gcat, 12, hood.neighbours(5), g3, Activation::None);
+    let a7 = n.conv(&mut rng, gcat, 12, hood.neighbours(7), g3, Activation::None);
     let km = n.conv(&mut rng, gcat, 12, 3, g3, Activation::None);
     let tm = n.conv(&mut rng, gcat, 12, 3, g3, Activation::None);
     n.add_op(Op::Refine {
@@ -537,6 +543,7 @@ pub fn tiny_net(h: usize, w: usize) -> Net {
         attrs: RefineAttrs {
             iterations: 4,
             sigma: [1.0, 1.5, 2.0],
+            neighbourhood: hood,
         },
     });
     n

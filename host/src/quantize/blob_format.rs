@@ -169,9 +169,9 @@ pub fn bins_head_attrs(n_bins: u16, min_depth: f32, max_depth: f32, refs: [u32; 
     a
 }
 
-/// `refine` attributes: iterations and the three kernels' σ.
-pub fn refine_attrs(iterations: u16, sigma: [f32; 3]) -> Vec<u8> {
-    let mut a = le16(&[iterations, 0]);
+/// `refine` attributes: iterations, the neighbourhood's code and the three kernels' σ.
+pub fn refine_attrs(iterations: u16, neighbourhood: u16, sigma: [f32; 3]) -> Vec<u8> {
+    let mut a = le16(&[iterations, neighbourhood]);
     for s in sigma {
         a.extend_from_slice(&s.to_le_bytes());
     }

@@ -43,7 +43,7 @@ fn attributes_have_the_parsed_lengths() {
         36
     );
     assert_eq!(bins_head_attrs(8, 0.1, 10.0, [0, 16, 32]).len(), 24);
-    assert_eq!(refine_attrs(4, [1.0, 2.0, 3.0]).len(), 16);
+    assert_eq!(refine_attrs(4, 1, [1.0, 2.0, 3.0]).len(), 16);
     assert_eq!(upsample_attrs(0, 1, 2).len(), 8);
     assert_eq!(pixel_shuffle_attrs(2).len(), 4);
 }

@@ -189,7 +189,8 @@ pub fn write_blob(net: &Net, qparams: &[QParams]) -> Result<Vec<u8>, BlobError> 
             }
             OpKind::Refine(attrs) => {
                 let iterations = u16_of("refine iterations", attrs.iterations)?;
-                (opcode::REFINE, refine_attrs(iterations, attrs.sigma))
+                let nb = attrs.neighbourhood.code();
+                (opcode::REFINE, refine_attrs(iterations, nb, attrs.sigma))
             }
         };
         bw.op(code, &ins, out, &attrs);

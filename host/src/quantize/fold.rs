@@ -334,7 +334,8 @@ fn lower(
         }
         NodeOp::BinsHead { .. } => lower_bins_head(b, node, x)?,
         NodeOp::Refine(attrs) => {
-            let want = [1, 8, 24, 48, 3, 3];
+            let n = |k| attrs.neighbours(k);
+            let want = [1, n(0), n(1), n(2), 3, 3];
             let mut ids = Vec::new();
             for (k, c) in want.iter().enumerate() {
                 let v = b.input(node, k)?;

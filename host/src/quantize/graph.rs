@@ -4,7 +4,7 @@
 
 use depthor_core::kernels::bins::BinsAttrs;
 use depthor_core::kernels::conv::ConvGeometry;
-use depthor_core::kernels::refine::RefineAttrs;
+use depthor_core::kernels::refine::{Neighbourhood, RefineAttrs};
 use serde_json::{Map, Value};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -685,9 +685,22 @@ impl NodeFields<'_> {
         if !iterations.is_multiple_of(2) {
             return Err(self.c.err(&join(&self.aat, "iterations"), "must be even"));
         }
+        let at = join(&self.aat, "neighbourhood");
+        let neighbourhood = match self.attrs.get("neighbourhood") {
+            None => Neighbourhood::Window,
+            Some(v) => match v.as_str() {
+                Some("window") => Neighbourhood::Window,
+                Some("dilated") => Neighbourhood::Dilated,
+                _ => {
+                    let why = format!("expected \"window\" or \"dilated\", got {v}");
+                    return Err(self.c.err(&at, why));
+                }
+            },
+        };
         Ok(NodeOp::Refine(RefineAttrs {
             iterations,
             sigma: [sig[0], sig[1], sig[2]],
+            neighbourhood,
         }))
     }
 
@@ -845,6 +858,28 @@ mod tests {
             .unwrap_err()
             .to_string()
             .starts_with("g.json: format:"));
+
+        // refine's neighbourhood: absent = window, a known word, or an error naming the field.
+        let refine = |nb: Option<Value>| {
+            let mut d = doc();
+            let mut attrs = json!({"iterations": 2, "sigma": [1.0, 2.0, 3.0]});
+            if let Some(v) = nb {
+                attrs["neighbourhood"] = v;
+            }
+            d["nodes"] = json!([{"op": "refine", "name": "r",
+                "inputs": ["sparse", "sparse", "sparse", "sparse", "sparse", "sparse"],
+                "output": "y", "attrs": attrs}]);
+            parse(&d, &weights(&[1.0])).map(|g| match &g.nodes[0].op {
+                NodeOp::Refine(a) => a.neighbourhood,
+                other => panic!("{other:?}"),
+            })
+        };
+        use depthor_core::kernels::refine::Neighbourhood as N;
+        assert_eq!(refine(None).unwrap(), N::Window);
+        assert_eq!(refine(Some(json!("window"))).unwrap(), N::Window);
+        assert_eq!(refine(Some(json!("dilated"))).unwrap(), N::Dilated);
+        let e = refine(Some(json!("ring"))).unwrap_err().to_string();
+        assert!(e.contains("nodes[0].attrs.neighbourhood: expected"), "{e}");
 
         let mut d = doc();
         d["tensors"]["w"]["offset"] = json!(4);

@@ -3,7 +3,7 @@
 //! [`MixConvRows`]: the same for the kmix and tmix heads, in rings of [`mix_ring_rows`] rows
 //! (module doc of [`super`], "Streaming").
 
-use super::{mix_ring_rows, ring_bytes, ring_rows, AffinityRows, I8Map, MixRows, KERNELS};
+use super::{mix_ring_rows, ring_bytes, ring_rows, AffinityRows, I8Map, MixRows, RefineAttrs};
 use crate::kernels::conv::{conv2d_rows_packed, Conv2d, OutRows};
 use crate::kernels::isa::Isa;
 use crate::kernels::requant::QParams;
@@ -12,7 +12,7 @@ use crate::kernels::{KernelError, Shape};
 /// One branch's affinity head: the convolution, its input and its output quantisation.
 #[derive(Clone, Copy, Debug)]
 pub struct Head<'a> {
-    /// The head (stride 1, output `s² − 1` channels at the refinement's size).
+    /// The head (stride 1, output one channel per neighbour at the refinement's size).
     pub conv: Conv2d<'a>,
     /// Its int8 input.
     pub input: &'a [i8],
@@ -65,29 +65,28 @@ pub struct ConvRows<'a, 'r> {
     scratch: &'r mut [i32],
     h: usize,
     w: usize,
-    iterations: usize,
+    attrs: RefineAttrs,
     /// The branch whose head's weights `scratch` holds packed.
     packed: Option<usize>,
 }
 
 impl<'a, 'r> ConvRows<'a, 'r> {
-    /// Heads of kernels 3, 5, 7 for a `h × w` refinement of `iterations` steps; `ring` holds ≥
+    /// Heads of kernels 3, 5, 7 for a `h × w` refinement with `attrs`; `ring` holds ≥
     /// [`ring_bytes`] bytes and `scratch` ≥ every head's [`Conv2d::scratch_len`] i32.
-    /// `Err(Shape)` where a head's output is not `[s² − 1, h, w]` or a buffer is short.
+    /// `Err(Shape)` where a head's output is not `[neighbours, h, w]` or a buffer is short.
     pub fn new(
         isa: Isa,
         heads: [Head<'a>; 3],
-        h: usize,
-        w: usize,
-        iterations: usize,
+        (h, w): (usize, usize),
+        attrs: &RefineAttrs,
         ring: &'r mut [i8],
         scratch: &'r mut [i32],
     ) -> Result<Self, KernelError> {
-        if ring.len() < ring_bytes(h, w, iterations) {
+        if ring.len() < ring_bytes(h, w, attrs) {
             return Err(KernelError::Shape);
         }
-        for (head, s) in heads.iter().zip(KERNELS) {
-            head.check(Shape::new(s * s - 1, h, w), scratch.len())?;
+        for (k, head) in heads.iter().enumerate() {
+            head.check(Shape::new(attrs.neighbours(k), h, w), scratch.len())?;
         }
         Ok(ConvRows {
             isa,
@@ -96,14 +95,14 @@ impl<'a, 'r> ConvRows<'a, 'r> {
             scratch,
             h,
             w,
-            iterations,
+            attrs: *attrs,
             packed: None,
         })
     }
 
     /// Rows in branch `k`'s ring.
     fn rows(&self, k: usize) -> usize {
-        ring_rows(k, self.h, self.iterations).max(1)
+        ring_rows(k, self.h, self.attrs.iterations).max(1)
     }
 }
 
@@ -130,7 +129,7 @@ impl AffinityRows for ConvRows<'_, '_> {
     fn view(&self, k: usize, y: usize) -> Result<(I8Map<'_>, usize), KernelError> {
         let rows = self.rows(k);
         let head = self.heads.get(k).ok_or(KernelError::Shape)?;
-        let n = KERNELS[k] * KERNELS[k] - 1;
+        let n = self.attrs.neighbours(k);
         let map = I8Map::new(self.ring, head.out_q, n, rows * self.w)?;
         Ok((map, (y % rows) * self.w))
     }
@@ -220,8 +219,8 @@ mod tests {
     use super::*;
     use crate::kernels::conv::{conv2d_with, Activation, ChannelQuant, ConvGeometry, ConvQuant};
     use crate::kernels::refine::{
-        refine_with, scratch_len, RefineAttrs, Sources, UpsampledDepth, WholeDepth, WholeMaps,
-        WholeMix,
+        refine_with, scratch_len, Neighbourhood, RefineAttrs, Sources, UpsampledDepth, WholeDepth,
+        WholeMaps, WholeMix,
     };
     use crate::kernels::resize::upsample_bilinear_f32;
     use std::vec::Vec;
@@ -246,12 +245,14 @@ mod tests {
     #[test]
     fn streamed_heads_equal_whole_maps() {
         let mut rng = Rng(99);
-        for (h, w, t, k) in [
-            (17usize, 21usize, 6usize, 3usize),
-            (9, 8, 2, 1),
-            (40, 13, 8, 3),
-            (5, 30, 4, 1),
-            (24, 32, 6, 3),
+        for (h, w, t, k, nb) in [
+            (17usize, 21usize, 6usize, 3usize, Neighbourhood::Window),
+            (9, 8, 2, 1, Neighbourhood::Window),
+            (40, 13, 8, 3, Neighbourhood::Window),
+            (5, 30, 4, 1, Neighbourhood::Window),
+            (24, 32, 6, 3, Neighbourhood::Window),
+            (23, 19, 6, 1, Neighbourhood::Dilated),
+            (6, 11, 4, 3, Neighbourhood::Dilated),
         ] {
             let cin = 6;
             let in_shape = Shape::new(cin, h, w);
@@ -268,7 +269,7 @@ mod tests {
                 groups: 1,
             };
             // Heads 0..3: affinities of kernels 3, 5, 7; 3: kmix; 4: tmix.
-            let outs = [8usize, 24, 48, 3, 3];
+            let outs = [nb.neighbours(3), nb.neighbours(5), nb.neighbours(7), 3, 3];
             let mut weights = Vec::new();
             let mut chans = Vec::new();
             let mut qs = Vec::new();
@@ -307,6 +308,7 @@ mod tests {
             let attrs = RefineAttrs {
                 iterations: t,
                 sigma: [1.0, 1.4, 2.1],
+                neighbourhood: nb,
             };
             let conv_scratch_len = (0..5)
                 .map(|b| {
@@ -346,7 +348,7 @@ mod tests {
                     in_shape,
                     out_q: qs[b],
                 };
-                let mut ring = std::vec![0i8; ring_bytes(h, w, t)];
+                let mut ring = std::vec![0i8; ring_bytes(h, w, &attrs)];
                 let mut mix_rings =
                     [0, 1].map(|_| std::vec![0i8; MixConvRows::ring_bytes(h, w, t)]);
                 let mut mix_scratch = [0, 1].map(|_| std::vec![0i32; conv_scratch_len]);
@@ -354,7 +356,8 @@ mod tests {
                 let [s0, s1] = &mut mix_scratch;
                 let mut streamed = std::vec![0f32; h * w];
                 let heads = [head(0), head(1), head(2)];
-                let mut rows = ConvRows::new(isa, heads, h, w, t, &mut ring, &mut scratch).unwrap();
+                let mut rows =
+                    ConvRows::new(isa, heads, (h, w), &attrs, &mut ring, &mut scratch).unwrap();
                 let mut mix =
                     MixConvRows::new(isa, [head(3), head(4)], h, w, t, [r0, r1], [s0, s1]).unwrap();
                 let sources = Sources {
@@ -369,7 +372,7 @@ mod tests {
                     .all(|(a, b)| a.to_bits() == b.to_bits());
                 assert!(
                     same,
-                    "{} {h}x{w} T{t} k{k}: streamed heads differ",
+                    "{} {h}x{w} T{t} k{k} {nb:?}: streamed heads differ",
                     isa.name()
                 );
             }
@@ -403,18 +406,45 @@ mod tests {
                 zero_point: 0,
             },
         };
-        let mut ring = std::vec![0i8; ring_bytes(4, 4, 2)];
+        let window = RefineAttrs {
+            iterations: 2,
+            sigma: [1.0; 3],
+            neighbourhood: Neighbourhood::Window,
+        };
+        let dilated = RefineAttrs {
+            neighbourhood: Neighbourhood::Dilated,
+            ..window
+        };
+        let mut ring = std::vec![0i8; ring_bytes(4, 4, &window)];
         let mut scratch = std::vec![0i32; 4096];
         // The 8-channel head cannot stand for the 24- and 48-channel branches.
-        let r = ConvRows::new(Isa::Portable, [head; 3], 4, 4, 2, &mut ring, &mut scratch);
-        assert_eq!(r.err(), Some(KernelError::Shape));
         let r = ConvRows::new(
             Isa::Portable,
             [head; 3],
-            4,
-            4,
-            2,
-            &mut ring[..3],
+            (4, 4),
+            &window,
+            &mut ring,
+            &mut scratch,
+        );
+        assert_eq!(r.err(), Some(KernelError::Shape));
+        // With 8 dilated neighbours per branch it can; the ring then needs fewer bytes.
+        let need = ring_bytes(4, 4, &dilated);
+        assert!(need < ring.len());
+        let r = ConvRows::new(
+            Isa::Portable,
+            [head; 3],
+            (4, 4),
+            &dilated,
+            &mut ring[..need],
+            &mut scratch,
+        );
+        assert!(r.is_ok());
+        let r = ConvRows::new(
+            Isa::Portable,
+            [head; 3],
+            (4, 4),
+            &dilated,
+            &mut ring[..need - 1],
             &mut scratch,
         );
         assert_eq!(r.err(), Some(KernelError::Shape));

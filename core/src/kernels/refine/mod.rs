@@ -48,6 +48,53 @@ pub const MAX_ITERATIONS: usize = 64;
 /// Kernel sizes of the three branches.
 pub const KERNELS: [usize; 3] = [3, 5, 7];
 
+/// Which pixels of a branch's `s × s` window are its neighbours (docs/graph.md `refine`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Neighbourhood {
+    /// Every pixel of the window but the centre: 8, 24, 48 neighbours (the paper's).
+    #[default]
+    Window,
+    /// The 8 pixels of a 3×3 window dilated by `s / 2` (1, 2, 3): 8 neighbours per branch.
+    Dilated,
+}
+
+impl Neighbourhood {
+    /// The blob's code (docs/blob.md): 0 window, 1 dilated.
+    pub fn code(self) -> u16 {
+        match self {
+            Neighbourhood::Window => 0,
+            Neighbourhood::Dilated => 1,
+        }
+    }
+
+    /// The neighbourhood of a blob code, `None` for an unknown one.
+    pub fn from_code(code: u16) -> Option<Self> {
+        match code {
+            0 => Some(Neighbourhood::Window),
+            1 => Some(Neighbourhood::Dilated),
+            _ => None,
+        }
+    }
+
+    /// Neighbours (affinity channels) of the `size × size` branch.
+    pub fn neighbours(self, size: usize) -> usize {
+        match self {
+            Neighbourhood::Window => (size * size).saturating_sub(1),
+            Neighbourhood::Dilated => 8,
+        }
+    }
+
+    /// Whether window offset `(dy, dx)` of the `size × size` branch is a neighbour.
+    pub fn contains(self, size: usize, (dy, dx): (isize, isize)) -> bool {
+        let r = (size / 2) as isize;
+        let inside = dy.abs() <= r && dx.abs() <= r && (dy, dx) != (0, 0);
+        match self {
+            Neighbourhood::Window => inside,
+            Neighbourhood::Dilated => inside && dy % r.max(1) == 0 && dx % r.max(1) == 0,
+        }
+    }
+}
+
 /// Attributes of `refine`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RefineAttrs {
@@ -55,6 +102,15 @@ pub struct RefineAttrs {
     pub iterations: usize,
     /// `[σ3, σ5, σ7]` of the spatial Gaussians (> 0).
     pub sigma: [f32; 3],
+    /// The neighbours of each branch.
+    pub neighbourhood: Neighbourhood,
+}
+
+impl RefineAttrs {
+    /// Affinity channels of branch `k` (0, 1, 2 for kernels 3, 5, 7).
+    pub fn neighbours(&self, k: usize) -> usize {
+        self.neighbourhood.neighbours(KERNELS[k.min(2)])
+    }
 }
 
 /// A multi-channel `H×W` map read as f32 (int8 maps dequantise on the fly).
@@ -384,11 +440,11 @@ pub fn ring_rows(k: usize, h: usize, iterations: usize) -> usize {
 
 /// Bytes of one int8 ring holding [`ring_rows`] rows of any branch's channels, `w` wide (the
 /// branches run one after another, so one ring serves all three).
-pub fn ring_bytes(h: usize, w: usize, iterations: usize) -> usize {
+pub fn ring_bytes(h: usize, w: usize, attrs: &RefineAttrs) -> usize {
     (0..3)
         .map(|k| {
-            ring_rows(k, h, iterations)
-                .saturating_mul(KERNELS[k] * KERNELS[k] - 1)
+            ring_rows(k, h, attrs.iterations)
+                .saturating_mul(attrs.neighbours(k))
                 .saturating_mul(w)
         })
         .max()
@@ -571,7 +627,7 @@ pub fn refine_with<D: DepthRows, R: AffinityRows, M: MixRows>(
     out.fill(0.0);
     let win_len = WINDOW_ROWS * w;
     for (k, &size) in KERNELS.iter().enumerate() {
-        let mut br = Branch::new(size, attrs.sigma[k], w);
+        let mut br = Branch::new(size, attrs.sigma[k], attrs.neighbourhood, w);
         let r = br.radius();
         // Window t holds rows of iteration t (t = 0: D_0), for t < T.
         let mut win = [Window::default(); MAX_ITERATIONS];
@@ -764,6 +820,7 @@ mod tests {
         let attrs = RefineAttrs {
             iterations: t,
             sigma: [1e6, 1.0, 1.0],
+            neighbourhood: Neighbourhood::Window,
         };
         let mut out = std::vec![0f32; p];
         let mut scratch = std::vec![0f32; scratch_len(w, t)];
@@ -780,6 +837,41 @@ mod tests {
         )
         .unwrap();
         out
+    }
+
+    #[test]
+    fn dilated_branches_take_the_ring_of_their_window() {
+        for (k, size) in KERNELS.into_iter().enumerate() {
+            let br = Branch::new(size, 1.5, Neighbourhood::Dilated, 20);
+            let r = (size / 2) as isize;
+            let want: Vec<(isize, isize)> = [-r, 0, r]
+                .into_iter()
+                .flat_map(|dy| [-r, 0, r].map(|dx| (dy, dx)))
+                .filter(|&o| o != (0, 0))
+                .collect();
+            assert_eq!(br.neighbours(), 8, "kernel {size}");
+            assert_eq!(&br.off[..8], &want[..], "kernel {size}");
+            assert_eq!(br.radius(), size / 2);
+            for (j, &(dy, dx)) in want.iter().enumerate() {
+                assert_eq!(br.delta[j], dy * 20 + dx);
+                let g = exp(-((dy * dy + dx * dx) as f32) / (2.0 * 1.5 * 1.5));
+                assert_eq!(br.g[j].to_bits(), g.to_bits());
+            }
+            let attrs = RefineAttrs {
+                iterations: 2,
+                sigma: [1.0; 3],
+                neighbourhood: Neighbourhood::Dilated,
+            };
+            assert_eq!(attrs.neighbours(k), 8);
+            let whole = Branch::new(size, 1.5, Neighbourhood::Window, 20);
+            assert_eq!(whole.neighbours(), size * size - 1);
+        }
+        assert_eq!(
+            Neighbourhood::from_code(Neighbourhood::Dilated.code()),
+            Some(Neighbourhood::Dilated)
+        );
+        assert_eq!(Neighbourhood::from_code(0), Some(Neighbourhood::Window));
+        assert_eq!(Neighbourhood::from_code(2), None);
     }
 
     #[test]
@@ -834,7 +926,7 @@ mod tests {
         let mut out = std::vec![0f32; p];
         let (tm, km) = (Mix::new(tmix), Mix::new(kmix));
         for (k, (&a, &s)) in aff.iter().zip(&KERNELS).enumerate() {
-            let br = Branch::new(s, attrs.sigma[k], w);
+            let br = Branch::new(s, attrs.sigma[k], attrs.neighbourhood, w);
             let mut cur = d0.to_vec();
             for t in 0..=t_max {
                 if t > 0 {
@@ -869,23 +961,28 @@ mod tests {
                 .wrapping_add(1442695040888963407);
             (seed >> 33) as u32
         };
-        for (h, w, t) in [
-            (9usize, 23usize, 4usize),
-            (16, 40, 6),
-            (3, 5, 2),
-            (45, 19, 6),
-            (1, 9, 2),
-            (20, 8, 0),
-            (31, 33, 8),
-            (8, 150, 4), // rows wider than two portable chunks
+        use Neighbourhood::{Dilated, Window};
+        for (h, w, t, nb) in [
+            (9usize, 23usize, 4usize, Window),
+            (16, 40, 6, Window),
+            (3, 5, 2, Window),
+            (45, 19, 6, Window),
+            (1, 9, 2, Window),
+            (20, 8, 0, Window),
+            (31, 33, 8, Window),
+            (8, 150, 4, Window), // rows wider than two portable chunks
+            (17, 29, 6, Dilated),
+            (8, 150, 4, Dilated),
+            (4, 7, 2, Dilated),
         ] {
             let p = h * w;
             let codes = |n: usize, next: &mut dyn FnMut() -> u32| -> Vec<i8> {
                 (0..n).map(|_| next() as i8).collect()
             };
-            let a3 = codes(8 * p, &mut next);
-            let a5 = codes(24 * p, &mut next);
-            let a7 = codes(48 * p, &mut next);
+            let n = [3, 5, 7].map(|s| nb.neighbours(s));
+            let a3 = codes(n[0] * p, &mut next);
+            let a5 = codes(n[1] * p, &mut next);
+            let a7 = codes(n[2] * p, &mut next);
             let km = codes(3 * p, &mut next);
             let tm = codes(3 * p, &mut next);
             let d0: Vec<f32> = (0..p)
@@ -898,10 +995,12 @@ mod tests {
                 };
                 I8Map::new(d, q, c, d.len() / c).unwrap()
             }
-            let (m3, m5, m7, kmx, tmx) = (m(&a3, 8), m(&a5, 24), m(&a7, 48), m(&km, 3), m(&tm, 3));
+            let (m3, m5, m7) = (m(&a3, n[0]), m(&a5, n[1]), m(&a7, n[2]));
+            let (kmx, tmx) = (m(&km, 3), m(&tm, 3));
             let attrs = RefineAttrs {
                 iterations: t,
                 sigma: [1.0, 1.5, 2.0],
+                neighbourhood: nb,
             };
             let want = refine_per_pixel(&d0, h, w, [&m3, &m5, &m7], &kmx, &tmx, &attrs);
             for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
@@ -919,7 +1018,7 @@ mod tests {
                     .all(|(a, b)| a.to_bits() == b.to_bits());
                 assert!(
                     same,
-                    "{} at {h}x{w}: lanes differ from the per-pixel order",
+                    "{} at {h}x{w} {nb:?}: lanes differ from the per-pixel order",
                     isa.name()
                 );
             }
@@ -955,6 +1054,7 @@ mod tests {
         let bad_t = RefineAttrs {
             iterations: 3,
             sigma: [1.0; 3],
+            neighbourhood: Neighbourhood::Window,
         };
         assert_eq!(
             float::refine(&d0, 2, 2, [&a, &a, &a], &m, &m, &bad_t, &mut o, &mut s),
@@ -963,6 +1063,7 @@ mod tests {
         let ok = RefineAttrs {
             iterations: 2,
             sigma: [1.0; 3],
+            neighbourhood: Neighbourhood::Window,
         };
         assert_eq!(
             float::refine(

@@ -6,7 +6,7 @@
 //! terms in raster order. Every path adds the same terms in the same order per pixel, so the
 //! bits do not depend on which ran.
 
-use super::{I8Map, Map};
+use super::{I8Map, Map, Neighbourhood};
 use crate::kernels::isa::Isa;
 use crate::kernels::requant::QParams;
 use crate::kernels::scalar::{exp, relu};
@@ -24,12 +24,12 @@ const PORTABLE_LANES: usize = if cfg!(any(target_arch = "x86_64", target_arch = 
 };
 
 /// The fixed tables of one branch at one image width: neighbour offsets in raster order
-/// (centre skipped), their Gaussians, and the offsets in a row-major buffer `w` wide.
+/// (centre skipped; [`Neighbourhood`] picks them), their Gaussians, and the offsets in a row-major buffer `w` wide.
 #[derive(Clone, Debug)]
 pub struct Branch {
-    off: [(isize, isize); MAX_NEIGHBOURS],
-    delta: [isize; MAX_NEIGHBOURS],
-    g: [f32; MAX_NEIGHBOURS],
+    pub(super) off: [(isize, isize); MAX_NEIGHBOURS],
+    pub(super) delta: [isize; MAX_NEIGHBOURS],
+    pub(super) g: [f32; MAX_NEIGHBOURS],
     n: usize,
     rad: usize,
     /// `relu(dequantise(code))` per code of the int8 affinities of this branch, for the scalar
@@ -38,8 +38,9 @@ pub struct Branch {
 }
 
 impl Branch {
-    /// Tables of the `size × size` window (odd, ≤ 7) with spatial σ `sigma`, `w` pixels wide.
-    pub fn new(size: usize, sigma: f32, w: usize) -> Branch {
+    /// Tables of the `size × size` window (odd, ≤ 7) with spatial σ `sigma`, its neighbours
+    /// chosen by `nb`, `w` pixels wide.
+    pub fn new(size: usize, sigma: f32, nb: Neighbourhood, w: usize) -> Branch {
         let rad = (size / 2).min(3);
         let mut b = Branch {
             off: [(0, 0); MAX_NEIGHBOURS],
@@ -53,7 +54,7 @@ impl Branch {
         let two_s2 = 2.0 * sigma * sigma;
         for dy in -r..=r {
             for dx in -r..=r {
-                if (dy, dx) != (0, 0) {
+                if nb.contains(size, (dy, dx)) {
                     b.off[b.n] = (dy, dx);
                     b.delta[b.n] = dy * w as isize + dx;
                     b.g[b.n] = exp(-((dx * dx + dy * dy) as f32) / two_s2);
@@ -64,7 +65,7 @@ impl Branch {
         b
     }
 
-    /// Neighbours (`size² − 1`).
+    /// Neighbours (`size² − 1` for the whole window, 8 dilated).
     pub fn neighbours(&self) -> usize {
         self.n
     }
