@@ -1747,6 +1747,23 @@ pub(crate) mod tests {
             let mut row = [0i8; 1];
             requant_row(&k, &[x], &mut row);
             prop_assert_eq!(row[0], want, "requant_row");
+            // Rows of every length up to 9 (the arm-dsp loops take two sums per pass, then
+            // the odd one), with sums of both signs, narrow where the single one is.
+            let vary = |i: usize| {
+                let v = x.wrapping_mul(1 + i as i32 % 3) >> (i % 5);
+                if i % 2 == 1 { v.wrapping_neg() } else { v }
+            };
+            for len in 1..=9usize {
+                let sums: std::vec::Vec<i32> = (0..len)
+                    .map(|i| if k.narrow { vary(i).clamp(-(1 << 30) + 1, (1 << 30) - 1) } else { vary(i) })
+                    .collect();
+                let mut got = std::vec![0i8; len + 1];
+                requant_row(&k, &sums, &mut got[..len]);
+                for (i, &v) in sums.iter().enumerate() {
+                    prop_assert_eq!(got[i], requant_one(&k, v), "requant_row, {} of {}", i, len);
+                }
+                prop_assert_eq!(got[len], 0, "requant_row wrote past its row");
+            }
         }
     }
 

@@ -299,12 +299,22 @@ pub fn pack_pixel(x: impl Iterator<Item = i32>, out: &mut [u32]) {
     }
 }
 
-/// The end of every requantisation loop: from the high product `{x}`, the rounding right shift
+/// The end of every requantisation step: from the high product `{x}`, the rounding right shift
 /// by `{e}` with the zero point (`{half}` = 2^(e−1) + zp·2^e: adding `zp·2^e` before the
 /// arithmetic shift adds exactly `zp` after it, and with `|x| ≤ 2^30` nothing overflows), int8
-/// saturation, the activation floor `{min}`, the store, and the loop back to `2:`.
+/// saturation and the store; `floor` adds the activation floor `{min}` before the store (a
+/// floor of −128 is the saturation's own, so those rows skip it).
 macro_rules! requant_tail {
-    () => {
+    (plain) => {
+        concat!(
+            "add {lo}, {x}, {half}\n",
+            "sub {lo}, {lo}, {x}, lsr #31\n",
+            "asr {lo}, {lo}, {e}\n",
+            "ssat {lo}, #8, {lo}\n",
+            "strb {lo}, [{d}], #1\n",
+        )
+    };
+    (floor) => {
         concat!(
             "add {lo}, {x}, {half}\n",
             "sub {lo}, {lo}, {x}, lsr #31\n",
@@ -314,8 +324,58 @@ macro_rules! requant_tail {
             "it lt\n",
             "movlt {lo}, {min}\n",
             "strb {lo}, [{d}], #1\n",
-            "subs {n}, {n}, #1\n",
+        )
+    };
+}
+
+/// A loop of `{n}` (≥ 1) requantisation steps `$step`, two per pass (`{c}` counts the passes),
+/// then the odd one.
+macro_rules! requant_loop {
+    ($step:expr) => {
+        concat!(
+            "lsrs {c}, {n}, #1\n",
+            "beq 3f\n",
+            "2:\n",
+            $step,
+            $step,
+            "subs {c}, {c}, #1\n",
             "bne 2b\n",
+            "3:\n",
+            "lsls {n}, {n}, #31\n",
+            "beq 4f\n",
+            $step,
+            "4:\n",
+        )
+    };
+}
+
+/// The high product of one sum of [`requant_row`] from the doubled sum with `SMMULR` (narrow
+/// sums), then the tail.
+macro_rules! narrow_step {
+    ($tail:tt) => {
+        concat!(
+            "ldr {x}, [{a}], #4\n",
+            "add {x}, {b}, {x}, lsl #1\n",
+            "smmulr {x}, {x}, {m}\n",
+            requant_tail!($tail),
+        )
+    };
+}
+
+/// The high product of one sum of [`requant_row`] with `SMLAL` and the 31-bit pre-clamp (any
+/// sum), then the tail.
+macro_rules! wide_step {
+    ($tail:tt) => {
+        concat!(
+            "ldr {x}, [{a}], #4\n",
+            "add {x}, {x}, {b}\n",
+            "mov {lo}, #0x40000000\n",
+            "mov {hi}, #0\n",
+            "smlal {lo}, {hi}, {x}, {m}\n",
+            "lsr {lo}, {lo}, #31\n",
+            "orr {x}, {lo}, {hi}, lsl #1\n",
+            "ssat {x}, #31, {x}\n",
+            requant_tail!($tail),
         )
     };
 }
@@ -323,8 +383,9 @@ macro_rules! requant_tail {
 /// `requant_one` of the conv over a row for one multiplier `m ≥ 0` and right shift `e`
 /// (`1 ..= 22`), `max` 127: `dst[i] = max(min, sat8(zp + rdbpot(srdhm(base + acc[i], m), e)))`.
 /// `narrow` (every `|base + acc[i]| < 2^30`): `SMMULR` of the doubled sum is the doubling high
-/// multiply, `(2x·m + 2^31) >> 32 = ⌊(x·m + 2^30) / 2^31⌋`, 13 instructions per element;
-/// otherwise `SMLAL` and an `SSAT` pre-clamp, 18. `false` (nothing written) outside those cases.
+/// multiply, `(2x·m + 2^31) >> 32 = ⌊(x·m + 2^30) / 2^31⌋`, 11.5 instructions per element
+/// (8.5 where the floor `min` is −128); otherwise `SMLAL` and an `SSAT` pre-clamp, 16.5 (13.5).
+/// `false` (nothing written) outside those cases.
 ///
 /// The pre-clamp of the high product `q` to `[−2^30, 2^30 − 1]` keeps `q + 2^(e−1)` in i32 and
 /// changes no result: beyond it `|q| / 2^e ≥ 2^30 / 2^22 = 256`, which saturates either way
@@ -345,56 +406,37 @@ pub fn requant_row(
         return n == 0;
     }
     let half = (1i32 << (e - 1)) + (zp << e);
-    if narrow {
-        // SAFETY: `n` words of `acc` and `n` bytes of `dst` exist (n ≤ both lengths).
-        unsafe {
-            core::arch::asm!(
-                "2:",
-                "ldr {x}, [{a}], #4",
-                "add {x}, {base2}, {x}, lsl #1",
-                "smmulr {x}, {x}, {m}",
-                requant_tail!(),
-                a = inout(reg) acc.as_ptr() => _,
-                d = inout(reg) dst.as_mut_ptr() => _,
-                n = inout(reg) n => _,
-                base2 = in(reg) base.wrapping_mul(2),
-                m = in(reg) m,
-                half = in(reg) half,
-                e = in(reg) e,
-                min = in(reg) min,
-                x = out(reg) _,
-                lo = out(reg) _,
-                options(nostack),
-            );
-        }
-        return true;
+    // One asm block per (narrow, floor) case: `{b}` is the doubled base for `SMMULR`, the base
+    // for `SMLAL`; the rest are the operands only some cases use (the floor, `SMLAL`'s high
+    // word).
+    macro_rules! run {
+        ($step:ident, $tail:tt, $b:expr; $($extra:tt)*) => {
+            // SAFETY: `n` ≥ 1 words of `acc` and `n` bytes of `dst` exist (n ≤ both lengths).
+            unsafe {
+                core::arch::asm!(
+                    requant_loop!($step!($tail)),
+                    a = inout(reg) acc.as_ptr() => _,
+                    d = inout(reg) dst.as_mut_ptr() => _,
+                    n = inout(reg) n => _,
+                    c = out(reg) _,
+                    b = in(reg) $b,
+                    m = in(reg) m,
+                    half = in(reg) half,
+                    e = in(reg) e,
+                    x = out(reg) _,
+                    lo = out(reg) _,
+                    $($extra)*
+                    options(nostack),
+                );
+            }
+        };
     }
-    // SAFETY: as above.
-    unsafe {
-        core::arch::asm!(
-            "2:",
-            "ldr {x}, [{a}], #4",
-            "add {x}, {x}, {base}",
-            "mov {lo}, #0x40000000",
-            "mov {hi}, #0",
-            "smlal {lo}, {hi}, {x}, {m}",
-            "lsr {lo}, {lo}, #31",
-            "orr {x}, {lo}, {hi}, lsl #1",
-            "ssat {x}, #31, {x}",
-            requant_tail!(),
-            a = inout(reg) acc.as_ptr() => _,
-            d = inout(reg) dst.as_mut_ptr() => _,
-            n = inout(reg) n => _,
-            base = in(reg) base,
-            m = in(reg) m,
-            half = in(reg) half,
-            e = in(reg) e,
-            min = in(reg) min,
-            x = out(reg) _,
-            lo = out(reg) _,
-            hi = out(reg) _,
-            options(nostack),
-        );
+    let base2 = base.wrapping_mul(2);
+    match (narrow, min > -128) {
+        (true, true) => run!(narrow_step, floor, base2; min = in(reg) min,),
+        (true, false) => run!(narrow_step, plain, base2;),
+        (false, true) => run!(wide_step, floor, base; min = in(reg) min, hi = out(reg) _,),
+        (false, false) => run!(wide_step, plain, base; hi = out(reg) _,),
     }
     true
 }
@@ -408,10 +450,85 @@ struct SignQuant {
     half: i32,
 }
 
+/// The sign of the sum `{x}` picks the constants (`{k}`: `pos`, or `neg` 12 bytes on) and
+/// loads the multiplier `{m}`.
+macro_rules! pick_sign {
+    () => {
+        concat!(
+            "mov {k}, {kp}\n",
+            "cmp {x}, #0\n",
+            "it lt\n",
+            "addlt {k}, {kp}, #12\n",
+            "ldr {m}, [{k}]\n",
+        )
+    };
+}
+
+/// `requant_tail!` with the shift and `half` read from the picked constants.
+macro_rules! signed_tail {
+    (plain) => {
+        concat!(
+            "ldr {hi}, [{k}, #8]\n",
+            "add {lo}, {x}, {hi}\n",
+            "sub {lo}, {lo}, {x}, lsr #31\n",
+            "ldr {hi}, [{k}, #4]\n",
+            "asr {lo}, {lo}, {hi}\n",
+            "ssat {lo}, #8, {lo}\n",
+            "strb {lo}, [{d}], #1\n",
+        )
+    };
+    (floor) => {
+        concat!(
+            "ldr {hi}, [{k}, #8]\n",
+            "add {lo}, {x}, {hi}\n",
+            "sub {lo}, {lo}, {x}, lsr #31\n",
+            "ldr {hi}, [{k}, #4]\n",
+            "asr {lo}, {lo}, {hi}\n",
+            "ssat {lo}, #8, {lo}\n",
+            "cmp {lo}, {min}\n",
+            "it lt\n",
+            "movlt {lo}, {min}\n",
+            "strb {lo}, [{d}], #1\n",
+        )
+    };
+}
+
+/// One sum of [`requant_row_signed`] with narrow sums: the doubled sum's `SMMULR`.
+macro_rules! signed_narrow_step {
+    ($tail:tt) => {
+        concat!(
+            "ldr {x}, [{a}], #4\n",
+            "add {x}, {b}, {x}, lsl #1\n",
+            pick_sign!(),
+            "smmulr {x}, {x}, {m}\n",
+            signed_tail!($tail),
+        )
+    };
+}
+
+/// One sum of [`requant_row_signed`] with `SMLAL` and the pre-clamp (any sum).
+macro_rules! signed_wide_step {
+    ($tail:tt) => {
+        concat!(
+            "ldr {x}, [{a}], #4\n",
+            "add {x}, {x}, {b}\n",
+            pick_sign!(),
+            "mov {lo}, #0x40000000\n",
+            "mov {hi}, #0\n",
+            "smlal {lo}, {hi}, {x}, {m}\n",
+            "lsr {lo}, {lo}, #31\n",
+            "orr {x}, {lo}, {hi}, lsl #1\n",
+            "ssat {x}, #31, {x}\n",
+            signed_tail!($tail),
+        )
+    };
+}
+
 /// [`requant_row`] with a multiplier and shift per sign of `base + acc[i]` (`pos` for ≥ 0,
-/// `neg` below: the leaky ReLU's two slopes): with `narrow` the doubled sum's `SMMULR`, 20
-/// instructions per element, otherwise `SMLAL` and the pre-clamp, 25. `false` (nothing written)
-/// unless both shifts are `1 ..= 22`, both multipliers ≥ 0 and `max` is 127.
+/// `neg` below: the leaky ReLU's two slopes): with `narrow` the doubled sum's `SMMULR`, 18.5
+/// instructions per element (15.5 without a floor), otherwise `SMLAL` and the pre-clamp, 23.5
+/// (20.5). `false` (nothing written) unless both shifts are `1 ..= 22`, both multipliers ≥ 0
+/// and `max` is 127.
 #[allow(clippy::too_many_arguments)]
 pub fn requant_row_signed(
     acc: &[i32],
@@ -435,95 +552,38 @@ pub fn requant_row_signed(
         half: (1 << (e - 1)) + (zp << e),
     };
     let table = [k(pos), k(neg)];
-    // The sign picks the constants (`{k}`: `pos`, or `neg` 12 bytes on); the high product
-    // `{x}` from the sum.
-    macro_rules! pick {
-        () => {
-            concat!(
-                "mov {k}, {kp}\n",
-                "cmp {x}, #0\n",
-                "it lt\n",
-                "addlt {k}, {kp}, #12\n",
-                "ldr {m}, [{k}]\n",
-            )
+    macro_rules! run {
+        ($step:ident, $tail:tt, $b:expr; $($extra:tt)*) => {
+            // SAFETY: `n` ≥ 1 words of `acc` and `n` bytes of `dst` exist (n ≤ both lengths);
+            // `table` holds the 12-byte constants of both signs (`neg` at byte 12). With
+            // `narrow` every |base + acc| < 2^30, so doubling it keeps its sign and `SMMULR` is
+            // the doubling high multiply (as in `requant_row`).
+            unsafe {
+                core::arch::asm!(
+                    requant_loop!($step!($tail)),
+                    a = inout(reg) acc.as_ptr() => _,
+                    d = inout(reg) dst.as_mut_ptr() => _,
+                    n = inout(reg) n => _,
+                    c = out(reg) _,
+                    b = in(reg) $b,
+                    kp = in(reg) table.as_ptr(),
+                    x = out(reg) _,
+                    lo = out(reg) _,
+                    hi = out(reg) _,
+                    k = out(reg) _,
+                    m = out(reg) _,
+                    $($extra)*
+                    options(nostack),
+                );
+            }
         };
     }
-    // The rounding shift, zero point, saturation, floor, store and loop (`requant_tail!` with
-    // the shift and `half` read from the table).
-    macro_rules! tail {
-        () => {
-            concat!(
-                "ldr {hi}, [{k}, #8]\n",
-                "add {lo}, {x}, {hi}\n",
-                "sub {lo}, {lo}, {x}, lsr #31\n",
-                "ldr {hi}, [{k}, #4]\n",
-                "asr {lo}, {lo}, {hi}\n",
-                "ssat {lo}, #8, {lo}\n",
-                "cmp {lo}, {min}\n",
-                "it lt\n",
-                "movlt {lo}, {min}\n",
-                "strb {lo}, [{d}], #1\n",
-                "subs {n}, {n}, #1\n",
-                "bne 2b\n",
-            )
-        };
-    }
-    if narrow {
-        // SAFETY: `n` words of `acc` and `n` bytes of `dst` exist (n ≤ both lengths); `table`
-        // holds the 12-byte constants of both signs (`neg` at byte 12). Every |base + acc| <
-        // 2^30 (`narrow`), so doubling it keeps its sign and `SMMULR` is the doubling high
-        // multiply (as in `requant_row`).
-        unsafe {
-            core::arch::asm!(
-                "2:",
-                "ldr {x}, [{a}], #4",
-                "add {x}, {base2}, {x}, lsl #1",
-                pick!(),
-                "smmulr {x}, {x}, {m}",
-                tail!(),
-                a = inout(reg) acc.as_ptr() => _,
-                d = inout(reg) dst.as_mut_ptr() => _,
-                n = inout(reg) n => _,
-                base2 = in(reg) base.wrapping_mul(2),
-                kp = in(reg) table.as_ptr(),
-                min = in(reg) min,
-                x = out(reg) _,
-                lo = out(reg) _,
-                hi = out(reg) _,
-                k = out(reg) _,
-                m = out(reg) _,
-                options(nostack),
-            );
-        }
-        return true;
-    }
-    // SAFETY: as above, without the narrow bound: `SMLAL` and the 31-bit pre-clamp.
-    unsafe {
-        core::arch::asm!(
-            "2:",
-            "ldr {x}, [{a}], #4",
-            "add {x}, {x}, {base}",
-            pick!(),
-            "mov {lo}, #0x40000000",
-            "mov {hi}, #0",
-            "smlal {lo}, {hi}, {x}, {m}",
-            "lsr {lo}, {lo}, #31",
-            "orr {x}, {lo}, {hi}, lsl #1",
-            "ssat {x}, #31, {x}",
-            tail!(),
-            a = inout(reg) acc.as_ptr() => _,
-            d = inout(reg) dst.as_mut_ptr() => _,
-            n = inout(reg) n => _,
-            base = in(reg) base,
-            kp = in(reg) table.as_ptr(),
-            min = in(reg) min,
-            x = out(reg) _,
-            lo = out(reg) _,
-            hi = out(reg) _,
-            k = out(reg) _,
-            m = out(reg) _,
-            options(nostack),
-        );
+    let base2 = base.wrapping_mul(2);
+    match (narrow, min > -128) {
+        (true, true) => run!(signed_narrow_step, floor, base2; min = in(reg) min,),
+        (true, false) => run!(signed_narrow_step, plain, base2;),
+        (false, true) => run!(signed_wide_step, floor, base; min = in(reg) min,),
+        (false, false) => run!(signed_wide_step, plain, base;),
     }
     true
 }
