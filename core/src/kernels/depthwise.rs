@@ -9,9 +9,8 @@
 //! - `rows`: per row and tap, the fallback where a scratch holds no band.
 
 use super::conv::{take, Conv2d, OutRows, RowQuant};
-use super::dot::Acc;
 use super::isa::Isa;
-use super::pack::{self, NB, PB};
+use super::pack::{self, PB};
 use super::Shape;
 
 /// One depthwise call: the operator, its input and the output rows to write (`dst`, as
@@ -69,26 +68,24 @@ pub(super) fn conv(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) {
     }
 }
 
-/// Requantises output row `oy` of depthwise channel `c` from its sums `acc` (`out.w` of them).
+/// Requantises output row `oy` of depthwise channel `c` from its sums `acc` (`out.w` of them),
+/// the whole row in one [`Conv2d::finish_run`].
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn finish_row(
     isa: Isa,
     op: &Conv2d,
-    rq: &[RowQuant; 1],
+    rq: &RowQuant,
     c: usize,
     oy: usize,
     acc: &[i32],
     out: Shape,
     dst: &OutRows,
     output: &mut [i8],
-    block: &mut Acc,
 ) {
-    for ox0 in (0..out.w).step_by(PB) {
-        let n = PB.min(out.w - ox0);
-        block[..n].copy_from_slice(&acc[ox0..ox0 + n]);
-        let at = c * dst.stride + (oy - dst.rows.start) * out.w + ox0;
-        op.finish_block(isa, rq, c, block, n, output, at, dst.stride);
+    let at = c * dst.stride + (oy - dst.rows.start) * out.w;
+    if let Some(row) = output.get_mut(at..at + out.w) {
+        op.finish_run(isa, rq, c, &acc[..out.w.min(acc.len())], row);
     }
 }
 
@@ -144,7 +141,6 @@ pub(super) fn pixels(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) {
     let zp = op.quant.input_zero_point;
     let (acc, rest) = scratch.split_at_mut(acc_len);
     let strip = &mut rest[..kh * width];
-    let mut block: Acc = [0; NB * PB];
     let mut taps = [0i32; MAX_DEPTHWISE_TAPS];
     for c in 0..out.c {
         let chan = &input[c * ih * iw..(c + 1) * ih * iw];
@@ -154,7 +150,7 @@ pub(super) fn pixels(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) {
         {
             *t = i32::from(w);
         }
-        let rq = [op.row_quant(c, op.channels[c].bias)];
+        let rq = op.row_quant(c, op.channels[c].bias);
         for oy in dst.rows.clone() {
             for (ky, row) in strip.chunks_exact_mut(width).enumerate() {
                 let iy = (oy * sy + ky * dy) as isize - g.padding[0] as isize;
@@ -187,7 +183,7 @@ pub(super) fn pixels(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) {
                     }
                 }
             }
-            finish_row(isa, op, &rq, c, oy, acc, out, dst, output, &mut block);
+            finish_row(isa, op, &rq, c, oy, acc, out, dst, output);
         }
     }
 }
@@ -236,7 +232,7 @@ pub(super) fn bands(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) ->
     for c in 0..out.c {
         let chan = &input[c * ih * iw..(c + 1) * ih * iw];
         let w = &op.weights[c * kh * kw..(c + 1) * kh * kw];
-        let rq = [op.row_quant(c, op.channels[c].bias)];
+        let rq = op.row_quant(c, op.channels[c].bias);
         let mut oy0 = dst.rows.start;
         while oy0 < dst.rows.end {
             let n = band.min(dst.rows.end - oy0);
@@ -303,7 +299,7 @@ pub(super) fn bands(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) ->
             let sums = &sums[..n * ow];
             // The band's output rows are contiguous in the channel's plane.
             let at = c * dst.stride + (oy0 - dst.rows.start) * ow;
-            op.finish_run(isa, &rq[0], c, sums, &mut output[at..at + n * ow]);
+            op.finish_run(isa, &rq, c, sums, &mut output[at..at + n * ow]);
             oy0 += n;
         }
     }
@@ -340,13 +336,12 @@ pub(super) fn ring3(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) ->
     let (acc, rest) = scratch.split_at_mut(acc_len);
     let (strip, _) = take::<i16>(rest, RING_COLUMN * width);
     let acc = &mut acc[..out.w];
-    let mut block: Acc = [0; NB * PB];
     // Strip columns `pw .. pw + iw` hold input columns `0 .. iw`; the rest stay zero.
     let (first, last) = (pw.min(width), (pw + iw).min(width));
     for c in 0..out.c {
         let chan = &input[c * ih * iw..(c + 1) * ih * iw];
         let w = &op.weights[c * 9..(c + 1) * 9];
-        let rq = [op.row_quant(c, op.channels[c].bias)];
+        let rq = op.row_quant(c, op.channels[c].bias);
         strip.fill(0);
         // Input row held in each slot (none yet).
         let mut held = [isize::MIN; 3];
@@ -382,7 +377,7 @@ pub(super) fn ring3(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) ->
                 }
             }
             ring3_row(isa, strip, &taps, sx, acc);
-            finish_row(isa, op, &rq, c, oy, acc, out, dst, output, &mut block);
+            finish_row(isa, op, &rq, c, oy, acc, out, dst, output);
         }
     }
     true
@@ -436,11 +431,10 @@ fn rows(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) {
     let zp = op.quant.input_zero_point;
     let (acc, rest) = scratch.split_at_mut(out.w.div_ceil(PB) * PB);
     let xrow = &mut rest[..iw];
-    let mut block: Acc = [0; NB * PB];
     for c in 0..out.c {
         let chan = &input[c * ih * iw..(c + 1) * ih * iw];
         let w = &op.weights[c * kh * kw..(c + 1) * kh * kw];
-        let rq = [op.row_quant(c, op.channels[c].bias)];
+        let rq = op.row_quant(c, op.channels[c].bias);
         for oy in dst.rows.clone() {
             acc.fill(0);
             for ky in 0..kh {
@@ -473,7 +467,7 @@ fn rows(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) {
                     }
                 }
             }
-            finish_row(isa, op, &rq, c, oy, acc, out, dst, output, &mut block);
+            finish_row(isa, op, &rq, c, oy, acc, out, dst, output);
         }
     }
 }
