@@ -342,16 +342,26 @@ pub(super) fn ring3(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) ->
         let chan = &input[c * ih * iw..(c + 1) * ih * iw];
         let w = &op.weights[c * 9..(c + 1) * 9];
         let rq = op.row_quant(c, op.channels[c].bias);
+        // Input row `iy` lives in slot `iy mod 3`, so kernel row `ky` of output row `oy` is in
+        // slot `(r + ky) mod 3`, `r = (oy·sy − ph) mod 3`: the weights in the strip's order
+        // (per kx, the slots' rows then a zero) for each of the three `r`.
+        let mut taps = [[0i16; 3 * RING_COLUMN]; 3];
+        for (r, t) in taps.iter_mut().enumerate() {
+            for (kx, col) in t.chunks_exact_mut(RING_COLUMN).enumerate() {
+                for ky in 0..3 {
+                    col[(r + ky) % 3] = i16::from(w[ky * 3 + kx]);
+                }
+            }
+        }
         strip.fill(0);
         // Input row held in each slot (none yet).
         let mut held = [isize::MIN; 3];
         for oy in dst.rows.clone() {
-            // ky of the kernel row held in each slot.
-            let mut kernel_row = [0usize; 3];
+            let top = (oy * sy) as isize - ph;
+            let r = top.rem_euclid(3) as usize;
             for ky in 0..3 {
-                let iy = (oy * sy + ky) as isize - ph;
-                let slot = iy.rem_euclid(3) as usize;
-                kernel_row[slot] = ky;
+                let iy = top + ky as isize;
+                let slot = (r + ky) % 3;
                 if held[slot] == iy {
                     continue;
                 }
@@ -369,14 +379,7 @@ pub(super) fn ring3(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) ->
                     }
                 }
             }
-            // Weights in the strip's order: per kx, the slots' rows then a zero.
-            let mut taps = [0i16; 3 * RING_COLUMN];
-            for (kx, t) in taps.chunks_exact_mut(RING_COLUMN).enumerate() {
-                for (slot, &ky) in kernel_row.iter().enumerate() {
-                    t[slot] = i16::from(w[ky * 3 + kx]);
-                }
-            }
-            ring3_row(isa, strip, &taps, sx, acc);
+            ring3_row(isa, strip, &taps[r], sx, acc);
             finish_row(isa, op, &rq, c, oy, acc, out, dst, output);
         }
     }
