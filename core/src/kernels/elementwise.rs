@@ -221,6 +221,25 @@ impl Product {
         let p = (a as i32 - self.zp[0]) * (b as i32 - self.zp[1]);
         let half = 1u64 << (self.right - 1);
         let magnitude = ((u64::from(p.unsigned_abs()) * self.m + half) >> self.right).min(1024);
+        self.finish(p, magnitude as u32)
+    }
+
+    /// [`Product::apply`] where `right ≥ 33` (the usual case: products of scales below one):
+    /// with `|p|·M = hi·2^32 + lo`, `(|p|·M + 2^(r−1)) >> r = (hi + 2^(r−33)) >> (r − 32)`
+    /// exactly (dividing by 2^32 first drops only `lo`), so only the high word of the product
+    /// is used and every step is 32-bit: the same bits.
+    #[inline(always)]
+    fn apply_high(&self, a: i8, b: i8) -> i8 {
+        let p = (a as i32 - self.zp[0]) * (b as i32 - self.zp[1]);
+        let hi = ((u64::from(p.unsigned_abs()) * self.m) >> 32) as u32;
+        let k = 1u32 << ((self.right - 33) & 31);
+        let magnitude = ((hi + k) >> ((self.right - 32) & 31)).min(1024);
+        self.finish(p, magnitude)
+    }
+
+    /// The sign of `p` on the rounded magnitude, the output zero point and int8 saturation.
+    #[inline(always)]
+    fn finish(&self, p: i32, magnitude: u32) -> i8 {
         let r = if p < 0 {
             -(magnitude as i32)
         } else {
@@ -273,22 +292,24 @@ pub fn mul(
         return mul_ref(q, a, shape, b, bc, out);
     }
     let f = q.product();
+    let high = f.right >= 33;
+    // One loop per case (the high-word form where it applies), so none tests it per element.
+    let planes = |oc: &mut [i8], ac: &[i8], bc: &[i8]| {
+        let pairs = oc.iter_mut().zip(ac).zip(bc);
+        if high {
+            pairs.for_each(|((o, &x), &y)| *o = f.apply_high(x, y));
+        } else {
+            pairs.for_each(|((o, &x), &y)| *o = f.apply(x, y));
+        }
+    };
     for (c, (oc, ac)) in out[..n]
         .chunks_exact_mut(p)
         .zip(a[..n].chunks_exact(p))
         .enumerate()
     {
         match bc {
-            Broadcast::None => {
-                for ((o, &x), &y) in oc.iter_mut().zip(ac).zip(&b[c * p..(c + 1) * p]) {
-                    *o = f.apply(x, y);
-                }
-            }
-            Broadcast::OverChannels => {
-                for ((o, &x), &y) in oc.iter_mut().zip(ac).zip(b) {
-                    *o = f.apply(x, y);
-                }
-            }
+            Broadcast::None => planes(oc, ac, &b[c * p..(c + 1) * p]),
+            Broadcast::OverChannels => planes(oc, ac, b),
             Broadcast::OverSpace => {
                 // One factor per plane: a table of the other's 256 codes when the plane is
                 // larger than it (the same function, so the same bits).
@@ -574,6 +595,7 @@ mod tests {
     /// points at both ends and scale ratios from far below one code to far above.
     #[test]
     fn product_equals_apply_on_every_code_pair() {
+        let mut high = 0;
         for (zp, ratio) in [
             ([0, 0, 0], 1.0f64),
             ([-128, 127, -5], 1.0 / 65_536.0),
@@ -581,6 +603,10 @@ mod tests {
             ([-3, 7, -128], 3.9),
             ([5, -9, 127], 900.0),
             ([-128, -128, 0], 1e-9),
+            // right = 33 and 34 (the smallest high-word shifts), a sigmoid map's 1/256.
+            ([0, -128, 0], 0.2),
+            ([9, 0, -1], 0.1),
+            ([-128, -128, -128], 1.0 / 256.0),
         ] {
             let q = |z: i32| QParams {
                 scale: 1.0,
@@ -591,10 +617,20 @@ mod tests {
             let f = mq.product();
             for a in i8::MIN..=i8::MAX {
                 for b in i8::MIN..=i8::MAX {
-                    assert_eq!(f.apply(a, b), mq.apply(a, b), "{a}·{b} zp {zp:?} m {ratio}");
+                    let want = mq.apply(a, b);
+                    assert_eq!(f.apply(a, b), want, "{a}·{b} zp {zp:?} m {ratio}");
+                    if f.right >= 33 {
+                        assert_eq!(
+                            f.apply_high(a, b),
+                            want,
+                            "high: {a}·{b} zp {zp:?} m {ratio}"
+                        );
+                        high += 1;
+                    }
                 }
             }
         }
+        assert!(high >= 4 * 65_536, "too few high-word cases: {high}");
     }
 
     #[test]
