@@ -1,11 +1,27 @@
 //! Global pools (`[C,H,W] → [C,1,1]`) and channel reductions (`[C,H,W] → [1,H,W]`) in int8.
 //! Means sum `q − zp_in` exactly in `i32` and requantise once with `s_in/(s_out·n)`; maxima take
-//! the largest code and requantise it. One pass over memory each, so the reference loops are
-//! also the fast path.
+//! the largest code and requantise it. One pass over memory each; with `arm-dsp` the sums and
+//! maxima take four bytes per word ([`super::arm::bytes`]), the same integers.
 
 use super::elementwise::Rescale;
 use super::requant::{clamp_i8, QParams, Requant};
 use super::{need, KernelError, Shape};
+
+/// The sum of `x` (four bytes per word with `arm-dsp`).
+fn sum_i8(x: &[i8]) -> i32 {
+    #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+    return super::arm::bytes::sum_i8(x);
+    #[cfg(not(all(target_arch = "arm", feature = "arm-dsp")))]
+    x.iter().map(|&v| i32::from(v)).sum()
+}
+
+/// The largest of `x` (`i8::MIN` when empty; four bytes per word with `arm-dsp`).
+fn max_i8(x: &[i8]) -> i8 {
+    #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+    return super::arm::bytes::max_i8(x);
+    #[cfg(not(all(target_arch = "arm", feature = "arm-dsp")))]
+    x.iter().copied().max().unwrap_or(i8::MIN)
+}
 
 /// Largest reduction length accepted (keeps the `i32` sum of `±255` terms exact).
 pub const MAX_REDUCE: usize = 1 << 23;
@@ -60,11 +76,9 @@ pub fn global_avg_pool(
 ) -> Result<(), KernelError> {
     let p = check(input, shape, out, shape.c)?;
     for (c, o) in out[..shape.c].iter_mut().enumerate() {
-        let sum: i32 = input[c * p..(c + 1) * p]
-            .iter()
-            .map(|&x| x as i32 - q.zp_in)
-            .sum();
-        *o = q.finish(sum);
+        let plane = &input[c * p..(c + 1) * p];
+        // Σ(x − zp) = Σx − n·zp, exact in i32 (n ≤ MAX_REDUCE).
+        *o = q.finish(sum_i8(plane) - p as i32 * q.zp_in);
     }
     Ok(())
 }
@@ -78,12 +92,7 @@ pub fn global_max_pool(
 ) -> Result<(), KernelError> {
     let p = check(input, shape, out, shape.c)?;
     for (c, o) in out[..shape.c].iter_mut().enumerate() {
-        let m = input[c * p..(c + 1) * p]
-            .iter()
-            .copied()
-            .max()
-            .unwrap_or(i8::MIN);
-        *o = r.apply(m);
+        *o = r.apply(max_i8(&input[c * p..(c + 1) * p]));
     }
     Ok(())
 }
@@ -96,7 +105,25 @@ pub fn channel_mean(
     out: &mut [i8],
 ) -> Result<(), KernelError> {
     let p = check(input, shape, out, shape.h.saturating_mul(shape.w))?;
-    for (i, o) in out[..p].iter_mut().enumerate() {
+    let mut first = 0;
+    #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+    if shape.c <= 256 {
+        // Four pixels per word: channel c's bytes added to 16-bit lanes (≤ 256 per lane).
+        use super::arm::bytes::{add4, halves, word};
+        let shift = shape.c as i32 * q.zp_in;
+        while first + 4 <= p {
+            let (mut e, mut o) = (0u32, 0u32);
+            for c in 0..shape.c {
+                (e, o) = add4(e, o, word(&input[c * p + first..]));
+            }
+            let ((s0, s2), (s1, s3)) = (halves(e), halves(o));
+            for (k, s) in [s0, s1, s2, s3].into_iter().enumerate() {
+                out[first + k] = q.finish(s - shift);
+            }
+            first += 4;
+        }
+    }
+    for (i, o) in out[..p].iter_mut().enumerate().skip(first) {
         let mut sum = 0i32;
         for c in 0..shape.c {
             sum += input[c * p + i] as i32 - q.zp_in;
@@ -115,8 +142,25 @@ pub fn channel_max(
 ) -> Result<(), KernelError> {
     let p = check(input, shape, out, shape.h.saturating_mul(shape.w))?;
     out[..p].copy_from_slice(&input[..p]);
+    let mut first = 0;
+    #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+    {
+        // Four pixels per word, every channel's word folded in before the one store.
+        use super::arm::bytes::{max4, word};
+        while first + 4 <= p {
+            let mut m = word(&input[first..]);
+            for c in 1..shape.c {
+                m = max4(m, word(&input[c * p + first..]));
+            }
+            for (o, b) in out[first..first + 4].iter_mut().zip(m.to_le_bytes()) {
+                *o = b as i8;
+            }
+            first += 4;
+        }
+    }
     for c in 1..shape.c {
-        for (o, &x) in out[..p].iter_mut().zip(&input[c * p..(c + 1) * p]) {
+        let plane = &input[c * p..(c + 1) * p];
+        for (o, &x) in out[first..p].iter_mut().zip(&plane[first..]) {
             *o = (*o).max(x);
         }
     }
@@ -164,6 +208,47 @@ mod tests {
     }
 
     proptest! {
+        /// Every pool equals a plain scalar oracle of its integers (the sums and maxima of the
+        /// codes), bit for bit: with `arm-dsp` these are the four-bytes-per-word paths, over
+        /// widths that are not multiples of four and channel counts past the 16-bit lanes'.
+        #[test]
+        fn pools_equal_scalar_integers(c in 1usize..300, h in 1usize..4, w in 1usize..11,
+                                       zi in -128i32..128, seed in any::<u32>()) {
+            let s = Shape::new(c, h, w);
+            let p = h * w;
+            let x: Vec<i8> = (0..s.len().unwrap())
+                .map(|i| match (seed % 3, i % 7) {
+                    (0, _) => -128,
+                    (1, 3) => 127,
+                    _ => ((i as u32).wrapping_mul(2654435761) ^ seed) as i8,
+                })
+                .collect();
+            let (qi, qo) = (QParams { scale: 0.1, zero_point: zi }, QParams { scale: 0.07, zero_point: 3 });
+            let plane = |k: usize| &x[k * p..(k + 1) * p];
+            let mut y = std::vec![0i8; c.max(p)];
+            let q = MeanQuant::new(qi, qo, p);
+            global_avg_pool(&q, &x, s, &mut y).unwrap();
+            for k in 0..c {
+                let sum: i32 = plane(k).iter().map(|&v| v as i32 - zi).sum();
+                prop_assert_eq!(y[k], q.finish(sum), "avg {}", k);
+            }
+            let r = Rescale::new(qi, qo);
+            global_max_pool(&r, &x, s, &mut y).unwrap();
+            for k in 0..c {
+                prop_assert_eq!(y[k], r.apply(*plane(k).iter().max().unwrap()), "max {}", k);
+            }
+            let q = MeanQuant::new(qi, qo, c);
+            channel_mean(&q, &x, s, &mut y).unwrap();
+            for i in 0..p {
+                let sum: i32 = (0..c).map(|k| plane(k)[i] as i32 - zi).sum();
+                prop_assert_eq!(y[i], q.finish(sum), "channel mean {}", i);
+            }
+            channel_max(&r, &x, s, &mut y).unwrap();
+            for i in 0..p {
+                prop_assert_eq!(y[i], r.apply((0..c).map(|k| plane(k)[i]).max().unwrap()), "channel max {}", i);
+            }
+        }
+
         #[test]
         fn means_within_one_lsb(c in 1usize..5, h in 1usize..6, w in 1usize..6, zi in -20i32..20, zo in -20i32..20,
                                 si in 0.01f32..0.5, so in 0.01f32..0.5, seed in any::<u32>()) {
