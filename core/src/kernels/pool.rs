@@ -105,12 +105,12 @@ pub fn channel_mean(
     out: &mut [i8],
 ) -> Result<(), KernelError> {
     let p = check(input, shape, out, shape.h.saturating_mul(shape.w))?;
-    let mut first = 0;
     #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
-    if shape.c <= 256 {
+    let first = if shape.c <= 256 {
         // Four pixels per word: channel c's bytes added to 16-bit lanes (≤ 256 per lane).
         use super::arm::bytes::{add4, halves, word};
         let shift = shape.c as i32 * q.zp_in;
+        let mut first = 0;
         while first + 4 <= p {
             let (mut e, mut o) = (0u32, 0u32);
             for c in 0..shape.c {
@@ -122,7 +122,12 @@ pub fn channel_mean(
             }
             first += 4;
         }
-    }
+        first
+    } else {
+        0
+    };
+    #[cfg(not(all(target_arch = "arm", feature = "arm-dsp")))]
+    let first = 0;
     for (i, o) in out[..p].iter_mut().enumerate().skip(first) {
         let mut sum = 0i32;
         for c in 0..shape.c {
@@ -142,11 +147,11 @@ pub fn channel_max(
 ) -> Result<(), KernelError> {
     let p = check(input, shape, out, shape.h.saturating_mul(shape.w))?;
     out[..p].copy_from_slice(&input[..p]);
-    let mut first = 0;
     #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
-    {
+    let first = {
         // Four pixels per word, every channel's word folded in before the one store.
         use super::arm::bytes::{max4, word};
+        let mut first = 0;
         while first + 4 <= p {
             let mut m = word(&input[first..]);
             for c in 1..shape.c {
@@ -157,7 +162,10 @@ pub fn channel_max(
             }
             first += 4;
         }
-    }
+        first
+    };
+    #[cfg(not(all(target_arch = "arm", feature = "arm-dsp")))]
+    let first = 0;
     for c in 1..shape.c {
         let plane = &input[c * p..(c + 1) * p];
         for (o, &x) in out[first..p].iter_mut().zip(&plane[first..]) {
