@@ -5,7 +5,7 @@
 //! per-input requantisation, pixel_shuffle and minmax_norm.
 
 use super::broadcast::{broadcast_index, broadcast_len, Broadcast};
-use super::requant::{clamp_i8, QParams, Requant};
+use super::requant::{clamp_i8, rounding_divide_by_pot, QParams, Requant};
 use super::{need, KernelError, Shape};
 
 /// A 256-entry int8→int8 table, indexed by `q as u8` (so code −128 is entry 128).
@@ -159,6 +159,24 @@ pub fn add(q: &AddQuant, a: &[i8], b: &[i8], out: &mut [i8]) -> Result<(), Kerne
     }
     let ta: [i32; 256] = core::array::from_fn(|c| q.rescale_a(c as u8 as i8));
     let tb: [i32; 256] = core::array::from_fn(|c| q.rescale_b(c as u8 as i8));
+    let widest = |t: &[i32; 256]| t.iter().map(|v| v.unsigned_abs()).max().unwrap_or(0);
+    if q.mo.shift <= 0 && q.mo.multiplier >= 0 && widest(&ta) + widest(&tb) < 1 << 30 {
+        // No left shift, and every sum of two rescaled codes is below 2^30 in magnitude: the
+        // sums need no saturation and the doubling high multiply is the floor of
+        // `(s·m + 2^30) / 2^31` (gemmlowp's nudge for negative products gives the same
+        // integer), so the output's requantisation is a few 32/64-bit steps: the same bits.
+        let (m, right, zp) = (i64::from(q.mo.multiplier), -q.mo.shift, q.zp[2]);
+        for ((o, &x), &y) in out.iter_mut().zip(a).zip(b) {
+            let sum = ta[x as u8 as usize] + tb[y as u8 as usize];
+            let high = ((i64::from(sum) * m + (1 << 30)) >> 31) as i32;
+            *o = clamp_i8(
+                rounding_divide_by_pot(high, right).saturating_add(zp),
+                -128,
+                127,
+            );
+        }
+        return Ok(());
+    }
     for ((o, &x), &y) in out.iter_mut().zip(a).zip(b) {
         *o = q.finish(ta[x as u8 as usize], tb[y as u8 as usize]);
     }
@@ -573,6 +591,20 @@ mod tests {
             add_ref(&aq, &a, &b2, &mut y1).unwrap();
             add(&aq, &a, &b2, &mut y2).unwrap();
             prop_assert_eq!(&y1, &y2, "add");
+            // Constants no quantizer writes (a blob's are only checked to be well formed):
+            // rescales past one, a left shift on the output, a negative multiplier.
+            for (ka, kb, ko) in [(3, 0, 0), (0, 2, 0), (0, 0, 5), (1, 1, 0)] {
+                let mut bad = aq;
+                bad.ma.shift += ka;
+                bad.mb.shift += kb;
+                bad.mo.shift += ko;
+                if (ka, kb, ko) == (1, 1, 0) {
+                    bad.mo.multiplier = -bad.mo.multiplier;
+                }
+                add_ref(&bad, &a, &b2, &mut y1).unwrap();
+                add(&bad, &a, &b2, &mut y2).unwrap();
+                prop_assert_eq!(&y1, &y2, "add with {:?}", (ka, kb, ko));
+            }
             let r = Rescale::new(c.qa, c.qo);
             concat_part(&a, shape, &r, &mut y2, shape, 0).unwrap();
             let want: Vec<i8> = a.iter().map(|&x| r.apply(x)).collect();
