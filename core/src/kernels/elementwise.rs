@@ -168,7 +168,7 @@ pub fn add(q: &AddQuant, a: &[i8], b: &[i8], out: &mut [i8]) -> Result<(), Kerne
         let (m, right, zp) = (i64::from(q.mo.multiplier), -q.mo.shift, q.zp[2]);
         for ((o, &x), &y) in out.iter_mut().zip(a).zip(b) {
             let sum = ta[x as u8 as usize] + tb[y as u8 as usize];
-            let high = ((i64::from(sum) * m + (1 << 30)) >> 31) as i32;
+            let high = doubling_high_mul_narrow(sum, m);
             *o = clamp_i8(
                 rounding_divide_by_pot(high, right).saturating_add(zp),
                 -128,
@@ -181,6 +181,14 @@ pub fn add(q: &AddQuant, a: &[i8], b: &[i8], out: &mut [i8]) -> Result<(), Kerne
         *o = q.finish(ta[x as u8 as usize], tb[y as u8 as usize]);
     }
     Ok(())
+}
+
+/// gemmlowp's saturating rounding doubling high multiply of `x` by `m ≥ 0` where
+/// `|x| < 2^30`: `⌊(x·m + 2^30) / 2^31⌋`, which for negative products equals gemmlowp's
+/// truncated `(x·m + 1 − 2^30) / 2^31` (and nothing saturates).
+#[inline(always)]
+fn doubling_high_mul_narrow(x: i32, m: i64) -> i32 {
+    ((i64::from(x) * m + (1 << 30)) >> 31) as i32
 }
 
 /// Constants of int8 `mul`: `out = zp_out + (s_a·s_b/s_out)·(a − zp_a)(b − zp_b)`.
@@ -570,6 +578,15 @@ mod tests {
         arb: arb_bin([Broadcast::None, Broadcast::OverChannels, Broadcast::OverSpace]), check: check_mul);
 
     proptest! {
+        /// The narrow doubling high multiply is gemmlowp's, exact halves included.
+        #[test]
+        fn narrow_doubling_high_mul_is_gemmlowps(x in -(1i32 << 30) + 1..(1 << 30), m in 0i32..=i32::MAX, k in 0usize..4) {
+            // Exact halves: m = 2^30 makes x·m/2^31 = x/2, a half on every odd x.
+            let m = [m, 1 << 30, 3 << 28, 1][k];
+            let want = crate::kernels::requant::saturating_rounding_doubling_high_mul(x, m);
+            prop_assert_eq!(doubling_high_mul_narrow(x, i64::from(m)), want);
+        }
+
         /// Planes past 256 pixels take the fast kernels' 256-entry tables: the same bits as
         /// the per-element reference.
         #[test]
