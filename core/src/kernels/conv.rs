@@ -1296,6 +1296,14 @@ pub(crate) mod tests {
             (3, 2, 1, 0, 9, 8),
             (3, 1, 1, 2, 4, 3),
             (3, 2, 1, 1, 1, 1),
+            // The depth encoder's 5 × 5 at stride 2 (ring_rows), odd and even widths, and
+            // stride 1 / other paddings.
+            (5, 2, 1, 2, 12, 40),
+            (5, 2, 1, 2, 9, 31),
+            (5, 2, 1, 0, 6, 11),
+            (5, 1, 1, 2, 7, 9),
+            (7, 1, 1, 3, 8, 13),
+            (5, 2, 1, 2, 2, 3),
         ] {
             let c = 5;
             let geometry = ConvGeometry {
@@ -1358,6 +1366,13 @@ pub(crate) mod tests {
             assert_eq!(
                 y, yr,
                 "depthwise::ring3 (bands) k{k} s{s} d{d} p{p} {h}x{w}"
+            );
+            let (_, y) = run(&case, ring_rows);
+            assert_eq!(y, yr, "depthwise::ring_rows k{k} s{s} d{d} p{p} {h}x{w}");
+            let (_, y) = run(&case, ring_rows_in_bands);
+            assert_eq!(
+                y, yr,
+                "depthwise::ring_rows (bands) k{k} s{s} d{d} p{p} {h}x{w}"
             );
             let (_, y) = run(&case, pixels);
             assert_eq!(y, yr, "depthwise::pixels k{k} s{s} d{d} p{p} {h}x{w}");
@@ -1472,6 +1487,44 @@ pub(crate) mod tests {
         t: &mut [i32],
     ) -> Result<Shape, KernelError> {
         in_bands(op, x, s, y, t, 3, ring3_or_pixels)
+    }
+
+    /// [`depthwise::ring_rows`] with the portable sums, or [`depthwise::pixels`] where it
+    /// declines.
+    fn ring_rows(
+        op: &Conv2d,
+        x: &[i8],
+        s: Shape,
+        y: &mut [i8],
+        t: &mut [i32],
+    ) -> Result<Shape, KernelError> {
+        in_bands(op, x, s, y, t, 1, ring_rows_or_pixels)
+    }
+
+    /// [`ring_rows`] computed in three row bands into one output.
+    fn ring_rows_in_bands(
+        op: &Conv2d,
+        x: &[i8],
+        s: Shape,
+        y: &mut [i8],
+        t: &mut [i32],
+    ) -> Result<Shape, KernelError> {
+        in_bands(op, x, s, y, t, 3, ring_rows_or_pixels)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn ring_rows_or_pixels(
+        op: &Conv2d,
+        x: &[i8],
+        s: Shape,
+        out: Shape,
+        dst: &OutRows,
+        y: &mut [i8],
+        t: &mut [i32],
+    ) {
+        if !depthwise::ring_rows(&portable_call(op, x, s, out, dst), y, t) {
+            depthwise::pixels(&portable_call(op, x, s, out, dst), y, t);
+        }
     }
 
     #[allow(clippy::too_many_arguments)]

@@ -5,7 +5,9 @@
 //! - [`bands`] (vector cores: x86 AVX2 and the portable set): bands of output rows, each tap one
 //!   vectorised loop over the band;
 //! - [`ring3`] (Cortex-M `SMLAD`, 3×3): a strip of interleaved 16-bit rows, six `SMLAD` per pixel;
-//! - [`pixels`] (Cortex-M, other kernels): per pixel, the taps summed in a register;
+//! - [`ring_rows`] (Cortex-M `SMLAD`, other kernels up to 7 wide): a ring of 16-bit rows, each
+//!   kernel row's taps as pairs of adjacent columns;
+//! - [`pixels`] (Cortex-M, the rest): per pixel, the taps summed in a register;
 //! - `rows`: per row and tap, the fallback where a scratch holds no band.
 
 use super::conv::{take, Conv2d, OutRows, RowQuant};
@@ -56,7 +58,7 @@ pub(super) fn conv(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) {
             unsafe { avx2(call, output, scratch) }
         }
         Isa::ArmDsp => {
-            if !ring3(call, output, scratch) {
+            if !ring3(call, output, scratch) && !ring_rows(call, output, scratch) {
                 pixels(call, output, scratch)
             }
         }
@@ -384,6 +386,121 @@ pub(super) fn ring3(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) ->
         }
     }
     true
+}
+
+/// Kernel rows [`ring_rows`] holds (7 × 7 at most).
+const MAX_RING_ROWS: usize = 7;
+
+/// Depthwise convolution on `SMLAD` cores for kernels up to 7 × 7 at horizontal stride 1 or 2
+/// (dilation 1): each input row of a channel converted once to 16-bit `x − zp` into a ring of
+/// `kh` rows (row `iy` in slot `iy mod kh`, zero columns for the padding, zero rows outside
+/// the image), then per output row and kernel row the taps as pairs of adjacent columns
+/// against weight words `[w_2j | w_2j+1]` (the last one `[w_kw−1 | 0]` for odd widths):
+/// ⌈kw/2⌉ `SMLAD` per pixel and kernel row. Exact sums, the reference's bits. `false`
+/// (nothing written) for other geometries or a short scratch.
+pub(super) fn ring_rows(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) -> bool {
+    let (isa, op, input, in_shape, out, dst) = call.parts();
+    let g = &op.geometry;
+    let (kh, kw) = (g.kernel[0], g.kernel[1]);
+    let (sy, sx) = (g.stride[0], g.stride[1]);
+    let pairs = kw.div_ceil(2);
+    if g.dilation != [1, 1]
+        || !(1..=MAX_RING_ROWS).contains(&kh)
+        || !(1..=MAX_RING_ROWS).contains(&kw)
+        || !(1..=2).contains(&sx)
+        || sy == 0
+        || out.w == 0
+        || op.weights.len() < out.c * kh * kw
+    {
+        return false;
+    }
+    let (ph, pw) = (g.padding[0] as isize, g.padding[1]);
+    let (ih, iw) = (in_shape.h, in_shape.w);
+    // A row: the output columns' windows, the odd width's zero pair half, even length.
+    let row_w = ((out.w - 1) * sx + 2 * pairs).next_multiple_of(2);
+    let acc_len = out.w.div_ceil(PB) * PB;
+    if scratch.len() < acc_len + (kh * row_w).div_ceil(2) {
+        return false;
+    }
+    let zp = op.quant.input_zero_point;
+    let (acc, rest) = scratch.split_at_mut(acc_len);
+    let (ring, _) = take::<i16>(rest, kh * row_w);
+    let acc = &mut acc[..out.w];
+    // Ring columns `pw .. pw + iw` hold input columns `0 .. iw`; the rest stay zero.
+    let (first, last) = (pw.min(row_w), (pw + iw).min(row_w));
+    for c in 0..out.c {
+        let chan = &input[c * ih * iw..(c + 1) * ih * iw];
+        let w = &op.weights[c * kh * kw..(c + 1) * kh * kw];
+        let rq = op.row_quant(c, op.channels[c].bias);
+        // Weight words per kernel row: `[w_2j | w_2j+1]`, zero past the width.
+        let mut words = [[0u32; MAX_RING_ROWS.div_ceil(2)]; MAX_RING_ROWS];
+        for (ky, row) in words.iter_mut().enumerate().take(kh) {
+            for (j, word) in row.iter_mut().enumerate().take(pairs) {
+                let tap = |kx: usize| {
+                    let v = if kx < kw { w[ky * kw + kx] } else { 0 };
+                    u32::from(i16::from(v) as u16)
+                };
+                *word = tap(2 * j) | (tap(2 * j + 1) << 16);
+            }
+        }
+        ring.fill(0);
+        let mut held = [isize::MIN; MAX_RING_ROWS];
+        for oy in dst.rows.clone() {
+            for (ky, word) in words.iter().enumerate().take(kh) {
+                let iy = (oy * sy + ky) as isize - ph;
+                let slot = iy.rem_euclid(kh as isize) as usize;
+                let row = &mut ring[slot * row_w..(slot + 1) * row_w];
+                if held[slot] != iy {
+                    held[slot] = iy;
+                    if (0..ih as isize).contains(&iy) {
+                        let src = &chan[iy as usize * iw..][..iw];
+                        for (d, &x) in row[first..last].iter_mut().zip(src) {
+                            *d = (i32::from(x) - zp) as i16;
+                        }
+                    } else {
+                        row[first..last].fill(0);
+                    }
+                }
+                pair_row_sums(isa, row, &word[..pairs], sx, ky == 0, acc);
+            }
+            finish_row(isa, op, &rq, c, oy, acc, out, dst, output);
+        }
+    }
+    true
+}
+
+/// Adds to `acc[ox]` (or sets it, where `first`) the sums over `j` of the column pair
+/// `row[ox·sx + 2j ..][..2]` against weight word `words[j]` (`[w_2j | w_2j+1]`): one kernel
+/// row of [`ring_rows`]. The arm-dsp set uses `SMLAD`; same sums.
+fn pair_row_sums(isa: Isa, row: &[i16], words: &[u32], sx: usize, first: bool, acc: &mut [i32]) {
+    let need = acc.len().saturating_sub(1) * sx + 2 * words.len();
+    if acc.is_empty() || row.len() < need || words.is_empty() {
+        return;
+    }
+    // At stride 2 every pair a pixel reads starts at an even column: aligned words.
+    #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+    if isa == Isa::ArmDsp && sx == 2 && (row.as_ptr() as usize).is_multiple_of(4) {
+        // SAFETY: `row` is 4-aligned and holds the `need` halfwords every pixel reads
+        // (checked); at stride 2 each read is an aligned word.
+        if unsafe { super::arm::dsp::pair_row_s2(row.as_ptr(), words, first, acc) } {
+            return;
+        }
+    }
+    let _ = isa;
+    for (ox, a) in acc.iter_mut().enumerate() {
+        let mut sum = if first { 0 } else { *a };
+        for (j, &wd) in words.iter().enumerate() {
+            let at = ox * sx + 2 * j;
+            let (w0, w1) = (
+                i32::from(wd as u16 as i16),
+                i32::from((wd >> 16) as u16 as i16),
+            );
+            sum = sum
+                .wrapping_add(i32::from(row[at]) * w0)
+                .wrapping_add(i32::from(row[at + 1]) * w1);
+        }
+        *a = sum;
+    }
 }
 
 /// The sums of one output row of [`ring3`]: `acc[ox]` = the 12 halfwords of the strip

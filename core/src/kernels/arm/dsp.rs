@@ -588,6 +588,55 @@ pub fn requant_row_signed(
     true
 }
 
+/// One kernel row of the depthwise ring (`depthwise::ring_rows`) at stride 2: `acc[ox]` (from
+/// zero where `first`) plus the `J = words.len()` (1 ..= 4) `SMLAD` of the words at
+/// `row + 4·ox + 4·j` bytes against `words[j]`. `false` (nothing done) for other `J`.
+///
+/// # Safety
+/// `row` is 4-aligned and `4·(acc.len() − 1 + J)` bytes from it are readable.
+pub unsafe fn pair_row_s2(row: *const i16, words: &[u32], first: bool, acc: &mut [i32]) -> bool {
+    if acc.is_empty() {
+        return true;
+    }
+    let w = |j: usize| words.get(j).copied().unwrap_or(0);
+    // One word per tap pair; `{s}` starts at zero or at the pixel's sum.
+    macro_rules! run {
+        ($start:literal, $($taps:literal),*) => {
+            core::arch::asm!(
+                "2:",
+                $start,
+                $(concat!("ldr {x}, [{p}, #", $taps, "]\n", "smlad {s}, {x}, {w", $taps, "}, {s}\n"),)*
+                "add {p}, {p}, #4",
+                "str {s}, [{a}], #4",
+                "cmp {a}, {end}",
+                "bne 2b",
+                p = inout(reg) row => _,
+                a = inout(reg) acc.as_mut_ptr() => _,
+                end = in(reg) acc.as_mut_ptr().add(acc.len()),
+                w0 = in(reg) w(0),
+                w4 = in(reg) w(1),
+                w8 = in(reg) w(2),
+                w12 = in(reg) w(3),
+                x = out(reg) _,
+                s = out(reg) _,
+                options(nostack),
+            )
+        };
+    }
+    match (words.len(), first) {
+        (1, true) => run!("mov {s}, #0 /* {w4} {w8} {w12} */", "0"),
+        (1, false) => run!("ldr {s}, [{a}] /* {w4} {w8} {w12} */", "0"),
+        (2, true) => run!("mov {s}, #0 /* {w8} {w12} */", "0", "4"),
+        (2, false) => run!("ldr {s}, [{a}] /* {w8} {w12} */", "0", "4"),
+        (3, true) => run!("mov {s}, #0 /* {w12} */", "0", "4", "8"),
+        (3, false) => run!("ldr {s}, [{a}] /* {w12} */", "0", "4", "8"),
+        (4, true) => run!("mov {s}, #0", "0", "4", "8", "12"),
+        (4, false) => run!("ldr {s}, [{a}]", "0", "4", "8", "12"),
+        _ => return false,
+    }
+    true
+}
+
 /// One output row of the 3×3 depthwise ring strip (`depthwise::ring3`): `acc[ox]` = the
 /// 12 halfwords from `strip + 8·sx·ox` bytes (three columns of `[row, row, row, 0]`) against
 /// the 12 halfwords of `taps`, as six `SMLAD` over word pairs: 13 instructions per pixel
