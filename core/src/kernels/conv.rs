@@ -930,6 +930,16 @@ pub(crate) mod tests {
     }
 
     fn run(c: &Case, f: Impl) -> (Shape, Vec<i8>) {
+        with_op(c, |op, y, scratch| {
+            f(op, &c.input, c.in_shape, y, scratch).unwrap()
+        })
+    }
+
+    /// `c`'s operator, an output and a scratch for `f`, which returns the output shape.
+    fn with_op(
+        c: &Case,
+        f: impl FnOnce(&Conv2d, &mut [i8], &mut [i32]) -> Shape,
+    ) -> (Shape, Vec<i8>) {
         let ch = channels(c);
         let op = Conv2d {
             geometry: c.geometry,
@@ -940,10 +950,7 @@ pub(crate) mod tests {
         let out = op.check(c.in_shape).unwrap();
         let mut y = std::vec![0i8; out.len().unwrap()];
         let mut scratch = std::vec![0i32; Conv2d::scratch_len(&c.geometry, c.in_shape, out)];
-        assert_eq!(
-            f(&op, &c.input, c.in_shape, &mut y, &mut scratch).unwrap(),
-            out
-        );
+        assert_eq!(f(&op, &mut y, &mut scratch), out);
         (out, y)
     }
 
@@ -1360,20 +1367,16 @@ pub(crate) mod tests {
                 y, yr,
                 "depthwise::bands (bands) k{k} s{s} d{d} p{p} {h}x{w}"
             );
-            let (_, y) = run(&case, ring3);
-            assert_eq!(y, yr, "depthwise::ring3 k{k} s{s} d{d} p{p} {h}x{w}");
-            let (_, y) = run(&case, ring3_in_bands);
-            assert_eq!(
-                y, yr,
-                "depthwise::ring3 (bands) k{k} s{s} d{d} p{p} {h}x{w}"
-            );
-            let (_, y) = run(&case, ring_rows);
-            assert_eq!(y, yr, "depthwise::ring_rows k{k} s{s} d{d} p{p} {h}x{w}");
-            let (_, y) = run(&case, ring_rows_in_bands);
-            assert_eq!(
-                y, yr,
-                "depthwise::ring_rows (bands) k{k} s{s} d{d} p{p} {h}x{w}"
-            );
+            // The Cortex-M strip paths with portable sums, whole and in three row bands.
+            for (name, bands, path) in [
+                ("ring3", 1, ring3_or_pixels as DepthwisePath),
+                ("ring3 (bands)", 3, ring3_or_pixels),
+                ("ring_rows", 1, ring_rows_or_pixels),
+                ("ring_rows (bands)", 3, ring_rows_or_pixels),
+            ] {
+                let y = run_banded(&case, bands, path);
+                assert_eq!(y, yr, "depthwise::{name} k{k} s{s} d{d} p{p} {h}x{w}");
+            }
             let (_, y) = run(&case, pixels);
             assert_eq!(y, yr, "depthwise::pixels k{k} s{s} d{d} p{p} {h}x{w}");
             let (_, y) = run(&case, pixels_in_bands);
@@ -1467,51 +1470,16 @@ pub(crate) mod tests {
         );
     }
 
-    /// [`depthwise::ring3`] with the portable sums, or [`depthwise::pixels`] where it declines.
-    fn ring3(
-        op: &Conv2d,
-        x: &[i8],
-        s: Shape,
-        y: &mut [i8],
-        t: &mut [i32],
-    ) -> Result<Shape, KernelError> {
-        in_bands(op, x, s, y, t, 1, ring3_or_pixels)
-    }
-
-    /// [`ring3`] computed in three row bands into one output.
-    fn ring3_in_bands(
-        op: &Conv2d,
-        x: &[i8],
-        s: Shape,
-        y: &mut [i8],
-        t: &mut [i32],
-    ) -> Result<Shape, KernelError> {
-        in_bands(op, x, s, y, t, 3, ring3_or_pixels)
+    /// `case` through a depthwise path over `bands` row bands (portable kernel set).
+    fn run_banded(c: &Case, bands: usize, path: DepthwisePath) -> Vec<i8> {
+        with_op(c, |op, y, t| {
+            in_bands(op, &c.input, c.in_shape, y, t, bands, path).unwrap()
+        })
+        .1
     }
 
     /// [`depthwise::ring_rows`] with the portable sums, or [`depthwise::pixels`] where it
     /// declines.
-    fn ring_rows(
-        op: &Conv2d,
-        x: &[i8],
-        s: Shape,
-        y: &mut [i8],
-        t: &mut [i32],
-    ) -> Result<Shape, KernelError> {
-        in_bands(op, x, s, y, t, 1, ring_rows_or_pixels)
-    }
-
-    /// [`ring_rows`] computed in three row bands into one output.
-    fn ring_rows_in_bands(
-        op: &Conv2d,
-        x: &[i8],
-        s: Shape,
-        y: &mut [i8],
-        t: &mut [i32],
-    ) -> Result<Shape, KernelError> {
-        in_bands(op, x, s, y, t, 3, ring_rows_or_pixels)
-    }
-
     #[allow(clippy::too_many_arguments)]
     fn ring_rows_or_pixels(
         op: &Conv2d,
@@ -1527,6 +1495,7 @@ pub(crate) mod tests {
         }
     }
 
+    /// [`depthwise::ring3`] with the portable sums, or [`depthwise::pixels`] where it declines.
     #[allow(clippy::too_many_arguments)]
     fn ring3_or_pixels(
         op: &Conv2d,

@@ -349,6 +349,26 @@ macro_rules! requant_loop {
     };
 }
 
+/// The asm block of a requantisation loop (`requant_loop!` of `$step`) over `$n` ≥ 1 sums of
+/// `$acc` into `$dst`: `{b}` is the doubled base for `SMMULR` or the base for `SMLAL`; `$extra`
+/// the step's own operands.
+macro_rules! requant_asm {
+    ($acc:expr, $dst:expr, $n:expr, $b:expr, $step:expr; $($extra:tt)*) => {
+        core::arch::asm!(
+            requant_loop!($step),
+            a = inout(reg) $acc.as_ptr() => _,
+            d = inout(reg) $dst.as_mut_ptr() => _,
+            n = inout(reg) $n => _,
+            c = out(reg) _,
+            b = in(reg) $b,
+            x = out(reg) _,
+            lo = out(reg) _,
+            $($extra)*
+            options(nostack),
+        )
+    };
+}
+
 /// The high product of one sum of [`requant_row`] from the doubled sum with `SMMULR` (narrow
 /// sums), then the tail.
 macro_rules! narrow_step {
@@ -406,28 +426,14 @@ pub fn requant_row(
         return n == 0;
     }
     let half = (1i32 << (e - 1)) + (zp << e);
-    // One asm block per (narrow, floor) case: `{b}` is the doubled base for `SMMULR`, the base
-    // for `SMLAL`; the rest are the operands only some cases use (the floor, `SMLAL`'s high
-    // word).
+    // One asm block per (narrow, floor) case; the operands only some cases use: the floor,
+    // `SMLAL`'s high word.
     macro_rules! run {
         ($step:ident, $tail:tt, $b:expr; $($extra:tt)*) => {
             // SAFETY: `n` ≥ 1 words of `acc` and `n` bytes of `dst` exist (n ≤ both lengths).
             unsafe {
-                core::arch::asm!(
-                    requant_loop!($step!($tail)),
-                    a = inout(reg) acc.as_ptr() => _,
-                    d = inout(reg) dst.as_mut_ptr() => _,
-                    n = inout(reg) n => _,
-                    c = out(reg) _,
-                    b = in(reg) $b,
-                    m = in(reg) m,
-                    half = in(reg) half,
-                    e = in(reg) e,
-                    x = out(reg) _,
-                    lo = out(reg) _,
-                    $($extra)*
-                    options(nostack),
-                );
+                requant_asm!(acc, dst, n, $b, $step!($tail);
+                    m = in(reg) m, half = in(reg) half, e = in(reg) e, $($extra)*)
             }
         };
     }
@@ -559,22 +565,9 @@ pub fn requant_row_signed(
             // `narrow` every |base + acc| < 2^30, so doubling it keeps its sign and `SMMULR` is
             // the doubling high multiply (as in `requant_row`).
             unsafe {
-                core::arch::asm!(
-                    requant_loop!($step!($tail)),
-                    a = inout(reg) acc.as_ptr() => _,
-                    d = inout(reg) dst.as_mut_ptr() => _,
-                    n = inout(reg) n => _,
-                    c = out(reg) _,
-                    b = in(reg) $b,
-                    kp = in(reg) table.as_ptr(),
-                    x = out(reg) _,
-                    lo = out(reg) _,
-                    hi = out(reg) _,
-                    k = out(reg) _,
-                    m = out(reg) _,
-                    $($extra)*
-                    options(nostack),
-                );
+                requant_asm!(acc, dst, n, $b, $step!($tail);
+                    kp = in(reg) table.as_ptr(), hi = out(reg) _, k = out(reg) _,
+                    m = out(reg) _, $($extra)*)
             }
         };
     }
