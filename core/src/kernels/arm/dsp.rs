@@ -305,26 +305,25 @@ pub fn pack_pixel(x: impl Iterator<Item = i32>, out: &mut [u32]) {
 /// saturation and the store; `floor` adds the activation floor `{min}` before the store (a
 /// floor of −128 is the saturation's own, so those rows skip it).
 macro_rules! requant_tail {
-    (plain) => {
+    ($tail:tt) => {
         concat!(
             "add {lo}, {x}, {half}\n",
             "sub {lo}, {lo}, {x}, lsr #31\n",
             "asr {lo}, {lo}, {e}\n",
             "ssat {lo}, #8, {lo}\n",
+            requant_floor!($tail),
             "strb {lo}, [{d}], #1\n",
         )
     };
+}
+
+/// The activation floor `{min}` of a requantisation step (`floor`), or nothing (`plain`).
+macro_rules! requant_floor {
+    (plain) => {
+        ""
+    };
     (floor) => {
-        concat!(
-            "add {lo}, {x}, {half}\n",
-            "sub {lo}, {lo}, {x}, lsr #31\n",
-            "asr {lo}, {lo}, {e}\n",
-            "ssat {lo}, #8, {lo}\n",
-            "cmp {lo}, {min}\n",
-            "it lt\n",
-            "movlt {lo}, {min}\n",
-            "strb {lo}, [{d}], #1\n",
-        )
+        concat!("cmp {lo}, {min}\n", "it lt\n", "movlt {lo}, {min}\n")
     };
 }
 
@@ -472,7 +471,7 @@ macro_rules! pick_sign {
 
 /// `requant_tail!` with the shift and `half` read from the picked constants.
 macro_rules! signed_tail {
-    (plain) => {
+    ($tail:tt) => {
         concat!(
             "ldr {hi}, [{k}, #8]\n",
             "add {lo}, {x}, {hi}\n",
@@ -480,20 +479,7 @@ macro_rules! signed_tail {
             "ldr {hi}, [{k}, #4]\n",
             "asr {lo}, {lo}, {hi}\n",
             "ssat {lo}, #8, {lo}\n",
-            "strb {lo}, [{d}], #1\n",
-        )
-    };
-    (floor) => {
-        concat!(
-            "ldr {hi}, [{k}, #8]\n",
-            "add {lo}, {x}, {hi}\n",
-            "sub {lo}, {lo}, {x}, lsr #31\n",
-            "ldr {hi}, [{k}, #4]\n",
-            "asr {lo}, {lo}, {hi}\n",
-            "ssat {lo}, #8, {lo}\n",
-            "cmp {lo}, {min}\n",
-            "it lt\n",
-            "movlt {lo}, {min}\n",
+            requant_floor!($tail),
             "strb {lo}, [{d}], #1\n",
         )
     };
