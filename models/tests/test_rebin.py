@@ -16,7 +16,7 @@ def test_overrides_parse_literals_and_reject_unknown_fields():
 
 def test_merged_bins_keep_widths_and_probabilities_of_the_groups():
     torch.manual_seed(0)
-    net = build("mcu_lite", seed=3)
+    net = build("mcu_lite", seed=3, n_bins=64)
     state = net.state_dict()
     merged = merge_bins(state, 32)
     small = build("mcu_lite", seed=3, n_bins=32)
@@ -40,10 +40,11 @@ def test_export_applies_the_overrides(tmp_path):
 
     from depthor_models.export import export_variant
 
-    export_variant("mcu_lite", tmp_path, nnef=False, overrides={"n_bins": 32, "iterations": 4})
+    # Values other than mcu_lite's own (32 bins, T = 4).
+    export_variant("mcu_lite", tmp_path, nnef=False, overrides={"n_bins": 16, "iterations": 2})
     nodes = json.loads((tmp_path / "graph.json").read_text())["nodes"]
     attrs = {n["op"]: n["attrs"] for n in nodes if n["op"] in ("bins_head", "refine")}
-    assert attrs["bins_head"]["n_bins"] == 32 and attrs["refine"]["iterations"] == 4
+    assert attrs["bins_head"]["n_bins"] == 16 and attrs["refine"]["iterations"] == 2
 
 
 def test_dilated_heads_keep_the_ring_channels_and_export(tmp_path):
@@ -54,7 +55,7 @@ def test_dilated_heads_keep_the_ring_channels_and_export(tmp_path):
     from depthor_models.export import export_variant
 
     assert parse_overrides(["refine_neighbourhood=dilated"]) == {"refine_neighbourhood": "dilated"}
-    state = build("mcu_lite", seed=4).state_dict()
+    state = build("mcu_lite", seed=4, refine_neighbourhood="window").state_dict()
     cut = dilated_heads(state)
     net = build("mcu_lite", seed=4, refine_neighbourhood="dilated")
     net.load_state_dict(cut)  # the shapes of the dilated network
@@ -65,6 +66,8 @@ def test_dilated_heads_keep_the_ring_channels_and_export(tmp_path):
     with pytest.raises(ValueError):
         dilated_heads(cut)
     export_variant("mcu_lite", tmp_path, nnef=False, overrides={"refine_neighbourhood": "dilated"})
+    # mcu_lite itself is dilated (net.VARIANTS).
+    assert build("mcu_lite").refine.neighbourhood == "dilated"
     nodes = json.loads((tmp_path / "graph.json").read_text())["nodes"]
     refine = next(n for n in nodes if n["op"] == "refine")
     assert refine["attrs"]["neighbourhood"] == "dilated"
