@@ -1625,8 +1625,11 @@ pub(crate) mod tests {
 
     /// Speed of every kernel set against the reference on a 3×3 conv, by default 16→16 at
     /// 60×80 (a typical `mcu` half-resolution layer; `CONV_SPEED_SHAPE=ic,oc,h,w` for another).
-    /// `CONV_SPEED_DEPTHWISE=1` makes it depthwise. Run: `cargo test --release -p depthor-core
-    /// --lib conv_speed -- --ignored --nocapture`.
+    /// `CONV_SPEED_DEPTHWISE=1` makes it depthwise, `CONV_SPEED_GEOMETRY=k,stride` sets the
+    /// square kernel (padding k/2) and the stride. Run: `cargo test --release -p depthor-core
+    /// --lib conv_speed -- --ignored --nocapture`; `CONV_SPEED_ONLY=arm-dsp` under qemu-arm with
+    /// `--features arm-dsp` and the PC profiler of firmware-sim/tools/pcprof counts that set's
+    /// instructions (20 runs).
     #[test]
     #[ignore]
     fn conv_speed() {
@@ -1641,9 +1644,16 @@ pub(crate) mod tests {
         } else {
             1
         };
+        let geometry = std::env::var("CONV_SPEED_GEOMETRY").unwrap_or_default();
+        let kv: Vec<usize> = geometry.split(',').filter_map(|t| t.parse().ok()).collect();
+        let (k, stride) = match kv[..] {
+            [k, s] => (k, s),
+            _ => (3, 1),
+        };
         let g = ConvGeometry {
-            kernel: [3, 3],
-            padding: [1, 1],
+            kernel: [k, k],
+            padding: [k / 2, k / 2],
+            stride: [stride, stride],
             groups,
             ..ConvGeometry::POINTWISE
         };
@@ -1664,13 +1674,18 @@ pub(crate) mod tests {
         let out = op.check(s).unwrap();
         let mut y = std::vec![0i8; out.len().unwrap()];
         let mut scratch = std::vec![0i32; Conv2d::scratch_len(&g, s, out)];
-        let macs = (out.len().unwrap() * ic / groups * 9) as f64;
+        let macs = (out.len().unwrap() * ic / groups * k * k) as f64;
         for (name, f) in [
             ("conv2d_ref", conv2d_ref as Impl),
             ("portable", portable as Impl),
+            ("arm-dsp", arm_dsp as Impl),
             ("avx2", avx2 as Impl),
             ("avx512-vnni", avx512_vnni as Impl),
         ] {
+            // `CONV_SPEED_ONLY=<name>` runs one kernel set (for a profiler).
+            if std::env::var("CONV_SPEED_ONLY").is_ok_and(|only| only != name) {
+                continue;
+            }
             let t = std::time::Instant::now();
             let reps = 20;
             for _ in 0..reps {
