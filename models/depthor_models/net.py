@@ -114,7 +114,11 @@ VARIANTS: dict[str, NetConfig] = {
         depth_widths=(8, 16, 32, 48, 64),
         dec_widths=(64, 48, 32, 24, 16),
         mlp_hidden=96,
-        n_bins=64,
+        # mcu_lite's bins, T and neighbourhood (not yet trained here: 0.91 × the time of the
+        # 64-bin, T = 6, whole-window phone_lite; docs/results/models_mcu_lite_budget.md).
+        n_bins=32,
+        iterations=4,
+        refine_neighbourhood="dilated",
         cspn_channels=8,
         refine_scale=2,
     ),
