@@ -92,8 +92,8 @@ VARIANTS: dict[str, NetConfig] = {
         depth_widths=(8, 16, 24, 32, 48),
         dec_widths=(48, 32, 24, 16, 12),
         mlp_hidden=64,
-        # 32 bins, T = 4 and 8 dilated neighbours per window: the Cortex-M4 budget at no
-        # measured cost on the check sets (docs/results/models_mcu_lite_budget.md, 2026-12-05).
+        # 32 bins, T = 4 and 8 dilated neighbours per window: 21 M fewer Cortex-M4
+        # instructions for 1 % RMSE on the check sets (docs/results/models_mcu_lite_budget.md).
         n_bins=32,
         iterations=4,
         refine_neighbourhood="dilated",
