@@ -602,6 +602,8 @@ pub unsafe fn pair_row_s2(row: *const i16, words: &[u32], first: bool, acc: &mut
             )
         };
     }
+    // `asm!` wants every operand used: the weight words past `J` are named in an assembler
+    // comment of the first instruction (their registers hold 0 and are never read).
     match (words.len(), first) {
         (1, true) => run!("mov {s}, #0 /* {w4} {w8} {w12} */", "0"),
         (1, false) => run!("ldr {s}, [{a}] /* {w4} {w8} {w12} */", "0"),
