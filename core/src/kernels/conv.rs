@@ -1627,9 +1627,9 @@ pub(crate) mod tests {
     /// 60×80 (a typical `mcu` half-resolution layer; `CONV_SPEED_SHAPE=ic,oc,h,w` for another).
     /// `CONV_SPEED_DEPTHWISE=1` makes it depthwise, `CONV_SPEED_GEOMETRY=k,stride` sets the
     /// square kernel (padding k/2) and the stride. Run: `cargo test --release -p depthor-core
-    /// --lib conv_speed -- --ignored --nocapture`; `CONV_SPEED_ONLY=arm-dsp` under qemu-arm with
-    /// `--features arm-dsp` and the PC profiler of firmware-sim/tools/pcprof counts that set's
-    /// instructions (20 runs).
+    /// --lib conv_speed -- --ignored --nocapture`; `CONV_SPEED_ONLY=<set>` runs one kernel set
+    /// (e.g. `arm-dsp` under qemu-arm with `--features arm-dsp`; the PC profiler of
+    /// firmware-sim/tools/pcprof wrote no counts in qemu-arm user mode when tried).
     #[test]
     #[ignore]
     fn conv_speed() {

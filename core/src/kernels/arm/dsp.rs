@@ -381,6 +381,21 @@ macro_rules! narrow_step {
     };
 }
 
+/// The doubling high product of the sum `{x}` by `{m}` with `SMLAL`, pre-clamped to 31 bits
+/// (any sum), into `{x}`.
+macro_rules! wide_high {
+    () => {
+        concat!(
+            "mov {lo}, #0x40000000\n",
+            "mov {hi}, #0\n",
+            "smlal {lo}, {hi}, {x}, {m}\n",
+            "lsr {lo}, {lo}, #31\n",
+            "orr {x}, {lo}, {hi}, lsl #1\n",
+            "ssat {x}, #31, {x}\n",
+        )
+    };
+}
+
 /// The high product of one sum of [`requant_row`] with `SMLAL` and the 31-bit pre-clamp (any
 /// sum), then the tail.
 macro_rules! wide_step {
@@ -388,12 +403,7 @@ macro_rules! wide_step {
         concat!(
             "ldr {x}, [{a}], #4\n",
             "add {x}, {x}, {b}\n",
-            "mov {lo}, #0x40000000\n",
-            "mov {hi}, #0\n",
-            "smlal {lo}, {hi}, {x}, {m}\n",
-            "lsr {lo}, {lo}, #31\n",
-            "orr {x}, {lo}, {hi}, lsl #1\n",
-            "ssat {x}, #31, {x}\n",
+            wide_high!(),
             requant_tail!($tail),
         )
     };
@@ -505,12 +515,7 @@ macro_rules! signed_wide_step {
             "ldr {x}, [{a}], #4\n",
             "add {x}, {x}, {b}\n",
             pick_sign!(),
-            "mov {lo}, #0x40000000\n",
-            "mov {hi}, #0\n",
-            "smlal {lo}, {hi}, {x}, {m}\n",
-            "lsr {lo}, {lo}, #31\n",
-            "orr {x}, {lo}, {hi}, lsl #1\n",
-            "ssat {x}, #31, {x}\n",
+            wide_high!(),
             signed_tail!($tail),
         )
     };
