@@ -53,8 +53,11 @@ class NetConfig:
         for name in ("rgb_widths", "rgb_blocks", "depth_widths", "dec_widths"):
             if len(getattr(self, name)) != 5:
                 raise ValueError(f"{name} needs 5 entries (1/2 … 1/32)")
-        if any(b < 1 for b in self.rgb_blocks[1:]):
+        # dense: a stage's first block is its strided one; lite: blocks after a strided conv
+        if self.arch == "dense" and any(b < 1 for b in self.rgb_blocks[1:]):
             raise ValueError("rgb_blocks[1:] must be >= 1 (the strided block)")
+        if any(b < 0 for b in self.rgb_blocks):
+            raise ValueError("rgb_blocks must be >= 0")
         if self.refine_neighbourhood not in ("window", "dilated"):
             raise ValueError("refine_neighbourhood must be 'window' or 'dilated'")
         if self.height % 2 or self.width % 2:
@@ -137,22 +140,31 @@ def make_net(cfg: NetConfig) -> nn.Module:
 
 
 def config(variant: str, **overrides) -> NetConfig:
-    """The named variant's config, with optional field overrides."""
+    """The named variant's config, with optional field overrides (`prior.FIELD` keys override
+    fields of its `PriorConfig`)."""
     if variant not in VARIANTS:
         raise KeyError(f"unknown variant {variant!r} (have {sorted(VARIANTS)})")
-    return replace(VARIANTS[variant], **overrides)
+    base = VARIANTS[variant]
+    prior = {k.partition(".")[2]: v for k, v in overrides.items() if k.startswith("prior.")}
+    own = {k: v for k, v in overrides.items() if not k.startswith("prior.")}
+    if prior:
+        own["prior"] = replace(own.get("prior", base.prior), **prior)
+    return replace(base, **own)
 
 
 def parse_overrides(items: list[str]) -> dict:
     """`FIELD=VALUE` strings (int/float/tuple literals, or a bare word for a string field) →
-    NetConfig overrides for `config`; unknown fields are errors."""
+    NetConfig overrides for `config` (FIELD a NetConfig field, or `prior.F` with F a PriorConfig
+    field); unknown fields are errors."""
     import ast
     fields = set(NetConfig.__dataclass_fields__)
+    fields |= {f"prior.{f}" for f in PriorConfig.__dataclass_fields__}
     out = {}
     for kv in items:
         k, sep, v = kv.partition("=")
         if not sep or k not in fields:
-            raise ValueError(f"--set {kv!r}: expected FIELD=VALUE with FIELD a NetConfig field")
+            raise ValueError(f"--set {kv!r}: expected FIELD=VALUE with FIELD a NetConfig field "
+                             "or prior.FIELD")
         try:
             out[k] = ast.literal_eval(v)
         except (ValueError, SyntaxError):

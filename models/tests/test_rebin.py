@@ -71,3 +71,34 @@ def test_dilated_heads_keep_the_ring_channels_and_export(tmp_path):
     nodes = json.loads((tmp_path / "graph.json").read_text())["nodes"]
     refine = next(n for n in nodes if n["op"] == "refine")
     assert refine["attrs"]["neighbourhood"] == "dilated"
+
+
+def test_prior_overrides_and_removed_blocks():
+    from depthor_models.net import config, random_inputs
+    from depthor_models.shrink import shrink
+
+    over = parse_overrides(["prior.blocks=(0,0,1,2)", "rgb_blocks=(0,0,1,2,1)"])
+    assert over == {"prior.blocks": (0, 0, 1, 2), "rgb_blocks": (0, 0, 1, 2, 1)}
+    cfg = config("mcu_lite", **over)
+    assert cfg.prior.blocks == (0, 0, 1, 2)
+    assert cfg.prior.widths == config("mcu_lite").prior.widths  # the other prior fields kept
+    with pytest.raises(ValueError):
+        parse_overrides(["prior.no_such_field=1"])
+
+    full = build("mcu_lite", seed=5)
+    state = full.state_dict()
+    # The block to remove computes x + f(x); with its projection at zero it is the identity.
+    for part in ("weight", "bias"):
+        state[f"prior.enc.1.1.project.{part}"].zero_()
+    full.load_state_dict(state)
+    small = build("mcu_lite", seed=6, **over)
+    kept, dropped = shrink(state, small.state_dict())
+    assert dropped and all(n.startswith("prior.enc.1.1.") for n in dropped)
+    small.load_state_dict(kept)
+    full.eval(), small.eval()
+    x = random_inputs(config("mcu_lite"))
+    with torch.no_grad():
+        assert torch.equal(full(*x), small(*x))
+    # The other way (a block the trained network lacks) is an error.
+    with pytest.raises(KeyError):
+        shrink(small.state_dict(), full.state_dict())

@@ -253,14 +253,18 @@ impl Product {
     /// [`Product::apply`] where `right ≥ 33` (the usual case: products of scales below one):
     /// with `|p|·M = hi·2^32 + lo`, `(|p|·M + 2^(r−1)) >> r = (hi + 2^(r−33)) >> (r − 32)`
     /// exactly (dividing by 2^32 first drops only `lo`), so only the high word of the product
-    /// is used and every step is 32-bit: the same bits.
+    /// is used and every step is 32-bit: the same bits. `|p| ≤ 2^16` and `M < 2^31` bound the
+    /// magnitude by 2^15 + 1, so it needs no clamp before the sign and the int8 saturation
+    /// (which turn anything past 255 into the same code as 1024 does).
     #[inline(always)]
     fn apply_high(&self, a: i8, b: i8) -> i8 {
         let p = (a as i32 - self.zp[0]) * (b as i32 - self.zp[1]);
         let hi = ((u64::from(p.unsigned_abs()) * self.m) >> 32) as u32;
         let k = 1u32 << ((self.right - 33) & 31);
-        let magnitude = ((hi + k) >> ((self.right - 32) & 31)).min(1024);
-        self.finish(p, magnitude)
+        let magnitude = (hi + k) >> ((self.right - 32) & 31);
+        // The sign of `p` without a branch: `(m ^ s) − s` with `s = p >> 31` (0 or −1).
+        let sign = p >> 31;
+        ((magnitude as i32 ^ sign) - sign + self.zp[2]).clamp(-128, 127) as i8
     }
 
     /// The sign of `p` on the rounded magnitude, the output zero point and int8 saturation.

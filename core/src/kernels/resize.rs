@@ -128,8 +128,19 @@ pub fn upsample_bilinear(
 ) -> Result<(), KernelError> {
     check(input, in_shape, out, out_shape)?;
     let (ih, iw) = (in_shape.h, in_shape.w);
-    // The column blend of `narrow_row`, one past the row (made once per call).
+    // The column blend of `narrow_row`, one past the row, and its output columns' taps (made
+    // once per call).
     let mut blend = [0i32; ROW + 1];
+    let mut taps = [0u32; OUT_ROW];
+    let tabled = out_shape.w <= OUT_ROW && iw <= ROW;
+    if tabled {
+        let mut cols = Coords::new(iw, out_shape.w);
+        for t in taps[..out_shape.w].iter_mut() {
+            let (x0, f, _) = cols.next();
+            // x0 < iw ≤ 256 and f < den < 2^15 (checked by `check`).
+            *t = x0 as u32 | (f as u32) << 16;
+        }
+    }
     for c in 0..out_shape.c {
         let chan = &input[c * ih * iw..(c + 1) * ih * iw];
         for oy in 0..out_shape.h {
@@ -141,8 +152,9 @@ pub fn upsample_bilinear(
             let mut cols = Coords::new(iw, out_shape.w);
             // |sum| ≤ 128·dx·dy: in 32 bits (a hardware divide on Cortex-M) unless huge.
             let narrow = cols.den * dy <= 1 << 23;
-            if narrow && iw <= ROW {
-                narrow_row(r0, r1, fy as i32, dy as i32, &cols, orow, &mut blend);
+            if narrow && tabled {
+                let den = cols.den as i32;
+                narrow_row(r0, r1, fy as i32, dy as i32, den, &taps, orow, &mut blend);
                 continue;
             }
             for o in orow.iter_mut() {
@@ -167,18 +179,23 @@ pub fn upsample_bilinear(
 /// Widest input row of [`narrow_row`] (its column blend lives on the stack).
 const ROW: usize = 256;
 
+/// Widest output row of [`narrow_row`] (its column taps live on the stack).
+const OUT_ROW: usize = 1024;
+
 /// One output row in 32 bits: the two input rows blended once per input column,
 /// `v[x] = r0[x]·(dy − fy) + r1[x]·fy` (with `v[iw] = v[iw − 1]`, the clamped right
-/// neighbour), then `v[x0]·(dx − fx) + v[x0 + 1]·fx` per output column, the same integer as the
-/// reference's `top·(dy − fy) + bot·fy` (exact), rounded half away from zero without a branch
-/// on the sign: the same bits. `cols` is at its first column; `|sum| ≤ 128·dx·dy < 2^31` and
-/// `r0.len() ≤ ROW`.
+/// neighbour), then `v[x0]·(den − f) + v[x0 + 1]·f` per output column (`taps[o] = x0 | f << 16`,
+/// [`Coords`]' sequence, `den` its denominator), the same integer as the reference's
+/// `top·(dy − fy) + bot·fy` (exact), rounded half away from zero without a branch on the sign:
+/// the same bits. `|sum| ≤ 128·den·dy < 2^31`, `r0.len() ≤ ROW`, every `x0 < r0.len()`.
+#[allow(clippy::too_many_arguments)]
 fn narrow_row(
     r0: &[i8],
     r1: &[i8],
     fy: i32,
     dy: i32,
-    cols: &Coords,
+    den: i32,
+    taps: &[u32; OUT_ROW],
     orow: &mut [i8],
     v: &mut [i32; ROW + 1],
 ) {
@@ -190,25 +207,17 @@ fn narrow_row(
         *v = i32::from(a) * (dy - fy) + i32::from(b) * fy;
     }
     v[iw] = v[iw - 1];
-    let (step, den) = (cols.step as i32, cols.den as i32);
     let d = den * dy;
     let half = d / 2;
-    let (mut x0, mut f) = (0usize, 0i32);
-    for o in orow.iter_mut() {
-        let (a, b) = match v.get(x0..x0 + 2) {
-            Some(&[a, b]) => (a, b),
-            _ => (v[iw - 1], v[iw - 1]),
-        };
-        let n = a * (den - f) + b * f;
+    for (o, &t) in orow.iter_mut().zip(taps) {
+        // The mask keeps both reads inside `v` without a bounds branch (x0 < iw ≤ ROW already).
+        let x0 = t as usize & (ROW - 1);
+        let f = (t >> 16) as i32;
+        let n = v[x0] * (den - f) + v[x0 + 1] * f;
         // |n| rounded half up, then the sign back: `div_round_i32(n, d)`.
         let sign = n >> 31;
         let q = (((((n ^ sign) - sign) + half) / d) ^ sign) - sign;
         *o = q.clamp(-128, 127) as i8;
-        f += step;
-        while f >= den {
-            f -= den;
-            x0 += 1;
-        }
     }
 }
 
