@@ -12,8 +12,6 @@
 //! accurate to about 2 ULP, built from `+`, `−`, `×` and bit operations only, so it gives the same
 //! bits on every IEEE-754 target (Rust never fuses `a·b + c` into an FMA on its own).
 
-use core::cmp::Ordering;
-
 /// `sqrt(x)`: NaN for negative or NaN input, `+inf` for `+inf`, exact zero for zero.
 ///
 /// Seeds from halving the exponent bits (within about 4 %), then five Newton steps
@@ -187,24 +185,45 @@ fn exp_reduced(x: f32, k: i32) -> f32 {
     p * pow2i(k1) * pow2i(k2)
 }
 
-/// [`exp_f32`] for the softmax's `x = l − max ≤ 0` (bit for bit, every input): for `x ≤ 0` the
-/// overflow test and the sign branch of the rounding drop out (`(kf + 0.5)` truncates to the
-/// same `k` as `(kf − 0.5)` at `kf = ±0`, the only non-positive `kf` that branch takes), so the
-/// loop body is shorter on a Cortex-M; anything else (NaN, `x > 0`) takes [`exp_f32`].
+/// `2^(j/32)` for `j = 0..32`, each rounded to the nearest f32 (the bits, so no literal parsing
+/// is involved).
+pub(crate) const EXP2_32THS: [u32; 32] = [
+    0x3f800000, 0x3f82cd87, 0x3f85aac3, 0x3f88980f, 0x3f8b95c2, 0x3f8ea43a, 0x3f91c3d3, 0x3f94f4f0,
+    0x3f9837f0, 0x3f9b8d3a, 0x3f9ef532, 0x3fa27043, 0x3fa5fed7, 0x3fa9a15b, 0x3fad583f, 0x3fb123f6,
+    0x3fb504f3, 0x3fb8fbaf, 0x3fbd08a4, 0x3fc12c4d, 0x3fc5672a, 0x3fc9b9be, 0x3fce248c, 0x3fd2a81e,
+    0x3fd744fd, 0x3fdbfbb8, 0x3fe0ccdf, 0x3fe5b907, 0x3feac0c7, 0x3fefe4ba, 0x3ff5257d, 0x3ffa83b3,
+];
+
+/// `32·log2 e` and `ln 2 / 32` in f32 (the constants of [`softmax_exp`]).
+pub(crate) const SOFTMAX_T: f32 = 46.166_24;
+/// See [`SOFTMAX_T`].
+pub(crate) const SOFTMAX_U: f32 = 0.021_660_85;
+/// Inputs below this give a softmax weight of 0 (`e^−80 < 2·10⁻³⁵`, so every result is a
+/// normal number).
+pub(crate) const SOFTMAX_FLOOR: f32 = -80.0;
+
+/// `e^x` for a softmax's `x = l − max ≤ 0` (or NaN, which it returns as NaN), cheaper than
+/// [`exp_f32`] on a Cortex-M: `t = x·32·log2 e` truncated to `n` (toward zero), `n = 32q + j`
+/// with `j ∈ 0..32`, and `e^x = 2^q · 2^(j/32) · 2^(r/32)` for `r = t − n ∈ (−1, 0]`, the last
+/// factor a cubic in `u = r·ln2/32` (`|u| < 0.022`, truncation error below 10⁻⁸), evaluated as
+/// `(T[j]·p)·2^q`; `x <` [`SOFTMAX_FLOOR`] (and −∞) gives 0. Relative error below
+/// `3·10⁻⁷ + |x|·1.2·10⁻⁷` (the rounding of `t`): far below what a weight's share of the
+/// expectation can resolve. `+`, `−`, `×`, conversions and bit operations only, in a fixed order,
+/// so every IEEE target (and the AVX2 lanes of `kernels::x86_64::vmath`) gives the same bits.
 #[inline(always)]
-pub(crate) fn exp_f32_nonpositive(x: f32) -> f32 {
-    if !matches!(x.partial_cmp(&0.0), Some(Ordering::Less | Ordering::Equal)) {
-        return exp_f32(x);
-    }
-    if x < -103.972_08 {
+pub(crate) fn softmax_exp(x: f32) -> f32 {
+    if x < SOFTMAX_FLOOR {
         return 0.0;
     }
-    let k = (x * LOG2_E - 0.5) as i32;
-    let p = exp_poly((x - k as f32 * LN2_HI) - k as f32 * LN2_LO);
-    if k >= -126 {
-        return p * pow2i(k);
-    }
-    p * pow2i(k / 2) * pow2i(k - k / 2)
+    let t = x * SOFTMAX_T;
+    // `as` truncates toward zero (NaN → 0); |t| ≤ 3 694 here unless x > 0 (not a softmax input).
+    let n = t as i32;
+    let u = (t - n as f32) * SOFTMAX_U;
+    let p = 1.0 + u * (1.0 + u * (0.5 + u * (1.0 / 6.0)));
+    let q = n >> 5;
+    let table = f32::from_bits(EXP2_32THS[(n & 31) as usize]);
+    // 2^q for q ∈ [−116, 0] (x ≤ 0), an exact power of two: one rounding in all.
+    table * p * f32::from_bits(((q + 127) as u32) << 23)
 }
 
 /// `2^k` for `k ∈ [−126, 127]` from the exponent bits.
@@ -247,41 +266,39 @@ mod tests {
         assert!(exp_f32(-100.0) > 0.0, "subnormal results kept");
     }
 
-    /// The non-positive fast path gives `exp_f32`'s bits on a dense sweep of `x ≤ 0` (every
-    /// exponent, the underflow edge, ±0) and on NaN and positive inputs.
+    /// The softmax weight is within `3·10⁻⁷ + |x|·1.2·10⁻⁷` relative of `e^x` (f64) on a dense
+    /// sweep of `[−80, 0]`, exact at 0, 0 below the floor and −∞, NaN for NaN.
     #[test]
-    fn exp_nonpositive_equals_exp() {
-        let mut bits = 0x8000_0000u32;
-        while bits < 0xff80_0000 {
-            let x = f32::from_bits(bits);
-            assert_eq!(
-                exp_f32_nonpositive(x).to_bits(),
-                exp_f32(x).to_bits(),
-                "x {x}"
-            );
-            bits += 4099;
+    fn softmax_exp_is_close_to_exp() {
+        let mut x = 0.0f32;
+        let mut worst = 0.0f64;
+        while x >= SOFTMAX_FLOOR {
+            let want = (x as f64).exp();
+            let rel = (softmax_exp(x) as f64 - want).abs() / want;
+            let bound = 3e-7 + (x as f64).abs() * 1.2e-7;
+            assert!(rel <= bound, "x {x}: relative error {rel:e} > {bound:e}");
+            worst = worst.max(rel / bound);
+            x -= 0.000_973;
         }
-        for x in [
-            0.0,
-            -0.0,
-            -103.972_08,
-            -103.972_09,
-            -87.34,
-            1.5,
-            100.0,
-            f32::NAN,
-        ] {
-            let (a, b) = (exp_f32_nonpositive(x), exp_f32(x));
-            assert!(
-                a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()),
-                "x {x}"
+        assert!(
+            worst > 0.05,
+            "the sweep never came near the bound ({worst})"
+        );
+        assert_eq!(softmax_exp(0.0), 1.0);
+        assert_eq!(softmax_exp(-0.0), 1.0);
+        assert_eq!(softmax_exp(-80.01), 0.0);
+        assert_eq!(softmax_exp(f32::NEG_INFINITY), 0.0);
+        assert!(softmax_exp(f32::NAN).is_nan());
+        // The table is 2^(j/32) rounded to f32.
+        for (j, &b) in EXP2_32THS.iter().enumerate() {
+            assert_eq!(
+                b,
+                (2f64.powf(j as f64 / 32.0) as f32).to_bits(),
+                "entry {j}"
             );
         }
     }
 
-    /// The one-multiply scaling for `k ∈ [−126, 127]` gives the bits of the two-step form
-    /// (the shipped golden outputs were made with it) for every `k` and a dense sweep of the
-    /// polynomial's range, subnormal and overflowing results included.
     #[test]
     fn exp_f32_one_step_scaling_equals_two_step() {
         let two_step = |p: f32, k: i32| p * pow2i(k / 2) * pow2i(k - k / 2);

@@ -2,7 +2,7 @@
 //! per-pixel logits (exact integer sums, `vpmaddwd` on channel pairs), max, exponentials and
 //! sums in its order, so the bits equal the scalar path's.
 
-use super::vmath::exp_ps;
+use super::vmath::softmax_exp_ps;
 use crate::kernels::bins::{BinChannel, MAX_BINS, MAX_BIN_FEATURES};
 use core::arch::x86_64::*;
 
@@ -86,7 +86,7 @@ pub unsafe fn head(
         }
         let (mut s, mut d) = (_mm256_setzero_ps(), _mm256_setzero_ps());
         for (lg, &cb) in logits[..n].iter().zip(centres) {
-            let e = exp_ps(_mm256_sub_ps(*lg, m));
+            let e = softmax_exp_ps(_mm256_sub_ps(*lg, m));
             s = _mm256_add_ps(s, e);
             d = _mm256_add_ps(d, _mm256_mul_ps(e, _mm256_set1_ps(cb)));
         }
