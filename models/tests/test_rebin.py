@@ -40,11 +40,11 @@ def test_export_applies_the_overrides(tmp_path):
 
     from depthor_models.export import export_variant
 
-    # Values other than mcu_lite's own (32 bins, T = 4).
-    export_variant("mcu_lite", tmp_path, nnef=False, overrides={"n_bins": 16, "iterations": 2})
+    # Values other than mcu_lite's own (16 bins, T = 4).
+    export_variant("mcu_lite", tmp_path, nnef=False, overrides={"n_bins": 24, "iterations": 2})
     nodes = json.loads((tmp_path / "graph.json").read_text())["nodes"]
     attrs = {n["op"]: n["attrs"] for n in nodes if n["op"] in ("bins_head", "refine")}
-    assert attrs["bins_head"]["n_bins"] == 16 and attrs["refine"]["iterations"] == 2
+    assert attrs["bins_head"]["n_bins"] == 24 and attrs["refine"]["iterations"] == 2
 
 
 def test_dilated_heads_keep_the_ring_channels_and_export(tmp_path):
@@ -85,7 +85,9 @@ def test_prior_overrides_and_removed_blocks():
     with pytest.raises(ValueError):
         parse_overrides(["prior.no_such_field=1"])
 
-    full = build("mcu_lite", seed=5)
+    # mcu_lite before its blocks were removed (the 2026-12-05 network).
+    before = {"prior.blocks": (0, 1, 1, 2), "rgb_blocks": (0, 1, 1, 2, 1)}
+    full = build("mcu_lite", seed=5, **before)
     state = full.state_dict()
     # The block to remove computes x + f(x); with its projection at zero it is the identity.
     for part in ("weight", "bias"):
