@@ -2,8 +2,11 @@
 tensor of the smaller network is copied from a trained one of the same name and shape; the
 removed blocks' tensors are dropped.
 
-    python -m depthor_models.shrink --weights mcu_lite/train/model_final.pt --variant mcu_lite \\
-        --set "prior.blocks=(0,0,0,2)" --set "rgb_blocks=(0,0,0,2,1)" --out W.pt
+    python -m depthor_models.shrink --weights B.pt --variant mcu_lite --set n_bins=16 \\
+        --set "prior.blocks=(0,0,0,2)" --set "rgb_blocks=(0,0,0,2,0)" --out W.pt
+
+(B.pt: the 32-bin mcu_lite of 2026-12-05, `mcu_lite/train/d32/model_final.pt`, rebinned to 16
+by `rebin.py`; this is how today's mcu_lite started, models/mcu_lite/train/data_generation.txt.)
 
 Blocks are numbered within their stage (`enc.<stage>.<block>`), so removing the last inverted
 residual of a stage leaves every other name in place. An inverted residual computes
