@@ -129,3 +129,47 @@ fn blob_runs_at_another_input_size() {
         .iter()
         .all(|d| d.is_finite() && (0.05..=10.5).contains(d)));
 }
+
+/// `--ranges-file`: the named values take the given ranges (their blob parameters follow), the
+/// others keep the calibrated ones; an unknown name or a reversed range is refused.
+#[test]
+fn given_ranges_replace_calibrated_ones() {
+    use depthor_host::quantize::calibrate::{affine_params, RangeFileError, RangeRule};
+    use depthor_host::quantize::{quantize_with, quantize_with_ranges, QuantizeError};
+    let net = mcu();
+    let calib = simulated_frames("mcu", net.height, net.width, 2, 0).unwrap();
+    let plain = quantize_with(&net, &calib, RangeRule::MinMax).unwrap();
+    let v = (2..net.values.len())
+        .find(|&v| net.values[v].storage == depthor_host::quantize::net::Storage::I8)
+        .unwrap();
+    let name = net.values[v].name.clone();
+    let given = vec![(name.clone(), [-1.5f32, 7.25])];
+    let q = quantize_with_ranges(&net, &calib, RangeRule::MinMax, &given).unwrap();
+    assert_eq!((q.ranges.min[v], q.ranges.max[v]), (-1.5, 7.25));
+    assert_eq!(q.qparams[v], affine_params(-1.5, 7.25));
+    assert_ne!(q.blob, plain.blob, "{name}: its parameters are in the blob");
+    for u in (0..net.values.len()).filter(|&u| u != v) {
+        assert_eq!(
+            q.ranges.min[u], plain.ranges.min[u],
+            "{}",
+            net.values[u].name
+        );
+        assert_eq!(
+            q.ranges.max[u], plain.ranges.max[u],
+            "{}",
+            net.values[u].name
+        );
+    }
+    let unknown = vec![("no.such.value".to_string(), [0.0f32, 1.0])];
+    assert!(matches!(
+        quantize_with_ranges(&net, &calib, RangeRule::MinMax, &unknown),
+        Err(QuantizeError::Ranges(RangeFileError::UnknownValue(n))) if n == "no.such.value"
+    ));
+    let reversed = vec![(name.clone(), [2.0f32, 1.0])];
+    assert!(matches!(
+        quantize_with_ranges(&net, &calib, RangeRule::MinMax, &reversed),
+        Err(QuantizeError::Ranges(RangeFileError::BadRange { .. }))
+    ));
+    let nan = vec![(name, [f32::NAN, 1.0])];
+    assert!(quantize_with_ranges(&net, &calib, RangeRule::MinMax, &nan).is_err());
+}

@@ -151,3 +151,36 @@ fn missing_calibration_recording_names_it_and_writes_nothing() {
     assert!(err.contains("no_such_recording"), "{err}");
     assert!(!out.exists());
 }
+
+/// `--ranges-file`: malformed JSON, an unknown value name and a reversed range are each one
+/// error naming the file (and the value), and no blob is written.
+#[test]
+fn bad_ranges_file_names_its_file_and_writes_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("m.dblob");
+    let graph = models().join("mcu/graph.json");
+    for (body, needle) in [
+        ("{\"prior.relu\": [0.0]}", "expected"),
+        ("{\"no.such.value\": [0.0, 1.0]}", "no.such.value"),
+        ("{\"prior.relu\": [3.0, 1.0]}", "prior.relu"),
+    ] {
+        let file = tmp.path().join("bad_ranges.json");
+        std::fs::write(&file, body).unwrap();
+        let o = depthor(&[
+            "quantize",
+            "--graph",
+            arg(&graph),
+            "--out",
+            arg(&out),
+            "--frames",
+            "1",
+            "--ranges-file",
+            arg(&file),
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{body}");
+        assert!(err.contains("bad_ranges.json"), "{body}: {err}");
+        assert!(err.contains(needle), "{body}: {err}");
+        assert!(!out.exists(), "{body}");
+    }
+}

@@ -17,8 +17,10 @@ while the network trains, with straight-through gradients, so the weights learn 
 * batch norm runs on its running statistics (what gets folded), so it is put in eval mode on every
   forward.
 
-The quantizer still calibrates its own ranges from frames when the blob is made; the ranges kept
-here only drive the training noise.
+The quantizer calibrates its own ranges from frames when the blob is made unless it is given the
+ones tracked here (:meth:`FakeQuant.ranges_by_name`, written by train.py as `qat_ranges.json`,
+read by `depthor quantize --ranges-file`, docs/blob.md): then the blob rounds as the network
+trained.
 """
 
 from __future__ import annotations
@@ -75,7 +77,8 @@ class FakeQuant:
     """Simulated int8 rounding on `net` (a `Depthor` or `DepthorLite`); see the module doc.
 
     `FakeQuant(net, example_rgb, example_sparse).attach()` adds forward hooks to `net`; while
-    attached, `net(rgb, sparse)` is the fake-quantised network. Ranges live in `self.lo` /
+    attached, `net(rgb, sparse)` is the fake-quantised network (the float one, batch norm still
+    on its running statistics, while `enabled` is False). Ranges live in `self.lo` /
     `self.hi` (one entry per recorded node) and in :meth:`state_dict`.
     """
 
@@ -89,6 +92,8 @@ class FakeQuant:
             net(rgb, sparse)
         net.train(was)
         self.ops = [n.op for n in rec.nodes]
+        self.names = [n.output for n in rec.nodes]
+        self.enabled = True
         self.kind = int8_values(rec.nodes)
         self.momentum = momentum
         self.max_depth = float(_max_depth(net))
@@ -117,13 +122,15 @@ class FakeQuant:
             if isinstance(m, nn.BatchNorm2d):
                 m.eval()
         self.index = 0
+        if not self.enabled:
+            return None
         ops.set_fake_quant(self)
         rgb, sparse = args
         return (_affine(rgb, 0.0, 1.0), _affine(sparse, 0.0, self.max_depth))
 
     def _leave(self, _module, _args, out):
         ops.set_fake_quant(None)
-        if self.index != len(self.kind):
+        if self.enabled and self.index != len(self.kind):
             raise RuntimeError(f"fake quant: {self.index} nodes ran, the plan has {len(self.kind)}")
         return out
 
@@ -166,6 +173,12 @@ class FakeQuant:
     def state_dict(self) -> dict:
         """The tracked ranges (for checkpoints)."""
         return {"lo": self.lo.cpu(), "hi": self.hi.cpu(), "seen": list(self.seen), "ops": self.ops}
+
+    def ranges_by_name(self) -> dict[str, list[float]]:
+        """The tracked range of every value stored with its own int8 range, by graph value name
+        (`depthor quantize --ranges-file` takes this, so the blob uses the ranges trained with)."""
+        return {self.names[i]: [float(self.lo[i]), float(self.hi[i])]
+                for i, k in enumerate(self.kind) if k == "int8" and self.seen[i]}
 
     def load_state_dict(self, st: dict) -> None:
         """Restores :meth:`state_dict` (the plan must be the same network's)."""

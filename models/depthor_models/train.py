@@ -40,7 +40,10 @@ overlaps the step instead of adding to it.
 
 `--qat` trains quantisation-aware (`qat.FakeQuant`: the int8 rounding of the host quantizer in
 the forward pass, batch norm on its running statistics); the tracked ranges are kept in the
-checkpoint, `model_final.pt` stays the float weights the export takes.
+checkpoint and in `qat_ranges.json` (for `depthor quantize --ranges-file`), `model_final.pt`
+stays the float weights the export takes. `--qat-float-p P` trains the float network (batch norm
+still on its running statistics) on a share P of the steps, so that the float reference and the
+int8 blob stay alike.
 """
 
 from __future__ import annotations
@@ -584,6 +587,14 @@ def train(args: argparse.Namespace) -> dict:
     return row
 
 
+def float_step(seed: int, step: int, p: float) -> bool:
+    """Whether step `step` of a `--qat` run trains the float network (`--qat-float-p`): a
+    draw from (seed, step), so a resumed run repeats it."""
+    if p <= 0.0:
+        return False
+    return np.random.default_rng([seed, step, 0x9A7]).random() < p
+
+
 def _train(args: argparse.Namespace, d: dist.Dist) -> dict:
     say = print if d.main else (lambda *a, **k: None)
     out = Path(args.out)
@@ -688,6 +699,8 @@ def _train(args: argparse.Namespace, d: dist.Dist) -> dict:
                       "world": d.world, **({"qat": fq.state_dict()} if fq else {})}, ckpt_path)
         if teacher is not None:
             teacher.save()
+        if fq is not None:
+            (out / "qat_ranges.json").write_text(json.dumps(fq.ranges_by_name(), indent=1) + "\n")
         row = {}
         if evaluate:
             te = time.perf_counter()
@@ -758,6 +771,8 @@ def _train(args: argparse.Namespace, d: dist.Dist) -> dict:
         if t_depth is not None:
             t_depth = t_depth[:, :, y0:y0 + ch, x0:x0 + cw].to(d.device, dtype)
         rgb, sp, gt = (t.to(d.device, dtype) for t in (rgb, sp, gt))
+        if fq is not None:
+            fq.enabled = not float_step(args.seed, step, getattr(args, "qat_float_p", 0.0))
         # Sums over the global batch (one process: the batch's own), then the losses.
         if prior_only:
             parts = [ssi_stats(model(rgb)[0], gt)]
@@ -804,6 +819,8 @@ def _train(args: argparse.Namespace, d: dist.Dist) -> dict:
             kd = "" if l_kd is None else f" kd {l_kd.item():.4f}"
             print(f"step {step} loss {loss.item():.4f} silog {silog} "
                   f"prior {l_prior.item():.4f}{kd} lr {lr:.2e} ({wall:.0f} s)", flush=True)
+        if fq is not None:
+            fq.enabled = True  # in-run checks and the saved ranges are the int8 network's
         if time.perf_counter() - last_ckpt >= args.ckpt_every_s:
             last_row = checkpoint(evaluate=True) or last_row
             last_ckpt = time.perf_counter()
@@ -956,6 +973,9 @@ def main(argv: list[str] | None = None) -> int:
                          "(same batches; for GPU runs)")
     ap.add_argument("--qat", action="store_true",
                     help="quantisation-aware training (int8 rounding simulated; see qat.py)")
+    ap.add_argument("--qat-float-p", type=float, default=0.0,
+                    help="with --qat: the share of steps (drawn from (seed, step)) that train the "
+                         "float network instead, so that float and int8 stay alike")
     ap.add_argument("--resume", action="store_true", help="continue from <out>/ckpt.pt")
     ap.add_argument("--switch-train", action="store_true",
                     help="with --resume: keep the schedule but draw the remaining batches from "

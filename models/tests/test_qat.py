@@ -4,6 +4,8 @@ detaching restores the float network exactly."""
 
 from __future__ import annotations
 
+import json
+
 import pytest
 import torch
 
@@ -103,3 +105,46 @@ def test_qat_training_keeps_its_ranges_across_a_resume(tmp_path):
     ck = torch.load(out / "ckpt.pt", weights_only=False)
     assert ck["step"] == 3 and ck["qat"]["ops"] == st["ops"]
     assert (out / "model_final.pt").exists()
+    # the ranges the quantizer takes (`depthor quantize --ranges-file`): by value name, int8 only
+    ranges = json.loads((out / "qat_ranges.json").read_text())
+    assert ranges and all(lo <= hi for lo, hi in ranges.values())
+    names = [n for n, k in zip(ck["qat"]["ops"], ck["qat"]["seen"]) if k]
+    assert len(ranges) <= len(names)
+
+
+def test_float_steps_are_a_reproducible_share():
+    """`--qat-float-p`: a draw from (seed, step), near the asked share, none at 0."""
+    from depthor_models.train import float_step
+
+    draws = [float_step(7, s, 0.5) for s in range(2000)]
+    assert draws == [float_step(7, s, 0.5) for s in range(2000)]
+    assert 0.45 < sum(draws) / len(draws) < 0.55
+    assert draws != [float_step(8, s, 0.5) for s in range(2000)]
+    assert not any(float_step(7, s, 0.0) for s in range(200))
+    assert all(float_step(7, s, 1.0) for s in range(200))
+
+
+def test_disabled_fake_quant_is_the_float_network(lite):
+    """`enabled = False` (a float step of `--qat-float-p`): no rounding, batch norm on its
+    running statistics even in training mode, nothing tracked."""
+    net, rgb, sparse = lite
+    net.eval()
+    with torch.no_grad():
+        ref = net(rgb, sparse)
+    fq = qat.FakeQuant(net, rgb, sparse).attach()
+    try:
+        fq.enabled = False
+        net.train()
+        with torch.no_grad():
+            out = net(rgb, sparse)
+        assert torch.equal(out, ref)
+        assert not any(fq.seen) and fq.ranges_by_name() == {}
+        fq.enabled = True
+        with torch.no_grad():
+            net(rgb, sparse)
+        assert any(fq.seen)
+        named = fq.ranges_by_name()
+        assert named and all(fq.kind[fq.names.index(n)] == "int8" for n in named)
+    finally:
+        fq.detach()
+        net.eval()

@@ -10,7 +10,7 @@ use depthor_host::quantize::check::{compare, golden_diff, op_fidelity};
 use depthor_host::quantize::fold::fold;
 use depthor_host::quantize::golden::read_golden;
 use depthor_host::quantize::graph::Graph;
-use depthor_host::quantize::quantize_with;
+use depthor_host::quantize::quantize_with_ranges;
 use std::path::{Path, PathBuf};
 
 /// docs/design.md budgets of the `mcu` variant (bytes).
@@ -47,6 +47,10 @@ pub struct Args {
     /// Activation ranges: `mse` (clip where it lowers the expected int8 error) or `minmax`.
     #[arg(long, default_value = "mse")]
     ranges: RangeRule,
+    /// JSON object `{"value name": [lo, hi], …}` whose ranges replace the calibrated ones
+    /// (e.g. `qat_ranges.json` from a quantisation-aware run's export; docs/blob.md).
+    #[arg(long, value_name = "FILE")]
+    ranges_file: Option<PathBuf>,
     /// A scene configuration (JSON, as for `depthor sim --scene-config`: the preset's scenes
     /// with the named ranges replaced) for
     /// `--scene-config-frames` more calibration frames, e.g. the close-range scenes a model also
@@ -117,7 +121,17 @@ pub fn handle(args: Args) -> Result<()> {
             target.path.display()
         );
     }
-    let q = quantize_with(&net, &frames, args.ranges)?;
+    let given = match &args.ranges_file {
+        Some(p) => read_ranges_file(p)?,
+        None => Vec::new(),
+    };
+    let q =
+        quantize_with_ranges(&net, &frames, args.ranges, &given).with_context(|| {
+            match &args.ranges_file {
+                Some(p) => format!("{}", p.display()),
+                None => "quantize".to_string(),
+            }
+        })?;
     // Checked before writing, so a blob the engine refuses is never left at --out.
     let arena = required_arena_bytes(&q.blob, net.height, net.width).map_err(|e| {
         anyhow::anyhow!(
@@ -167,6 +181,9 @@ pub fn handle(args: Args) -> Result<()> {
             RangeRule::Mse => "MSE-clipped",
         }
     );
+    if let Some(p) = &args.ranges_file {
+        println!("ranges of {} values from {}", given.len(), p.display());
+    }
     let wb = net.weight_count();
     println!("int8 weight bytes {wb} ({:.1} KiB)", wb as f64 / 1024.0);
     println!(
@@ -269,4 +286,17 @@ fn recording_frames(
             })
         })
         .collect()
+}
+
+/// `--ranges-file`: a JSON object of value name → `[lo, hi]`.
+fn read_ranges_file(path: &Path) -> Result<Vec<(String, [f32; 2])>> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("{}", path.display()))?;
+    let map: std::collections::BTreeMap<String, [f32; 2]> = serde_json::from_str(&text)
+        .with_context(|| {
+            format!(
+                "{}: expected {{\"value name\": [lo, hi], …}}",
+                path.display()
+            )
+        })?;
+    Ok(map.into_iter().collect())
 }

@@ -158,6 +158,50 @@ impl Ranges {
     }
 }
 
+/// A `--ranges-file` entry that names no int8 value of the network.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum RangeFileError {
+    /// The name is not a stored value of the folded network.
+    #[error("range for {0:?}: no int8 value of the network has that name")]
+    UnknownValue(String),
+    /// `lo > hi` or a bound is not finite.
+    #[error("range for {name:?}: [{lo}, {hi}] is not a finite, ordered range")]
+    BadRange {
+        /// Value name.
+        name: String,
+        /// Lower bound.
+        lo: f32,
+        /// Upper bound.
+        hi: f32,
+    },
+}
+
+/// Replaces the calibrated ranges of the values named in `given` (value name → `[lo, hi]`, e.g.
+/// the ranges a quantisation-aware run trained with); the other values keep theirs.
+pub fn override_ranges(
+    net: &Net,
+    ranges: &mut Ranges,
+    given: &[(String, [f32; 2])],
+) -> Result<(), RangeFileError> {
+    for (name, [lo, hi]) in given {
+        let v = net
+            .values
+            .iter()
+            .position(|v| &v.name == name && v.storage == Storage::I8)
+            .ok_or_else(|| RangeFileError::UnknownValue(name.clone()))?;
+        if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
+            return Err(RangeFileError::BadRange {
+                name: name.clone(),
+                lo: *lo,
+                hi: *hi,
+            });
+        }
+        ranges.min[v] = *lo;
+        ranges.max[v] = *hi;
+    }
+    Ok(())
+}
+
 /// How activation ranges are chosen from the calibration values.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum RangeRule {

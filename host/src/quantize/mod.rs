@@ -31,7 +31,9 @@ pub mod golden;
 pub mod graph;
 pub mod net;
 
-use calibrate::{choose_qparams, Frame, Histograms, RangeRule, Ranges};
+use calibrate::{
+    choose_qparams, override_ranges, Frame, Histograms, RangeFileError, RangeRule, Ranges,
+};
 use depthor_core::kernels::requant::QParams;
 use net::{Net, RunError};
 
@@ -58,6 +60,9 @@ pub enum QuantizeError {
     /// No calibration frames were given.
     #[error("no calibration frames")]
     NoFrames,
+    /// A given range names no value or is not a range.
+    #[error("ranges file: {0}")]
+    Ranges(#[from] RangeFileError),
 }
 
 /// Min/max of every value of `net` over `frames` (float runs).
@@ -98,10 +103,22 @@ pub fn quantize_with(
     frames: &[Frame],
     rule: RangeRule,
 ) -> Result<Quantized, QuantizeError> {
+    quantize_with_ranges(net, frames, rule, &[])
+}
+
+/// As [`quantize_with`], then the ranges of the values named in `given` (name → `[lo, hi]`)
+/// replaced before the parameters are chosen (e.g. those a quantisation-aware run trained with).
+pub fn quantize_with_ranges(
+    net: &Net,
+    frames: &[Frame],
+    rule: RangeRule,
+    given: &[(String, [f32; 2])],
+) -> Result<Quantized, QuantizeError> {
     if frames.is_empty() {
         return Err(QuantizeError::NoFrames);
     }
-    let ranges = calibrate_ranges_with(net, frames, rule)?;
+    let mut ranges = calibrate_ranges_with(net, frames, rule)?;
+    override_ranges(net, &mut ranges, given)?;
     let qparams = choose_qparams(net, &ranges);
     let blob = blob_writer::write_blob(net, &qparams)?;
     Ok(Quantized {
