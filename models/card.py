@@ -91,12 +91,15 @@ def training_section(run: Path) -> list[str]:
     threads = f"{n} thread" + ("s" if n != 1 else "")
     lines.append(f"Run folder `{run.relative_to(HERE.parent) if run.is_relative_to(HERE.parent) else run}`: "
                  f"{len(steps)} steps of batch {args['batch']} on CPU ({threads}), "
+                 + (f"quantisation-aware ({float(args.get('qat_float_p', 0)):.0%} of the steps on the "
+                    f"float network), " if args.get("qat") else "") +
                  f"{float(steps[-1]['wall_s']) / 60:.0f} min wall; initialised from `{args.get('init')}`; "
                  f"train set `{args['train']}`, in-run check set `{args['test']}`; AdamW (weight decay "
                  f"{args['weight_decay']}), clip {args['clip']}, OneCycle max lr {args['max_lr']}, SILog α 10 λ 0.85.")
     if evals:
         e = evals[-1]
-        lines.append(f"Last in-run check ({e['frames']} frames of the check set, float PyTorch): RMSE "
+        how = "int8 rounding simulated, PyTorch" if args.get("qat") else "float PyTorch"
+        lines.append(f"Last in-run check ({e['frames']} frames of the check set, {how}): RMSE "
                      f"{float(e['model_rmse']):.3f} m vs bilinear {float(e['bilinear_rmse']):.3f}, δ1 "
                      f"{float(e['model_delta1']):.3f} vs {float(e['bilinear_delta1']):.3f}.")
     gen = run / "data_generation.txt"
