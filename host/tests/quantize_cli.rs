@@ -11,25 +11,32 @@ fn models() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../models")
 }
 
+/// `depthor quantize --graph GRAPH --out OUT --frames N` followed by `extra`.
+fn quantize_args<'a>(
+    graph: &'a str,
+    out: &'a str,
+    frames: &'a str,
+    extra: &[&'a str],
+) -> Vec<&'a str> {
+    let mut v = vec![
+        "quantize", "--graph", graph, "--out", out, "--frames", frames,
+    ];
+    v.extend_from_slice(extra);
+    v
+}
+
 #[test]
 fn scene_config_frames_join_the_calibration() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("m.dblob");
     let graph = models().join("mcu/graph.json");
     let close = models().join("scenes/close_range.json");
-    let stdout = depthor_ok(&[
-        "quantize",
-        "--graph",
+    let stdout = depthor_ok(&quantize_args(
         arg(&graph),
-        "--out",
         arg(&out),
-        "--frames",
         "2",
-        "--scene-config",
-        arg(&close),
-        "--scene-config-frames",
-        "2",
-    ]);
+        &["--scene-config", arg(&close), "--scene-config-frames", "2"],
+    ));
     assert!(
         stdout.contains("calibration: 4 frames (2 of them from"),
         "{stdout}"
@@ -49,19 +56,12 @@ fn bad_scene_config_names_its_file_and_writes_nothing() {
     let cfg = tmp.path().join("bad_scenes.json");
     std::fs::write(&cfg, r#"{"room_depth_m": [4.0, 1.0]}"#).unwrap();
     let out = tmp.path().join("m.dblob");
-    let o = depthor(&[
-        "quantize",
-        "--graph",
+    let o = depthor(&quantize_args(
         arg(&models().join("mcu/graph.json")),
-        "--out",
         arg(&out),
-        "--frames",
         "1",
-        "--scene-config",
-        arg(&cfg),
-        "--scene-config-frames",
-        "1",
-    ]);
+        &["--scene-config", arg(&cfg), "--scene-config-frames", "1"],
+    ));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success());
     assert!(err.contains("bad_scenes.json"), "{err}");
@@ -92,32 +92,22 @@ fn recording_frames_join_the_calibration_and_the_report() {
     let rec = tiny_recording(tmp.path());
     let graph = models().join("mcu/graph.json");
     let plain = tmp.path().join("plain.dblob");
-    depthor_ok(&[
-        "quantize",
-        "--graph",
-        arg(&graph),
-        "--out",
-        arg(&plain),
-        "--frames",
-        "1",
-    ]);
+    depthor_ok(&quantize_args(arg(&graph), arg(&plain), "1", &[]));
     let out = tmp.path().join("m.dblob");
-    let stdout = depthor_ok(&[
-        "quantize",
-        "--graph",
+    let stdout = depthor_ok(&quantize_args(
         arg(&graph),
-        "--out",
         arg(&out),
-        "--frames",
         "1",
-        "--calibration-recording",
-        arg(&rec),
-        "--report",
-        "--report-recording",
-        arg(&rec),
-        "--eval-frames",
-        "1",
-    ]);
+        &[
+            "--calibration-recording",
+            arg(&rec),
+            "--report",
+            "--report-recording",
+            arg(&rec),
+            "--eval-frames",
+            "1",
+        ],
+    ));
     assert!(
         stdout.contains("calibration: 3 frames (2 of them from recording"),
         "{stdout}"
@@ -135,17 +125,12 @@ fn missing_calibration_recording_names_it_and_writes_nothing() {
     let tmp = tempfile::tempdir().unwrap();
     let missing = tmp.path().join("no_such_recording");
     let out = tmp.path().join("m.dblob");
-    let o = depthor(&[
-        "quantize",
-        "--graph",
+    let o = depthor(&quantize_args(
         arg(&models().join("mcu/graph.json")),
-        "--out",
         arg(&out),
-        "--frames",
         "1",
-        "--calibration-recording",
-        arg(&missing),
-    ]);
+        &["--calibration-recording", arg(&missing)],
+    ));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success());
     assert!(err.contains("no_such_recording"), "{err}");
@@ -166,17 +151,12 @@ fn bad_ranges_file_names_its_file_and_writes_nothing() {
     ] {
         let file = tmp.path().join("bad_ranges.json");
         std::fs::write(&file, body).unwrap();
-        let o = depthor(&[
-            "quantize",
-            "--graph",
+        let o = depthor(&quantize_args(
             arg(&graph),
-            "--out",
             arg(&out),
-            "--frames",
             "1",
-            "--ranges-file",
-            arg(&file),
-        ]);
+            &["--ranges-file", arg(&file)],
+        ));
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(!o.status.success(), "{body}");
         assert!(err.contains("bad_ranges.json"), "{body}: {err}");

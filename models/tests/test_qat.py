@@ -49,12 +49,17 @@ def test_lite_plan_covers_every_node(lite):
     assert fq.kind.count("int8") >= 20
 
 
-def test_fake_quant_forward_trains_and_detaches(lite):
+def _float_then_attached(lite):
+    """(net, rgb, sparse, the float output, an attached FakeQuant)."""
     net, rgb, sparse = lite
     net.eval()
     with torch.no_grad():
         ref = net(rgb, sparse)
-    fq = qat.FakeQuant(net, rgb, sparse).attach()
+    return net, rgb, sparse, ref, qat.FakeQuant(net, rgb, sparse).attach()
+
+
+def test_fake_quant_forward_trains_and_detaches(lite):
+    net, rgb, sparse, ref, fq = _float_then_attached(lite)
     try:
         net.train()
         out = net(rgb, sparse)  # first training pass sets the ranges
@@ -127,11 +132,7 @@ def test_float_steps_are_a_reproducible_share():
 def test_disabled_fake_quant_is_the_float_network(lite):
     """`enabled = False` (a float step of `--qat-float-p`): no rounding, batch norm on its
     running statistics even in training mode, nothing tracked."""
-    net, rgb, sparse = lite
-    net.eval()
-    with torch.no_grad():
-        ref = net(rgb, sparse)
-    fq = qat.FakeQuant(net, rgb, sparse).attach()
+    net, rgb, sparse, ref, fq = _float_then_attached(lite)
     try:
         fq.enabled = False
         net.train()
