@@ -94,6 +94,7 @@ class FakeQuant:
         self.ops = [n.op for n in rec.nodes]
         self.names = [n.output for n in rec.nodes]
         self.enabled = True
+        self.unrounded: set[int] = set()  # node indices left in float (int8_sensitivity.py)
         self.kind = int8_values(rec.nodes)
         self.momentum = momentum
         self.max_depth = float(_max_depth(net))
@@ -143,7 +144,7 @@ class FakeQuant:
             got = self.ops[i] if i < len(self.ops) else "nothing"
             raise RuntimeError(f"fake quant: node {i} is {op}, the plan says {got}")
         k = self.kind[i]
-        if k in ("fused", "same", "f32"):
+        if k in ("fused", "same", "f32") or i in self.unrounded:
             return out
         if k == "unit":
             return _affine(out, 0.0, 1.0)
@@ -173,6 +174,17 @@ class FakeQuant:
     def state_dict(self) -> dict:
         """The tracked ranges (for checkpoints)."""
         return {"lo": self.lo.cpu(), "hi": self.hi.cpu(), "seen": list(self.seen), "ops": self.ops}
+
+    def set_ranges(self, ranges: dict[str, list[float]]) -> int:
+        """Takes the ranges of :meth:`ranges_by_name`'s form (e.g. a run's `qat_ranges.json`);
+        returns how many int8 values got one."""
+        n = 0
+        for i, name in enumerate(self.names):
+            if self.kind[i] == "int8" and name in ranges:
+                self.lo[i], self.hi[i] = (float(x) for x in ranges[name])
+                self.seen[i] = True
+                n += 1
+        return n
 
     def ranges_by_name(self) -> dict[str, list[float]]:
         """The tracked range of every value stored with its own int8 range, by graph value name

@@ -149,3 +149,29 @@ def test_disabled_fake_quant_is_the_float_network(lite):
     finally:
         fq.detach()
         net.eval()
+
+
+def test_int8_sensitivity_ranks_every_int8_value(lite):
+    """`int8_sensitivity.rank`: one row per asked int8 value, sorted; with every value left in
+    float only the weights' rounding remains."""
+    from depthor_models import int8_sensitivity
+
+    net, rgb, sparse, ref, fq = _float_then_attached(lite)
+    try:
+        net.train()
+        with torch.no_grad():
+            net(rgb, sparse)  # ranges from one training-mode pass
+        ranges = fq.ranges_by_name()
+        fq.unrounded = {i for i, k in enumerate(fq.kind) if k == "int8"}
+        net.eval()
+        with torch.no_grad():
+            # weights are still rounded: only values are left in float
+            assert float((net(rgb, sparse) - ref).abs().max()) < 0.05 * float(ref.abs().max())
+    finally:
+        fq.detach()
+    some = sorted(ranges)[:3]
+    base, rows = int8_sensitivity.rank(net, rgb, sparse, ranges, only=some)
+    assert base > 0 and [r.name for r in rows] != [] and {r.name for r in rows} == set(some)
+    assert [r.rms_m for r in rows] == sorted(r.rms_m for r in rows)
+    with pytest.raises(ValueError):
+        int8_sensitivity.rank(net, rgb, sparse, {"no.such.value": [0.0, 1.0]})

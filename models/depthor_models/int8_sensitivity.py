@@ -1,0 +1,106 @@
+"""Which int8 value costs the most: the simulated int8 network (`qat.FakeQuant` on given ranges)
+run once with every value rounded, then once per int8 value with that value alone left in
+float; values ranked by how much of the RMS difference from the float depth they remove. The
+candidates for 16-bit storage or a per-layer fix (issue 16, item 4).
+
+    python -m depthor_models.int8_sensitivity --variant mcu_lite \\
+        --weights mcu_lite/train/model_final.pt --ranges mcu_lite/qat_ranges.json \\
+        --recording ../rec/val48_photo --recording ../rec/close_val48_photo
+
+Use check or training recordings, never the held-out or real sets. The rounding is PyTorch's
+simulation of the blob's (weights per channel, values per tensor on the given ranges), not the
+engine's bits; `depthor quantize --report` gives the engine's per-op SQNR.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from . import data, qat
+from .net import build, parse_overrides
+from .train import load_weights
+
+
+@dataclass
+class Row:
+    """One int8 value: the RMS int8-vs-float depth difference (m) with it left in float."""
+
+    index: int
+    name: str
+    rms_m: float
+
+
+def _depth(net, rgb: Tensor, sparse: Tensor, batch: int = 4) -> Tensor:
+    with torch.no_grad():
+        return torch.cat([net(rgb[i:i + batch], sparse[i:i + batch])
+                          for i in range(0, len(rgb), batch)])
+
+
+def rank(net, rgb: Tensor, sparse: Tensor, ranges: dict[str, list[float]],
+         only: list[str] | None = None) -> tuple[float, list[Row]]:
+    """(RMS difference with every value rounded, one :class:`Row` per int8 value — or per value
+    named in `only` — smallest difference first). Pixels where the float depth is not finite
+    are left out."""
+    net.eval()
+    ref = _depth(net, rgb, sparse)
+    fq = qat.FakeQuant(net, rgb[:1], sparse[:1]).attach()
+    try:
+        if fq.set_ranges(ranges) == 0:
+            raise ValueError("no range names an int8 value of this network")
+        ok = torch.isfinite(ref)
+
+        def rms() -> float:
+            return float(((_depth(net, rgb, sparse) - ref)[ok] ** 2).mean().sqrt())
+
+        base = rms()
+        rows = []
+        for i, k in enumerate(fq.kind):
+            if k != "int8" or not fq.seen[i] or (only is not None and fq.names[i] not in only):
+                continue
+            fq.unrounded = {i}
+            rows.append(Row(i, fq.names[i], rms()))
+        fq.unrounded = set()
+    finally:
+        fq.detach()
+    return base, sorted(rows, key=lambda r: r.rms_m)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """CLI entry point (see module doc)."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--variant", required=True)
+    ap.add_argument("--weights", required=True, help="trained checkpoint or state dict")
+    ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE")
+    ap.add_argument("--ranges", required=True, help="qat_ranges.json (value name → [lo, hi])")
+    ap.add_argument("--recording", action="append", required=True, help="repeatable")
+    ap.add_argument("--frames", type=int, default=48, help="first frames of each recording")
+    ap.add_argument("--top", type=int, default=15)
+    ap.add_argument("--value", action="append", help="try only these values (repeatable)")
+    a = ap.parse_args(argv)
+    net = build(a.variant, seed=0, calibrate_bn=False, **parse_overrides(a.set))
+    net.load_state_dict(load_weights(a.weights))
+    size = (net.cfg.height, net.cfg.width)
+    rgbs, sps = [], []
+    for r in a.recording:
+        rec = data.load_recording(r, size=size)
+        rgb, sp, _ = data.batch(rec, np.arange(min(a.frames, len(rec))), None, (5,))
+        rgbs.append(rgb)
+        sps.append(sp)
+    ranges = json.loads(Path(a.ranges).read_text())
+    base, rows = rank(net, torch.cat(rgbs), torch.cat(sps), ranges, a.value)
+    print(f"RMS int8-simulated vs float depth, every value rounded: {base:.4f} m "
+          f"({sum(len(x) for x in rgbs)} frames)")
+    print("value left in float                   RMS (m)   share removed")
+    for r in rows[: a.top]:
+        print(f"{r.index:4d} {r.name:34s} {r.rms_m:.4f}   {(base - r.rms_m) / base:+.1%}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
