@@ -239,6 +239,19 @@ def load_recordings(paths: str | Path | list, cache: bool = True,
                      np.concatenate([r.status for r in recs]), first.zone_px, first.grid, ids)
 
 
+def first_frames(paths: list[str], frames: int, size: tuple[int, int],
+                 valid_status: tuple[int, ...] = (5,)) -> tuple[torch.Tensor, torch.Tensor]:
+    """(rgb, sparse) of the first `frames` frames of each recording in `paths`, resampled to
+    `size` = (H, W) as `depthor eval` does (for tools that measure a network on a few frames)."""
+    rgbs, sps = [], []
+    for p in paths:
+        rec = load_recording(p, size=size)
+        rgb, sp, _ = batch(rec, np.arange(min(frames, len(rec))), None, valid_status)
+        rgbs.append(rgb)
+        sps.append(sp)
+    return torch.cat(rgbs), torch.cat(sps)
+
+
 def sparse_maps(rec: Recording, idx: np.ndarray,
                 valid_status: tuple[int, ...] = (5,)) -> np.ndarray:
     """Sparse depth maps float32 [len(idx), H, W] (metres) of the frames `idx`."""

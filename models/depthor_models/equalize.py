@@ -30,7 +30,6 @@ import argparse
 import json
 from pathlib import Path
 
-import numpy as np
 import torch
 from torch import Tensor
 
@@ -119,14 +118,7 @@ def main(argv: list[str] | None = None) -> int:
     net = build(a.variant, seed=0, calibrate_bn=False, **parse_overrides(a.set))
     net.load_state_dict(load_weights(a.weights))
     net.eval()
-    size = (net.cfg.height, net.cfg.width)
-    rgbs, sps = [], []
-    for r in a.recording:
-        rec = data.load_recording(r, size=size)
-        rgb, sp, _ = data.batch(rec, np.arange(min(a.frames, len(rec))), None, (5,))
-        rgbs.append(rgb)
-        sps.append(sp)
-    rgb, sp = torch.cat(rgbs), torch.cat(sps)
+    rgb, sp = data.first_frames(a.recording, a.frames, (net.cfg.height, net.cfg.width))
     changed: list[str] = []
     for v in a.value:
         state, s, ch = equalize(net, rgb, sp, v, a.quantile, a.max_scale)

@@ -18,7 +18,6 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 import torch
 from torch import Tensor
 
@@ -85,17 +84,11 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     net = build(a.variant, seed=0, calibrate_bn=False, **parse_overrides(a.set))
     net.load_state_dict(load_weights(a.weights))
-    size = (net.cfg.height, net.cfg.width)
-    rgbs, sps = [], []
-    for r in a.recording:
-        rec = data.load_recording(r, size=size)
-        rgb, sp, _ = data.batch(rec, np.arange(min(a.frames, len(rec))), None, (5,))
-        rgbs.append(rgb)
-        sps.append(sp)
+    rgb, sp = data.first_frames(a.recording, a.frames, (net.cfg.height, net.cfg.width))
     ranges = json.loads(Path(a.ranges).read_text())
-    base, rows = rank(net, torch.cat(rgbs), torch.cat(sps), ranges, a.value)
+    base, rows = rank(net, rgb, sp, ranges, a.value)
     print(f"RMS int8-simulated vs float depth, every value rounded: {base:.4f} m "
-          f"({sum(len(x) for x in rgbs)} frames)")
+          f"({len(rgb)} frames)")
     print("value left in float                   RMS (m)   share removed")
     for r in rows[: a.top]:
         print(f"{r.index:4d} {r.name:34s} {r.rms_m:.4f}   {(base - r.rms_m) / base:+.1%}")
