@@ -14,7 +14,7 @@ channel's, at most `--max-scale` times.
 
     python -m depthor_models.equalize --weights mcu_lite/train/model_final.pt --variant mcu_lite \\
         --value depth_enc.stages.0.pw.act --recording ../rec/mcu_train_a --out W.pt \\
-        --ranges mcu_lite/train/qat_ranges.json --ranges-out R.json
+        --ranges mcu_lite/qat_ranges.json --ranges-out R.json
 
 The values whose int8 range the scaling changes (`v` and the concatenations it flows into) are
 dropped from `--ranges` into `--ranges-out`, so `depthor quantize --ranges-file R.json`

@@ -10,7 +10,7 @@ use depthor_host::quantize::check::{compare, golden_diff, op_fidelity};
 use depthor_host::quantize::fold::fold;
 use depthor_host::quantize::golden::read_golden;
 use depthor_host::quantize::graph::Graph;
-use depthor_host::quantize::quantize_with_ranges;
+use depthor_host::quantize::{quantize_with_ranges, QuantizeError};
 use std::path::{Path, PathBuf};
 
 /// docs/design.md budgets of the `mcu` variant (bytes).
@@ -125,13 +125,12 @@ pub fn handle(args: Args) -> Result<()> {
         Some(p) => read_ranges_file(p)?,
         None => Vec::new(),
     };
-    let q =
-        quantize_with_ranges(&net, &frames, args.ranges, &given).with_context(|| {
-            match &args.ranges_file {
-                Some(p) => format!("{}", p.display()),
-                None => "quantize".to_string(),
-            }
-        })?;
+    let q = quantize_with_ranges(&net, &frames, args.ranges, &given).map_err(|e| {
+        match (&e, &args.ranges_file) {
+            (QuantizeError::Ranges(_), Some(p)) => anyhow::anyhow!("{}: {e}", p.display()),
+            _ => e.into(),
+        }
+    })?;
     // Checked before writing, so a blob the engine refuses is never left at --out.
     let arena = required_arena_bytes(&q.blob, net.height, net.width).map_err(|e| {
         anyhow::anyhow!(

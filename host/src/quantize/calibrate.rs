@@ -158,7 +158,7 @@ impl Ranges {
     }
 }
 
-/// A `--ranges-file` entry that names no int8 value of the network.
+/// Why a `--ranges-file` entry was refused.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum RangeFileError {
     /// The name is not a stored value of the folded network.
