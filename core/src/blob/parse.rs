@@ -20,6 +20,8 @@ pub enum DType {
     I8,
     /// f32.
     F32,
+    /// int16 with [`QParams`] of zero point 0.
+    I16,
 }
 
 /// One tensor-table entry.
@@ -392,6 +394,15 @@ fn read_tensor(r: &mut Reader<'_>) -> Result<TensorInfo, BlobError> {
             }
             (DType::I8, QParams { scale, zero_point })
         }
+        dtype::I16 => {
+            if !(scale.is_finite() && scale > 0.0 && zero_point == 0) {
+                return Err(bad(
+                    at + 4,
+                    "tensor: int16 scale must be finite and > 0, zero point 0",
+                ));
+            }
+            (DType::I16, QParams { scale, zero_point })
+        }
         dtype::F32 => (
             DType::F32,
             QParams {
@@ -416,7 +427,7 @@ fn tensor_at(tensors: &[TensorInfo], id: u16, at: usize) -> Result<TensorInfo, B
 }
 
 /// The header's inputs and output exist and have the contract's channels (rgb 3, sparse 1,
-/// output 1), and the two inputs differ.
+/// output 1) and int8 or f32 codes, and the two inputs differ.
 fn check_io(tensors: &[TensorInfo], h: &Header) -> Result<(), BlobError> {
     let ti_rgb = tensor_at(tensors, h.rgb, 24)?;
     let ti_sparse = tensor_at(tensors, h.sparse, 26)?;
@@ -427,6 +438,12 @@ fn check_io(tensors: &[TensorInfo], h: &Header) -> Result<(), BlobError> {
             24,
             "header: inputs must be distinct [3,H,W] rgb and [1,H,W] sparse, output [1,H,W]",
         ));
+    }
+    if [ti_rgb, ti_sparse, ti_out]
+        .iter()
+        .any(|t| t.dtype == DType::I16)
+    {
+        return Err(bad(24, "header: inputs and output must be int8 or f32"));
     }
     Ok(())
 }

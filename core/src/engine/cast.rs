@@ -10,11 +10,13 @@ use crate::kernels::pool::MeanQuant;
 /// Types for which every bit pattern is a valid value and that have no padding.
 ///
 /// # Safety
-/// Implementors must be `#[repr(C)]` (or primitive) structs of `i8`/`i32`/`f32` fields only.
+/// Implementors must be `#[repr(C)]` (or primitive) structs of `i8`/`i16`/`i32`/`f32` fields
+/// only.
 pub(crate) unsafe trait Pod: Copy {}
 
 // SAFETY: primitives and `#[repr(C)]` structs of 4-byte integer / float fields, no padding.
 unsafe impl Pod for i8 {}
+unsafe impl Pod for i16 {}
 unsafe impl Pod for i32 {}
 unsafe impl Pod for f32 {}
 unsafe impl Pod for ChannelQuant {}

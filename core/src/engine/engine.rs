@@ -27,6 +27,8 @@ pub enum Observed<'b> {
     I8(&'b [i8], QParams),
     /// An f32 tensor (depth maps in metres).
     F32(&'b [f32]),
+    /// An int16 tensor with its quantisation parameters (zero point 0; `crate::kernels::wide`).
+    I16(&'b [i16], QParams),
 }
 
 /// The callback [`Engine::run_observed`] calls after each op.
@@ -266,6 +268,13 @@ impl<'a> Engine<'a> {
                     }
                 }
             }
+            // The parser admits int8 or f32 only for the inputs and the output.
+            DType::I16 => {
+                return Err(Error::Kernel {
+                    op: 0,
+                    error: KernelError::Shape,
+                })
+            }
         }
         Ok(())
     }
@@ -297,6 +306,13 @@ impl<'a> Engine<'a> {
                     *v = get(i);
                 }
             }
+            // The parser admits int8 or f32 only for the inputs and the output.
+            DType::I16 => {
+                return Err(Error::Kernel {
+                    op: 0,
+                    error: KernelError::Shape,
+                })
+            }
         }
         Ok(())
     }
@@ -325,6 +341,13 @@ impl<'a> Engine<'a> {
                 for (i, &v) in typed::<f32>(buf, 0)?.iter().enumerate().take(h * w) {
                     put(i, v);
                 }
+            }
+            // The parser admits int8 or f32 only for the inputs and the output.
+            DType::I16 => {
+                return Err(Error::Kernel {
+                    op: 0,
+                    error: KernelError::Shape,
+                })
             }
         }
         Ok(())
@@ -384,6 +407,10 @@ fn observe(
             Observed::I8(typed::<i8>(buf, i)?.get(..n).ok_or(bad)?, info.q),
         ),
         DType::F32 => f(i, Observed::F32(typed::<f32>(buf, i)?.get(..n).ok_or(bad)?)),
+        DType::I16 => f(
+            i,
+            Observed::I16(typed::<i16>(buf, i)?.get(..n).ok_or(bad)?, info.q),
+        ),
     }
     Ok(())
 }

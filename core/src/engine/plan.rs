@@ -496,7 +496,8 @@ pub fn plan(graph: &Graph, h: usize, w: usize) -> Result<Plan, PlanError> {
 /// Per op, the op it can be fused into: a `conv2d` whose output is one of the three affinity
 /// inputs of a `refine` and read by nothing else, where all three are such convs, goes into the
 /// refine; a `concat` read only by a `conv2d` with one group (not itself fused) goes into that
-/// conv, which reads its parts in place.
+/// conv, which reads its parts in place. Only int8 convs and concats fuse (int16 values run
+/// unfused, `crate::kernels::wide`).
 fn fusable(graph: &Graph, fusion: Fusion) -> Result<Vec<Option<u16>, MAX_OPS>, PlanError> {
     let n_ops = graph.ops.len();
     let mut fused: Vec<Option<u16>, MAX_OPS> = Vec::new();
@@ -519,6 +520,13 @@ fn fusable(graph: &Graph, fusion: Fusion) -> Result<Vec<Option<u16>, MAX_OPS>, P
             *p = Some(i as u16);
         }
     }
+    // Fused heads and in-place reads run the int8 kernels only.
+    let int8 = |id: u16| {
+        graph
+            .tensors
+            .get(id as usize)
+            .is_some_and(|x| x.dtype == DType::I8)
+    };
     let mut count = 0;
     for (i, op) in graph.ops.iter().enumerate() {
         if op.code != opcode::REFINE || op.inputs.len() != 6 {
@@ -534,10 +542,8 @@ fn fusable(graph: &Graph, fusion: Fusion) -> Result<Vec<Option<u16>, MAX_OPS>, P
             conv.code == opcode::CONV2D
                 && readers.get(t as usize) == Some(&1)
                 && t != graph.output
-                && graph
-                    .tensors
-                    .get(t as usize)
-                    .is_some_and(|x| x.dtype == DType::I8)
+                && int8(t)
+                && int8(conv.inputs[0])
         });
         if !ok || count == MAX_FUSED || fusion == Fusion::None {
             continue;
@@ -555,7 +561,8 @@ fn fusable(graph: &Graph, fusion: Fusion) -> Result<Vec<Option<u16>, MAX_OPS>, P
         let producer_of = |t: u16| producer.get(t as usize).copied().flatten();
         let mix = op.inputs[4..6].iter().map(|&t| {
             let p = producer_of(t)?;
-            let conv = graph.ops[p as usize].code == opcode::CONV2D;
+            let conv = &graph.ops[p as usize];
+            let conv = conv.code == opcode::CONV2D && int8(conv.inputs[0]);
             let ok = tensor(t).is_some_and(|x| x.dtype == DType::I8 && x.channels == 3);
             (conv && ok && only_here(t)).then_some(p)
         });
@@ -583,12 +590,6 @@ fn fusable(graph: &Graph, fusion: Fusion) -> Result<Vec<Option<u16>, MAX_OPS>, P
     let mut count = 0;
     for op in graph.ops.iter() {
         let t = op.output as usize;
-        let int8 = |id: u16| {
-            graph
-                .tensors
-                .get(id as usize)
-                .is_some_and(|x| x.dtype == DType::I8)
-        };
         if op.code != opcode::CONCAT
             || readers.get(t) != Some(&1)
             || op.output == graph.output
@@ -607,6 +608,7 @@ fn fusable(graph: &Graph, fusion: Fusion) -> Result<Vec<Option<u16>, MAX_OPS>, P
             matches!(&reader.attrs, Attrs::Conv { geometry, .. } if geometry.get().groups == 1);
         if reader.code == opcode::CONV2D
             && reader.inputs[0] == op.output
+            && int8(reader.output)
             && one_group
             && fused[j].is_none()
         {
@@ -797,7 +799,11 @@ fn plan_fused(
             .is_some_and(|o| o.output == graph.output)
     });
     for (t, info) in graph.tensors.iter().enumerate() {
-        let elem = if info.dtype == DType::F32 { 4 } else { 1 };
+        let elem = match info.dtype {
+            DType::I8 => 1,
+            DType::I16 => 2,
+            DType::F32 => 4,
+        };
         let n = shapes[t]
             .len()
             .and_then(|n| n.checked_mul(elem))

@@ -151,6 +151,17 @@ impl ConvQuant {
             act_max: 127,
         }
     }
+
+    /// Zero points and the clamp range of an int16 output (zero point 0: `[0, 32767]` for
+    /// ReLU, `[−32768, 32767]` otherwise; [`super::wide`]).
+    pub fn new_wide(input_zero_point: i32, act: Activation) -> ConvQuant {
+        ConvQuant {
+            input_zero_point,
+            output_zero_point: 0,
+            act_min: if act == Activation::Relu { 0 } else { -32768 },
+            act_max: 32767,
+        }
+    }
 }
 
 /// One prepared convolution: geometry, zero points, weights and per-channel constants.

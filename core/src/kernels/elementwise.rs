@@ -62,9 +62,15 @@ impl Rescale {
     /// Requantises one code.
     #[inline]
     pub fn apply(&self, q: i8) -> i8 {
+        self.apply_code(q as i32)
+    }
+
+    /// Requantises one code of any width (an int16 one: [`super::wide`]) to int8.
+    #[inline]
+    pub fn apply_code(&self, q: i32) -> i8 {
         clamp_i8(
             self.m
-                .apply_rounded(q as i32 - self.zp_in)
+                .apply_rounded(q.saturating_sub(self.zp_in))
                 .saturating_add(self.zp_out),
             -128,
             127,
@@ -360,6 +366,24 @@ pub fn mul(
     Ok(())
 }
 
+/// The channels `c_offset ..` of the concat output `out` (`out_shape`) that a part of
+/// `in_shape` fills (its H and W must be the output's).
+pub(crate) fn concat_dst(
+    out: &mut [i8],
+    out_shape: Shape,
+    in_shape: Shape,
+    c_offset: usize,
+) -> Result<&mut [i8], KernelError> {
+    let n = in_shape.len().ok_or(KernelError::Shape)?;
+    need(out, out_shape)?;
+    let end = c_offset.checked_add(in_shape.c).ok_or(KernelError::Shape)?;
+    if in_shape.h != out_shape.h || in_shape.w != out_shape.w || end > out_shape.c {
+        return Err(KernelError::Shape);
+    }
+    let p = out_shape.h * out_shape.w;
+    Ok(&mut out[c_offset * p..c_offset * p + n])
+}
+
 /// Writes one input of a channel concat into `out` (shape `out_shape`) starting at channel
 /// `c_offset`, requantised to the output's parameters.
 pub fn concat_part(
@@ -371,13 +395,7 @@ pub fn concat_part(
     c_offset: usize,
 ) -> Result<(), KernelError> {
     let n = need(input, in_shape)?;
-    need(out, out_shape)?;
-    let end = c_offset.checked_add(in_shape.c).ok_or(KernelError::Shape)?;
-    if in_shape.h != out_shape.h || in_shape.w != out_shape.w || end > out_shape.c {
-        return Err(KernelError::Shape);
-    }
-    let p = out_shape.h * out_shape.w;
-    let dst = &mut out[c_offset * p..c_offset * p + n];
+    let dst = concat_dst(out, out_shape, in_shape, c_offset)?;
     if rescale.is_identity() {
         dst.copy_from_slice(&input[..n]);
     } else if n > 256 {

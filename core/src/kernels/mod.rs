@@ -33,6 +33,7 @@ pub mod refine;
 pub mod requant;
 pub mod resize;
 pub mod scalar;
+pub mod wide;
 #[cfg(target_arch = "x86_64")]
 pub mod x86_64;
 

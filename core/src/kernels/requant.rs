@@ -9,12 +9,13 @@
 //! product (the two-step form would cost them up to a code per element). The only floating
 //! point here is [`Requant::from_real`], run once at prepare time.
 
-/// Per-tensor affine quantisation of int8 activations: `real = scale · (q − zero_point)`.
+/// Per-tensor affine quantisation of int8 activations: `real = scale · (q − zero_point)` (of
+/// int16 ones too, with zero point 0: [`super::wide`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct QParams {
     /// Real value of one quantisation step (> 0).
     pub scale: f32,
-    /// The int8 code of real 0 (in `-128..=127`).
+    /// The code of real 0 (int8: in `-128..=127`; int16: 0).
     pub zero_point: i32,
 }
 
@@ -33,9 +34,20 @@ impl QParams {
         (q + self.zero_point).clamp(-128, 127) as i8
     }
 
+    /// Quantises `x` to an int16 code (zero point 0): `clamp(round_half_away(x / scale),
+    /// −32768, 32767)`.
+    pub fn quantize_i16(&self, x: f32) -> i16 {
+        round_half_away(x / self.scale).clamp(-32768.0, 32767.0) as i16
+    }
+
     /// Dequantises a code: `scale · (q − zero_point)`.
     pub fn dequantize(&self, q: i8) -> f32 {
-        self.scale * (q as i32 - self.zero_point) as f32
+        self.dequantize_code(q as i32)
+    }
+
+    /// Dequantises a code of any width: `scale · (q − zero_point)`.
+    pub fn dequantize_code(&self, q: i32) -> f32 {
+        self.scale * (q - self.zero_point) as f32
     }
 }
 
@@ -134,8 +146,9 @@ impl Requant {
         let product = x as i64 * self.multiplier as i64;
         let right = (31 - self.shift).clamp(1, 62);
         let half = 1i64 << (right - 1);
-        let magnitude = (product.unsigned_abs() as i64 + half) >> right;
-        let rounded = if product < 0 { -magnitude } else { magnitude };
+        // Half away from zero: floor((p + half) / 2^r) for p ≥ 0; for p < 0,
+        // −floor((−p + half) / 2^r) = floor((p + half − 1) / 2^r). One add and one shift.
+        let rounded = (product + half - i64::from(product < 0)) >> right;
         rounded.clamp(i32::MIN as i64, i32::MAX as i64) as i32
     }
 
@@ -162,9 +175,11 @@ pub fn saturating_rounding_doubling_high_mul(a: i32, b: i32) -> i32 {
         return i32::MAX;
     }
     let ab = a as i64 * b as i64;
-    let nudge: i64 = if ab >= 0 { 1 << 30 } else { 1 - (1 << 30) };
-    // Integer division truncates toward zero, as in C++.
-    ((ab + nudge) / (1i64 << 31)) as i32
+    // gemmlowp: trunc((ab + nudge) / 2^31) with nudge 2^30 for ab ≥ 0 and 1 − 2^30 for ab < 0,
+    // which equals floor((ab + 2^30) / 2^31) for both signs (for ab < 0, trunc(t / 2^31) =
+    // floor((t + 2^31 − 1) / 2^31)): one shift, no 64-bit division (a library call on 32-bit
+    // targets).
+    ((ab + (1 << 30)) >> 31) as i32
 }
 
 /// gemmlowp `RoundingDivideByPOT`: `x / 2^exponent`, rounding half away from zero.
@@ -187,6 +202,7 @@ pub fn clamp_i8(x: i32, min: i32, max: i32) -> i8 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::vec;
 
     #[test]
     fn srdhm_matches_hand_values() {
@@ -202,6 +218,37 @@ mod tests {
         // 3 · 2^30 / 2^31 = 1.5 → 2; gemmlowp's nudge rounds −1.5 toward zero → −1
         assert_eq!(saturating_rounding_doubling_high_mul(3, 1 << 30), 2);
         assert_eq!(saturating_rounding_doubling_high_mul(-3, 1 << 30), -1);
+    }
+
+    proptest::proptest! {
+        /// The one-shift form equals gemmlowp's nudged truncating division, edges included.
+        #[test]
+        fn srdhm_equals_gemmlowp_division(
+            a in proptest::prop_oneof![proptest::prelude::any::<i32>(), -4i32..4, proptest::sample::select(vec![i32::MIN, i32::MAX, i32::MIN + 1, 1 << 30, -(1 << 30)])],
+            b in proptest::prop_oneof![proptest::prelude::any::<i32>(), proptest::sample::select(vec![i32::MIN, i32::MAX, 1 << 30, (1 << 30) + 1])],
+        ) {
+            let ab = a as i64 * b as i64;
+            let nudge: i64 = if ab >= 0 { 1 << 30 } else { 1 - (1 << 30) };
+            let want = if a == i32::MIN && b == i32::MIN { i32::MAX } else { ((ab + nudge) / (1i64 << 31)) as i32 };
+            proptest::prop_assert_eq!(saturating_rounding_doubling_high_mul(a, b), want);
+        }
+    }
+
+    proptest::proptest! {
+        /// The one-shift rounding equals rounding the magnitude half away from zero.
+        #[test]
+        fn apply_rounded_rounds_half_away(
+            x in proptest::prop_oneof![proptest::prelude::any::<i32>(), -70_000i32..70_000],
+            real in 1e-9f64..1e9,
+        ) {
+            let m = Requant::from_real(real);
+            let product = x as i64 * m.multiplier as i64;
+            let right = (31 - m.shift).clamp(1, 62);
+            let magnitude = (product.unsigned_abs() as i64 + (1i64 << (right - 1))) >> right;
+            let want = if product < 0 { -magnitude } else { magnitude };
+            let want = want.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
+            proptest::prop_assert_eq!(m.apply_rounded(x), want);
+        }
     }
 
     #[test]

@@ -57,6 +57,7 @@ pub(crate) fn types_ok(k: &Types) -> Result<bool, BlobError> {
     Ok(k.x.dtype == DType::I8
         && k.x.channels <= MAX_BIN_FEATURES
         && l.channels == attrs.n_bins
+        && l.dtype != DType::I16
         && k.out.dtype == DType::F32
         && k.out.channels == 1)
 }
@@ -113,6 +114,7 @@ pub(crate) fn eval(e: Eval) -> Result<(), Error> {
                 *l = v;
             }
         }
+        DType::I16 => return Err(e.bad()),
     }
     let mut centres = [0f32; MAX_BINS];
     bin_centres(&logits[..nb], attrs, &mut centres).map_err(kerr)?;

@@ -1,21 +1,30 @@
-//! `concat` (docs/graph.md): int8 tensors of one spatial size joined along channels, each
-//! rescaled to the output's quantisation. Kernel: [`crate::kernels::elementwise::concat_part`].
+//! `concat` (docs/graph.md): int8 (or int16) tensors of one spatial size joined along channels
+//! into int8, each rescaled to the output's quantisation. Kernels:
+//! [`crate::kernels::elementwise::concat_part`], [`crate::kernels::wide::concat_part_wide`].
 //! Where one conv alone reads it, the planner lets that conv read the parts in place instead
 //! ([`super::conv::eval_on_parts`]).
 
 use super::{typed, typed_mut, ConstCtx, Eval, PlanCtx, Types};
+use crate::blob::parse::{bad, DType};
 use crate::blob::BlobError;
 use crate::engine::plan::{OpPlan, PlanError};
 use crate::engine::Error;
 use crate::kernels::elementwise::{self, Rescale};
+use crate::kernels::wide::concat_part_wide;
 use core::mem::size_of;
 
 /// One to [`crate::blob::format::MAX_INPUTS`] inputs.
 pub(crate) const ARITY: (usize, usize) = (1, crate::blob::format::MAX_INPUTS);
 
-/// int8 in and out; the output's channels are the inputs' sum.
+/// int8 or int16 in, int8 out; the output's channels are the inputs' sum.
 pub(crate) fn types_ok(k: &Types) -> Result<bool, BlobError> {
-    k.all_i8()?;
+    let ins =
+        k.op.inputs
+            .iter()
+            .try_fold(true, |ok, &i| Ok(ok && k.int(i)?))?;
+    if !(ins && k.out.dtype == DType::I8) {
+        return Err(bad(k.op.offset, "concat: int8 or int16 in, int8 out"));
+    }
     let sum =
         k.op.inputs
             .iter()
@@ -53,7 +62,11 @@ pub(crate) fn eval(e: Eval) -> Result<(), Error> {
     let mut c0 = 0;
     for ((&id, r), b) in e.op.inputs.iter().zip(rs).zip(&e.ins) {
         let s = e.plan.shape(id).ok_or(bad)?;
-        elementwise::concat_part(typed(b, i)?, s, r, out, e.out_shape, c0).map_err(kerr)?;
+        if e.g.tensor(id)?.dtype == DType::I16 {
+            concat_part_wide(typed(b, i)?, s, r, out, e.out_shape, c0).map_err(kerr)?;
+        } else {
+            elementwise::concat_part(typed(b, i)?, s, r, out, e.out_shape, c0).map_err(kerr)?;
+        }
         c0 += s.c;
     }
     Ok(())

@@ -6,7 +6,7 @@
 
 use super::{bad_op, kerr, split, typed, typed_mut, ConstCtx, Eval, PlanCtx, Types};
 use crate::blob::format::{activation, opcode, MAX_INPUTS};
-use crate::blob::parse::{bad, f32_at, i32_at, Attrs, Geometry, Graph, Reader, NO_PARAM};
+use crate::blob::parse::{bad, f32_at, i32_at, Attrs, DType, Geometry, Graph, Reader, NO_PARAM};
 use crate::blob::BlobError;
 use crate::engine::plan::{OpPlan, Plan, PlanError};
 use crate::engine::Error;
@@ -18,6 +18,7 @@ use crate::kernels::elementwise::Rescale;
 use crate::kernels::isa::Isa;
 use crate::kernels::pack::Parts;
 use crate::kernels::refine::Head;
+use crate::kernels::wide::{conv2d_wide, Codes, CodesMut, MAX_TAPS_WIDE};
 use crate::kernels::Shape;
 use core::mem::size_of;
 use core::ops::Range;
@@ -70,13 +71,26 @@ pub(crate) fn read_attrs(code: u8, a: &mut Reader) -> Result<(Attrs, [u32; 3]), 
     Ok((attrs, refs))
 }
 
-/// int8 in and out; channels divisible by the groups.
+/// int8 or int16 in and out (an int16 input with at most [`MAX_TAPS_WIDE`] taps per output);
+/// channels divisible by the groups.
 pub(crate) fn types_ok(k: &Types) -> Result<bool, BlobError> {
-    k.all_i8()?;
+    if !(k.int(k.op.inputs[0])? && k.int(k.op.output)?) {
+        return Err(bad(
+            k.op.offset,
+            "conv: input and output must be int8 or int16",
+        ));
+    }
     let Attrs::Conv { geometry, .. } = &k.op.attrs else {
         return Ok(false);
     };
-    let g = geometry.get().groups;
+    let geometry = geometry.get();
+    let g = geometry.groups;
+    let taps = (k.x.channels / g)
+        .saturating_mul(geometry.kernel[0])
+        .saturating_mul(geometry.kernel[1]);
+    if k.x.dtype == DType::I16 && taps > MAX_TAPS_WIDE {
+        return Err(bad(k.op.offset, "conv: too many taps for an int16 input"));
+    }
     Ok(k.x.channels.is_multiple_of(g) && k.out.channels.is_multiple_of(g))
 }
 
@@ -164,13 +178,14 @@ fn conv_of<'g>(g: &'g Graph, j: usize, channels: &'g [ChannelQuant]) -> Result<C
     else {
         return Err(bad_op(j));
     };
+    let (x, out) = (g.tensor(op.inputs[0])?, g.tensor(op.output)?);
+    let quant = match out.dtype {
+        DType::I16 => ConvQuant::new_wide(x.q.zero_point, *act),
+        _ => ConvQuant::new(x.q.zero_point, out.q.zero_point, *act),
+    };
     Ok(Conv2d {
         geometry: geometry.get(),
-        quant: ConvQuant::new(
-            g.tensor(op.inputs[0])?.q.zero_point,
-            g.tensor(op.output)?.q.zero_point,
-            *act,
-        ),
+        quant,
         weights: typed(g.bytes(*weights), j)?,
         channels,
     })
@@ -195,11 +210,26 @@ pub(crate) fn head<'a>(
     })
 }
 
-/// Runs the conv on its input.
+/// Runs the conv on its input (int16 input or output: [`conv2d_wide`]).
 pub(crate) fn eval(e: Eval) -> Result<(), Error> {
     let i = e.i;
     let (channels, scratch) = channel_quants(e.g, e.plan, i, e.all_consts, e.scratch)?;
     let conv = conv_of(e.g, i, channels)?;
+    let wide = |id: u16| e.g.tensor(id).map(|t| t.dtype == DType::I16);
+    if wide(e.op.inputs[0])? || wide(e.op.output)? {
+        let x = if wide(e.op.inputs[0])? {
+            Codes::I16(typed(e.ins[0], i)?)
+        } else {
+            Codes::I8(typed(e.ins[0], i)?)
+        };
+        let out = if wide(e.op.output)? {
+            CodesMut::I16(typed_mut(e.out, i)?)
+        } else {
+            CodesMut::I8(typed_mut(e.out, i)?)
+        };
+        conv2d_wide(&conv, x, e.x, out).map_err(kerr(i))?;
+        return Ok(());
+    }
     let out = typed_mut(e.out, i)?;
     conv2d_with(
         e.isa,

@@ -219,6 +219,11 @@ impl Types<'_> {
             Err(bad(self.op.offset, "op: inputs and output must be int8"))
         }
     }
+
+    /// Whether tensor `id` holds int8 or int16 codes.
+    pub fn int(&self, id: u16) -> Result<bool, BlobError> {
+        Ok(matches!(self.t(id)?.dtype, DType::I8 | DType::I16))
+    }
 }
 
 /// What planning one op sees.

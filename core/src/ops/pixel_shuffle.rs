@@ -24,7 +24,7 @@ pub(crate) fn read_attrs(a: &mut Reader) -> Result<(Attrs, [u32; 3]), BlobError>
     Ok((Attrs::PixelShuffle(f), [NONE; 3]))
 }
 
-/// `r²` times the output's channels in; one dtype and quantisation.
+/// `r²` times the output's channels in; one dtype (int8 or f32) and quantisation.
 pub(crate) fn types_ok(k: &Types) -> Result<bool, BlobError> {
     let Attrs::PixelShuffle(f) = &k.op.attrs else {
         return Ok(false);
@@ -32,6 +32,7 @@ pub(crate) fn types_ok(k: &Types) -> Result<bool, BlobError> {
     let (x, out) = (k.x, k.out);
     Ok(Some(x.channels) == out.channels.checked_mul(f * f)
         && x.dtype == out.dtype
+        && x.dtype != DType::I16
         && (x.dtype == DType::F32 || x.q == out.q))
 }
 
@@ -63,6 +64,7 @@ pub(crate) fn eval(e: Eval) -> Result<(), Error> {
             let (x, out) = (typed(e.ins[0], i)?, typed_mut(e.out, i)?);
             elementwise::pixel_shuffle::<f32>(x, e.x, r, out)
         }
+        DType::I16 => return Err(e.bad()),
     }
     .map_err(kerr)?;
     Ok(())

@@ -33,7 +33,8 @@ pub(crate) fn read_attrs(a: &mut Reader) -> Result<(Attrs, [u32; 3]), BlobError>
     Ok((Attrs::Upsample { mode, a: x, b: y }, [NONE; 3]))
 }
 
-/// One dtype and quantisation in and out, as many channels; a size tensor produced earlier.
+/// One dtype (int8 or f32) and quantisation in and out, as many channels; a size tensor
+/// produced earlier.
 pub(crate) fn types_ok(k: &Types) -> Result<bool, BlobError> {
     let Attrs::Upsample { mode, a, .. } = &k.op.attrs else {
         return Ok(false);
@@ -43,6 +44,7 @@ pub(crate) fn types_ok(k: &Types) -> Result<bool, BlobError> {
     Ok(like_ok
         && x.channels == out.channels
         && x.dtype == out.dtype
+        && x.dtype != DType::I16
         && (x.dtype == DType::F32 || x.q == out.q))
 }
 
@@ -84,6 +86,7 @@ pub(crate) fn eval(e: Eval) -> Result<(), Error> {
             let (x, out) = (typed(e.ins[0], i)?, typed_mut(e.out, i)?);
             resize::upsample_bilinear_f32(x, e.x, out, e.out_shape).map_err(kerr)?
         }
+        DType::I16 => return Err(e.bad()),
     }
     Ok(())
 }

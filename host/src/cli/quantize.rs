@@ -10,6 +10,7 @@ use depthor_host::quantize::check::{compare, golden_diff, op_fidelity};
 use depthor_host::quantize::fold::fold;
 use depthor_host::quantize::golden::read_golden;
 use depthor_host::quantize::graph::Graph;
+use depthor_host::quantize::widen::widen;
 use depthor_host::quantize::{quantize_with_ranges, QuantizeError};
 use std::path::{Path, PathBuf};
 
@@ -51,6 +52,10 @@ pub struct Args {
     /// (e.g. `qat_ranges.json` from a quantisation-aware run's export; docs/blob.md).
     #[arg(long, value_name = "FILE")]
     ranges_file: Option<PathBuf>,
+    /// Store this value as int16 (TFLite's 16×8 scheme; repeatable): a conv output read only
+    /// by convs and concats, e.g. one `int8_sensitivity.py` ranks first (docs/blob.md).
+    #[arg(long, value_name = "VALUE")]
+    int16: Vec<String>,
     /// A scene configuration (JSON, as for `depthor sim --scene-config`: the preset's scenes
     /// with the named ranges replaced) for
     /// `--scene-config-frames` more calibration frames, e.g. the close-range scenes a model also
@@ -86,7 +91,8 @@ pub struct Args {
 /// Quantises, writes the blob, prints sizes (and the report).
 pub fn handle(args: Args) -> Result<()> {
     let graph = Graph::load(&args.graph, args.weights.as_deref())?;
-    let net = fold(&graph).with_context(|| format!("{}", args.graph.display()))?;
+    let mut net = fold(&graph).with_context(|| format!("{}", args.graph.display()))?;
+    widen(&mut net, &args.int16)?;
     let preset = args.preset.clone().unwrap_or_else(|| graph.variant.clone());
     let mut frames = simulated_frames(&preset, net.height, net.width, args.frames, args.seed)?;
     if let Some(path) = &args.scene_config {

@@ -111,6 +111,7 @@ pub fn write_blob(net: &Net, qparams: &[QParams]) -> Result<Vec<u8>, BlobError> 
         let dt = match v.storage {
             Storage::I8 => dtype::I8,
             Storage::F32 => dtype::F32,
+            Storage::I16 => dtype::I16,
         };
         bw.tensor(dt, u16_of("channels", v.shape.c)?, *q);
     }

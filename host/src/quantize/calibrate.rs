@@ -177,7 +177,8 @@ pub enum RangeFileError {
 }
 
 /// Replaces the calibrated ranges of the values named in `given` (value name → `[lo, hi]`, e.g.
-/// the ranges a quantisation-aware run trained with); the other values keep theirs.
+/// the ranges a quantisation-aware run trained with); the other values keep theirs, and so do
+/// int16 values (a given range is an int8 one: it would clip what int16 keeps).
 pub fn override_ranges(
     net: &Net,
     ranges: &mut Ranges,
@@ -187,7 +188,7 @@ pub fn override_ranges(
         let v = net
             .values
             .iter()
-            .position(|v| &v.name == name && v.storage == Storage::I8)
+            .position(|v| &v.name == name && v.storage != Storage::F32)
             .ok_or_else(|| RangeFileError::UnknownValue(name.clone()))?;
         if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
             return Err(RangeFileError::BadRange {
@@ -196,8 +197,10 @@ pub fn override_ranges(
                 hi: *hi,
             });
         }
-        ranges.min[v] = *lo;
-        ranges.max[v] = *hi;
+        if net.values[v].storage == Storage::I8 {
+            ranges.min[v] = *lo;
+            ranges.max[v] = *hi;
+        }
     }
     Ok(())
 }
@@ -339,6 +342,23 @@ pub fn affine_params(lo: f32, hi: f32) -> QParams {
     QParams { scale, zero_point }
 }
 
+/// Headroom of an int16 value's range over its calibrated min/max: frames beyond calibration do
+/// not clip, and the step stays 128× finer than int8's over the same range.
+pub const I16_HEADROOM: f32 = 2.0;
+
+/// Symmetric int16 parameters (zero point 0) covering `[lo, hi]` with [`I16_HEADROOM`]:
+/// `scale = I16_HEADROOM · max(|lo|, |hi|) / 32767`.
+pub fn symmetric_i16_params(lo: f32, hi: f32) -> QParams {
+    let m = [lo, hi]
+        .iter()
+        .filter(|v| v.is_finite())
+        .fold(0f32, |a, v| a.max(v.abs()));
+    QParams {
+        scale: (I16_HEADROOM * m).max(MIN_RANGE) / 32767.0,
+        zero_point: 0,
+    }
+}
+
 /// The blob parameters of every value of `net` from calibrated `ranges` (rules in the module
 /// doc). f32 values get scale 1, zero point 0 (ignored by the engine).
 pub fn choose_qparams(net: &Net, ranges: &Ranges) -> Vec<QParams> {
@@ -362,6 +382,8 @@ pub fn choose_qparams(net: &Net, ranges: &Ranges) -> Vec<QParams> {
                 scale: 1.0,
                 zero_point: 0,
             }
+        } else if net.values[v].storage == Storage::I16 {
+            symmetric_i16_params(ranges.min[v], ranges.max[v])
         } else {
             match op.kind {
                 OpKind::MinMaxNorm(_) | OpKind::Sigmoid => unit,

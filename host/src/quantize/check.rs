@@ -195,6 +195,10 @@ pub fn compare(blob: &[u8], net: &Net, frames: &[Frame]) -> Result<Comparison, C
             };
             match o {
                 Observed::I8(q, p) => r.iter().zip(q).for_each(|(&a, &c)| acc(a, p.dequantize(c))),
+                Observed::I16(q, p) => r
+                    .iter()
+                    .zip(q)
+                    .for_each(|(&a, &c)| acc(a, p.dequantize_code(c.into()))),
                 Observed::F32(v) => r.iter().zip(v).for_each(|(&a, &b)| acc(a, b)),
             }
         };
@@ -237,7 +241,7 @@ pub struct OpFidelity {
     pub max_abs_codes: i32,
 }
 
-/// For every int8 op of `blob`: how far the engine's codes are from the f32 op applied to the
+/// For every int8 (and int16) op of `blob`: how far the engine's codes are from the f32 op applied to the
 /// codes the engine fed it (the rgb and sparse inputs quantised as the engine quantises them).
 /// Weight rounding and accumulation order leave a few hundredths of a code; a kernel that
 /// rounds twice or drifts from its float definition shows up as tenths.
@@ -265,11 +269,16 @@ pub fn op_fidelity(
             .map(|&v| sparse_q.dequantize(sparse_q.quantize(v)))
             .collect();
         let mut vals: Vec<Vec<f32>> = vec![f.rgb_planar(), sparse];
-        let mut codes: Vec<Option<(Vec<i8>, QParams)>> = vec![None, None];
+        // Codes (as i32), parameters and whether they are int16.
+        let mut codes: Vec<Option<(Vec<i32>, QParams, bool)>> = vec![None, None];
         engine.run_observed(&f.rgb, &f.sparse_m, &mut depth, &mut |_, o| match o {
             Observed::I8(q, p) => {
                 vals.push(q.iter().map(|&c| p.dequantize(c)).collect());
-                codes.push(Some((q.to_vec(), p)));
+                codes.push(Some((q.iter().map(|&c| c.into()).collect(), p, false)));
+            }
+            Observed::I16(q, p) => {
+                vals.push(q.iter().map(|&c| p.dequantize_code(c.into())).collect());
+                codes.push(Some((q.iter().map(|&c| c.into()).collect(), p, true)));
             }
             Observed::F32(v) => {
                 vals.push(v.to_vec());
@@ -277,7 +286,7 @@ pub fn op_fidelity(
             }
         })?;
         for (k, op) in net.ops.iter().enumerate() {
-            let Some((q, p)) = &codes[op.output] else {
+            let Some((q, p, wide)) = &codes[op.output] else {
                 continue;
             };
             let model = net
@@ -288,7 +297,12 @@ pub fn op_fidelity(
                     error,
                 })?;
             for (&m, &c) in model.iter().zip(q) {
-                let d = (p.quantize(m) as i32 - c as i32).abs();
+                let code = if *wide {
+                    p.quantize_i16(m).into()
+                } else {
+                    i32::from(p.quantize(m))
+                };
+                let d = (code - c).abs();
                 sum[k] += d as f64;
                 count[k] += 1;
                 max[k] = max[k].max(d);

@@ -7,7 +7,8 @@
 //!    records every value's min/max (and, for MSE clipping, a histogram) over them and chooses
 //!    int8 asymmetric per-tensor parameters.
 //! 3. [`blob_writer`] quantises weights (symmetric int8 per output channel, int32 bias), bakes
-//!    the LUTs and writes blob format v1 through [`blob_format`] (the format's one writer); the
+//!    the LUTs and writes blob format v1 through [`blob_format`] (the format's one writer); values
+//!    chosen with [`widen`] are stored as int16 (16×8); the
 //!    engine derives its Q31 multipliers from the stored f32 scales when it prepares the blob.
 //! 4. [`check`] compares the engine on the blob with the float network, per frame and per op.
 //!
@@ -30,6 +31,7 @@ pub mod fold;
 pub mod golden;
 pub mod graph;
 pub mod net;
+pub mod widen;
 
 use calibrate::{
     choose_qparams, override_ranges, Frame, Histograms, RangeFileError, RangeRule, Ranges,
@@ -75,7 +77,7 @@ pub fn calibrate_ranges(net: &Net, frames: &[Frame]) -> Result<Ranges, RunError>
 }
 
 /// The range of every value of `net` over `frames` under `rule`: min/max, or MSE-clipped from
-/// a histogram filled by a second pass over the frames.
+/// a histogram filled by a second pass over the frames (int16 values keep min/max).
 pub fn calibrate_ranges_with(
     net: &Net,
     frames: &[Frame],
@@ -89,7 +91,15 @@ pub fn calibrate_ranges_with(
     for f in frames {
         h.observe(&net.run_f32(&f.rgb_planar(), &f.sparse_m)?);
     }
-    Ok(h.mse_ranges())
+    let mut clipped = h.mse_ranges();
+    // int16 values keep min/max: their rounding is too fine for clipping to pay.
+    for (v, value) in net.values.iter().enumerate() {
+        if value.storage == net::Storage::I16 {
+            clipped.min[v] = full.min[v];
+            clipped.max[v] = full.max[v];
+        }
+    }
+    Ok(clipped)
 }
 
 /// Calibrates `net` on `frames` with the default [`RangeRule`] and writes its blob.

@@ -21,6 +21,9 @@ pub enum Storage {
     I8,
     /// f32 (depth maps in metres: the bins head, its upsampling and refine).
     F32,
+    /// int16, per-tensor symmetric: a conv output read only by convs and concats, chosen with
+    /// `depthor quantize --int16` ([`super::widen`]).
+    I16,
 }
 
 /// One tensor of the network.
