@@ -60,17 +60,17 @@ impl Rescale {
     }
 
     /// Requantises one code.
-    #[inline]
+    #[inline(always)]
     pub fn apply(&self, q: i8) -> i8 {
         self.apply_code(q as i32)
     }
 
     /// Requantises one code of any width (an int16 one: [`super::wide`]) to int8.
-    #[inline]
+    #[inline(always)]
     pub fn apply_code(&self, q: i32) -> i8 {
         clamp_i8(
             self.m
-                .apply_rounded(q.saturating_sub(self.zp_in))
+                .apply_rounded(q.wrapping_sub(self.zp_in))
                 .saturating_add(self.zp_out),
             -128,
             127,
@@ -368,6 +368,7 @@ pub fn mul(
 
 /// The channels `c_offset ..` of the concat output `out` (`out_shape`) that a part of
 /// `in_shape` fills (its H and W must be the output's).
+#[inline(always)]
 pub(crate) fn concat_dst(
     out: &mut [i8],
     out_shape: Shape,
