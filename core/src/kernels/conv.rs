@@ -1731,7 +1731,7 @@ pub(crate) mod tests {
                 for (code, t) in tables[k].iter_mut().enumerate() {
                     *t = r.apply(code as u8 as i8);
                 }
-                concat_part(part, Shape::new(parts_c[k], s.h, s.w), &r, &mut concat, s, c0).unwrap();
+                concat_part(crate::kernels::wide::Codes::I8(part), Shape::new(parts_c[k], s.h, s.w), &r, &mut concat, s, c0).unwrap();
                 c0 += parts_c[k];
             }
             let ch = channels(&c);

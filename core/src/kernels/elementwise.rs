@@ -6,6 +6,7 @@
 
 use super::broadcast::{broadcast_index, broadcast_len, Broadcast};
 use super::requant::{clamp_i8, rounding_divide_by_pot, QParams, Requant};
+use super::wide::Codes;
 use super::{need, KernelError, Shape};
 
 /// A 256-entry int8→int8 table, indexed by `q as u8` (so code −128 is entry 128).
@@ -369,7 +370,7 @@ pub fn mul(
 /// The channels `c_offset ..` of the concat output `out` (`out_shape`) that a part of
 /// `in_shape` fills (its H and W must be the output's).
 #[inline(always)]
-pub(crate) fn concat_dst(
+fn concat_dst(
     out: &mut [i8],
     out_shape: Shape,
     in_shape: Shape,
@@ -385,16 +386,27 @@ pub(crate) fn concat_dst(
     Ok(&mut out[c_offset * p..c_offset * p + n])
 }
 
-/// Writes one input of a channel concat into `out` (shape `out_shape`) starting at channel
-/// `c_offset`, requantised to the output's parameters.
+/// Writes one input of a channel concat (int8, or int16: [`super::wide`]) into the int8 `out`
+/// (shape `out_shape`) starting at channel `c_offset`, requantised to the output's parameters.
 pub fn concat_part(
-    input: &[i8],
+    input: Codes,
     in_shape: Shape,
     rescale: &Rescale,
     out: &mut [i8],
     out_shape: Shape,
     c_offset: usize,
 ) -> Result<(), KernelError> {
+    let input = match input {
+        Codes::I8(x) => x,
+        Codes::I16(x) => {
+            need(x, in_shape)?;
+            let dst = concat_dst(out, out_shape, in_shape, c_offset)?;
+            for (o, &v) in dst.iter_mut().zip(x) {
+                *o = rescale.apply_code(i32::from(v));
+            }
+            return Ok(());
+        }
+    };
     let n = need(input, in_shape)?;
     let dst = concat_dst(out, out_shape, in_shape, c_offset)?;
     if rescale.is_identity() {
@@ -646,10 +658,38 @@ mod tests {
                 prop_assert_eq!(&y1, &y2, "add with {:?}", (ka, kb, ko));
             }
             let r = Rescale::new(c.qa, c.qo);
-            concat_part(&a, shape, &r, &mut y2, shape, 0).unwrap();
+            concat_part(Codes::I8(&a), shape, &r, &mut y2, shape, 0).unwrap();
             let want: Vec<i8> = a.iter().map(|&x| r.apply(x)).collect();
             prop_assert_eq!(&want, &y2, "concat");
         }
+    }
+
+    #[test]
+    fn wide_concat_part_rescales_to_int8() {
+        // int16 scale 1/256 of the int8 output's: code 256·k → k + zp.
+        let r = Rescale::new(
+            QParams {
+                scale: 0.01 / 256.0,
+                zero_point: 0,
+            },
+            QParams {
+                scale: 0.01,
+                zero_point: -10,
+            },
+        );
+        let x = [0i16, 256, -512, 128, 32767, -32768];
+        let mut out = [0i8; 12];
+        concat_part(
+            Codes::I16(&x),
+            Shape::new(1, 2, 3),
+            &r,
+            &mut out,
+            Shape::new(2, 2, 3),
+            1,
+        )
+        .unwrap();
+        assert_eq!(&out[6..], &[-10, -9, -12, -9, 118, -128]);
+        assert_eq!(&out[..6], &[0; 6]);
     }
 
     #[test]
@@ -737,7 +777,7 @@ mod tests {
         let mut out = [0i8; 6];
         let os = Shape::new(3, 1, 2);
         concat_part(
-            &[5, 6],
+            Codes::I8(&[5, 6]),
             Shape::new(1, 1, 2),
             &Rescale::new(out_q, out_q),
             &mut out,
@@ -750,7 +790,7 @@ mod tests {
             zero_point: 10,
         };
         concat_part(
-            &[10, 20, 30, 11],
+            Codes::I8(&[10, 20, 30, 11]),
             Shape::new(2, 1, 2),
             &Rescale::new(q2, out_q),
             &mut out,
@@ -762,7 +802,7 @@ mod tests {
         assert_eq!(out, [5, 6, 0, 5, 10, 1]);
         assert_eq!(
             concat_part(
-                &[1, 2],
+                Codes::I8(&[1, 2]),
                 Shape::new(1, 1, 2),
                 &Rescale::default(),
                 &mut out,

@@ -1,7 +1,7 @@
 //! 16-bit activations (TFLite's 16×8 scheme) for the few values where int8 rounding costs the
 //! most accuracy: int16 codes, symmetric per tensor (zero point 0), with int8 weights as
 //! everywhere else. Only `conv2d` / `linear` (int8 or int16 in, int8 or int16 out) and `concat`
-//! (int8 or int16 parts, int8 out) handle them; the blob parser rejects an int16 value anywhere
+//! (int8 or int16 parts, int8 out: [`super::elementwise::concat_part`]) handle them; the blob parser rejects an int16 value anywhere
 //! else (docs/blob.md).
 //!
 //! The arithmetic is the int8 spec's ([`super::conv`]): `acc = bias[o] + Σ w · (x − zp_in)` in
@@ -11,7 +11,6 @@
 //! `i64` instead). One scalar loop serves every kernel set, so every target gives the same bits.
 
 use super::conv::Conv2d;
-use super::elementwise::{concat_dst, Rescale};
 use super::requant::{rounding_divide_by_pot, saturating_rounding_doubling_high_mul, Requant};
 use super::{need, KernelError, Shape};
 
@@ -256,27 +255,6 @@ fn tap_pair<T: Copy + Into<i32>>(
     }
 }
 
-/// One int16 `concat` part: `input` (`in_shape`) rescaled by `rescale` into channels
-/// `c_offset ..` of the int8 `out` (`out_shape`), as [`super::elementwise::concat_part`] does
-/// an int8 one.
-pub fn concat_part_wide(
-    input: &[i16],
-    in_shape: Shape,
-    rescale: &Rescale,
-    out: &mut [i8],
-    out_shape: Shape,
-    c_offset: usize,
-) -> Result<(), KernelError> {
-    need(input, in_shape)?;
-    for (o, &x) in concat_dst(out, out_shape, in_shape, c_offset)?
-        .iter_mut()
-        .zip(input)
-    {
-        *o = rescale.apply_code(i32::from(x));
-    }
-    Ok(())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -443,33 +421,5 @@ mod tests {
         let conv = op(&w, &cq, ConvQuant::new(0, 0, Activation::None), 1);
         let r = conv2d_wide(&conv, Codes::I16(&xb), big, CodesMut::I8(&mut [0i8; 1]));
         assert_eq!(r, Err(KernelError::Attr));
-    }
-
-    #[test]
-    fn wide_concat_part_rescales_to_int8() {
-        // int16 scale 1/256 of the int8 output's: code 256·k → k + zp.
-        let r = Rescale::new(
-            QParams {
-                scale: 0.01 / 256.0,
-                zero_point: 0,
-            },
-            QParams {
-                scale: 0.01,
-                zero_point: -10,
-            },
-        );
-        let x = [0i16, 256, -512, 128, 32767, -32768];
-        let mut out = [0i8; 12];
-        concat_part_wide(
-            &x,
-            Shape::new(1, 2, 3),
-            &r,
-            &mut out,
-            Shape::new(2, 2, 3),
-            1,
-        )
-        .unwrap();
-        assert_eq!(&out[6..], &[-10, -9, -12, -9, 118, -128]);
-        assert_eq!(&out[..6], &[0; 6]);
     }
 }

@@ -1,6 +1,6 @@
 //! `concat` (docs/graph.md): int8 (or int16) tensors of one spatial size joined along channels
 //! into int8, each rescaled to the output's quantisation. Kernels:
-//! [`crate::kernels::elementwise::concat_part`], [`crate::kernels::wide::concat_part_wide`].
+//! [`crate::kernels::elementwise::concat_part`].
 //! Where one conv alone reads it, the planner lets that conv read the parts in place instead
 //! ([`super::conv::eval_on_parts`]).
 
@@ -10,7 +10,7 @@ use crate::blob::BlobError;
 use crate::engine::plan::{OpPlan, PlanError};
 use crate::engine::Error;
 use crate::kernels::elementwise::{self, Rescale};
-use crate::kernels::wide::concat_part_wide;
+use crate::kernels::wide::Codes;
 use core::mem::size_of;
 
 /// One to [`crate::blob::format::MAX_INPUTS`] inputs.
@@ -62,11 +62,12 @@ pub(crate) fn eval(e: Eval) -> Result<(), Error> {
     let mut c0 = 0;
     for ((&id, r), b) in e.op.inputs.iter().zip(rs).zip(&e.ins) {
         let s = e.plan.shape(id).ok_or(bad)?;
-        if e.g.tensor(id)?.dtype == DType::I16 {
-            concat_part_wide(typed(b, i)?, s, r, out, e.out_shape, c0).map_err(kerr)?;
+        let x = if e.g.tensor(id)?.dtype == DType::I16 {
+            Codes::I16(typed(b, i)?)
         } else {
-            elementwise::concat_part(typed(b, i)?, s, r, out, e.out_shape, c0).map_err(kerr)?;
-        }
+            Codes::I8(typed(b, i)?)
+        };
+        elementwise::concat_part(x, s, r, out, e.out_shape, c0).map_err(kerr)?;
         c0 += s.c;
     }
     Ok(())
