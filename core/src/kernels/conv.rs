@@ -12,6 +12,7 @@ use super::dot::{self, Acc, Task};
 use super::isa::Isa;
 use super::pack::{self, Dense, Layout, Pairs, Parts, Quads, Source, NB, PB};
 use super::requant::{clamp_i8, Requant};
+use super::wide::Finish;
 use super::{need, KernelError, Shape};
 
 /// Activation fused after the bias (sigmoid is a separate LUT op in the blob).
@@ -661,9 +662,9 @@ pub fn conv2d_rows_packed(
             depthwise::conv(&call, output, scratch)
         }
         Isa::Avx512Vnni => {
-            run::<Quads, _>(isa, op, &src, in_shape, out, dst, output, scratch, packed)
+            run::<Quads, _, _>(isa, op, &src, in_shape, out, dst, output, scratch, packed)
         }
-        _ => run::<Pairs, _>(isa, op, &src, in_shape, out, dst, output, scratch, packed),
+        _ => run::<Pairs, _, _>(isa, op, &src, in_shape, out, dst, output, scratch, packed),
     }
     Ok(out)
 }
@@ -692,9 +693,41 @@ pub fn conv2d_parts_with(
     let scratch = &mut scratch[..len];
     match isa {
         Isa::Avx512Vnni => {
-            run::<Quads, _>(isa, op, input, in_shape, out, dst, output, scratch, false)
+            run::<Quads, _, _>(isa, op, input, in_shape, out, dst, output, scratch, false)
         }
-        _ => run::<Pairs, _>(isa, op, input, in_shape, out, dst, output, scratch, false),
+        _ => run::<Pairs, _, _>(isa, op, input, in_shape, out, dst, output, scratch, false),
+    }
+    Ok(out)
+}
+
+/// As [`conv2d_with`] into int16 codes (`op.quant` from [`ConvQuant::new_wide`]): the fast
+/// kernels' sums, each requantised by [`super::wide`]'s rule (the same bits as its scalar loop).
+/// Every geometry runs the dense path (no depthwise special case).
+pub fn conv2d_i16_with(
+    isa: Isa,
+    op: &Conv2d,
+    input: &[i8],
+    in_shape: Shape,
+    output: &mut [i16],
+    scratch: &mut [i32],
+) -> Result<Shape, KernelError> {
+    let out = op.check(in_shape)?;
+    need(input, in_shape)?;
+    let dst = OutRows {
+        rows: 0..out.h,
+        stride: out.plane().ok_or(KernelError::Shape)?,
+    };
+    let len = check_buffers(isa, op, in_shape, out, &dst, output.len(), scratch.len())?;
+    let scratch = &mut scratch[..len];
+    let src = Dense {
+        data: input,
+        plane: in_shape.plane().ok_or(KernelError::Shape)?,
+    };
+    match isa {
+        Isa::Avx512Vnni => {
+            run::<Quads, _, _>(isa, op, &src, in_shape, out, &dst, output, scratch, false)
+        }
+        _ => run::<Pairs, _, _>(isa, op, &src, in_shape, out, &dst, output, scratch, false),
     }
     Ok(out)
 }
@@ -747,14 +780,14 @@ impl Micro for Quads {
 }
 
 #[allow(clippy::too_many_arguments)]
-fn run<F: Micro, S: Source>(
+fn run<F: Micro, S: Source, O: Sink + ?Sized>(
     isa: Isa,
     op: &Conv2d,
     input: &S,
     in_shape: Shape,
     out: Shape,
     dst: &OutRows,
-    output: &mut [i8],
+    output: &mut O,
     scratch: &mut [i32],
     weights_packed: bool,
 ) {
@@ -798,7 +831,7 @@ fn run<F: Micro, S: Source>(
                 first: o_first + c0,
                 channels: nc,
             };
-            run_pack::<F, S>(
+            run_pack::<F, S, O>(
                 isa,
                 op,
                 input,
@@ -816,6 +849,59 @@ fn run<F: Micro, S: Source>(
     }
 }
 
+/// Where [`run`] puts a block's sums, requantised: int8 codes ([`Conv2d::finish_block`]) or
+/// int16 codes ([`super::wide`]'s rule, scalar).
+trait Sink {
+    /// Requantises the first `n` sums of each of the `rq.len()` rows of `acc` (output channels
+    /// `o0 ..`) to `self` at `at`, channel stride `plane`.
+    fn block(
+        &mut self,
+        op: &Conv2d,
+        isa: Isa,
+        rows: (&[RowQuant], usize),
+        sums: (&Acc, usize),
+        at: usize,
+        plane: usize,
+    );
+}
+
+impl Sink for [i8] {
+    #[inline(always)]
+    fn block(
+        &mut self,
+        op: &Conv2d,
+        isa: Isa,
+        (rq, o0): (&[RowQuant], usize),
+        (acc, n): (&Acc, usize),
+        at: usize,
+        plane: usize,
+    ) {
+        op.finish_block(isa, rq, o0, acc, n, self, at, plane);
+    }
+}
+
+impl Sink for [i16] {
+    #[inline(always)]
+    fn block(
+        &mut self,
+        op: &Conv2d,
+        _isa: Isa,
+        (rq, o0): (&[RowQuant], usize),
+        (acc, n): (&Acc, usize),
+        at: usize,
+        plane: usize,
+    ) {
+        for (j, (r, a)) in rq.iter().zip(acc.chunks_exact(PB)).enumerate() {
+            let f = Finish::of(op, o0 + j);
+            if let Some(dst) = self.get_mut(at + j * plane..at + j * plane + n) {
+                for (d, &v) in dst.iter_mut().zip(a) {
+                    *d = f.apply(r.base.wrapping_add(v)) as i16;
+                }
+            }
+        }
+    }
+}
+
 /// The packed weights of output channels `first .. first + channels` and their sums.
 struct Pack<'p, W> {
     weights: &'p [W],
@@ -826,7 +912,7 @@ struct Pack<'p, W> {
 
 /// [`run`] for the channels of one [`Pack`], row by row.
 #[allow(clippy::too_many_arguments)]
-fn run_pack<F: Micro, S: Source>(
+fn run_pack<F: Micro, S: Source, O: Sink + ?Sized>(
     isa: Isa,
     op: &Conv2d,
     input: &S,
@@ -834,7 +920,7 @@ fn run_pack<F: Micro, S: Source>(
     group_shape: Shape,
     out: Shape,
     dst: &OutRows,
-    output: &mut [i8],
+    output: &mut O,
     (rows, steps, slots): (&mut [F::Elem], &mut [u32], &mut [i32]),
     dims: &pack::Dims,
     pack: &Pack<'_, F::W>,
@@ -897,7 +983,7 @@ fn run_pack<F: Micro, S: Source>(
                 };
                 F::kernel(isa, &task, acc);
                 let at = o0 * dst.stride + (oy - dst.rows.start) * out.w + ox0;
-                op.finish_block(isa, &rq[..nb], o0, acc, n, output, at, dst.stride);
+                output.block(op, isa, (&rq[..nb], o0), (acc, n), at, dst.stride);
             }
         }
     }

@@ -400,6 +400,21 @@ const MAX_RING_ROWS: usize = 7;
 /// (nothing written) for other geometries or a short scratch.
 pub(super) fn ring_rows(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) -> bool {
     let (isa, op, input, in_shape, out, dst) = call.parts();
+    ring_rows_of(isa, op, input, (in_shape, out), dst, output, scratch)
+}
+
+/// [`ring_rows`] on int8 or int16 codes (`input` holds `in_shape`, checked by the caller): a
+/// row is `x − zp` in 16 bits either way (an int16 input has zero point 0), so the sums and
+/// bits are the same kernel's ([`super::wide`] reads int16 through it).
+pub(super) fn ring_rows_of<T: Copy + Into<i32>>(
+    isa: Isa,
+    op: &Conv2d,
+    input: &[T],
+    (in_shape, out): (Shape, Shape),
+    dst: &OutRows,
+    output: &mut [i8],
+    scratch: &mut [i32],
+) -> bool {
     let g = &op.geometry;
     let (kh, kw) = (g.kernel[0], g.kernel[1]);
     let (sy, sx) = (g.stride[0], g.stride[1]);
@@ -455,7 +470,7 @@ pub(super) fn ring_rows(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]
                     if (0..ih as isize).contains(&iy) {
                         let src = &chan[iy as usize * iw..][..iw];
                         for (d, &x) in row[first..last].iter_mut().zip(src) {
-                            *d = (i32::from(x) - zp) as i16;
+                            *d = (x.into() - zp) as i16;
                         }
                     } else {
                         row[first..last].fill(0);

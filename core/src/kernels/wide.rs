@@ -8,9 +8,13 @@
 //! `i32`, then `MultiplyByQuantizedMultiplier` and a clamp to the output type's range (`[0,
 //! 32767]` for ReLU on int16, whose zero point is 0). An int16 input bounds the taps per output to
 //! [`MAX_TAPS_WIDE`] so that `acc` cannot overflow `i32` (TFLite's 16×8 kernels accumulate in
-//! `i64` instead). One scalar loop serves every kernel set, so every target gives the same bits.
+//! `i64` instead). The int8 → int16 conv reuses the fast int8 kernels' sums and the int16 →
+//! int8 depthwise conv the int8 depthwise kernel's 16-bit rows; everything else is one scalar
+//! loop. Sums are exact integers, so every path and target gives the same bits.
 
-use super::conv::Conv2d;
+use super::conv::{self, Conv2d, OutRows};
+use super::depthwise;
+use super::isa::Isa;
 use super::requant::{rounding_divide_by_pot, saturating_rounding_doubling_high_mul, Requant};
 use super::{need, KernelError, Shape};
 
@@ -38,18 +42,46 @@ pub enum CodesMut<'a> {
 /// Convolution with an int16 input or output (or both): the same contract as
 /// [`super::conv::conv2d_ref`], with `op.quant`'s clamp range that of the output type
 /// ([`super::conv::ConvQuant::new_wide`] for int16). An int16 input must have zero point 0 and at
-/// most [`MAX_TAPS_WIDE`] taps per output.
+/// most [`MAX_TAPS_WIDE`] taps per output. Where `scratch` (i32, as [`Conv2d::scratch_len`]
+/// sizes it) holds their buffers, an int8 → int16 conv runs the fast int8 kernels' sums
+/// ([`conv::conv2d_i16_with`]) and a depthwise int16 → int8 conv the int8 depthwise kernel's
+/// 16-bit rows (`SMLAD` on Cortex-M); the rest, one scalar loop. Same bits either way.
 pub fn conv2d_wide(
+    isa: Isa,
     op: &Conv2d,
     input: Codes,
     in_shape: Shape,
     output: CodesMut,
+    scratch: &mut [i32],
 ) -> Result<Shape, KernelError> {
     let out = op.check(in_shape)?;
     let taps = op.weights.len() / out.c.max(1);
     if matches!(input, Codes::I16(_)) && (op.quant.input_zero_point != 0 || taps > MAX_TAPS_WIDE) {
         return Err(KernelError::Attr);
     }
+    let depthwise = op.geometry.groups == in_shape.c && out.c == in_shape.c;
+    let output = match (input, output) {
+        (Codes::I16(x), CodesMut::I8(o)) if depthwise => {
+            need(x, in_shape)?;
+            need(o, out)?;
+            let dst = OutRows {
+                rows: 0..out.h,
+                stride: out.plane().ok_or(KernelError::Shape)?,
+            };
+            if depthwise::ring_rows_of(isa, op, x, (in_shape, out), &dst, o, scratch) {
+                return Ok(out);
+            }
+            CodesMut::I8(o)
+        }
+        (Codes::I8(x), CodesMut::I16(o)) => {
+            match conv::conv2d_i16_with(isa, op, x, in_shape, o, scratch) {
+                Err(KernelError::Scratch) => {}
+                r => return r,
+            }
+            CodesMut::I16(o)
+        }
+        (_, o) => o,
+    };
     match output {
         CodesMut::I8(o) => into(op, input, in_shape, out, o, |r| r as i8),
         CodesMut::I16(o) => into(op, input, in_shape, out, o, |r| r as i16),
@@ -81,7 +113,7 @@ fn into<O>(
 /// One output channel's requantisation: `clamp(zp_out + M±·acc)` to `op.quant`'s range (which
 /// lies within the output type's), [`Requant::apply`] bit for bit with the shifts resolved once
 /// per channel.
-struct Finish {
+pub(super) struct Finish {
     /// (Q31 multiplier, left shift, right shift) for sums ≥ 0 and < 0.
     pos: (i32, u32, i32),
     neg: (i32, u32, i32),
@@ -91,7 +123,7 @@ struct Finish {
 }
 
 impl Finish {
-    fn of(op: &Conv2d, o: usize) -> Finish {
+    pub(super) fn of(op: &Conv2d, o: usize) -> Finish {
         let cq = &op.channels[o];
         let parts = |r: Requant| {
             (
@@ -110,7 +142,7 @@ impl Finish {
     }
 
     #[inline(always)]
-    fn apply(&self, acc: i32) -> i32 {
+    pub(super) fn apply(&self, acc: i32) -> i32 {
         let (m, left, right) = if acc >= 0 { self.pos } else { self.neg };
         let x = if left > 0 {
             acc.saturating_mul(1 << left)
@@ -308,7 +340,15 @@ mod tests {
         let mut want = vec![0i8; 3 * 4 * 3];
         conv2d_ref(&conv, &x, s, &mut want, &mut []).unwrap();
         let mut got = vec![0i8; want.len()];
-        conv2d_wide(&conv, Codes::I8(&x), s, CodesMut::I8(&mut got)).unwrap();
+        conv2d_wide(
+            Isa::best(),
+            &conv,
+            Codes::I8(&x),
+            s,
+            CodesMut::I8(&mut got),
+            &mut [],
+        )
+        .unwrap();
         assert_eq!(got, want);
     }
 
@@ -329,7 +369,15 @@ mod tests {
         let s = Shape::new(2, 5, 5);
         let x: Vec<i8> = (0..50).map(|i| ((i * 29) % 200) as i8).collect();
         let mut y = vec![0i16; 3 * 3 * 3];
-        conv2d_wide(&conv, Codes::I8(&x), s, CodesMut::I16(&mut y)).unwrap();
+        conv2d_wide(
+            Isa::best(),
+            &conv,
+            Codes::I8(&x),
+            s,
+            CodesMut::I16(&mut y),
+            &mut [],
+        )
+        .unwrap();
         // The real conv by plain loops.
         for o in 0..3 {
             for oy in 0..3 {
@@ -375,7 +423,15 @@ mod tests {
         let mut want = vec![0i8; 2 * 9];
         conv2d_ref(&conv, &x8, s, &mut want, &mut []).unwrap();
         let mut got = vec![0i8; want.len()];
-        conv2d_wide(&conv, Codes::I16(&x16), s, CodesMut::I8(&mut got)).unwrap();
+        conv2d_wide(
+            Isa::best(),
+            &conv,
+            Codes::I16(&x16),
+            s,
+            CodesMut::I8(&mut got),
+            &mut [],
+        )
+        .unwrap();
         assert_eq!(got, want);
     }
 
@@ -396,13 +452,98 @@ mod tests {
             let mut want = vec![0i8; out.len().unwrap()];
             conv2d_ref(&conv, &c.input, c.in_shape, &mut want, &mut []).unwrap();
             let mut got = vec![0i8; want.len()];
-            conv2d_wide(&conv, Codes::I8(&c.input), c.in_shape, CodesMut::I8(&mut got)).unwrap();
+            conv2d_wide(Isa::best(), &conv, Codes::I8(&c.input), c.in_shape, CodesMut::I8(&mut got), &mut []).unwrap();
             proptest::prop_assert_eq!(&got, &want);
             let x16: Vec<i16> = c.input.iter().map(|&v| (v as i32 - c.in_q.zero_point) as i16).collect();
             let conv16 = Conv2d { quant: ConvQuant { input_zero_point: 0, ..quant }, ..conv };
             let mut got16 = vec![0i8; want.len()];
-            conv2d_wide(&conv16, Codes::I16(&x16), c.in_shape, CodesMut::I8(&mut got16)).unwrap();
+            conv2d_wide(Isa::best(), &conv16, Codes::I16(&x16), c.in_shape, CodesMut::I8(&mut got16), &mut []).unwrap();
             proptest::prop_assert_eq!(&got16, &want);
+            // With a scratch, depthwise ones run the int8 kernel's 16-bit rows: the same bits.
+            let mut scratch = vec![0i32; Conv2d::scratch_len(&c.geometry, c.in_shape, out)];
+            for isa in [Isa::Portable, Isa::best()] {
+                let mut rows = vec![0i8; want.len()];
+                conv2d_wide(isa, &conv16, Codes::I16(&x16), c.in_shape, CodesMut::I8(&mut rows), &mut scratch).unwrap();
+                proptest::prop_assert_eq!(&rows, &want);
+            }
+            // int16 out: the fast kernels' sums with the scalar loop's requantisation.
+            let ch16: Vec<ChannelQuant> = (0..c.out_c)
+                .map(|o| ChannelQuant::new(c.bias[o], c.in_q.scale, c.w_scales[o], c.out_q.scale / 256.0, c.act))
+                .collect();
+            let wide = Conv2d { quant: ConvQuant::new_wide(c.in_q.zero_point, c.act), channels: &ch16, ..conv };
+            let mut scalar = vec![0i16; want.len()];
+            conv2d_wide(Isa::Portable, &wide, Codes::I8(&c.input), c.in_shape, CodesMut::I16(&mut scalar), &mut []).unwrap();
+            for isa in [Isa::Portable, Isa::best()] {
+                let mut fast = vec![0i16; want.len()];
+                conv2d_wide(isa, &wide, Codes::I8(&c.input), c.in_shape, CodesMut::I16(&mut fast), &mut scratch).unwrap();
+                proptest::prop_assert_eq!(&fast, &scalar);
+            }
+        }
+    }
+
+    /// The depth encoder's case, a 5 × 5 depthwise conv at stride 2, on int16 codes over the
+    /// whole range (far outside int8): the 16-bit rows of the int8 kernel give the scalar
+    /// loop's bits on every kernel set, odd and even widths.
+    #[test]
+    fn int16_depthwise_rows_equal_the_scalar_loop() {
+        for (h, w) in [(30, 40), (7, 9), (6, 5)] {
+            let c = 3;
+            let wts: Vec<i8> = (0..c * 25)
+                .map(|i| ((i * 73 + 5) % 255) as u8 as i8)
+                .collect();
+            let cq: Vec<ChannelQuant> = (0..c)
+                .map(|o| {
+                    ChannelQuant::new(
+                        o as i32 * 300 - 200,
+                        1e-4,
+                        0.01,
+                        0.05,
+                        Activation::LeakyRelu(0.1),
+                    )
+                })
+                .collect();
+            let conv = Conv2d {
+                geometry: ConvGeometry {
+                    kernel: [5, 5],
+                    stride: [2, 2],
+                    dilation: [1, 1],
+                    padding: [2, 2],
+                    groups: c,
+                },
+                quant: ConvQuant::new(0, 4, Activation::LeakyRelu(0.1)),
+                weights: &wts,
+                channels: &cq,
+            };
+            let s = Shape::new(c, h, w);
+            let x: Vec<i16> = (0..s.len().unwrap())
+                .map(|i| ((i as i64 * 40_503 + 17) % 65_536 - 32_768) as i16)
+                .collect();
+            let out = conv.geometry.output_shape(s, c).unwrap();
+            let mut want = vec![0i8; out.len().unwrap()];
+            conv2d_wide(
+                Isa::Portable,
+                &conv,
+                Codes::I16(&x),
+                s,
+                CodesMut::I8(&mut want),
+                &mut [],
+            )
+            .unwrap();
+            assert!(want.iter().any(|&v| v != want[0]), "a non-constant output");
+            let mut scratch = vec![0i32; Conv2d::scratch_len(&conv.geometry, s, out)];
+            for isa in [Isa::Portable, Isa::best()] {
+                let mut got = vec![0i8; want.len()];
+                conv2d_wide(
+                    isa,
+                    &conv,
+                    Codes::I16(&x),
+                    s,
+                    CodesMut::I8(&mut got),
+                    &mut scratch,
+                )
+                .unwrap();
+                assert_eq!(got, want, "{h}×{w} on {}", isa.name());
+            }
         }
     }
 
@@ -413,13 +554,27 @@ mod tests {
         let x = vec![0i16; 32];
         let w = weights(18);
         let conv = op(&w, &cq, ConvQuant::new(3, 0, Activation::None), 1);
-        let r = conv2d_wide(&conv, Codes::I16(&x), s, CodesMut::I8(&mut [0i8; 4]));
+        let r = conv2d_wide(
+            Isa::best(),
+            &conv,
+            Codes::I16(&x),
+            s,
+            CodesMut::I8(&mut [0i8; 4]),
+            &mut [],
+        );
         assert_eq!(r, Err(KernelError::Attr));
         let big = Shape::new(MAX_TAPS_WIDE.div_ceil(9) + 1, 2, 2);
         let w = weights(big.c * 9);
         let xb = vec![0i16; big.len().unwrap()];
         let conv = op(&w, &cq, ConvQuant::new(0, 0, Activation::None), 1);
-        let r = conv2d_wide(&conv, Codes::I16(&xb), big, CodesMut::I8(&mut [0i8; 1]));
+        let r = conv2d_wide(
+            Isa::best(),
+            &conv,
+            Codes::I16(&xb),
+            big,
+            CodesMut::I8(&mut [0i8; 1]),
+            &mut [],
+        );
         assert_eq!(r, Err(KernelError::Attr));
     }
 }

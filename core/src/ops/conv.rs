@@ -227,7 +227,7 @@ pub(crate) fn eval(e: Eval) -> Result<(), Error> {
         } else {
             CodesMut::I8(typed_mut(e.out, i)?)
         };
-        conv2d_wide(&conv, x, e.x, out).map_err(kerr(i))?;
+        conv2d_wide(e.isa, &conv, x, e.x, out, typed_mut(scratch, i)?).map_err(kerr(i))?;
         return Ok(());
     }
     let out = typed_mut(e.out, i)?;
