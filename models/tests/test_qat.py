@@ -173,5 +173,12 @@ def test_int8_sensitivity_ranks_every_int8_value(lite):
     base, rows = int8_sensitivity.rank(net, rgb, sparse, ranges, only=some)
     assert base > 0 and [r.name for r in rows] != [] and {r.name for r in rows} == set(some)
     assert [r.rms_m for r in rows] == sorted(r.rms_m for r in rows)
+    # a kept value is float in every run: not ranked, and the base moves to its row's figure
+    kept_base, kept_rows = int8_sensitivity.rank(net, rgb, sparse, ranges, only=some,
+                                                 kept=[rows[0].name])
+    assert {r.name for r in kept_rows} == set(some) - {rows[0].name}
+    assert kept_base == pytest.approx(rows[0].rms_m, rel=1e-5)
+    with pytest.raises(ValueError):
+        int8_sensitivity.rank(net, rgb, sparse, ranges, kept=["no.such.value"])
     with pytest.raises(ValueError):
         int8_sensitivity.rank(net, rgb, sparse, {"no.such.value": [0.0, 1.0]})

@@ -5,7 +5,9 @@
 use anyhow::{Context, Result};
 use depthor_core::engine::required_arena_bytes;
 use depthor_host::evaluation::RecordingFrames;
-use depthor_host::quantize::calibrate::{simulated_frames, simulated_frames_in, Frame, RangeRule};
+use depthor_host::quantize::calibrate::{
+    simulated_frames, simulated_frames_in, Frame, RangeRule, I16_HEADROOM,
+};
 use depthor_host::quantize::check::{compare, golden_diff, op_fidelity};
 use depthor_host::quantize::fold::fold;
 use depthor_host::quantize::golden::read_golden;
@@ -188,6 +190,12 @@ pub fn handle(args: Args) -> Result<()> {
     );
     if let Some(p) = &args.ranges_file {
         println!("ranges of {} values from {}", given.len(), p.display());
+    }
+    if !args.int16.is_empty() {
+        println!(
+            "int16 values (symmetric, min/max × {I16_HEADROOM}): {}",
+            args.int16.join(", ")
+        );
     }
     let wb = net.weight_count();
     println!("int8 weight bytes {wb} ({:.1} KiB)", wb as f64 / 1024.0);
