@@ -1,10 +1,12 @@
 //! Blob parser robustness: named corruptions give the right errors; truncated, bit-flipped
-//! (with and without a repaired CRC) and random blobs never panic.
+//! (with and without a repaired CRC) and random blobs never panic, also where an int16 value's
+//! table entry and ops are hit (the committed `mcu_lite` blob).
 
 mod common;
 
 use common::{fix_crc, frame, rgb_planar, tiny_net, tiny_net_with};
-use depthor_core::blob::format::HEADER_LEN;
+use depthor_core::blob::format::{HEADER_LEN, TENSOR_ENTRY_LEN};
+use depthor_core::blob::parse::DType;
 use depthor_core::blob::{parse, BlobError};
 use depthor_core::engine::{required_arena_bytes, Engine, Error};
 use depthor_core::kernels::refine::Neighbourhood;
@@ -183,5 +185,96 @@ proptest! {
             fix_crc(&mut b);
         }
         exercise(&b);
+    }
+}
+
+/// The committed `mcu_lite` blob: it stores one value as int16 (dtype 2), so its table entry and
+/// the ops writing and reading it reach the int16 checks and kernels.
+fn int16_blob() -> &'static [u8] {
+    include_bytes!("../../models/mcu_lite/depthor.dblob")
+}
+
+/// A run size the 1/32-stride `mcu_lite` accepts, small enough for many debug-build runs.
+const SMALL: (usize, usize) = (32, 32);
+
+/// As [`exercise`] at [`SMALL`]; true when a frame ran to the end.
+fn exercise_small(b: &[u8]) -> bool {
+    let (h, w) = SMALL;
+    let Ok(need) = required_arena_bytes(b, h, w) else {
+        return false;
+    };
+    if need >= 1 << 22 {
+        return false;
+    }
+    let mut arena = vec![0u8; need];
+    let Ok(mut e) = Engine::with_size(b, &mut arena, h, w) else {
+        return false;
+    };
+    let (rgb, sparse) = frame(h, w);
+    let mut out = vec![0f32; h * w];
+    e.run(&rgb, &sparse, &mut out).is_ok()
+}
+
+#[test]
+fn int16_blob_runs_at_a_small_size() {
+    let g = parse(int16_blob()).unwrap();
+    assert!(
+        g.tensors.iter().any(|t| t.dtype == DType::I16),
+        "no int16 value left to test"
+    );
+    assert!(exercise_small(int16_blob()));
+}
+
+#[test]
+fn int16_entries_and_their_ops_corrupted_are_safe() {
+    // Every byte of each int16 tensor's table entry and of the op records writing or reading it,
+    // set to a few values with the CRC repaired: an error or a run, never a panic.
+    let b0 = int16_blob();
+    let g = parse(b0).unwrap();
+    let mut ranges = std::vec::Vec::new();
+    for (id, t) in g.tensors.iter().enumerate() {
+        if t.dtype != DType::I16 {
+            continue;
+        }
+        let at = HEADER_LEN + id * TENSOR_ENTRY_LEN;
+        ranges.push(at..at + TENSOR_ENTRY_LEN);
+        for (k, op) in g.ops.iter().enumerate() {
+            if op.output as usize == id || op.inputs.iter().any(|&i| i as usize == id) {
+                let end = g.ops.get(k + 1).map_or(op.offset + 64, |n| n.offset);
+                ranges.push(op.offset..end);
+            }
+        }
+    }
+    assert!(
+        ranges.len() >= 3,
+        "an int16 value, its producer and a reader"
+    );
+    let mut ran = 0;
+    for i in ranges.into_iter().flatten() {
+        for v in [0u8, 1, 2, 3, 0x7f, 0x81, 0xff] {
+            let mut b = b0.to_vec();
+            b[i] = v;
+            fix_crc(&mut b);
+            ran += usize::from(exercise_small(&b));
+        }
+    }
+    assert!(
+        ran > 0,
+        "some corruptions (scale bytes, say) still make a runnable blob"
+    );
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+    #[test]
+    fn int16_blob_random_table_mutations_never_panic(edits in proptest::collection::vec((any::<usize>(), any::<u8>()), 1..6)) {
+        let b0 = int16_blob();
+        let table_end = HEADER_LEN + parse(b0).unwrap().tensors.len() * TENSOR_ENTRY_LEN;
+        let mut b = b0.to_vec();
+        for (i, v) in edits {
+            b[HEADER_LEN + i % (table_end - HEADER_LEN)] = v;
+        }
+        fix_crc(&mut b);
+        exercise_small(&b);
     }
 }
