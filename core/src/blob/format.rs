@@ -30,8 +30,9 @@ pub mod dtype {
     pub const I8: u8 = 0;
     /// IEEE f32 (depth maps in metres).
     pub const F32: u8 = 1;
-    /// int16, symmetric per tensor (zero point 0): `conv2d` / `linear` outputs and inputs and
-    /// `concat` parts only (TFLite's 16×8 scheme, `crate::kernels::wide`).
+    /// int16, symmetric per tensor (zero point 0): `conv2d` / `linear` / `concat` outputs and
+    /// `conv2d` / `linear` inputs and `concat` parts only (TFLite's 16×8 scheme,
+    /// `crate::kernels::wide`).
     pub const I16: u8 = 2;
 }
 

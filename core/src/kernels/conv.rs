@@ -1817,7 +1817,7 @@ pub(crate) mod tests {
                 for (code, t) in tables[k].iter_mut().enumerate() {
                     *t = r.apply(code as u8 as i8);
                 }
-                concat_part(crate::kernels::wide::Codes::I8(part), Shape::new(parts_c[k], s.h, s.w), &r, &mut concat, s, c0).unwrap();
+                concat_part(crate::kernels::wide::Codes::I8(part), Shape::new(parts_c[k], s.h, s.w), &r, crate::kernels::wide::CodesMut::I8(&mut concat), s, c0).unwrap();
                 c0 += parts_c[k];
             }
             let ch = channels(&c);

@@ -321,6 +321,20 @@ const RING_COLUMN: usize = 4;
 /// too small for the strip.
 pub(super) fn ring3(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) -> bool {
     let (isa, op, input, in_shape, out, dst) = call.parts();
+    ring3_of(isa, op, input, (in_shape, out), dst, output, scratch)
+}
+
+/// [`ring3`] on int8 or int16 codes (`input` holds `in_shape`, checked by the caller), as
+/// [`ring_rows_of`] does for [`ring_rows`].
+fn ring3_of<T: Copy + Into<i32>>(
+    isa: Isa,
+    op: &Conv2d,
+    input: &[T],
+    (in_shape, out): (Shape, Shape),
+    dst: &OutRows,
+    output: &mut [i8],
+    scratch: &mut [i32],
+) -> bool {
     let g = &op.geometry;
     let sx = g.stride[1];
     if g.kernel != [3, 3] || g.dilation != [1, 1] || !(1..=2).contains(&sx) || out.w == 0 {
@@ -373,7 +387,7 @@ pub(super) fn ring3(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) ->
                 if (0..ih as isize).contains(&iy) {
                     let src = &chan[iy as usize * iw..][..iw];
                     for (col, &x) in cols.zip(src) {
-                        col[slot] = (i32::from(x) - zp) as i16;
+                        col[slot] = (x.into() - zp) as i16;
                     }
                 } else {
                     for col in cols {
@@ -403,10 +417,26 @@ pub(super) fn ring_rows(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]
     ring_rows_of(isa, op, input, (in_shape, out), dst, output, scratch)
 }
 
+/// The `SMLAD` depthwise paths ([`ring3`], else [`ring_rows`]) on int8 or int16 codes, as
+/// [`conv`] tries them for int8 on the arm-dsp set ([`super::wide`] reads int16 through them
+/// on every set: the same bits). `false` (nothing written) where neither suits.
+pub(super) fn rings_of<T: Copy + Into<i32>>(
+    isa: Isa,
+    op: &Conv2d,
+    input: &[T],
+    shapes: (Shape, Shape),
+    dst: &OutRows,
+    output: &mut [i8],
+    scratch: &mut [i32],
+) -> bool {
+    ring3_of(isa, op, input, shapes, dst, output, scratch)
+        || ring_rows_of(isa, op, input, shapes, dst, output, scratch)
+}
+
 /// [`ring_rows`] on int8 or int16 codes (`input` holds `in_shape`, checked by the caller): a
 /// row is `x − zp` in 16 bits either way (an int16 input has zero point 0), so the sums and
-/// bits are the same kernel's ([`super::wide`] reads int16 through it).
-pub(super) fn ring_rows_of<T: Copy + Into<i32>>(
+/// bits are the same kernel's.
+fn ring_rows_of<T: Copy + Into<i32>>(
     isa: Isa,
     op: &Conv2d,
     input: &[T],

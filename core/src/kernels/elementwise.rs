@@ -6,7 +6,7 @@
 
 use super::broadcast::{broadcast_index, broadcast_len, Broadcast};
 use super::requant::{clamp_i8, rounding_divide_by_pot, QParams, Requant};
-use super::wide::Codes;
+use super::wide::{Codes, CodesMut};
 use super::{need, KernelError, Shape};
 
 /// A 256-entry int8→int8 table, indexed by `q as u8` (so code −128 is entry 128).
@@ -76,6 +76,16 @@ impl Rescale {
             -128,
             127,
         )
+    }
+
+    /// Requantises one code of any width to an int16 one (zero point 0: [`super::wide`]),
+    /// clamped to `-32768..=32767`.
+    #[inline(always)]
+    pub fn apply_code_i16(&self, q: i32) -> i16 {
+        self.m
+            .apply_rounded(q.wrapping_sub(self.zp_in))
+            .saturating_add(self.zp_out)
+            .clamp(-32768, 32767) as i16
     }
 }
 
@@ -370,12 +380,12 @@ pub fn mul(
 /// The channels `c_offset ..` of the concat output `out` (`out_shape`) that a part of
 /// `in_shape` fills (its H and W must be the output's).
 #[inline(always)]
-fn concat_dst(
-    out: &mut [i8],
+fn concat_dst<T>(
+    out: &mut [T],
     out_shape: Shape,
     in_shape: Shape,
     c_offset: usize,
-) -> Result<&mut [i8], KernelError> {
+) -> Result<&mut [T], KernelError> {
     let n = in_shape.len().ok_or(KernelError::Shape)?;
     need(out, out_shape)?;
     let end = c_offset.checked_add(in_shape.c).ok_or(KernelError::Shape)?;
@@ -386,16 +396,48 @@ fn concat_dst(
     Ok(&mut out[c_offset * p..c_offset * p + n])
 }
 
-/// Writes one input of a channel concat (int8, or int16: [`super::wide`]) into the int8 `out`
-/// (shape `out_shape`) starting at channel `c_offset`, requantised to the output's parameters.
+/// Writes one input of a channel concat (int8 or int16 codes) into `out` (shape `out_shape`,
+/// int8, or int16: [`super::wide`]) starting at channel `c_offset`, requantised to the output's
+/// parameters.
 pub fn concat_part(
     input: Codes,
     in_shape: Shape,
     rescale: &Rescale,
-    out: &mut [i8],
+    out: CodesMut,
     out_shape: Shape,
     c_offset: usize,
 ) -> Result<(), KernelError> {
+    let out = match out {
+        CodesMut::I8(out) => out,
+        CodesMut::I16(out) => {
+            let dst = concat_dst(out, out_shape, in_shape, c_offset)?;
+            match input {
+                Codes::I8(x) => {
+                    let n = need(x, in_shape)?;
+                    // A table of the 256 codes where it pays (the same function, the same bits).
+                    if n > 256 {
+                        let t: [i16; 256] = core::array::from_fn(|c| {
+                            rescale.apply_code_i16(i32::from(c as u8 as i8))
+                        });
+                        for (o, &v) in dst.iter_mut().zip(x) {
+                            *o = t[v as u8 as usize];
+                        }
+                    } else {
+                        for (o, &v) in dst.iter_mut().zip(x) {
+                            *o = rescale.apply_code_i16(i32::from(v));
+                        }
+                    }
+                }
+                Codes::I16(x) => {
+                    need(x, in_shape)?;
+                    for (o, &v) in dst.iter_mut().zip(x) {
+                        *o = rescale.apply_code_i16(i32::from(v));
+                    }
+                }
+            }
+            return Ok(());
+        }
+    };
     let input = match input {
         Codes::I8(x) => x,
         Codes::I16(x) => {
@@ -658,7 +700,7 @@ mod tests {
                 prop_assert_eq!(&y1, &y2, "add with {:?}", (ka, kb, ko));
             }
             let r = Rescale::new(c.qa, c.qo);
-            concat_part(Codes::I8(&a), shape, &r, &mut y2, shape, 0).unwrap();
+            concat_part(Codes::I8(&a), shape, &r, CodesMut::I8(&mut y2), shape, 0).unwrap();
             let want: Vec<i8> = a.iter().map(|&x| r.apply(x)).collect();
             prop_assert_eq!(&want, &y2, "concat");
         }
@@ -683,13 +725,62 @@ mod tests {
             Codes::I16(&x),
             Shape::new(1, 2, 3),
             &r,
-            &mut out,
+            CodesMut::I8(&mut out),
             Shape::new(2, 2, 3),
             1,
         )
         .unwrap();
         assert_eq!(&out[6..], &[-10, -9, -12, -9, 118, -128]);
         assert_eq!(&out[..6], &[0; 6]);
+    }
+
+    #[test]
+    fn concat_part_into_int16() {
+        // An int8 part (scale 0.01, zero point −10) into an int16 output of scale 0.01/256:
+        // code q → 256·(q + 10); an int16 part of the output's scale passes unchanged.
+        let out_q = QParams {
+            scale: 0.01 / 256.0,
+            zero_point: 0,
+        };
+        let r8 = Rescale::new(
+            QParams {
+                scale: 0.01,
+                zero_point: -10,
+            },
+            out_q,
+        );
+        let mut out = [0i16; 6];
+        let os = Shape::new(2, 1, 3);
+        concat_part(
+            Codes::I8(&[-10, -9, 127]),
+            Shape::new(1, 1, 3),
+            &r8,
+            CodesMut::I16(&mut out),
+            os,
+            0,
+        )
+        .unwrap();
+        concat_part(
+            Codes::I16(&[7, -32768, 32767]),
+            Shape::new(1, 1, 3),
+            &Rescale::new(out_q, out_q),
+            CodesMut::I16(&mut out),
+            os,
+            1,
+        )
+        .unwrap();
+        assert_eq!(out, [0, 256, 32767, 7, -32768, 32767]);
+        assert_eq!(
+            concat_part(
+                Codes::I8(&[1, 2, 3]),
+                Shape::new(1, 1, 3),
+                &r8,
+                CodesMut::I16(&mut out),
+                os,
+                2
+            ),
+            Err(KernelError::Shape)
+        );
     }
 
     #[test]
@@ -780,7 +871,7 @@ mod tests {
             Codes::I8(&[5, 6]),
             Shape::new(1, 1, 2),
             &Rescale::new(out_q, out_q),
-            &mut out,
+            CodesMut::I8(&mut out),
             os,
             0,
         )
@@ -793,7 +884,7 @@ mod tests {
             Codes::I8(&[10, 20, 30, 11]),
             Shape::new(2, 1, 2),
             &Rescale::new(q2, out_q),
-            &mut out,
+            CodesMut::I8(&mut out),
             os,
             1,
         )
@@ -805,7 +896,7 @@ mod tests {
                 Codes::I8(&[1, 2]),
                 Shape::new(1, 1, 2),
                 &Rescale::default(),
-                &mut out,
+                CodesMut::I8(&mut out),
                 os,
                 3
             ),

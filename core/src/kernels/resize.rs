@@ -3,9 +3,92 @@
 //! Source coordinate of output index `o` is `o·(n_in − 1)/(n_out − 1)`, an exact rational
 //! `i0 + f/D` with `D = n_out − 1`. The int8 path interpolates the codes with these exact
 //! integer weights in `i64` and rounds once (half away from zero), so it is within 0.5 LSB of the
-//! real result; input and output share quantisation parameters (as TFLite requires).
+//! real result; input and output share quantisation parameters (as TFLite requires), or, with a
+//! [`ResizeRescale`], the output has its own and the interpolation and the requantisation still
+//! round once (an upsample written at the scale of the concat that reads it).
 
+use super::requant::QParams;
 use super::{need, KernelError, Shape};
+
+/// Requantisation of an int8 resize whose output parameters differ from its input's: the exact
+/// weighted sum `n = Σ w·x` (weights summing to `d`, the product of the two coordinate
+/// denominators) becomes `zp_out + ⌊(n − zp_in·d) · s_in / (s_out·d) + ½⌋` (rounded half up),
+/// the factor held as `k / 2^shift` (`2^30 ≤ k < 2^31` unless the factor is out of range).
+/// Integer arithmetic only: the same bits on every target.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ResizeRescale {
+    /// `s_in / (s_out·d) · 2^shift`.
+    k: i32,
+    /// Right shift, ≤ 62.
+    shift: u32,
+    /// `zp_in · d`.
+    offset: i64,
+    /// `2^(shift−1) − zp_in·d·k` (the rounding half and the input zero point in one term) for
+    /// [`Self::apply_narrow`], when it fits 62 bits.
+    bias: Option<i64>,
+    /// Output zero point.
+    zp_out: i32,
+}
+
+impl ResizeRescale {
+    /// For a resize of `in_shape` to `out_shape` from parameters `from` to `to`.
+    pub fn new(from: QParams, to: QParams, in_shape: Shape, out_shape: Shape) -> ResizeRescale {
+        let den = |n_in: usize, n_out: usize| {
+            if n_out <= 1 || n_in <= 1 {
+                1
+            } else {
+                (n_out - 1) as i64
+            }
+        };
+        let d = den(in_shape.h, out_shape.h) * den(in_shape.w, out_shape.w);
+        let mut x = from.scale as f64 / to.scale as f64 / d as f64;
+        if !(x.is_finite() && x > 0.0) {
+            x = 0.0;
+        }
+        let mut shift = 1;
+        x *= 2.0;
+        while x > 0.0 && x < (1u64 << 30) as f64 && shift < 62 {
+            x *= 2.0;
+            shift += 1;
+        }
+        let k = (x + 0.5).min(i32::MAX as f64) as i32;
+        let offset = i64::from(from.zero_point) * d;
+        let bias = offset
+            .checked_mul(i64::from(k))
+            .and_then(|ok| (1i64 << (shift - 1)).checked_sub(ok))
+            .filter(|b| b.unsigned_abs() < 1 << 62);
+        ResizeRescale {
+            k,
+            shift,
+            offset,
+            bias,
+            zp_out: to.zero_point,
+        }
+    }
+
+    /// The output code of the weighted code sum `n`.
+    #[inline]
+    fn apply(&self, n: i64) -> i8 {
+        let m = i128::from(n) - i128::from(self.offset);
+        let q = (m * i128::from(self.k) + (1i128 << (self.shift - 1))) >> self.shift;
+        (q.clamp(-(1 << 20), 1 << 20) as i32 + self.zp_out).clamp(-128, 127) as i8
+    }
+
+    /// The bias of [`Self::apply_narrow`] where it serves every sum `|n| ≤ 2^30`: `shift ≥ 32`
+    /// (a factor below 1/4) and the bias in 62 bits.
+    fn narrow(&self) -> Option<i64> {
+        self.bias.filter(|_| self.shift >= 32)
+    }
+
+    /// [`Self::apply`] for `|n| ≤ 2^30` in one 32 × 32 → 64-bit multiply-accumulate (`SMLAL` on
+    /// Cortex-M) and a shift of its high word, `bias` from [`Self::narrow`]: the same result
+    /// (`|n·k + bias| < 2^63`).
+    #[inline(always)]
+    fn apply_narrow(&self, n: i32, bias: i64) -> i8 {
+        let hi = ((i64::from(n) * i64::from(self.k) + bias) >> 32) as i32;
+        ((hi >> (self.shift - 32)) + self.zp_out).clamp(-128, 127) as i8
+    }
+}
 
 /// Index, numerator and denominator of the source coordinate of output index `o`.
 #[inline]
@@ -97,6 +180,27 @@ pub fn upsample_bilinear_ref(
     out: &mut [i8],
     out_shape: Shape,
 ) -> Result<(), KernelError> {
+    resize_ref(input, in_shape, out, out_shape, None)
+}
+
+/// [`upsample_bilinear_ref`] into other output parameters ([`ResizeRescale`]).
+pub fn upsample_bilinear_rescaled_ref(
+    input: &[i8],
+    in_shape: Shape,
+    out: &mut [i8],
+    out_shape: Shape,
+    rescale: &ResizeRescale,
+) -> Result<(), KernelError> {
+    resize_ref(input, in_shape, out, out_shape, Some(rescale))
+}
+
+fn resize_ref(
+    input: &[i8],
+    in_shape: Shape,
+    out: &mut [i8],
+    out_shape: Shape,
+    rescale: Option<&ResizeRescale>,
+) -> Result<(), KernelError> {
     check(input, in_shape, out, out_shape)?;
     let (ih, iw) = (in_shape.h, in_shape.w);
     for c in 0..out_shape.c {
@@ -110,8 +214,10 @@ pub fn upsample_bilinear_ref(
                 let top = v(y0, x0) * (dx - fx) + v(y0, x1) * fx;
                 let bot = v(y1, x0) * (dx - fx) + v(y1, x1) * fx;
                 let total = top * (dy - fy) + bot * fy;
-                out[(c * out_shape.h + oy) * out_shape.w + ox] =
-                    div_round(total, dx * dy).clamp(-128, 127) as i8;
+                out[(c * out_shape.h + oy) * out_shape.w + ox] = match rescale {
+                    None => div_round(total, dx * dy).clamp(-128, 127) as i8,
+                    Some(r) => r.apply(total),
+                };
             }
         }
     }
@@ -125,6 +231,28 @@ pub fn upsample_bilinear(
     in_shape: Shape,
     out: &mut [i8],
     out_shape: Shape,
+) -> Result<(), KernelError> {
+    resize(input, in_shape, out, out_shape, None)
+}
+
+/// [`upsample_bilinear`] into other output parameters: same bits as
+/// [`upsample_bilinear_rescaled_ref`].
+pub fn upsample_bilinear_rescaled(
+    input: &[i8],
+    in_shape: Shape,
+    out: &mut [i8],
+    out_shape: Shape,
+    rescale: &ResizeRescale,
+) -> Result<(), KernelError> {
+    resize(input, in_shape, out, out_shape, Some(rescale))
+}
+
+fn resize(
+    input: &[i8],
+    in_shape: Shape,
+    out: &mut [i8],
+    out_shape: Shape,
+    rescale: Option<&ResizeRescale>,
 ) -> Result<(), KernelError> {
     check(input, in_shape, out, out_shape)?;
     let (ih, iw) = (in_shape.h, in_shape.w);
@@ -154,7 +282,27 @@ pub fn upsample_bilinear(
             let narrow = cols.den * dy <= 1 << 23;
             if narrow && tabled {
                 let den = cols.den as i32;
-                narrow_row(r0, r1, fy as i32, dy as i32, den, &taps, orow, &mut blend);
+                let rows = (r0, r1, fy as i32, dy as i32, den);
+                match rescale {
+                    None => {
+                        let d = den * dy as i32;
+                        let half = d / 2;
+                        // |n| rounded half up, then the sign back: `div_round_i32(n, d)`,
+                        // without a branch on the sign.
+                        let round = |n: i32| {
+                            let sign = n >> 31;
+                            let q = (((((n ^ sign) - sign) + half) / d) ^ sign) - sign;
+                            q.clamp(-128, 127) as i8
+                        };
+                        narrow_row(rows, &taps, orow, &mut blend, round);
+                    }
+                    Some(r) => match r.narrow() {
+                        Some(b) => {
+                            narrow_row(rows, &taps, orow, &mut blend, |n| r.apply_narrow(n, b))
+                        }
+                        None => narrow_row(rows, &taps, orow, &mut blend, |n| r.apply(n.into())),
+                    },
+                }
                 continue;
             }
             for o in orow.iter_mut() {
@@ -164,11 +312,19 @@ pub fn upsample_bilinear(
                     let (fx, dx, fy, dy) = (fx as i32, dx as i32, fy as i32, dy as i32);
                     let top = i32::from(r0[x0]) * (dx - fx) + i32::from(r0[x1]) * fx;
                     let bot = i32::from(r1[x0]) * (dx - fx) + i32::from(r1[x1]) * fx;
-                    *o = div_round_i32(top * (dy - fy) + bot * fy, dx * dy).clamp(-128, 127) as i8;
+                    let n = top * (dy - fy) + bot * fy;
+                    *o = match rescale {
+                        None => div_round_i32(n, dx * dy).clamp(-128, 127) as i8,
+                        Some(r) => r.apply(n.into()),
+                    };
                 } else {
                     let top = r0[x0] as i64 * (dx - fx) + r0[x1] as i64 * fx;
                     let bot = r1[x0] as i64 * (dx - fx) + r1[x1] as i64 * fx;
-                    *o = div_round(top * (dy - fy) + bot * fy, dx * dy).clamp(-128, 127) as i8;
+                    let n = top * (dy - fy) + bot * fy;
+                    *o = match rescale {
+                        None => div_round(n, dx * dy).clamp(-128, 127) as i8,
+                        Some(r) => r.apply(n),
+                    };
                 }
             }
         }
@@ -184,20 +340,17 @@ const OUT_ROW: usize = 1024;
 
 /// One output row in 32 bits: the two input rows blended once per input column,
 /// `v[x] = r0[x]·(dy − fy) + r1[x]·fy` (with `v[iw] = v[iw − 1]`, the clamped right
-/// neighbour), then `v[x0]·(den − f) + v[x0 + 1]·f` per output column (`taps[o] = x0 | f << 16`,
+/// neighbour), then `n = v[x0]·(den − f) + v[x0 + 1]·f` per output column (`taps[o] = x0 | f << 16`,
 /// [`Coords`]' sequence, `den` its denominator), the same integer as the reference's
-/// `top·(dy − fy) + bot·fy` (exact), rounded half away from zero without a branch on the sign:
-/// the same bits. `|sum| ≤ 128·den·dy < 2^31`, `r0.len() ≤ ROW`, every `x0 < r0.len()`.
-#[allow(clippy::too_many_arguments)]
+/// `top·(dy − fy) + bot·fy` (exact), turned into the output code by `finish` (the reference's
+/// rounding: the same bits). `|n| ≤ 128·den·dy < 2^31`, `r0.len() ≤ ROW`, every `x0 < r0.len()`.
+#[inline(always)]
 fn narrow_row(
-    r0: &[i8],
-    r1: &[i8],
-    fy: i32,
-    dy: i32,
-    den: i32,
+    (r0, r1, fy, dy, den): (&[i8], &[i8], i32, i32, i32),
     taps: &[u32; OUT_ROW],
     orow: &mut [i8],
     v: &mut [i32; ROW + 1],
+    finish: impl Fn(i32) -> i8,
 ) {
     let iw = r0.len().min(r1.len()).min(ROW);
     if iw == 0 {
@@ -207,17 +360,11 @@ fn narrow_row(
         *v = i32::from(a) * (dy - fy) + i32::from(b) * fy;
     }
     v[iw] = v[iw - 1];
-    let d = den * dy;
-    let half = d / 2;
     for (o, &t) in orow.iter_mut().zip(taps) {
         // The mask keeps both reads inside `v` without a bounds branch (x0 < iw ≤ ROW already).
         let x0 = t as usize & (ROW - 1);
         let f = (t >> 16) as i32;
-        let n = v[x0] * (den - f) + v[x0 + 1] * f;
-        // |n| rounded half up, then the sign back: `div_round_i32(n, d)`.
-        let sign = n >> 31;
-        let q = (((((n ^ sign) - sign) + half) / d) ^ sign) - sign;
-        *o = q.clamp(-128, 127) as i8;
+        *o = finish(v[x0] * (den - f) + v[x0 + 1] * f);
     }
 }
 
@@ -371,4 +518,108 @@ mod tests {
     }
 
     kernel_tests!(suite, ref: upsample_bilinear_ref, fast: upsample_bilinear, golden: golden, arb: arb(), check: check_case);
+
+    /// A resize into other parameters: fast = reference bits, and within half an output step
+    /// (plus the factor's 2^−30 relative error) of the exact resize of the dequantised input,
+    /// where the output does not clamp.
+    fn check_rescaled(c: &Case, from: QParams, to: QParams) {
+        let r = ResizeRescale::new(from, to, c.s, c.o);
+        let mut fast = std::vec![0i8; c.o.len().unwrap()];
+        let mut slow = fast.clone();
+        upsample_bilinear_rescaled(&c.x, c.s, &mut fast, c.o, &r).unwrap();
+        upsample_bilinear_rescaled_ref(&c.x, c.s, &mut slow, c.o, &r).unwrap();
+        assert_eq!(fast, slow);
+        let xf: Vec<f32> = c.x.iter().map(|&v| from.dequantize(v)).collect();
+        let mut exact = std::vec![0f32; fast.len()];
+        upsample_bilinear_f32(&xf, c.s, &mut exact, c.o).unwrap();
+        for (i, (&q, &v)) in fast.iter().zip(&exact).enumerate() {
+            let code = v / to.scale + to.zero_point as f32;
+            if (-127.5..126.5).contains(&code) {
+                assert!((q as f32 - code).abs() <= 0.5 + 1e-3, "[{i}] {q} vs {code}");
+            } else {
+                assert_eq!(q, if code < 0.0 { -128 } else { 127 }, "[{i}] clamps");
+            }
+        }
+    }
+
+    #[test]
+    fn rescaled_by_hand() {
+        // 0 and 2.0 (codes 0, 20 at scale 0.1) → 1×4: 0, 2/3, 4/3, 2 (real); at scale 0.15,
+        // zero point −20: codes −20 + (0, 4.44, 8.89, 13.33) → −20, −16, −11, −7.
+        let c = Case {
+            x: std::vec![0, 20],
+            s: Shape::new(1, 1, 2),
+            o: Shape::new(1, 1, 4),
+            expect: None,
+        };
+        let from = QParams {
+            scale: 0.1,
+            zero_point: 0,
+        };
+        let to = QParams {
+            scale: 0.15,
+            zero_point: -20,
+        };
+        let r = ResizeRescale::new(from, to, c.s, c.o);
+        let mut y = [0i8; 4];
+        upsample_bilinear_rescaled(&c.x, c.s, &mut y, c.o, &r).unwrap();
+        assert_eq!(y, [-20, -16, -11, -7]);
+        check_rescaled(&c, from, to);
+    }
+
+    #[test]
+    fn narrow_rescale_equals_the_wide_one() {
+        // Every zero point pair at three scale ratios on a 30×40 → 120×160 resize (d = 18 921):
+        // the 64-bit form gives the 128-bit form's codes over the whole sum range.
+        let (from_s, to_s) = (Shape::new(1, 30, 40), Shape::new(1, 120, 160));
+        for ratio in [0.3f32, 1.0, 7.0] {
+            for zp_in in (-128..128).step_by(17) {
+                for zp_out in (-128..128).step_by(23) {
+                    let r = ResizeRescale::new(
+                        QParams {
+                            scale: 0.01,
+                            zero_point: zp_in,
+                        },
+                        QParams {
+                            scale: 0.01 * ratio,
+                            zero_point: zp_out,
+                        },
+                        from_s,
+                        to_s,
+                    );
+                    let b = r.narrow().unwrap();
+                    let d = 119 * 159;
+                    for n in (-128 * d..=127 * d).step_by(997) {
+                        assert_eq!(r.apply_narrow(n, b), r.apply(n.into()), "{r:?} at {n}");
+                    }
+                }
+            }
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn rescaled_fast_equals_ref_and_rounds_once(
+            c in arb(),
+            s_in in 0.001f32..1.0,
+            ratio in 0.05f32..20.0,
+            zp_in in -128i32..128,
+            zp_out in -128i32..128,
+        ) {
+            let from = QParams { scale: s_in, zero_point: zp_in };
+            let to = QParams { scale: s_in * ratio, zero_point: zp_out };
+            check_rescaled(&c, from, to);
+        }
+
+        #[test]
+        fn rescaled_wide_rows_take_every_path(
+            ih in 1usize..4, iw in 200usize..300, ow in 900usize..1100, seed in any::<u32>(),
+        ) {
+            // Rows wider than the tabled path's (input > 256 or output > 1024 columns).
+            let s = Shape::new(1, ih, iw);
+            let x = (0..s.len().unwrap()).map(|i| ((i as u32).wrapping_mul(2654435761) ^ seed) as i8).collect();
+            let c = Case { x, s, o: Shape::new(1, 2, ow), expect: None };
+            check_rescaled(&c, QParams { scale: 0.02, zero_point: 5 }, QParams { scale: 0.03, zero_point: -7 });
+        }
+    }
 }

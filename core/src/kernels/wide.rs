@@ -1,8 +1,8 @@
 //! 16-bit activations (TFLite's 16×8 scheme) for the few values where int8 rounding costs the
 //! most accuracy: int16 codes, symmetric per tensor (zero point 0), with int8 weights as
 //! everywhere else. Only `conv2d` / `linear` (int8 or int16 in, int8 or int16 out) and `concat`
-//! (int8 or int16 parts, int8 out: [`super::elementwise::concat_part`]) handle them; the blob parser rejects an int16 value anywhere
-//! else (docs/blob.md).
+//! (int8 or int16 parts, int8 or int16 out: [`super::elementwise::concat_part`]) handle them;
+//! the blob parser rejects an int16 value anywhere else (docs/blob.md).
 //!
 //! The arithmetic is the int8 spec's ([`super::conv`]): `acc = bias[o] + Σ w · (x − zp_in)` in
 //! `i32`, then `MultiplyByQuantizedMultiplier` and a clamp to the output type's range (`[0,
@@ -68,7 +68,7 @@ pub fn conv2d_wide(
                 rows: 0..out.h,
                 stride: out.plane().ok_or(KernelError::Shape)?,
             };
-            if depthwise::ring_rows_of(isa, op, x, (in_shape, out), &dst, o, scratch) {
+            if depthwise::rings_of(isa, op, x, (in_shape, out), &dst, o, scratch) {
                 return Ok(out);
             }
             CodesMut::I8(o)
@@ -481,14 +481,19 @@ mod tests {
         }
     }
 
-    /// The depth encoder's case, a 5 × 5 depthwise conv at stride 2, on int16 codes over the
-    /// whole range (far outside int8): the 16-bit rows of the int8 kernel give the scalar
-    /// loop's bits on every kernel set, odd and even widths.
+    /// The depth encoder's case, a 5 × 5 depthwise conv at stride 2, and the decoder's, 3 × 3
+    /// at stride 1 (and 2), on int16 codes over the whole range (far outside int8): the 16-bit
+    /// rows of the int8 kernels give the scalar loop's bits on every kernel set, odd and even
+    /// widths.
     #[test]
     fn int16_depthwise_rows_equal_the_scalar_loop() {
-        for (h, w) in [(30, 40), (7, 9), (6, 5)] {
+        let cases = [(5, 2), (3, 1), (3, 2)];
+        for ((h, w), (k, stride)) in [(30, 40), (7, 9), (6, 5)]
+            .into_iter()
+            .flat_map(|hw| cases.map(|ks| (hw, ks)))
+        {
             let c = 3;
-            let wts: Vec<i8> = (0..c * 25)
+            let wts: Vec<i8> = (0..c * k * k)
                 .map(|i| ((i * 73 + 5) % 255) as u8 as i8)
                 .collect();
             let cq: Vec<ChannelQuant> = (0..c)
@@ -504,10 +509,10 @@ mod tests {
                 .collect();
             let conv = Conv2d {
                 geometry: ConvGeometry {
-                    kernel: [5, 5],
-                    stride: [2, 2],
+                    kernel: [k, k],
+                    stride: [stride, stride],
                     dilation: [1, 1],
-                    padding: [2, 2],
+                    padding: [k / 2, k / 2],
                     groups: c,
                 },
                 quant: ConvQuant::new(0, 4, Activation::LeakyRelu(0.1)),
@@ -542,7 +547,7 @@ mod tests {
                     &mut scratch,
                 )
                 .unwrap();
-                assert_eq!(got, want, "{h}×{w} on {}", isa.name());
+                assert_eq!(got, want, "{k}×{k}/{stride} {h}×{w} on {}", isa.name());
             }
         }
     }

@@ -1,5 +1,5 @@
 //! `concat` (docs/graph.md): int8 (or int16) tensors of one spatial size joined along channels
-//! into int8, each rescaled to the output's quantisation. Kernels:
+//! into int8 (or int16), each rescaled to the output's quantisation. Kernels:
 //! [`crate::kernels::elementwise::concat_part`].
 //! Where one conv alone reads it, the planner lets that conv read the parts in place instead
 //! ([`super::conv::eval_on_parts`]).
@@ -10,20 +10,20 @@ use crate::blob::BlobError;
 use crate::engine::plan::{OpPlan, PlanError};
 use crate::engine::Error;
 use crate::kernels::elementwise::{self, Rescale};
-use crate::kernels::wide::Codes;
+use crate::kernels::wide::{Codes, CodesMut};
 use core::mem::size_of;
 
 /// One to [`crate::blob::format::MAX_INPUTS`] inputs.
 pub(crate) const ARITY: (usize, usize) = (1, crate::blob::format::MAX_INPUTS);
 
-/// int8 or int16 in, int8 out; the output's channels are the inputs' sum.
+/// int8 or int16 in, int8 or int16 out; the output's channels are the inputs' sum.
 pub(crate) fn types_ok(k: &Types) -> Result<bool, BlobError> {
     let ins =
         k.op.inputs
             .iter()
             .try_fold(true, |ok, &i| Ok(ok && k.int(i)?))?;
-    if !(ins && k.out.dtype == DType::I8) {
-        return Err(bad(k.op.offset, "concat: int8 or int16 in, int8 out"));
+    if !(ins && matches!(k.out.dtype, DType::I8 | DType::I16)) {
+        return Err(bad(k.op.offset, "concat: int8 or int16 in and out"));
     }
     let sum =
         k.op.inputs
@@ -58,7 +58,7 @@ pub(crate) fn write_consts(c: &ConstCtx, region: &mut [u8]) -> Result<(), Error>
 pub(crate) fn eval(e: Eval) -> Result<(), Error> {
     let (i, bad, kerr) = (e.i, e.bad(), e.kerr());
     let rs: &[Rescale] = typed(e.consts, i)?;
-    let out: &mut [i8] = typed_mut(e.out, i)?;
+    let wide_out = e.g.tensor(e.op.output)?.dtype == DType::I16;
     let mut c0 = 0;
     for ((&id, r), b) in e.op.inputs.iter().zip(rs).zip(&e.ins) {
         let s = e.plan.shape(id).ok_or(bad)?;
@@ -66,6 +66,11 @@ pub(crate) fn eval(e: Eval) -> Result<(), Error> {
             Codes::I16(typed(b, i)?)
         } else {
             Codes::I8(typed(b, i)?)
+        };
+        let out = if wide_out {
+            CodesMut::I16(typed_mut(e.out, i)?)
+        } else {
+            CodesMut::I8(typed_mut(e.out, i)?)
         };
         elementwise::concat_part(x, s, r, out, e.out_shape, c0).map_err(kerr)?;
         c0 += s.c;

@@ -1,5 +1,5 @@
-//! `upsample_bilinear` (docs/graph.md): int8 or f32, to a fixed size, by integer factors, or to
-//! another tensor's size. Kernel: [`crate::kernels::resize`]. A one-channel f32 upsample giving
+//! `upsample_bilinear` (docs/graph.md): int8 (into its input's quantisation or its own) or f32,
+//! to a fixed size, by integer factors, or to another tensor's size. Kernel: [`crate::kernels::resize`]. A one-channel f32 upsample giving
 //! a refinement's `D_0` may run row by row inside it ([`super::refine`]).
 
 use super::{typed, typed_mut, Eval, PlanCtx, Types};
@@ -33,19 +33,15 @@ pub(crate) fn read_attrs(a: &mut Reader) -> Result<(Attrs, [u32; 3]), BlobError>
     Ok((Attrs::Upsample { mode, a: x, b: y }, [NONE; 3]))
 }
 
-/// One dtype (int8 or f32) and quantisation in and out, as many channels; a size tensor
-/// produced earlier.
+/// One dtype (int8 or f32) in and out, as many channels; int8 may change its quantisation
+/// ([`resize::ResizeRescale`]); a size tensor produced earlier.
 pub(crate) fn types_ok(k: &Types) -> Result<bool, BlobError> {
     let Attrs::Upsample { mode, a, .. } = &k.op.attrs else {
         return Ok(false);
     };
     let (x, out) = (k.x, k.out);
     let like_ok = *mode != upsample_mode::LIKE || (*a < k.tensors.len() && k.produced[*a]);
-    Ok(like_ok
-        && x.channels == out.channels
-        && x.dtype == out.dtype
-        && x.dtype != DType::I16
-        && (x.dtype == DType::F32 || x.q == out.q))
+    Ok(like_ok && x.channels == out.channels && x.dtype == out.dtype && x.dtype != DType::I16)
 }
 
 /// The output size of the mode.
@@ -80,7 +76,13 @@ pub(crate) fn eval(e: Eval) -> Result<(), Error> {
     match e.g.tensor(e.op.output)?.dtype {
         DType::I8 => {
             let (x, out) = (typed(e.ins[0], i)?, typed_mut(e.out, i)?);
-            resize::upsample_bilinear(x, e.x, out, e.out_shape).map_err(kerr)?
+            let (from, to) = (e.g.tensor(e.op.inputs[0])?.q, e.g.tensor(e.op.output)?.q);
+            if from == to {
+                resize::upsample_bilinear(x, e.x, out, e.out_shape).map_err(kerr)?
+            } else {
+                let r = resize::ResizeRescale::new(from, to, e.x, e.out_shape);
+                resize::upsample_bilinear_rescaled(x, e.x, out, e.out_shape, &r).map_err(kerr)?
+            }
         }
         DType::F32 => {
             let (x, out) = (typed(e.ins[0], i)?, typed_mut(e.out, i)?);

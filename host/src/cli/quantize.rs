@@ -12,6 +12,7 @@ use depthor_host::quantize::check::{compare, golden_diff, op_fidelity};
 use depthor_host::quantize::fold::fold;
 use depthor_host::quantize::golden::read_golden;
 use depthor_host::quantize::graph::Graph;
+use depthor_host::quantize::upsample_scale::upsample_at_concat_scale;
 use depthor_host::quantize::widen::widen;
 use depthor_host::quantize::{quantize_with_ranges, QuantizeError};
 use std::path::{Path, PathBuf};
@@ -54,10 +55,16 @@ pub struct Args {
     /// (e.g. `qat_ranges.json` from a quantisation-aware run's export; docs/blob.md).
     #[arg(long, value_name = "FILE")]
     ranges_file: Option<PathBuf>,
-    /// Store this value as int16 (TFLite's 16×8 scheme; repeatable): a conv output read only
-    /// by convs and concats, e.g. one `int8_sensitivity.py` ranks first (docs/blob.md).
+    /// Store this value as int16 (TFLite's 16×8 scheme; repeatable): a conv or concat output
+    /// read only by convs and concats, e.g. one `int8_sensitivity.py` ranks first
+    /// (docs/blob.md).
     #[arg(long, value_name = "VALUE")]
     int16: Vec<String>,
+    /// Write each int8 upsample read only by an int8 concat at that concat's parameters, so its
+    /// interpolated values are rounded once, as quantisation-aware training models them
+    /// (docs/blob.md).
+    #[arg(long)]
+    upsample_at_concat_scale: bool,
     /// A scene configuration (JSON, as for `depthor sim --scene-config`: the preset's scenes
     /// with the named ranges replaced) for
     /// `--scene-config-frames` more calibration frames, e.g. the close-range scenes a model also
@@ -95,6 +102,11 @@ pub fn handle(args: Args) -> Result<()> {
     let graph = Graph::load(&args.graph, args.weights.as_deref())?;
     let mut net = fold(&graph).with_context(|| format!("{}", args.graph.display()))?;
     widen(&mut net, &args.int16)?;
+    let rescaled = if args.upsample_at_concat_scale {
+        upsample_at_concat_scale(&mut net)
+    } else {
+        Vec::new()
+    };
     let preset = args.preset.clone().unwrap_or_else(|| graph.variant.clone());
     let mut frames = simulated_frames(&preset, net.height, net.width, args.frames, args.seed)?;
     if let Some(path) = &args.scene_config {
@@ -190,6 +202,16 @@ pub fn handle(args: Args) -> Result<()> {
     );
     if let Some(p) = &args.ranges_file {
         println!("ranges of {} values from {}", given.len(), p.display());
+    }
+    if args.upsample_at_concat_scale {
+        println!(
+            "upsamples at their concat's parameters: {}",
+            if rescaled.is_empty() {
+                "none".to_string()
+            } else {
+                rescaled.join(", ")
+            }
+        );
     }
     if !args.int16.is_empty() {
         println!(

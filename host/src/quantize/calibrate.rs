@@ -387,7 +387,11 @@ pub fn choose_qparams(net: &Net, ranges: &Ranges) -> Vec<QParams> {
         } else {
             match op.kind {
                 OpKind::MinMaxNorm(_) | OpKind::Sigmoid => unit,
-                OpKind::Upsample(_) | OpKind::PixelShuffle(_) => qs[op.inputs[0]],
+                OpKind::Upsample(_) => match net.values[v].params_of {
+                    Some(c) => affine_params(ranges.min[c], ranges.max[c]),
+                    None => qs[op.inputs[0]],
+                },
+                OpKind::PixelShuffle(_) => qs[op.inputs[0]],
                 _ => affine_params(ranges.min[v], ranges.max[v]),
             }
         };

@@ -101,6 +101,7 @@ impl Builder {
             name: name.to_string(),
             shape,
             storage,
+            params_of: None,
         });
         self.ops.push(Op {
             kind,
@@ -152,11 +153,13 @@ pub fn fold(graph: &Graph) -> Result<Net, FoldError> {
                 name: "rgb".into(),
                 shape: Shape::new(3, h, w),
                 storage: Storage::I8,
+                params_of: None,
             },
             Value {
                 name: "sparse".into(),
                 shape: Shape::new(1, h, w),
                 storage: Storage::I8,
+                params_of: None,
             },
         ],
         ops: Vec::new(),

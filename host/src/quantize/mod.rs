@@ -31,6 +31,7 @@ pub mod fold;
 pub mod golden;
 pub mod graph;
 pub mod net;
+pub mod upsample_scale;
 pub mod widen;
 
 use calibrate::{

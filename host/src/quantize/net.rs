@@ -21,8 +21,8 @@ pub enum Storage {
     I8,
     /// f32 (depth maps in metres: the bins head, its upsampling and refine).
     F32,
-    /// int16, per-tensor symmetric: a conv output read only by convs and concats, chosen with
-    /// `depthor quantize --int16` ([`super::widen`]).
+    /// int16, per-tensor symmetric: a conv or concat output read only by convs and concats,
+    /// chosen with `depthor quantize --int16` ([`super::widen`]).
     I16,
 }
 
@@ -35,6 +35,9 @@ pub struct Value {
     pub shape: Shape,
     /// Blob element type.
     pub storage: Storage,
+    /// Quantised with this other value's parameters instead of its own (an upsample written at
+    /// the scale of the concat that reads it: [`super::upsample_scale`]).
+    pub params_of: Option<usize>,
 }
 
 /// How `upsample_bilinear` sizes its output in the blob.

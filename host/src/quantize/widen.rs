@@ -1,7 +1,7 @@
 //! int16 storage for chosen values (TFLite's 16×8 scheme, `depthor quantize --int16 NAME`):
 //! the values whose int8 rounding costs the most accuracy (`models/depthor_models/
 //! int8_sensitivity.py` ranks them) are stored as int16 codes, symmetric per tensor. The core
-//! runs them where a conv writes them and convs and concats read them
+//! runs them where a conv or a concat writes them and convs and concats read them
 //! (`depthor_core::kernels::wide`); [`widen`] refuses any other value, naming it and the op.
 
 use super::net::{Net, OpKind, Storage};
@@ -13,8 +13,8 @@ pub enum WidenError {
     /// No int8 value of the folded network has this name.
     #[error("--int16 {0}: no int8 value of the folded graph has this name")]
     UnknownValue(String),
-    /// The value is written by an op other than a conv.
-    #[error("--int16 {value}: written by {op}, not by a conv")]
+    /// The value is written by an op other than a conv or a concat.
+    #[error("--int16 {value}: written by {op}, not by a conv or a concat")]
     Producer {
         /// Value name.
         value: String,
@@ -41,8 +41,8 @@ pub enum WidenError {
     },
 }
 
-/// Marks the values named in `names` as int16 ([`Storage::I16`]) after checking that a conv
-/// writes each, only convs (of at most [`MAX_TAPS_WIDE`] taps) and concats read it, and it is
+/// Marks the values named in `names` as int16 ([`Storage::I16`]) after checking that a conv or
+/// a concat writes each, only convs (of at most [`MAX_TAPS_WIDE`] taps) and concats read it, and it is
 /// not the output. Nothing changes on an error.
 pub fn widen(net: &mut Net, names: &[String]) -> Result<(), WidenError> {
     let mut chosen = Vec::with_capacity(names.len());
@@ -56,7 +56,7 @@ pub fn widen(net: &mut Net, names: &[String]) -> Result<(), WidenError> {
         // An op is named by the value it writes.
         let op_name = |o: &super::net::Op| format!("the op writing {}", net.values[o.output].name);
         match net.ops.iter().find(|o| o.output == v) {
-            Some(o) if matches!(o.kind, OpKind::Conv { .. }) => {}
+            Some(o) if matches!(o.kind, OpKind::Conv { .. } | OpKind::Concat) => {}
             Some(o) => {
                 return Err(WidenError::Producer {
                     value: name.clone(),
