@@ -18,13 +18,13 @@ use super::Shape;
 /// One depthwise call: the operator, its input and the output rows to write (`dst`, as
 /// [`super::conv::conv2d_rows_with`] takes them).
 #[derive(Clone, Copy)]
-pub(super) struct Depthwise<'a, 'w> {
+pub(super) struct Depthwise<'a, 'w, T = i8> {
     /// Kernel set.
     pub isa: Isa,
     /// The operator.
     pub op: &'a Conv2d<'w>,
-    /// Input codes `[C, H, W]`.
-    pub input: &'a [i8],
+    /// Input codes `[C, H, W]` (int8, or int16 for the `SMLAD` paths: [`rings_of`]).
+    pub input: &'a [T],
     /// Input shape.
     pub in_shape: Shape,
     /// Output shape.
@@ -33,9 +33,9 @@ pub(super) struct Depthwise<'a, 'w> {
     pub dst: &'a OutRows,
 }
 
-impl<'a, 'w> Depthwise<'a, 'w> {
+impl<'a, 'w, T> Depthwise<'a, 'w, T> {
     /// The fields, in declaration order (for the paths to name them locally).
-    fn parts(&self) -> (Isa, &'a Conv2d<'w>, &'a [i8], Shape, Shape, &'a OutRows) {
+    fn parts(&self) -> (Isa, &'a Conv2d<'w>, &'a [T], Shape, Shape, &'a OutRows) {
         (
             self.isa,
             self.op,
@@ -319,22 +319,12 @@ const RING_COLUMN: usize = 4;
 /// as six words against six weight words ordered to match the slots (six `SMLAD`). Same sums
 /// as the reference, same bits. `false` (nothing written) for other geometries or a scratch
 /// too small for the strip.
-pub(super) fn ring3(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) -> bool {
-    let (isa, op, input, in_shape, out, dst) = call.parts();
-    ring3_of(isa, op, input, (in_shape, out), dst, output, scratch)
-}
-
-/// [`ring3`] on int8 or int16 codes (`input` holds `in_shape`, checked by the caller), as
-/// [`ring_rows_of`] does for [`ring_rows`].
-fn ring3_of<T: Copy + Into<i32>>(
-    isa: Isa,
-    op: &Conv2d,
-    input: &[T],
-    (in_shape, out): (Shape, Shape),
-    dst: &OutRows,
+pub(super) fn ring3<T: Copy + Into<i32>>(
+    call: &Depthwise<T>,
     output: &mut [i8],
     scratch: &mut [i32],
 ) -> bool {
+    let (isa, op, input, in_shape, out, dst) = call.parts();
     let g = &op.geometry;
     let sx = g.stride[1];
     if g.kernel != [3, 3] || g.dilation != [1, 1] || !(1..=2).contains(&sx) || out.w == 0 {
@@ -405,46 +395,31 @@ fn ring3_of<T: Copy + Into<i32>>(
 /// Kernel rows [`ring_rows`] holds (7 × 7 at most).
 const MAX_RING_ROWS: usize = 7;
 
+/// The `SMLAD` depthwise paths ([`ring3`], else [`ring_rows`]) on int8 or int16 codes, as
+/// [`conv`] tries them for int8 on the arm-dsp set ([`super::wide`] reads int16 through them
+/// on every set: the same bits). `false` (nothing written) where neither suits.
+pub(super) fn rings_of<T: Copy + Into<i32>>(
+    call: &Depthwise<T>,
+    output: &mut [i8],
+    scratch: &mut [i32],
+) -> bool {
+    ring3(call, output, scratch) || ring_rows(call, output, scratch)
+}
+
 /// Depthwise convolution on `SMLAD` cores for kernels up to 7 × 7 at horizontal stride 1 or 2
 /// (dilation 1): each input row of a channel converted once to 16-bit `x − zp` into a ring of
 /// `kh` rows (row `iy` in slot `iy mod kh`, zero columns for the padding, zero rows outside
 /// the image), then per output row and kernel row the taps as pairs of adjacent columns
 /// against weight words `[w_2j | w_2j+1]` (the last one `[w_kw−1 | 0]` for odd widths):
 /// ⌈kw/2⌉ `SMLAD` per pixel and kernel row. Exact sums, the reference's bits. `false`
-/// (nothing written) for other geometries or a short scratch.
-pub(super) fn ring_rows(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) -> bool {
+/// (nothing written) for other geometries or a short scratch. On int8 or int16 codes alike: a
+/// row is `x − zp` in 16 bits either way (an int16 input has zero point 0).
+pub(super) fn ring_rows<T: Copy + Into<i32>>(
+    call: &Depthwise<T>,
+    output: &mut [i8],
+    scratch: &mut [i32],
+) -> bool {
     let (isa, op, input, in_shape, out, dst) = call.parts();
-    ring_rows_of(isa, op, input, (in_shape, out), dst, output, scratch)
-}
-
-/// The `SMLAD` depthwise paths ([`ring3`], else [`ring_rows`]) on int8 or int16 codes, as
-/// [`conv`] tries them for int8 on the arm-dsp set ([`super::wide`] reads int16 through them
-/// on every set: the same bits). `false` (nothing written) where neither suits.
-pub(super) fn rings_of<T: Copy + Into<i32>>(
-    isa: Isa,
-    op: &Conv2d,
-    input: &[T],
-    shapes: (Shape, Shape),
-    dst: &OutRows,
-    output: &mut [i8],
-    scratch: &mut [i32],
-) -> bool {
-    ring3_of(isa, op, input, shapes, dst, output, scratch)
-        || ring_rows_of(isa, op, input, shapes, dst, output, scratch)
-}
-
-/// [`ring_rows`] on int8 or int16 codes (`input` holds `in_shape`, checked by the caller): a
-/// row is `x − zp` in 16 bits either way (an int16 input has zero point 0), so the sums and
-/// bits are the same kernel's.
-fn ring_rows_of<T: Copy + Into<i32>>(
-    isa: Isa,
-    op: &Conv2d,
-    input: &[T],
-    (in_shape, out): (Shape, Shape),
-    dst: &OutRows,
-    output: &mut [i8],
-    scratch: &mut [i32],
-) -> bool {
     let g = &op.geometry;
     let (kh, kw) = (g.kernel[0], g.kernel[1]);
     let (sy, sx) = (g.stride[0], g.stride[1]);

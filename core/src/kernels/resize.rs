@@ -180,21 +180,12 @@ pub fn upsample_bilinear_ref(
     out: &mut [i8],
     out_shape: Shape,
 ) -> Result<(), KernelError> {
-    resize_ref(input, in_shape, out, out_shape, None)
+    upsample_bilinear_to_ref(input, in_shape, out, out_shape, None)
 }
 
-/// [`upsample_bilinear_ref`] into other output parameters ([`ResizeRescale`]).
-pub fn upsample_bilinear_rescaled_ref(
-    input: &[i8],
-    in_shape: Shape,
-    out: &mut [i8],
-    out_shape: Shape,
-    rescale: &ResizeRescale,
-) -> Result<(), KernelError> {
-    resize_ref(input, in_shape, out, out_shape, Some(rescale))
-}
-
-fn resize_ref(
+/// [`upsample_bilinear_ref`] into the input's parameters (`None`) or other ones
+/// ([`ResizeRescale`]).
+pub fn upsample_bilinear_to_ref(
     input: &[i8],
     in_shape: Shape,
     out: &mut [i8],
@@ -232,22 +223,12 @@ pub fn upsample_bilinear(
     out: &mut [i8],
     out_shape: Shape,
 ) -> Result<(), KernelError> {
-    resize(input, in_shape, out, out_shape, None)
+    upsample_bilinear_to(input, in_shape, out, out_shape, None)
 }
 
-/// [`upsample_bilinear`] into other output parameters: same bits as
-/// [`upsample_bilinear_rescaled_ref`].
-pub fn upsample_bilinear_rescaled(
-    input: &[i8],
-    in_shape: Shape,
-    out: &mut [i8],
-    out_shape: Shape,
-    rescale: &ResizeRescale,
-) -> Result<(), KernelError> {
-    resize(input, in_shape, out, out_shape, Some(rescale))
-}
-
-fn resize(
+/// [`upsample_bilinear`] into the input's parameters (`None`) or other ones: same bits as
+/// [`upsample_bilinear_to_ref`].
+pub fn upsample_bilinear_to(
     input: &[i8],
     in_shape: Shape,
     out: &mut [i8],
@@ -526,8 +507,8 @@ mod tests {
         let r = ResizeRescale::new(from, to, c.s, c.o);
         let mut fast = std::vec![0i8; c.o.len().unwrap()];
         let mut slow = fast.clone();
-        upsample_bilinear_rescaled(&c.x, c.s, &mut fast, c.o, &r).unwrap();
-        upsample_bilinear_rescaled_ref(&c.x, c.s, &mut slow, c.o, &r).unwrap();
+        upsample_bilinear_to(&c.x, c.s, &mut fast, c.o, Some(&r)).unwrap();
+        upsample_bilinear_to_ref(&c.x, c.s, &mut slow, c.o, Some(&r)).unwrap();
         assert_eq!(fast, slow);
         let xf: Vec<f32> = c.x.iter().map(|&v| from.dequantize(v)).collect();
         let mut exact = std::vec![0f32; fast.len()];
@@ -562,7 +543,7 @@ mod tests {
         };
         let r = ResizeRescale::new(from, to, c.s, c.o);
         let mut y = [0i8; 4];
-        upsample_bilinear_rescaled(&c.x, c.s, &mut y, c.o, &r).unwrap();
+        upsample_bilinear_to(&c.x, c.s, &mut y, c.o, Some(&r)).unwrap();
         assert_eq!(y, [-20, -16, -11, -7]);
         check_rescaled(&c, from, to);
     }

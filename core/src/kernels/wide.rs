@@ -68,7 +68,15 @@ pub fn conv2d_wide(
                 rows: 0..out.h,
                 stride: out.plane().ok_or(KernelError::Shape)?,
             };
-            if depthwise::rings_of(isa, op, x, (in_shape, out), &dst, o, scratch) {
+            let call = depthwise::Depthwise {
+                isa,
+                op,
+                input: x,
+                in_shape,
+                out,
+                dst: &dst,
+            };
+            if depthwise::rings_of(&call, o, scratch) {
                 return Ok(out);
             }
             CodesMut::I8(o)

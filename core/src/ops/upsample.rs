@@ -77,12 +77,8 @@ pub(crate) fn eval(e: Eval) -> Result<(), Error> {
         DType::I8 => {
             let (x, out) = (typed(e.ins[0], i)?, typed_mut(e.out, i)?);
             let (from, to) = (e.g.tensor(e.op.inputs[0])?.q, e.g.tensor(e.op.output)?.q);
-            if from == to {
-                resize::upsample_bilinear(x, e.x, out, e.out_shape).map_err(kerr)?
-            } else {
-                let r = resize::ResizeRescale::new(from, to, e.x, e.out_shape);
-                resize::upsample_bilinear_rescaled(x, e.x, out, e.out_shape, &r).map_err(kerr)?
-            }
+            let r = (from != to).then(|| resize::ResizeRescale::new(from, to, e.x, e.out_shape));
+            resize::upsample_bilinear_to(x, e.x, out, e.out_shape, r.as_ref()).map_err(kerr)?
         }
         DType::F32 => {
             let (x, out) = (typed(e.ins[0], i)?, typed_mut(e.out, i)?);
