@@ -421,10 +421,11 @@ impl Evaluator {
                     .join(", "),
             });
         }
-        let int8 = if files.embedded {
-            Int8Model::embedded_mcu()?
-        } else {
-            Int8Model::from_file(&files.blob(), None)?
+        // A resolved embedded model always has its blob; otherwise the path names the problem.
+        let embedded = files.embedded.then(|| Int8Model::embedded(&files.variant));
+        let int8 = match embedded.flatten() {
+            Some(m) => m?,
+            None => Int8Model::from_file(&files.blob(), None)?,
         };
         let (h, w) = int8.input_shape();
         let float = if with_float {

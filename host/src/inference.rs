@@ -1,13 +1,27 @@
 //! Host wrapper around the core's int8 engine: owns a model blob and an arena sized by
-//! `required_arena_bytes`, and runs frames. The default `mcu` model is embedded in the binary,
-//! so `depthor demo` works on a fresh clone with no files to fetch.
+//! `required_arena_bytes`, and runs frames. The `mcu_lite` (the demo's default) and `mcu` int8
+//! blobs are embedded in the binary, so `depthor demo` works on a fresh clone with no files to
+//! fetch.
 
 use depthor_core::blob::BlobError;
 use depthor_core::engine::{required_arena_bytes, Engine, Error as EngineError, RunStats};
 use std::path::Path;
 
-/// The embedded default model: `models/mcu/depthor.dblob` (120×160, 8×8 zones).
+/// The embedded `mcu` model: `models/mcu/depthor.dblob` (120×160, 8×8 zones).
 pub static MCU_BLOB: &[u8] = include_bytes!("../../models/mcu/depthor.dblob");
+
+/// The embedded `mcu_lite` model, the demo's default: `models/mcu_lite/depthor.dblob` (120×160,
+/// 8×8 zones; issue 16's mcu budget).
+pub static MCU_LITE_BLOB: &[u8] = include_bytes!("../../models/mcu_lite/depthor.dblob");
+
+/// The blob embedded for `variant`, if one is.
+pub fn embedded_blob(variant: &str) -> Option<&'static [u8]> {
+    match variant {
+        "mcu" => Some(MCU_BLOB),
+        "mcu_lite" => Some(MCU_LITE_BLOB),
+        _ => None,
+    }
+}
 
 /// Largest input (height × width) a blob may ask for: 16 Mpx.
 pub const MAX_INPUT_PIXELS: usize = 1 << 24;
@@ -71,9 +85,10 @@ pub fn engine_detail(e: &EngineError) -> String {
 }
 
 impl Int8Model {
-    /// The embedded `mcu` model at its native size.
-    pub fn embedded_mcu() -> Result<Self, InferenceError> {
-        Self::from_bytes(MCU_BLOB.to_vec(), None)
+    /// The model embedded for `variant` ([`embedded_blob`]) at its native size; `None` where
+    /// none is.
+    pub fn embedded(variant: &str) -> Option<Result<Self, InferenceError>> {
+        embedded_blob(variant).map(|b| Self::from_bytes(b.to_vec(), None))
     }
 
     /// A model from a blob file, at its native size or at `size = (height, width)`.

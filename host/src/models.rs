@@ -1,12 +1,13 @@
 //! The shipped models on disk. `models/<variant>/` holds `depthor.dblob` (int8 blob for the
 //! core), `depthor.nnef.tgz` (the float network for tract) and `prior.nnef.tgz` (the monocular
-//! prior alone). Commands take `--model mcu`, `--model phone` or a directory with those files.
+//! prior alone). Commands take `--model mcu_lite` (the demo's default), `--model mcu`, `--model
+//! phone` or a directory with those files.
 //!
 //! A variant name is looked up, in order, in the folder given by `--models-dir` (or the
 //! `DEPTHOR_MODELS` environment variable), beside the binary (`<bin>/models`,
 //! `<bin>/../share/depthor/models`), under the current folder (`models/`) and in the source tree
-//! the binary was built from (when it still exists). `mcu` needs none of them for its int8 blob:
-//! the blob is embedded in the binary ([`crate::inference::MCU_BLOB`]).
+//! the binary was built from (when it still exists). `mcu_lite` and `mcu` need none of them for
+//! their int8 blobs: those are embedded in the binary ([`crate::inference::embedded_blob`]).
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -44,7 +45,10 @@ pub fn search_dirs() -> Vec<PathBuf> {
 }
 
 /// The variants shipped in `models/`.
-pub const VARIANTS: [&str; 2] = ["mcu", "phone"];
+pub const VARIANTS: [&str; 3] = ["mcu_lite", "mcu", "phone"];
+
+/// The simulator preset (sensor and image size) of each shipped variant.
+const PRESETS: [(&str, &str); 3] = [("mcu_lite", "mcu"), ("mcu", "mcu"), ("phone", "phone")];
 
 /// Where one model's files are.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -53,8 +57,8 @@ pub struct ModelFiles {
     pub dir: PathBuf,
     /// Variant name (the directory name): also the simulator preset its inputs come from.
     pub variant: String,
-    /// No folder was found and this is `mcu`: the int8 blob is the one embedded in the binary
-    /// (the float network and the prior are not available).
+    /// No folder was found and the variant's int8 blob is embedded in the binary (`mcu_lite`,
+    /// `mcu`; the float network and the prior are not available).
     pub embedded: bool,
 }
 
@@ -69,8 +73,8 @@ pub struct UnknownModel {
 }
 
 impl ModelFiles {
-    /// Resolves `name_or_dir`: an existing directory, else `<variant>` in [`search_dirs`]; `mcu`
-    /// found nowhere resolves to the embedded blob.
+    /// Resolves `name_or_dir`: an existing directory, else `<variant>` in [`search_dirs`]; a
+    /// variant with an embedded blob found nowhere resolves to that blob.
     pub fn resolve(name_or_dir: &str) -> Result<Self, UnknownModel> {
         let given = Path::new(name_or_dir);
         let mut looked = vec![given.to_path_buf()];
@@ -78,10 +82,10 @@ impl ModelFiles {
             looked.extend(search_dirs().into_iter().map(|d| d.join(name_or_dir)));
         }
         let Some(dir) = looked.iter().find(|p| p.is_dir()).cloned() else {
-            if name_or_dir == "mcu" {
+            if crate::inference::embedded_blob(name_or_dir).is_some() {
                 return Ok(ModelFiles {
                     dir: PathBuf::from("<embedded>"),
-                    variant: "mcu".into(),
+                    variant: name_or_dir.into(),
                     embedded: true,
                 });
             }
@@ -104,7 +108,7 @@ impl ModelFiles {
     /// Where the files are, for messages and summaries: the folder, or `embedded`.
     pub fn describe(&self) -> String {
         if self.embedded {
-            "embedded in the binary (mcu int8 blob only)".into()
+            format!("embedded in the binary ({} int8 blob only)", self.variant)
         } else {
             self.dir.display().to_string()
         }
@@ -125,14 +129,13 @@ impl ModelFiles {
         self.dir.join("prior.nnef.tgz")
     }
 
-    /// Simulator preset for this model's inputs: the variant name when it is a shipped one,
-    /// else `mcu`.
+    /// Simulator preset for this model's inputs: the shipped variant's ([`PRESETS`]), else
+    /// `mcu`.
     pub fn preset(&self) -> &str {
-        VARIANTS
+        PRESETS
             .iter()
-            .find(|v| **v == self.variant)
-            .copied()
-            .unwrap_or("mcu")
+            .find(|(v, _)| *v == self.variant)
+            .map_or("mcu", |(_, p)| p)
     }
 }
 
@@ -147,7 +150,27 @@ mod tests {
         assert!(!m.embedded, "the source tree's models/mcu is found");
         assert!(m.blob().is_file());
         assert_eq!(m.preset(), "mcu");
+        let lite = ModelFiles::resolve("mcu_lite").unwrap();
+        assert_eq!((lite.variant.as_str(), lite.preset()), ("mcu_lite", "mcu"));
+        assert!(lite.blob().is_file());
         let e = ModelFiles::resolve("nano").unwrap_err().to_string();
-        assert!(e.contains("\"nano\"") && e.contains("mcu, phone"), "{e}");
+        assert!(
+            e.contains("\"nano\"") && e.contains("mcu_lite, mcu, phone"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn embedded_blobs_are_the_shipped_ones() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../models");
+        for v in ["mcu_lite", "mcu"] {
+            let on_disk = std::fs::read(root.join(v).join("depthor.dblob")).unwrap();
+            assert_eq!(
+                crate::inference::embedded_blob(v),
+                Some(on_disk.as_slice()),
+                "{v}"
+            );
+        }
+        assert_eq!(crate::inference::embedded_blob("phone"), None);
     }
 }

@@ -21,13 +21,15 @@ use std::path::{Path, PathBuf};
 /// Arguments of `depthor demo`.
 #[derive(Debug, clap::Args)]
 #[command(after_help = "Examples:
-  depthor demo                                    # rendered scene, embedded mcu model, ./demo/
+  depthor demo                                    # rendered scene, embedded mcu_lite model, ./demo/
+  depthor demo --model mcu --out demo-mcu         # the larger mcu network (also embedded)
   depthor demo --model phone --out demo-phone     # the phone variant on its 40×30 sensor
   depthor demo --recording rec/middlebury --frames 3 --out demo-mb --overwrite
   depthor demo --json | jq .methods.int8.rmse")]
 pub struct Args {
-    /// `mcu` (embedded in the binary), `phone`, or a model folder (depthor.dblob).
-    #[arg(long, default_value = "mcu")]
+    /// `mcu_lite` or `mcu` (both embedded in the binary), `phone`, or a model folder
+    /// (depthor.dblob).
+    #[arg(long, default_value = "mcu_lite")]
     model: String,
     /// Run on this recording instead of rendered scenes.
     #[arg(long, short = 'r', value_name = "DIR")]
