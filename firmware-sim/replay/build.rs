@@ -2,9 +2,9 @@
 //!
 //! The blob is the file named by the environment variable `DEPTHOR_MODEL_BLOB` (absolute, or
 //! relative to `firmware-sim/replay/`) or, when it is unset, the shipped
-//! `models/mcu/depthor.dblob`. Another blob (e.g. `models/mcu_lite/depthor.dblob`) measures
-//! that model's instructions and arena on the same firmware; the replay image's frames must
-//! have the blob's input size.
+//! `models/mcu_lite/depthor.dblob` (the network sized for a microcontroller, issue 16). Another
+//! blob (e.g. `models/mcu/depthor.dblob`) measures that model's instructions and arena on the
+//! same firmware; the replay image's frames must have the blob's input size.
 
 use std::path::PathBuf;
 use std::{env, fs};
@@ -15,7 +15,7 @@ fn main() {
     println!("cargo:rerun-if-env-changed=DEPTHOR_MODEL_BLOB");
     let blob = match env::var_os("DEPTHOR_MODEL_BLOB") {
         Some(p) if !p.is_empty() => here.join(p),
-        _ => here.join("../../models/mcu/depthor.dblob"),
+        _ => here.join("../../models/mcu_lite/depthor.dblob"),
     };
     println!("cargo:rerun-if-changed={}", blob.display());
     if let Err(e) = fs::copy(&blob, out.join("model.dblob")) {

@@ -19,7 +19,7 @@ impl DelayNs for StdDelay {
     }
 }
 
-/// Runs every frame of `image` through the loop with the `mcu` model, holding up to `N` zones
+/// Runs every frame of `image` through the loop with the embedded model, holding up to `N` zones
 /// (the firmware holds 64), and calls `emit` with each frame's output; returns the frame count.
 pub fn replay_image<const N: usize>(
     image: Image<'_>,

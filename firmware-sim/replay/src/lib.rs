@@ -6,7 +6,7 @@
 //!   validates everything and never panics; its checksum is the core's
 //!   [`depthor_core::blob::checksum::crc32`] (zlib's CRC-32, as for the model blob).
 //! - [`camera`]: [`camera::ReplayCamera`], an [`depthor_core::hal::RgbCamera`] over the image.
-//! - [`model`]: the `mcu` int8 blob (embedded, 16-byte aligned) and the arena budget.
+//! - [`model`]: the embedded int8 blob (`mcu_lite` by default, 16-byte aligned) and the arena budget.
 //! - [`pipeline`]: the per-frame loop (camera → zone bridge driver → projection → int8 engine)
 //!   and the hash line both builds print.
 //! - with the `std` feature: [`host`] (the host build of the loop), [`writer`] (`write_image`)

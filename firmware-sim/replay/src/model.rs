@@ -1,5 +1,6 @@
-//! The `mcu` model both builds run: the int8 blob `models/mcu/depthor.dblob` (or the one the
-//! build-time variable `DEPTHOR_MODEL_BLOB` names, see `build.rs`), embedded with
+//! The model both builds run: the int8 blob `models/mcu_lite/depthor.dblob` (or the one the
+//! build-time variable `DEPTHOR_MODEL_BLOB` names, e.g. `models/mcu/depthor.dblob`; see
+//! `build.rs`), embedded with
 //! `include_bytes!` (in the firmware it lies in flash, in `.rodata`), and the arena size the
 //! firmware reserves for it.
 //!
@@ -17,13 +18,13 @@ pub struct Align16<B: ?Sized>(pub B);
 static ALIGNED_BLOB: &Align16<[u8]> =
     &Align16(*include_bytes!(concat!(env!("OUT_DIR"), "/model.dblob")));
 
-/// The `mcu` int8 model blob (16-byte aligned).
+/// The embedded int8 model blob (16-byte aligned; `mcu_lite` unless the build names another).
 pub static MCU_BLOB: &[u8] = &ALIGNED_BLOB.0;
 
 /// Arena bytes the firmware reserves: 384 KiB (the internal-SRAM goal, docs/design.md) unless
-/// the build sets `DEPTHOR_ARENA_KIB`; the shipped `mcu` blob's smallest plan needs 384 175 B
-/// at 120×160 (`core/tests/arena_budget.rs`). [`Engine::with_memory`] reports `ArenaTooSmall`
-/// when a blob needs more.
+/// the build sets `DEPTHOR_ARENA_KIB`; the default `mcu_lite` blob needs 365 855 B at 120×160,
+/// `mcu`'s smallest plan 384 175 B (`core/tests/arena_budget.rs`). [`Engine::with_memory`]
+/// reports `ArenaTooSmall` when a blob needs more.
 pub const ARENA_BUDGET_BYTES: usize = match option_env!("DEPTHOR_ARENA_KIB") {
     Some(kib) => parse_kib(kib) * 1024,
     None => 384 * 1024,
