@@ -6,15 +6,17 @@ use crate::kernels::bins::BinChannel;
 use crate::kernels::conv::ChannelQuant;
 use crate::kernels::elementwise::{AddQuant, MulQuant, Rescale};
 use crate::kernels::pool::MeanQuant;
+use crate::kernels::resize::ResizeRescale;
 
 /// Types for which every bit pattern is a valid value and that have no padding.
 ///
 /// # Safety
-/// Implementors must be `#[repr(C)]` (or primitive) structs of `i8`/`i16`/`i32`/`f32` fields
-/// only.
+/// Implementors must be `#[repr(C)]` (or primitive) structs of `i8`/`i16`/`i32`/`u32`/`i64`/
+/// `f32` fields only, without padding.
 pub(crate) unsafe trait Pod: Copy {}
 
-// SAFETY: primitives and `#[repr(C)]` structs of 4-byte integer / float fields, no padding.
+// SAFETY: primitives and `#[repr(C)]` structs of 4- and 8-byte integer / float fields, no
+// padding (`ResizeRescale`: i32, u32, i64, i64, i32, u32 = 32 bytes).
 unsafe impl Pod for i8 {}
 unsafe impl Pod for i16 {}
 unsafe impl Pod for i32 {}
@@ -25,6 +27,9 @@ unsafe impl Pod for Rescale {}
 unsafe impl Pod for AddQuant {}
 unsafe impl Pod for MulQuant {}
 unsafe impl Pod for MeanQuant {}
+unsafe impl Pod for ResizeRescale {}
+// Its fields fill it exactly (4 + 4 + 8 + 8 + 4 + 4): no padding for `Pod`.
+const _: () = assert!(core::mem::size_of::<ResizeRescale>() == 32);
 
 /// Views `b` as a slice of `T` (trailing bytes that do not fill a `T` are ignored); `None` if
 /// `b` is not aligned for `T`.

@@ -5,8 +5,8 @@
 //! (step 0 writes the inputs, op `i` runs at step `i + 1`, the output lives to the end). The
 //! greedy planner (as TFLite Micro's) places buffers in decreasing size at the lowest offset that
 //! does not overlap any already-placed buffer whose lifetime intersects its own. Offsets and
-//! sizes are multiples of [`ALIGN`]. Per-op constants (per-channel requantisation, add/mul/pool
-//! multipliers) live in a persistent head written once by `Engine::new`:
+//! sizes are multiples of [`ALIGN`]. Per-op constants (per-channel requantisation, add/mul/pool/
+//! rescaling-upsample multipliers) live in a persistent head written once by `Engine::new`:
 //!
 //! ```text
 //!  arena (caller's &mut [u8])
@@ -411,6 +411,7 @@ fn plan_op(i: usize, op: &OpInfo, g: &Graph, shapes: &[Shape]) -> Result<OpPlan,
     };
     let kind = Kind::of(op.code).ok_or(err("op attributes do not match the opcode"))?;
     let c = PlanCtx {
+        g,
         i,
         op,
         shapes,

@@ -15,19 +15,22 @@ use super::{need, KernelError, Shape};
 /// denominators) becomes `zp_out + ⌊(n − zp_in·d) · s_in / (s_out·d) + ½⌋` (rounded half up),
 /// the factor held as `k / 2^shift` (`2^30 ≤ k < 2^31` unless the factor is out of range).
 /// Integer arithmetic only: the same bits on every target.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[repr(C)]
 pub struct ResizeRescale {
     /// `s_in / (s_out·d) · 2^shift`.
     k: i32,
-    /// Right shift, ≤ 62.
+    /// Right shift, 1 ..= 62.
     shift: u32,
     /// `zp_in · d`.
     offset: i64,
     /// `2^(shift−1) − zp_in·d·k` (the rounding half and the input zero point in one term) for
-    /// [`Self::apply_narrow`], when it fits 62 bits.
-    bias: Option<i64>,
+    /// [`NarrowRescale`], valid where `narrow` is 1.
+    bias: i64,
     /// Output zero point.
     zp_out: i32,
+    /// 1 where [`NarrowRescale`] serves every sum (`shift ≥ 32`, `bias` in 62 bits).
+    narrow: u32,
 }
 
 impl ResizeRescale {
@@ -61,32 +64,51 @@ impl ResizeRescale {
             k,
             shift,
             offset,
-            bias,
+            bias: bias.unwrap_or(0),
             zp_out: to.zero_point,
+            narrow: u32::from(bias.is_some() && shift >= 32),
         }
     }
 
     /// The output code of the weighted code sum `n`.
     #[inline]
     fn apply(&self, n: i64) -> i8 {
+        // `shift` is 1 ..= 62 from `new`; clamped for a value from elsewhere.
+        let shift = self.shift.clamp(1, 62);
         let m = i128::from(n) - i128::from(self.offset);
-        let q = (m * i128::from(self.k) + (1i128 << (self.shift - 1))) >> self.shift;
+        let q = (m * i128::from(self.k) + (1i128 << (shift - 1))) >> shift;
         (q.clamp(-(1 << 20), 1 << 20) as i32 + self.zp_out).clamp(-128, 127) as i8
     }
 
-    /// The bias of [`Self::apply_narrow`] where it serves every sum `|n| ≤ 2^30`: `shift ≥ 32`
-    /// (a factor below 1/4) and the bias in 62 bits.
-    fn narrow(&self) -> Option<i64> {
-        self.bias.filter(|_| self.shift >= 32)
+    /// The 32-bit form of this rescale where it serves every sum `|n| ≤ 2^30`: `shift ≥ 32` (a
+    /// factor below 1/4) and the bias in 62 bits.
+    fn narrow(&self) -> Option<NarrowRescale> {
+        (self.narrow == 1 && (32..63).contains(&self.shift)).then(|| NarrowRescale {
+            k: self.k,
+            bias: self.bias,
+            shift_hi: self.shift - 32,
+            zp_out: self.zp_out,
+        })
     }
+}
 
-    /// [`Self::apply`] for `|n| ≤ 2^30` in one 32 × 32 → 64-bit multiply-accumulate (`SMLAL` on
-    /// Cortex-M) and a shift of its high word, `bias` from [`Self::narrow`]: the same result
-    /// (`|n·k + bias| < 2^63`).
+/// [`ResizeRescale::apply`] for `|n| ≤ 2^30` in one 32 × 32 → 64-bit multiply-accumulate
+/// (`SMLAL` on Cortex-M) and a shift of its high word: the same result (`|n·k + bias| < 2^63`).
+/// Its four scalars stay in registers through the row loop.
+#[derive(Clone, Copy, Debug)]
+struct NarrowRescale {
+    k: i32,
+    bias: i64,
+    /// `shift − 32`.
+    shift_hi: u32,
+    zp_out: i32,
+}
+
+impl NarrowRescale {
     #[inline(always)]
-    fn apply_narrow(&self, n: i32, bias: i64) -> i8 {
-        let hi = ((i64::from(n) * i64::from(self.k) + bias) >> 32) as i32;
-        ((hi >> (self.shift - 32)) + self.zp_out).clamp(-128, 127) as i8
+    fn apply(self, n: i32) -> i8 {
+        let hi = ((i64::from(n) * i64::from(self.k) + self.bias) >> 32) as i32;
+        ((hi >> self.shift_hi) + self.zp_out).clamp(-128, 127) as i8
     }
 }
 
@@ -266,10 +288,8 @@ pub fn upsample_bilinear_to(
                 let rows = (r0, r1, fy as i32, dy as i32, den);
                 match rescale {
                     None => narrow_row_same(rows, &taps, orow, &mut blend),
-                    Some(&r) => match r.narrow() {
-                        Some(b) => {
-                            narrow_row(rows, &taps, orow, &mut blend, move |n| r.apply_narrow(n, b))
-                        }
+                    Some(r) => match r.narrow() {
+                        Some(nr) => narrow_row(rows, &taps, orow, &mut blend, move |n| nr.apply(n)),
                         None => narrow_row(rows, &taps, orow, &mut blend, |n| r.apply(n.into())),
                     },
                 }
@@ -576,10 +596,10 @@ mod tests {
                         from_s,
                         to_s,
                     );
-                    let b = r.narrow().unwrap();
+                    let nr = r.narrow().unwrap();
                     let d = 119 * 159;
                     for n in (-128 * d..=127 * d).step_by(997) {
-                        assert_eq!(r.apply_narrow(n, b), r.apply(n.into()), "{r:?} at {n}");
+                        assert_eq!(nr.apply(n), r.apply(n.into()), "{r:?} at {n}");
                     }
                 }
             }

@@ -153,9 +153,8 @@ impl Kind {
             Kind::Concat => concat::write_consts(c, region),
             Kind::Pool => pool::write_consts(c, region),
             Kind::BinsHead => bins_head::write_consts(c, region),
-            Kind::Lut | Kind::Upsample | Kind::PixelShuffle | Kind::MinMaxNorm | Kind::Refine => {
-                Ok(())
-            }
+            Kind::Upsample => upsample::write_consts(c, region),
+            Kind::Lut | Kind::PixelShuffle | Kind::MinMaxNorm | Kind::Refine => Ok(()),
         }
     }
 
@@ -228,6 +227,8 @@ impl Types<'_> {
 
 /// What planning one op sees.
 pub(crate) struct PlanCtx<'a> {
+    /// The graph (tensor types and quantisation).
+    pub g: &'a Graph<'a>,
     /// Op index.
     pub i: usize,
     /// The op.

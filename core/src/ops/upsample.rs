@@ -1,15 +1,18 @@
-//! `upsample_bilinear` (docs/graph.md): int8 (into its input's quantisation or its own) or f32,
-//! to a fixed size, by integer factors, or to another tensor's size. Kernel: [`crate::kernels::resize`]. A one-channel f32 upsample giving
-//! a refinement's `D_0` may run row by row inside it ([`super::refine`]).
+//! `upsample_bilinear` (docs/graph.md): int8 (into its input's quantisation or its own, then
+//! with a [`resize::ResizeRescale`] made once at prepare time) or f32, to a fixed size, by
+//! integer factors, or to another tensor's size. Kernel: [`crate::kernels::resize`]. A
+//! one-channel f32 upsample giving a refinement's `D_0` may run row by row inside it
+//! ([`super::refine`]).
 
-use super::{typed, typed_mut, Eval, PlanCtx, Types};
+use super::{typed, typed_mut, ConstCtx, Eval, PlanCtx, Types};
 use crate::blob::format::{upsample_mode, MAX_TENSORS, NONE};
-use crate::blob::parse::{bad, Attrs, DType, Reader};
+use crate::blob::parse::{bad, Attrs, DType, Graph, OpInfo, Reader};
 use crate::blob::BlobError;
 use crate::engine::plan::{OpPlan, PlanError};
 use crate::engine::Error;
 use crate::kernels::resize;
 use crate::kernels::Shape;
+use core::mem::size_of;
 
 /// One input.
 pub(crate) const ARITY: (usize, usize) = (1, 1);
@@ -67,24 +70,51 @@ pub(crate) fn plan(c: &PlanCtx, p: &mut OpPlan) -> Result<(), PlanError> {
         }
     };
     p.out = Shape::new(c.out_c, h, w);
+    if rescales(c.g, c.op).map_err(|_| c.err("upsample: tensor id"))? {
+        p.consts = size_of::<resize::ResizeRescale>();
+    }
+    Ok(())
+}
+
+/// True for an int8 upsample whose output parameters differ from its input's.
+fn rescales(g: &Graph, op: &OpInfo) -> Result<bool, BlobError> {
+    let (x, out) = (g.tensor(op.inputs[0])?, g.tensor(op.output)?);
+    Ok(out.dtype == DType::I8 && x.q != out.q)
+}
+
+/// The [`resize::ResizeRescale`] of an upsample that changes parameters (computed once: it
+/// depends on the run size's shapes and the two tensors' parameters).
+pub(crate) fn write_consts(c: &ConstCtx, region: &mut [u8]) -> Result<(), Error> {
+    if !rescales(c.g, c.op)? {
+        return Ok(());
+    }
+    let bad = Error::Blob(bad(c.op.offset, "upsample: shapes unknown"));
+    let (x, out) = (c.op.inputs[0], c.op.output);
+    let (xs, os) = (c.plan.shape(x).ok_or(bad)?, c.plan.shape(out).ok_or(bad)?);
+    let dst: &mut [resize::ResizeRescale] = typed_mut(region, c.i)?;
+    *dst.first_mut().ok_or(bad)? = resize::ResizeRescale::new(c.q(x)?, c.q(out)?, xs, os);
     Ok(())
 }
 
 /// Resizes the input.
 pub(crate) fn eval(e: Eval) -> Result<(), Error> {
-    let (i, kerr) = (e.i, e.kerr());
+    let (i, kerr, bad) = (e.i, e.kerr(), e.bad());
     match e.g.tensor(e.op.output)?.dtype {
         DType::I8 => {
+            let r = if rescales(e.g, e.op)? {
+                let rs: &[resize::ResizeRescale] = typed(e.consts, i)?;
+                Some(rs.first().ok_or(bad)?)
+            } else {
+                None
+            };
             let (x, out) = (typed(e.ins[0], i)?, typed_mut(e.out, i)?);
-            let (from, to) = (e.g.tensor(e.op.inputs[0])?.q, e.g.tensor(e.op.output)?.q);
-            let r = (from != to).then(|| resize::ResizeRescale::new(from, to, e.x, e.out_shape));
-            resize::upsample_bilinear_to(x, e.x, out, e.out_shape, r.as_ref()).map_err(kerr)?
+            resize::upsample_bilinear_to(x, e.x, out, e.out_shape, r).map_err(kerr)?
         }
         DType::F32 => {
             let (x, out) = (typed(e.ins[0], i)?, typed_mut(e.out, i)?);
             resize::upsample_bilinear_f32(x, e.x, out, e.out_shape).map_err(kerr)?
         }
-        DType::I16 => return Err(e.bad()),
+        DType::I16 => return Err(bad),
     }
     Ok(())
 }

@@ -22,7 +22,7 @@ static ALIGNED_BLOB: &Align16<[u8]> =
 pub static MCU_BLOB: &[u8] = &ALIGNED_BLOB.0;
 
 /// Arena bytes the firmware reserves: 384 KiB (the internal-SRAM goal, docs/design.md) unless
-/// the build sets `DEPTHOR_ARENA_KIB`; the default `mcu_lite` blob needs 365 855 B at 120×160,
+/// the build sets `DEPTHOR_ARENA_KIB`; the default `mcu_lite` blob needs 366 015 B at 120×160,
 /// `mcu`'s smallest plan 384 175 B (`core/tests/arena_budget.rs`). [`Engine::with_memory`]
 /// reports `ArenaTooSmall` when a blob needs more.
 pub const ARENA_BUDGET_BYTES: usize = match option_env!("DEPTHOR_ARENA_KIB") {
