@@ -3,7 +3,7 @@
 # (`depthor bench engine`) against ONNX Runtime f32 and int8 (QDQ, per-channel) on the same
 # network, weights and size (`depthor_models.bench_onnx`), twice in turn so that a load change
 # on a shared machine shows as a difference between the two rounds.
-# Usage: bash models/bench_side_by_side.sh [mcu|phone] [runs]
+# Usage: bash models/bench_side_by_side.sh [mcu|mcu_lite|phone|phone_lite] [runs]
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 variant="${1:-mcu}"

@@ -1,7 +1,7 @@
 //! The shipped models on disk. `models/<variant>/` holds `depthor.dblob` (int8 blob for the
 //! core), `depthor.nnef.tgz` (the float network for tract) and `prior.nnef.tgz` (the monocular
 //! prior alone). Commands take `--model mcu_lite` (the demo's default), `--model mcu`, `--model
-//! phone` or a directory with those files.
+//! phone_lite`, `--model phone` or a directory with those files.
 //!
 //! A variant name is looked up, in order, in the folder given by `--models-dir` (or the
 //! `DEPTHOR_MODELS` environment variable), beside the binary (`<bin>/models`,
@@ -45,10 +45,15 @@ pub fn search_dirs() -> Vec<PathBuf> {
 }
 
 /// The variants shipped in `models/`.
-pub const VARIANTS: [&str; 3] = ["mcu_lite", "mcu", "phone"];
+pub const VARIANTS: [&str; 4] = ["mcu_lite", "mcu", "phone_lite", "phone"];
 
 /// The simulator preset (sensor and image size) of each shipped variant.
-const PRESETS: [(&str, &str); 3] = [("mcu_lite", "mcu"), ("mcu", "mcu"), ("phone", "phone")];
+const PRESETS: [(&str, &str); 4] = [
+    ("mcu_lite", "mcu"),
+    ("mcu", "mcu"),
+    ("phone_lite", "phone"),
+    ("phone", "phone"),
+];
 
 /// Where one model's files are.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -153,9 +158,12 @@ mod tests {
         let lite = ModelFiles::resolve("mcu_lite").unwrap();
         assert_eq!((lite.variant.as_str(), lite.preset()), ("mcu_lite", "mcu"));
         assert!(lite.blob().is_file());
+        let phone_lite = ModelFiles::resolve("phone_lite").unwrap();
+        assert_eq!(phone_lite.preset(), "phone");
+        assert!(phone_lite.blob().is_file());
         let e = ModelFiles::resolve("nano").unwrap_err().to_string();
         assert!(
-            e.contains("\"nano\"") && e.contains("mcu_lite, mcu, phone"),
+            e.contains("\"nano\"") && e.contains("mcu_lite, mcu, phone_lite, phone"),
             "{e}"
         );
     }

@@ -100,3 +100,13 @@ fn mcu_matches_its_model_card() {
 fn phone_matches_its_model_card() {
     check("phone");
 }
+
+#[test]
+fn mcu_lite_matches_its_model_card() {
+    check("mcu_lite");
+}
+
+#[test]
+fn phone_lite_matches_its_model_card() {
+    check("phone_lite");
+}

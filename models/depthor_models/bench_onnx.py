@@ -9,7 +9,7 @@
    1×3×H×W / 1×1×H×W inputs, TorchScript exporter: BN folded into the convs).
 2. Quantises it with `onnxruntime.quantization.quantize_static`: QDQ, per-channel QInt8
    weights, QUInt8 activations, MinMax (or Entropy) ranges over `--calib-frames` (16) frames.
-   `sim` frames: `depthor sim --preset <variant> --scenes N+1 --seed 0` rendered at the
+   `sim` frames: `depthor sim --preset <preset> --scenes N+1 --seed 0` rendered at the
    model's size (the scene generator and sensor preset the host quantizer calibrates with),
    loaded as training loads them (`data.batch`); frame N is held out for the SQNR. `random`:
    `net.random_inputs`. The recordings under shared/data/real are never read. By default the
@@ -92,16 +92,20 @@ def default_cli() -> Path:
     return Path(os.environ.get("DEPTHOR_CLI", REPO / "target" / "release" / "depthor"))
 
 
+# The sensor preset each variant's inputs come from (host/src/models.rs `PRESETS`).
+PRESETS = {"mcu": "mcu", "mcu_lite": "mcu", "phone": "phone", "phone_lite": "phone"}
+
+
 def sim_frames(variant: str, height: int, width: int, count: int, seed: int,
                cli: Path) -> list[tuple[np.ndarray, np.ndarray]]:
     """`count` simulated frames (rgb [1,3,H,W] in [0,1], sparse [1,1,H,W] m) from
-    `depthor sim --preset <variant> --seed <seed>` rendered at the model's size."""
+    `depthor sim --preset <the variant's preset> --seed <seed>` rendered at the model's size."""
     if not cli.exists():
         raise FileNotFoundError(f"{cli}: no depthor CLI (cargo build --release -p depthor-host, "
                                 "or --calib random)")
     with tempfile.TemporaryDirectory(prefix="depthor-bench-onnx-") as tmp:
         out = Path(tmp) / "rec"
-        cmd = [str(cli), "sim", "--preset", variant, "--scenes", str(count), "--seed", str(seed),
+        cmd = [str(cli), "sim", "--preset", PRESETS[variant], "--scenes", str(count), "--seed", str(seed),
                "--width", str(width), "--height", str(height), "--out", str(out)]
         subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
         rec = data.load_recording(out, cache=False)
@@ -555,7 +559,7 @@ def _fmt(counts: dict, top: int | None = None) -> str:
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     """Command-line arguments (see module doc)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--variant", required=True, choices=["mcu", "phone"])
+    ap.add_argument("--variant", required=True, choices=sorted(PRESETS))
     ap.add_argument("--weights", default=None,
                     help="checkpoint/state dict, or 'random' (default: <variant>/summary.json's)")
     ap.add_argument("--runs", type=int, default=20, help="timed runs per model (default 20)")

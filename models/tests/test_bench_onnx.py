@@ -61,3 +61,15 @@ def test_f32_nodes_take_the_scopes_and_what_lies_between():
     vi = [h.make_tensor_value_info(n, onnx.TensorProto.FLOAT, [1]) for n in ("x", "y")]
     model = h.make_model(h.make_graph(nodes, "g", vi[:1], vi[1:]))
     assert bench_onnx.f32_nodes(model) == ["/bins_head/Exp", "/Resize", "/refine/Mul"]
+
+
+def test_every_variant_has_a_preset_and_the_lite_network_runs(no_network, tmp_path):
+    from depthor_models.net import VARIANTS
+
+    assert set(bench_onnx.PRESETS) == set(VARIANTS)
+    assert bench_onnx.PRESETS["phone_lite"] == "phone" and bench_onnx.PRESETS["mcu_lite"] == "mcu"
+    assert bench_onnx.main(["--variant", "mcu_lite", "--smoke", "--out", str(tmp_path)]) == 0
+    res = json.loads((tmp_path / "bench.json").read_text())
+    f32, int8 = res["rows"]
+    assert f32["sqnr_db"] > 80 and 10 < int8["sqnr_db"] < f32["sqnr_db"]
+    assert "Mul" in int8["op_census"]["float_kept"]  # the lite refine stays f32 too

@@ -45,6 +45,18 @@ def test_phone_lite_budget():
     assert b["depthwise_macs"] > 0
 
 
+def test_phone_lite_is_mcu_lite_at_the_phone_size():
+    """phone_lite was trained from mcu_lite's weights: same network, only the input size."""
+    from dataclasses import replace
+
+    from depthor_models.net import VARIANTS
+
+    mcu, phone = VARIANTS["mcu_lite"], VARIANTS["phone_lite"]
+    assert replace(mcu, variant="phone_lite", height=320, width=240) == phone
+    a, b = build("mcu_lite", seed=0).state_dict(), build("phone_lite", seed=0).state_dict()
+    assert {k: v.shape for k, v in a.items()} == {k: v.shape for k, v in b.items()}
+
+
 def test_budget_counter_on_the_dense_mcu_matches_the_readme():
     """The same counter on the shipped `mcu` graph: 0.312 G MACs (models/README.md)."""
     b = budget.budget("mcu")
