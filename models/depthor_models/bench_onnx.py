@@ -105,8 +105,9 @@ def sim_frames(variant: str, height: int, width: int, count: int, seed: int,
                                 "or --calib random)")
     with tempfile.TemporaryDirectory(prefix="depthor-bench-onnx-") as tmp:
         out = Path(tmp) / "rec"
-        cmd = [str(cli), "sim", "--preset", PRESETS[variant], "--scenes", str(count), "--seed", str(seed),
-               "--width", str(width), "--height", str(height), "--out", str(out)]
+        cmd = [str(cli), "sim", "--preset", PRESETS[variant], "--scenes", str(count),
+               "--seed", str(seed), "--width", str(width), "--height", str(height),
+               "--out", str(out)]
         subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
         rec = data.load_recording(out, cache=False)
         if (rec.height, rec.width) != (height, width):

@@ -71,5 +71,5 @@ def test_every_variant_has_a_preset_and_the_lite_network_runs(no_network, tmp_pa
     assert bench_onnx.main(["--variant", "mcu_lite", "--smoke", "--out", str(tmp_path)]) == 0
     res = json.loads((tmp_path / "bench.json").read_text())
     f32, int8 = res["rows"]
-    assert f32["sqnr_db"] > 80 and 10 < int8["sqnr_db"] < f32["sqnr_db"]
+    assert f32["sqnr_db"] > 80 and 15 < int8["sqnr_db"] < f32["sqnr_db"]
     assert "Mul" in int8["op_census"]["float_kept"]  # the lite refine stays f32 too

@@ -45,16 +45,19 @@ def test_phone_lite_budget():
     assert b["depthwise_macs"] > 0
 
 
-def test_phone_lite_is_mcu_lite_at_the_phone_size():
-    """phone_lite was trained from mcu_lite's weights: same network, only the input size."""
-    from dataclasses import replace
+def test_phone_lite_loads_its_shipped_weights_and_mcu_lites():
+    """phone_lite was trained from mcu_lite's weights (models/phone_lite/train/data_generation.txt):
+    its network must load those, its float run's and its own shipped weights strictly."""
+    from pathlib import Path
 
-    from depthor_models.net import VARIANTS
+    from depthor_models.train import load_weights
 
-    mcu, phone = VARIANTS["mcu_lite"], VARIANTS["phone_lite"]
-    assert replace(mcu, variant="phone_lite", height=320, width=240) == phone
-    a, b = build("mcu_lite", seed=0).state_dict(), build("phone_lite", seed=0).state_dict()
-    assert {k: v.shape for k, v in a.items()} == {k: v.shape for k, v in b.items()}
+    models = Path(__file__).resolve().parents[1]
+    net = build("phone_lite", seed=0)
+    assert (net.cfg.height, net.cfg.width) == (320, 240)
+    for w in ("mcu_lite/train/model_final.pt", "phone_lite/train/float/model_final_bn.pt",
+              "phone_lite/train/model_final.pt"):
+        net.load_state_dict(load_weights(models / w), strict=True)
 
 
 def test_budget_counter_on_the_dense_mcu_matches_the_readme():
