@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs what depthor's tests need beyond rustup/cargo and python3, each only when missing:
 # the toolchain, target and components named in rust-toolchain.toml, and the Debian package
-# qemu-system-arm (the Cortex-M firmware test runs under QEMU's mps2-an386).
+# qemu-system-arm (the Cortex-M firmware tests run under QEMU's mps2-an386), and
+# gcc-arm-none-eabi + libnewlib-arm-none-eabi (depthor-ffi's C firmware, firmware-sim/c).
 # Usage: bash scripts/setup.sh            (idempotent; prints one line per thing it checks)
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
@@ -41,11 +42,16 @@ apt_install() {
 }
 missing=()
 command -v qemu-system-arm >/dev/null || missing+=(qemu-system-arm)
+# The C firmware of depthor-ffi (firmware-sim/c): arm-none-eabi-gcc and newlib; make.
+command -v arm-none-eabi-gcc >/dev/null || missing+=(gcc-arm-none-eabi)
+[ -e /usr/lib/arm-none-eabi/newlib/librdimon.a ] || missing+=(libnewlib-arm-none-eabi)
+command -v make >/dev/null || missing+=(make)
 if [ ${#missing[@]} -gt 0 ]; then
   echo "setup: Debian packages missing: ${missing[*]}, installing"
   apt_install "${missing[@]}"
 fi
 echo "setup: qemu-system-arm: $(qemu-system-arm --version | head -1)"
+echo "setup: arm-none-eabi-gcc: $(arm-none-eabi-gcc --version | head -1)"
 if command -v python3 >/dev/null; then
   echo "setup: python3: $(python3 --version) (models/smoke.sh makes models/.venv on first run)"
 else

@@ -1,7 +1,6 @@
 /* replay.c: see replay.h. C99. */
 #include "replay.h"
 
-#include <inttypes.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -131,6 +130,7 @@ int replay_process(const replay_image *img, uint32_t index, depthor_engine *engi
     depthor_projection_stats stats;
     size_t z;
     int32_t s;
+    uint64_t hash;
 
     *status = DEPTHOR_OK;
     if (index >= img->frames) return 14;
@@ -155,10 +155,12 @@ int replay_process(const replay_image *img, uint32_t index, depthor_engine *engi
         *status = s;
         return 16;
     }
+    hash = replay_fnv1a64_f32(ws->depth_m, pixels);
+    /* Two 32-bit halves: newlib's inttypes.h lacks PRIx64 under -std=c99 on arm-none-eabi. */
     snprintf(line, line_len,
-             "frame %" PRIu32 " depth_fnv1a64=%016" PRIx64 " points=%" PRIu32
-             " skipped=%" PRIu32 " collisions=%" PRIu32,
-             index, replay_fnv1a64_f32(ws->depth_m, pixels), stats.projected, stats.skipped,
-             stats.collisions);
+             "frame %lu depth_fnv1a64=%08lx%08lx points=%lu skipped=%lu collisions=%lu",
+             (unsigned long)index, (unsigned long)(hash >> 32),
+             (unsigned long)(hash & 0xffffffffu), (unsigned long)stats.projected,
+             (unsigned long)stats.skipped, (unsigned long)stats.collisions);
     return 0;
 }

@@ -1,0 +1,256 @@
+//! The C firmware (`firmware-sim/c/`, arm-none-eabi-gcc + newlib) linking the Cortex-M static
+//! library, under `qemu-system-arm` (mps2-an386, `-icount shift=0`): its per-frame hash lines
+//! must equal the Rust host loop's (which `tests/firmware_qemu.rs` holds equal to the Rust
+//! firmware's), with the library built with and without the core's `arm-dsp` kernels; a bad
+//! image must make it print `ERROR <code>` and exit with the Rust firmware's code.
+//!
+//! Needs the `thumbv7em-none-eabihf` Rust target, `arm-none-eabi-gcc` with newlib and
+//! `qemu-system-arm` (`bash scripts/setup.sh` installs them); without them these tests FAIL
+//! with a message saying what to install, like the Rust firmware's.
+//! Run: `cargo test -p depthor-ffi --test c_firmware -- --nocapture`.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::{Mutex, OnceLock};
+use std::time::{Duration, Instant};
+
+use depthor_replay::format::Image;
+use depthor_replay::host::replay_image;
+use depthor_replay::model::MCU_BLOB;
+use depthor_replay::{synthetic, writer};
+
+const TARGET: &str = "thumbv7em-none-eabihf";
+/// 5 `mcu_lite` frames take ≈ 2 s of QEMU wall time; generous for a loaded machine.
+const QEMU_TIMEOUT: Duration = Duration::from_secs(300);
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// Builds the Cortex-M staticlib once per feature set, in its own target dir (the outer
+/// `cargo test` holds the workspace's), and returns its path.
+fn cortex_m_lib(dsp: bool) -> PathBuf {
+    static LOCK: Mutex<()> = Mutex::new(());
+    static LIBS: [OnceLock<PathBuf>; 2] = [OnceLock::new(), OnceLock::new()];
+    let _guard = LOCK.lock().unwrap_or_else(|e| e.into_inner());
+    LIBS[usize::from(dsp)]
+        .get_or_init(|| {
+            let target_dir = repo().join("target/ffi-firmware");
+            let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+            let mut cmd = Command::new(cargo);
+            cmd.current_dir(repo())
+                .args([
+                    "rustc",
+                    "-p",
+                    "depthor-ffi",
+                    "--release",
+                    "--target",
+                    TARGET,
+                ])
+                .args(["--crate-type", "staticlib", "--no-default-features"])
+                .arg("--target-dir")
+                .arg(&target_dir)
+                .env_remove("RUSTFLAGS")
+                .env_remove("CARGO_ENCODED_RUSTFLAGS")
+                .env_remove("CARGO_BUILD_TARGET");
+            if dsp {
+                cmd.args(["--features", "arm-dsp"]);
+            }
+            let out = cmd.output().expect("run cargo");
+            assert!(
+                out.status.success(),
+                "building the {TARGET} staticlib failed (is the Rust target installed? \
+                 `bash scripts/setup.sh` or `rustup target add {TARGET}`):\n{}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            let built = target_dir.join(TARGET).join("release/libdepthor_ffi.a");
+            let keep = target_dir.join(format!(
+                "libdepthor_ffi-{}.a",
+                if dsp { "dsp" } else { "plain" }
+            ));
+            std::fs::copy(&built, &keep).expect("copy staticlib");
+            keep
+        })
+        .clone()
+}
+
+/// `make -C firmware-sim/c` with `lib` and `image` into `out`; the ELF.
+fn build_firmware(lib: &Path, image: &Path, blob: &Path, out: &Path) -> PathBuf {
+    let res = Command::new("make")
+        .arg("-s")
+        .arg("-C")
+        .arg(repo().join("firmware-sim/c"))
+        .arg(format!("LIB={}", lib.display()))
+        .arg(format!("IMAGE={}", image.display()))
+        .arg(format!("BLOB={}", blob.display()))
+        .arg(format!("OUT={}", out.display()))
+        .output();
+    let res = match res {
+        Ok(r) => r,
+        Err(e) => panic!("cannot run make ({e}): apt-get install -y make"),
+    };
+    assert!(
+        res.status.success(),
+        "building the C firmware failed (arm-none-eabi-gcc and newlib installed? \
+         `bash scripts/setup.sh` or `apt-get install -y gcc-arm-none-eabi \
+         libnewlib-arm-none-eabi`):\n{}\n{}",
+        String::from_utf8_lossy(&res.stdout),
+        String::from_utf8_lossy(&res.stderr)
+    );
+    println!("{}", String::from_utf8_lossy(&res.stdout));
+    out.join("replay-c.elf")
+}
+
+/// Runs `elf` in QEMU; (exit status, stdout).
+fn run_qemu(elf: &Path) -> (i32, String) {
+    let spawned = Command::new("qemu-system-arm")
+        .args([
+            "-machine",
+            "mps2-an386",
+            "-cpu",
+            "cortex-m4",
+            "-icount",
+            "shift=0",
+        ])
+        .args([
+            "-semihosting-config",
+            "enable=on,target=native",
+            "-nographic",
+        ])
+        .args(["-monitor", "none", "-serial", "none", "-kernel"])
+        .arg(elf)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn();
+    let mut child = match spawned {
+        Ok(c) => c,
+        Err(e) => panic!(
+            "cannot run qemu-system-arm ({e}); install it: `bash scripts/setup.sh` or \
+             `apt-get install -y qemu-system-arm`. This test must not be skipped."
+        ),
+    };
+    let start = Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("wait for qemu") {
+            break status;
+        }
+        if start.elapsed() > QEMU_TIMEOUT {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("qemu-system-arm ran longer than {QEMU_TIMEOUT:?}: firmware hung");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let out = child.wait_with_output().expect("qemu output");
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let code = status
+        .code()
+        .unwrap_or_else(|| panic!("qemu killed by a signal:\n{stdout}\n{stderr}"));
+    (code, stdout)
+}
+
+fn host_lines(bytes: &[u8]) -> Vec<String> {
+    struct NoDelay;
+    impl embedded_hal::delay::DelayNs for NoDelay {
+        fn delay_ns(&mut self, _ns: u32) {}
+    }
+    let mut lines = Vec::new();
+    replay_image::<64>(Image::parse(bytes).expect("image"), NoDelay, |o| {
+        lines.push(o.to_string())
+    })
+    .expect("host loop");
+    lines
+}
+
+fn image_bytes(frames: u32) -> Vec<u8> {
+    writer::image_bytes(
+        &synthetic::mcu_calibration(),
+        &synthetic::mcu_frames(frames),
+    )
+    .expect("make image")
+}
+
+fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).unwrap();
+    p
+}
+
+fn hashes_equal_host(dsp: bool) {
+    let dir = tempfile::tempdir().unwrap();
+    let bytes = image_bytes(5);
+    let image = write(dir.path(), "good.dri", &bytes);
+    let blob = write(dir.path(), "model.dblob", MCU_BLOB);
+    let host = host_lines(&bytes);
+    assert_eq!(host.len(), 5);
+    let elf = build_firmware(&cortex_m_lib(dsp), &image, &blob, &dir.path().join("out"));
+    let (code, stdout) = run_qemu(&elf);
+    println!("{stdout}");
+    assert_eq!(code, 0, "C firmware exit status; output:\n{stdout}");
+    let firmware: Vec<String> = stdout
+        .lines()
+        .filter(|l| l.starts_with("frame "))
+        .map(str::to_owned)
+        .collect();
+    assert_eq!(firmware, host, "C firmware (arm-dsp {dsp}) vs Rust host");
+    for needle in [
+        "replay image: 5 frames",
+        "engine: blob",
+        "flash: ",
+        "TEST OK",
+    ] {
+        assert!(stdout.contains(needle), "missing {needle:?}:\n{stdout}");
+    }
+    assert!(!stdout.contains("PANIC"), "{stdout}");
+}
+
+#[test]
+fn c_firmware_hashes_equal_host_with_dsp_kernels() {
+    hashes_equal_host(true);
+}
+
+#[test]
+fn c_firmware_hashes_equal_host_with_portable_kernels() {
+    hashes_equal_host(false);
+}
+
+#[test]
+fn c_firmware_rejects_bad_images_with_the_rust_codes() {
+    let dir = tempfile::tempdir().unwrap();
+    let blob = write(dir.path(), "model.dblob", MCU_BLOB);
+    let good = image_bytes(1);
+    let mut crc = good.clone();
+    let last = crc.len() - 1;
+    crc[last] ^= 0xff;
+    let mut magic = good.clone();
+    magic[0] = b'X';
+    let mut extra = good.clone();
+    extra.push(0);
+    for (name, bytes, code) in [
+        ("crc.dri", crc, 7),
+        ("magic.dri", magic, 2),
+        ("extra.dri", extra, 6),
+    ] {
+        let image = write(dir.path(), name, &bytes);
+        let expected = Image::parse(&bytes).expect_err(name).exit_code();
+        assert_eq!(i32::from(expected), code, "{name}: the Rust parser's code");
+        let elf = build_firmware(
+            &cortex_m_lib(true),
+            &image,
+            &blob,
+            &dir.path().join(format!("out-{name}")),
+        );
+        let (status, stdout) = run_qemu(&elf);
+        assert_eq!(status, code, "{name}: exit status; output:\n{stdout}");
+        assert!(
+            stdout.contains(&format!("ERROR {code}: ")),
+            "{name}:\n{stdout}"
+        );
+        assert!(
+            !stdout.contains("TEST OK") && !stdout.contains("PANIC"),
+            "{stdout}"
+        );
+    }
+}

@@ -1,0 +1,69 @@
+/* startup.c: the Cortex-M4F vector table and reset handler of the C firmware, and the
+ * semihosting exit. Not C99-pure (GCC attributes and inline asm): firmware glue. */
+#include <stdint.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "semihost.h"
+
+extern uint32_t __stack_top, __data_start__, __data_end__, __data_load__, __bss_start__,
+    __bss_end__;
+extern void initialise_monitor_handles(void);
+int main(void);
+
+/* Semihosting SYS_EXIT_EXTENDED (0x20) with {ADP_Stopped_ApplicationExit, code}: QEMU exits
+ * with `code` (plain SYS_EXIT only tells success from failure on 32-bit Arm). */
+static void semihost_call(uint32_t op, uint32_t *block) {
+    register uint32_t r0 __asm__("r0") = op;
+    register uint32_t *r1 __asm__("r1") = block;
+    __asm__ volatile("bkpt 0xab" : "+r"(r0) : "r"(r1) : "memory");
+}
+
+void semihost_exit(int code) {
+    uint32_t block[2] = {0x20026u, (uint32_t)code};
+    fflush(stdout);
+    semihost_call(0x20u, block);
+    for (;;) {
+        __asm__ volatile("bkpt 0");
+    }
+}
+
+/* Faults (a panic in the no_std library executes `udf`, which lands here): exit 101 like the
+ * Rust firmware's panic. */
+void HardFault_Handler(void) {
+    printf("PANIC: HardFault\n");
+    semihost_exit(101);
+}
+
+void Default_Handler(void) {
+    printf("PANIC: unexpected exception\n");
+    semihost_exit(101);
+}
+
+void Reset_Handler(void) {
+    volatile uint32_t *cpacr = (volatile uint32_t *)0xE000ED88u;
+    memcpy(&__data_start__, &__data_load__,
+           (size_t)((char *)&__data_end__ - (char *)&__data_start__));
+    memset(&__bss_start__, 0, (size_t)((char *)&__bss_end__ - (char *)&__bss_start__));
+    /* CP10/CP11 full access: the library and this code are built for the hard-float ABI. */
+    *cpacr |= 0xFu << 20;
+    __asm__ volatile("dsb\n isb" ::: "memory");
+    initialise_monitor_handles();
+    semihost_exit(main());
+}
+
+__attribute__((section(".vectors"), used)) void (*const vectors[16])(void) = {
+    (void (*)(void))(&__stack_top),
+    Reset_Handler,
+    Default_Handler,   /* NMI */
+    HardFault_Handler, /* HardFault */
+    HardFault_Handler, /* MemManage */
+    HardFault_Handler, /* BusFault */
+    HardFault_Handler, /* UsageFault */
+    0, 0, 0, 0,
+    Default_Handler, /* SVCall */
+    Default_Handler, /* DebugMon */
+    0,
+    Default_Handler, /* PendSV */
+    Default_Handler, /* SysTick */
+};
