@@ -3,7 +3,8 @@
 #   x86_64-unknown-linux-gnu, aarch64-unknown-linux-gnu   (std: panics caught at the boundary)
 #   thumbv7em-none-eabihf, thumbv7em-none-eabihf + arm-dsp (no_std, no alloc)
 # Each lands in target/ffi-libs/<name>/libdepthor_ffi.a (name: the target, "-dsp" for arm-dsp).
-# Sizes: the archive as built (release profile, debug = 1), the archive with debug info
+# Profiles: `release` for Linux, `ffi-mcu` (release + fat LTO, root Cargo.toml) for Cortex-M.
+# Sizes: the archive as built (debug = 1 from `release`), the archive with debug info
 # stripped (llvm-strip --strip-debug, when present), and text/data summed over its members.
 # Usage: bash ffi/build-libs.sh [name…]     (idempotent; needs the rustup targets, see
 #        scripts/setup.sh; no C toolchain: a staticlib needs no linker)
@@ -14,14 +15,15 @@ all=(x86_64-unknown-linux-gnu aarch64-unknown-linux-gnu thumbv7em-none-eabihf th
 names=("${@:-${all[@]}}")
 
 build() {
-  local name=$1 target=${1%-dsp} flags=()
+  local name=$1 target=${1%-dsp} profile=release flags=()
   case $name in
-    thumbv7em-*-dsp) flags=(--no-default-features --features arm-dsp) ;;
-    thumbv7em-*) flags=(--no-default-features) ;;
+    thumbv7em-*-dsp) profile=ffi-mcu flags=(--no-default-features --features arm-dsp) ;;
+    thumbv7em-*) profile=ffi-mcu flags=(--no-default-features) ;;
   esac
-  nice cargo rustc -q -p depthor-ffi --release --target "$target" --crate-type staticlib "${flags[@]}"
+  nice cargo rustc -q -p depthor-ffi --profile "$profile" --target "$target" --crate-type staticlib \
+    "${flags[@]}"
   mkdir -p "$out/$name"
-  cp "target/$target/release/libdepthor_ffi.a" "$out/$name/libdepthor_ffi.a"
+  cp "target/$target/$profile/libdepthor_ffi.a" "$out/$name/libdepthor_ffi.a"
 }
 
 # text+data of every member (GNU size reads any little-endian ELF through elf32/64-little).

@@ -64,8 +64,15 @@ extern "C" {
 #define DEPTHOR_DISTANCE_Z 0u
 #define DEPTHOR_DISTANCE_RADIAL 1u
 
-/* Bytes of depthor_engine_storage: at least depthor_engine_size() on every target. */
-#define DEPTHOR_ENGINE_STORAGE_BYTES 53248u
+/* Bytes of depthor_engine_storage: at least depthor_engine_size() on every target of its
+ * pointer width (the engine object is 32 848 B on thumbv7em, 49 176 B on x86-64). */
+#define DEPTHOR_ENGINE_STORAGE_BYTES_32 36864u
+#define DEPTHOR_ENGINE_STORAGE_BYTES_64 53248u
+#if UINTPTR_MAX <= 0xffffffffu
+#define DEPTHOR_ENGINE_STORAGE_BYTES DEPTHOR_ENGINE_STORAGE_BYTES_32
+#else
+#define DEPTHOR_ENGINE_STORAGE_BYTES DEPTHOR_ENGINE_STORAGE_BYTES_64
+#endif
 
 /* The engine object: opaque, in caller memory. */
 typedef struct depthor_engine depthor_engine;

@@ -92,9 +92,18 @@ pub const DEPTHOR_DISTANCE_Z: u32 = 0;
 /// `depthor_calibration.distance_kind`: distances along each zone's ray.
 pub const DEPTHOR_DISTANCE_RADIAL: u32 = 1;
 
-/// Bytes of `depthor_engine_storage`, the header's statically sized engine memory: at least
-/// `depthor_engine_size()` on every target (checked at compile time below).
-pub const DEPTHOR_ENGINE_STORAGE_BYTES: usize = 53248;
+/// Bytes of `depthor_engine_storage` on 32-bit targets (Cortex-M: the engine object is
+/// 32 848 B on thumbv7em).
+pub const DEPTHOR_ENGINE_STORAGE_BYTES_32: usize = 36864;
+/// Bytes of `depthor_engine_storage` on 64-bit targets (49 176 B on x86-64).
+pub const DEPTHOR_ENGINE_STORAGE_BYTES_64: usize = 53248;
+/// Bytes of `depthor_engine_storage`, the header's statically sized engine memory, on this
+/// target: at least `depthor_engine_size()` (checked at compile time below).
+pub const DEPTHOR_ENGINE_STORAGE_BYTES: usize = if cfg!(target_pointer_width = "32") {
+    DEPTHOR_ENGINE_STORAGE_BYTES_32
+} else {
+    DEPTHOR_ENGINE_STORAGE_BYTES_64
+};
 
 /// Written into [`depthor_engine::magic`] by a successful init ("DPTE").
 const MAGIC: u32 = 0x4450_5445;

@@ -27,8 +27,9 @@ fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
-/// Builds the Cortex-M staticlib once per feature set, in its own target dir (the outer
-/// `cargo test` holds the workspace's), and returns its path.
+/// Builds the Cortex-M staticlib (profile `ffi-mcu`, as `ffi/build-libs.sh`) once per feature
+/// set, in its own target dir (the outer `cargo test` holds the workspace's), and returns its
+/// path.
 fn cortex_m_lib(dsp: bool) -> PathBuf {
     static LOCK: Mutex<()> = Mutex::new(());
     static LIBS: [OnceLock<PathBuf>; 2] = [OnceLock::new(), OnceLock::new()];
@@ -63,7 +64,7 @@ fn cortex_m_lib(dsp: bool) -> PathBuf {
                  `bash scripts/setup.sh` or `rustup target add {TARGET}`):\n{}",
                 String::from_utf8_lossy(&out.stderr)
             );
-            let built = target_dir.join(TARGET).join("release/libdepthor_ffi.a");
+            let built = target_dir.join(TARGET).join("ffi-mcu/libdepthor_ffi.a");
             let keep = target_dir.join(format!(
                 "libdepthor_ffi-{}.a",
                 if dsp { "dsp" } else { "plain" }
