@@ -44,7 +44,8 @@ fn cortex_m_lib(dsp: bool) -> PathBuf {
                     "rustc",
                     "-p",
                     "depthor-ffi",
-                    "--release",
+                    "--profile",
+                    "ffi-mcu",
                     "--target",
                     TARGET,
                 ])
