@@ -282,7 +282,8 @@ pub extern "C" fn depthor_engine_align() -> usize {
 }
 
 /// Arena bytes `blob` needs at `height × width` (`0, 0`: the blob's native size), written to
-/// `*out_bytes` on success. Parses and plans; nothing runs. Uses ≈ 25 KiB of stack.
+/// `*out_bytes` on success. Parses and plans; nothing runs. Stack: ≈ 90 KB on a Cortex-M4F
+/// for `mcu_lite` (docs/ffi.md).
 ///
 /// # Safety
 /// `blob` must point to `blob_len` readable bytes and `out_bytes` to a writable `size_t`
@@ -330,8 +331,8 @@ pub unsafe extern "C" fn depthor_arena_bytes(
 
 /// Prepares an engine in the caller's `engine` memory for `height × width` (`0, 0`: the
 /// blob's native size): validates the blob, plans the arena and caches constants in it.
-/// The engine borrows `blob` and `arena` until it is no longer used. Uses ≈ 25 KiB of stack
-/// for the planner plus a temporary engine object (`depthor_engine_size()` bytes).
+/// The engine borrows `blob` and `arena` until it is no longer used. Stack: the planner's
+/// tables plus a temporary engine object, ≈ 148 KB on a Cortex-M4F for `mcu_lite`.
 ///
 /// # Safety
 /// `engine` must point to `depthor_engine_size()` writable bytes, `blob` to `blob_len`
@@ -374,14 +375,18 @@ pub unsafe extern "C" fn depthor_engine_init(
         // SAFETY: as above for `arena`, which overlaps neither the blob nor the engine
         // memory (checked), so this is the only reference to those bytes.
         let arena_s: &'static mut [u8] = unsafe { slice::from_raw_parts_mut(arena, arena_len) };
-        let prepared = match (height, width) {
-            (0, 0) => Engine::new(blob_s, arena_s),
-            (h, w) => match input_size(h, w, || Err(DEPTHOR_E_SIZE)) {
-                Ok((h, w)) => Engine::with_size(blob_s, arena_s, h, w),
-                Err(code) => return code,
-            },
+        let size = input_size(height, width, || {
+            parse(blob_s)
+                .map(|g| (g.height, g.width))
+                .map_err(|e| blob_status(&e))
+        });
+        let (h, w) = match size {
+            Ok(hw) => hw,
+            Err(code) => return code,
         };
-        match prepared {
+        // One call site (`Engine::new` is `with_size` at the native size): one engine
+        // temporary on the stack.
+        match Engine::with_size(blob_s, arena_s, h, w) {
             Ok(prepared) => {
                 // SAFETY: `engine` is valid for writes of a whole `depthor_engine` (caller's
                 // contract), aligned, and overlaps neither borrowed buffer (checked).

@@ -12,6 +12,7 @@
 
 #include "depthor.h"
 #include "replay.h"
+#include "semihost.h"
 
 extern const uint8_t depthor_model_blob[], depthor_model_blob_end[];
 extern const uint8_t replay_image_bytes[], replay_image_bytes_end[];
@@ -39,6 +40,7 @@ int main(void) {
     size_t need = 0;
     char line[160];
     uint32_t f;
+    unsigned long stack_plan, stack_init;
     int32_t st;
     int code;
 
@@ -54,8 +56,11 @@ int main(void) {
         printf("ERROR 16: engine memory too small\n");
         return 16;
     }
+    stack_paint();
     st = depthor_arena_bytes(depthor_model_blob, blob_len, img.height, img.width, &need);
+    stack_plan = stack_high_water();
     if (st == DEPTHOR_OK) {
+        stack_paint();
         st = depthor_engine_init(engine, depthor_model_blob, blob_len, arena.bytes,
                                  sizeof arena.bytes, img.height, img.width);
     }
@@ -64,9 +69,11 @@ int main(void) {
                (unsigned long)need, (unsigned long)sizeof arena.bytes);
         return 16;
     }
+    stack_init = stack_high_water();
     printf("engine: blob %lu B, arena %lu B of %lu B reserved, engine object %lu B\n",
            (unsigned long)blob_len, (unsigned long)need, (unsigned long)sizeof arena.bytes,
            (unsigned long)depthor_engine_size());
+    stack_paint();
 
     ws.zones_mm = zones_mm;
     ws.zones_cap = MAX_ZONES;
@@ -81,6 +88,9 @@ int main(void) {
         printf("%s\n", line);
     }
     printf("frames %lu\n", (unsigned long)img.frames);
+    printf("stack high-water: depthor_arena_bytes %lu B, depthor_engine_init %lu B, frames "
+           "(projection + depthor_engine_run) %lu B\n",
+           stack_plan, stack_init, stack_high_water());
     printf("flash: %lu B (firmware + model blob %lu B + replay image %lu B)\n",
            (unsigned long)(uintptr_t)__flash_used, (unsigned long)blob_len,
            (unsigned long)image_len);

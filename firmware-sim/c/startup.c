@@ -7,7 +7,7 @@
 #include "semihost.h"
 
 extern uint32_t __stack_top, __data_start__, __data_end__, __data_load__, __bss_start__,
-    __bss_end__;
+    __bss_end__, end;
 extern void initialise_monitor_handles(void);
 int main(void);
 
@@ -26,6 +26,30 @@ void semihost_exit(int code) {
     for (;;) {
         __asm__ volatile("bkpt 0");
     }
+}
+
+/* Stack painting (as firmware-sim/src/memory.rs): the words between the heap's first 64 KiB
+ * (newlib's stdio buffers) and 64 bytes below the stack pointer get STACK_PAINT; the high-water
+ * mark is the lowest word no longer holding it (a lower bound, exact to the first overwritten
+ * word). */
+#define STACK_PAINT 0xDEADC0DEu
+#define HEAP_RESERVE (64u * 1024u)
+
+static uint32_t *paint_bottom(void) {
+    return (uint32_t *)((char *)&end + HEAP_RESERVE);
+}
+
+void stack_paint(void) {
+    uint32_t *sp;
+    volatile uint32_t *p;
+    __asm__ volatile("mov %0, sp" : "=r"(sp));
+    for (p = paint_bottom(); p + 16 < sp; p++) *p = STACK_PAINT;
+}
+
+unsigned long stack_high_water(void) {
+    volatile uint32_t *p = paint_bottom();
+    while (p < &__stack_top && *p == STACK_PAINT) p++;
+    return (unsigned long)((char *)&__stack_top - (char *)p);
 }
 
 /* Faults (a panic in the no_std library executes `udf`, which lands here): exit 101 like the
