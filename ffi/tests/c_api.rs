@@ -7,9 +7,12 @@
 //!   the structs' layout equal to Rust's `offset_of!`, and runs a replay image's frames with
 //!   hash lines equal to the Rust host loop (`depthor_replay::host`);
 //! - the same program under `-fsanitize=address,undefined` runs clean (exit 0, no report);
-//! - the C++ host example `ffi/examples/host.cpp` prints the host's lines.
+//! - the C++ host example `ffi/examples/host.cpp` prints the host's lines;
+//! - on aarch64 Linux under `qemu-aarch64` (cross gcc/g++), the C program and the C++ example
+//!   print the host's lines too.
 //!
-//! Without `gcc` (or `g++` for the C++ checks) the tests print `SKIPPED: …` and pass.
+//! Without `gcc` (or `g++` for the C++ checks, or the aarch64 cross tools and `qemu-aarch64`
+//! for the aarch64 test) the tests concerned print `SKIPPED: …` and pass.
 //! Run: `cargo test -p depthor-ffi --test c_api -- --nocapture`.
 
 use std::mem::offset_of;
@@ -358,4 +361,103 @@ fn cpp_host_example_prints_the_host_lines() {
         host,
         "C++ example vs Rust host"
     );
+}
+
+/// The aarch64 static library (nested cargo, own target dir: the outer `cargo test` holds
+/// `target/`); a staticlib needs no linker, so only the Rust target is required.
+fn aarch64_staticlib() -> PathBuf {
+    let target_dir = repo().join("target/ffi-aarch64");
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    run_ok(
+        Command::new(cargo)
+            .current_dir(repo())
+            .args(["rustc", "-p", "depthor-ffi", "--release"])
+            .args([
+                "--target",
+                "aarch64-unknown-linux-gnu",
+                "--crate-type",
+                "staticlib",
+            ])
+            .arg("--target-dir")
+            .arg(&target_dir)
+            .env_remove("RUSTFLAGS")
+            .env_remove("CARGO_ENCODED_RUSTFLAGS")
+            .env_remove("CARGO_BUILD_TARGET"),
+        "cargo rustc depthor-ffi for aarch64 (rustup target add aarch64-unknown-linux-gnu)",
+    );
+    target_dir.join("aarch64-unknown-linux-gnu/release/libdepthor_ffi.a")
+}
+
+/// The C test program and the C++ example on aarch64 Linux under `qemu-aarch64` user mode:
+/// every check passes and both print the Rust host's lines. Needs `aarch64-linux-gnu-gcc`,
+/// `aarch64-linux-gnu-g++` and `qemu-aarch64` (`.ci/run` installs them); prints `SKIPPED: …`
+/// without them.
+#[test]
+fn aarch64_c_program_and_cpp_example_under_qemu_user() {
+    if !have("aarch64-linux-gnu-gcc") || !have("aarch64-linux-gnu-g++") || !have("qemu-aarch64") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (blob, image, host) = inputs(dir.path());
+    let lib = aarch64_staticlib();
+    let r = repo();
+    let inc = |c: &mut Command| {
+        c.arg("-I")
+            .arg(r.join("ffi/include"))
+            .arg("-I")
+            .arg(r.join("firmware-sim/c"));
+    };
+    let obj = dir.path().join("replay.o");
+    let mut cc = Command::new("aarch64-linux-gnu-gcc");
+    cc.args(C_FLAGS);
+    inc(&mut cc);
+    run_ok(
+        cc.arg("-c")
+            .arg(r.join("firmware-sim/c/replay.c"))
+            .arg("-o")
+            .arg(&obj),
+        "aarch64 gcc replay.c",
+    );
+    let c_exe = dir.path().join("test_api_a64");
+    let mut cc = Command::new("aarch64-linux-gnu-gcc");
+    cc.args(C_FLAGS);
+    inc(&mut cc);
+    run_ok(
+        cc.arg(r.join("ffi/c/test_api.c"))
+            .arg(&obj)
+            .arg(&lib)
+            .args(NATIVE_LIBS)
+            .arg("-o")
+            .arg(&c_exe),
+        "aarch64 gcc test_api.c",
+    );
+    let cpp_exe = dir.path().join("host_cpp_a64");
+    let mut cxx = Command::new("aarch64-linux-gnu-g++");
+    cxx.args(CXX_FLAGS);
+    inc(&mut cxx);
+    run_ok(
+        cxx.arg(r.join("ffi/examples/host.cpp"))
+            .arg(&obj)
+            .arg(&lib)
+            .args(NATIVE_LIBS)
+            .arg("-o")
+            .arg(&cpp_exe),
+        "aarch64 g++ host.cpp",
+    );
+    for (exe, what) in [(&c_exe, "test_api"), (&cpp_exe, "host.cpp")] {
+        let out = run_ok(
+            Command::new("qemu-aarch64")
+                .args(["-L", "/usr/aarch64-linux-gnu"])
+                .arg(exe)
+                .arg(&blob)
+                .arg(&image),
+            &format!("qemu-aarch64 {what}"),
+        );
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert_eq!(frame_lines(&stdout), host, "aarch64 {what} vs Rust host");
+        if what == "test_api" {
+            assert!(stdout.contains("errors 0"), "{stdout}");
+            assert!(!stdout.contains("FAIL"), "{stdout}");
+        }
+    }
 }
