@@ -324,6 +324,8 @@ int main(int argc, char **argv) {
     ws.zones_mm = (float *)malloc(ws.zones_cap * sizeof(float));
     ws.depth_cap = (size_t)img.height * img.width;
     ws.depth_m = (float *)malloc(ws.depth_cap * sizeof(float));
+    ws.mark = NULL;
+    ws.mark_ctx = NULL;
     if (st == DEPTHOR_OK) {
         st = depthor_engine_init(eng, blob, blob_len, arena, need, img.height, img.width);
     }

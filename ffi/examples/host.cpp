@@ -69,7 +69,8 @@ int main(int argc, char **argv) {
         Engine engine(blob, img.height, img.width);
         std::vector<float> zones(std::size_t(img.rows) * img.cols);
         std::vector<float> depth(std::size_t(img.height) * img.width);
-        const replay_workspace ws{zones.data(), zones.size(), depth.data(), depth.size()};
+        const replay_workspace ws{zones.data(), zones.size(), depth.data(), depth.size(),
+                                  nullptr, nullptr};
         char line[160];
         for (std::uint32_t f = 0; f < img.frames; ++f) {
             std::int32_t status = DEPTHOR_OK;

@@ -200,6 +200,8 @@ fn hashes_equal_host(dsp: bool) {
     for needle in [
         "replay image: 5 frames",
         "engine: blob",
+        "icount frame 4 projection=",
+        "stack high-water: ",
         "flash: ",
         "TEST OK",
     ] {

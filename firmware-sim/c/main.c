@@ -31,6 +31,14 @@ static union {
 static float zones_mm[MAX_ZONES];
 static float depth_m[MAX_PIXELS];
 
+/* Instruction count at each stage mark of the current frame. */
+static unsigned long long stage_at[3];
+
+static void mark(void *ctx, int stage) {
+    (void)ctx;
+    if (stage >= 0 && stage < 3) stage_at[stage] = icount_instructions();
+}
+
 int main(void) {
     const size_t blob_len = (size_t)(depthor_model_blob_end - depthor_model_blob);
     const size_t image_len = (size_t)(replay_image_bytes_end - replay_image_bytes);
@@ -79,6 +87,9 @@ int main(void) {
     ws.zones_cap = MAX_ZONES;
     ws.depth_m = depth_m;
     ws.depth_cap = MAX_PIXELS;
+    ws.mark = mark;
+    ws.mark_ctx = NULL;
+    icount_start();
     for (f = 0; f < img.frames; f++) {
         code = replay_process(&img, f, engine, &ws, line, sizeof line, &st);
         if (code != 0) {
@@ -86,6 +97,9 @@ int main(void) {
             return code;
         }
         printf("%s\n", line);
+        printf("icount frame %lu projection=%lu engine=%lu\n", (unsigned long)f,
+               (unsigned long)(stage_at[1] - stage_at[0]),
+               (unsigned long)(stage_at[2] - stage_at[1]));
     }
     printf("frames %lu\n", (unsigned long)img.frames);
     printf("stack high-water: depthor_arena_bytes %lu B, depthor_engine_init %lu B, frames "

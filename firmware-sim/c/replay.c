@@ -141,6 +141,7 @@ int replay_process(const replay_image *img, uint32_t index, depthor_engine *engi
         long mm = (long)u16_at(record, 4 + 2 * z);
         ws->zones_mm[z] = (float)(mm >= 0x8000 ? mm - 0x10000 : mm); /* i16, little endian */
     }
+    if (ws->mark) ws->mark(ws->mark_ctx, REPLAY_STAGE_PROJECTION);
     st = record + 4 + 2 * zones;
     rgb = record + img->rgb_offset;
     s = depthor_project_to_sparse(&img->cal, ws->zones_mm, st, zones, ws->depth_m, pixels,
@@ -150,11 +151,13 @@ int replay_process(const replay_image *img, uint32_t index, depthor_engine *engi
         return 15;
     }
     if (stats.projected == 0) return 17;
+    if (ws->mark) ws->mark(ws->mark_ctx, REPLAY_STAGE_ENGINE);
     s = depthor_engine_run(engine, rgb, pixels * 3, ws->depth_m, pixels, ws->depth_m, pixels);
     if (s != DEPTHOR_OK) {
         *status = s;
         return 16;
     }
+    if (ws->mark) ws->mark(ws->mark_ctx, REPLAY_STAGE_DONE);
     hash = replay_fnv1a64_f32(ws->depth_m, pixels);
     /* Two 32-bit halves: newlib's inttypes.h lacks PRIx64 under -std=c99 on arm-none-eabi. */
     snprintf(line, line_len,

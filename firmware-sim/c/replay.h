@@ -45,7 +45,14 @@ typedef struct replay_workspace {
     size_t zones_cap;
     float *depth_m;
     size_t depth_cap;
+    /* Optional (may be NULL): called with REPLAY_STAGE_* as each stage of a frame begins. */
+    void (*mark)(void *ctx, int stage);
+    void *mark_ctx;
 } replay_workspace;
+
+#define REPLAY_STAGE_PROJECTION 0
+#define REPLAY_STAGE_ENGINE 1
+#define REPLAY_STAGE_DONE 2
 
 /* Runs frame `index` through `engine` (prepared for the image's size) and writes the line
  * "frame I depth_fnv1a64=H points=P skipped=S collisions=C" into `line`. 0, or the Rust

@@ -52,6 +52,48 @@ unsigned long stack_high_water(void) {
     return (unsigned long)((char *)&__stack_top - (char *)p);
 }
 
+/* Instruction counts from SysTick under QEMU's -icount shift=0 (as firmware-sim/src/cycles.rs):
+ * each instruction advances the virtual clock 1 ns and SysTick, on the 25 MHz core clock,
+ * ticks every 40 ns, so instructions = 40 * ticks (+-40). SysTick runs free with the largest
+ * reload; its exception counts wraps. */
+#define SYST_CSR (*(volatile uint32_t *)0xE000E010u)
+#define SYST_RVR (*(volatile uint32_t *)0xE000E014u)
+#define SYST_CVR (*(volatile uint32_t *)0xE000E018u)
+#define SCB_ICSR (*(volatile uint32_t *)0xE000ED04u)
+#define SYST_PERIOD (1ull << 24)
+static volatile uint32_t systick_wraps;
+
+void SysTick_Handler(void) {
+    systick_wraps++;
+}
+
+void icount_start(void) {
+    SYST_CSR = 0;
+    SYST_RVR = (uint32_t)(SYST_PERIOD - 1);
+    SYST_CVR = 0;
+    SYST_CSR = 1u | 4u; /* enable, processor clock */
+    while (SYST_CVR == 0) {
+    }
+    SCB_ICSR = 1u << 25; /* PENDSTCLR */
+    systick_wraps = 0;
+    SYST_CSR = 1u | 2u | 4u; /* and the wrap interrupt */
+}
+
+unsigned long long icount_instructions(void) {
+    for (;;) {
+        uint32_t w0 = systick_wraps;
+        uint32_t c0 = SYST_CVR;
+        uint32_t pending = (SCB_ICSR >> 26) & 1u;
+        uint32_t c1 = SYST_CVR;
+        uint32_t w1 = systick_wraps;
+        if (w0 == w1 && c1 <= c0) {
+            unsigned long long ticks =
+                ((unsigned long long)w0 + pending) * SYST_PERIOD + (SYST_PERIOD - 1 - c0);
+            return ticks * 40u;
+        }
+    }
+}
+
 /* Faults (a panic in the no_std library executes `udf`, which lands here): exit 101 like the
  * Rust firmware's panic. */
 void HardFault_Handler(void) {
@@ -89,5 +131,5 @@ __attribute__((section(".vectors"), used)) void (*const vectors[16])(void) = {
     Default_Handler, /* DebugMon */
     0,
     Default_Handler, /* PendSV */
-    Default_Handler, /* SysTick */
+    SysTick_Handler, /* SysTick */
 };
