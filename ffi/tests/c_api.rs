@@ -461,3 +461,89 @@ fn aarch64_c_program_and_cpp_example_under_qemu_user() {
         }
     }
 }
+
+/// The sanitizer run again with the Rust library itself instrumented by AddressSanitizer
+/// (`-Zsanitizer=address`, nightly only; std stays uninstrumented): every load and store of the
+/// engine into the C program's buffers is checked too. Prints `SKIPPED: …` without a nightly
+/// toolchain (`rustup toolchain install nightly`).
+#[test]
+fn c_program_with_an_asan_instrumented_rust_library() {
+    if !have("gcc") {
+        return;
+    }
+    let nightly = Command::new("cargo")
+        .args(["+nightly", "--version"])
+        .output();
+    if !nightly.is_ok_and(|o| o.status.success()) {
+        println!("SKIPPED: no nightly toolchain (`cargo +nightly`) for -Zsanitizer=address");
+        return;
+    }
+    let target_dir = repo().join("target/ffi-asan");
+    run_ok(
+        Command::new("cargo")
+            .current_dir(repo())
+            .args(["+nightly", "rustc", "-q", "-p", "depthor-ffi", "--release"])
+            .args([
+                "--target",
+                "x86_64-unknown-linux-gnu",
+                "--crate-type",
+                "staticlib",
+            ])
+            .arg("--target-dir")
+            .arg(&target_dir)
+            .env_remove("CARGO_ENCODED_RUSTFLAGS")
+            .env_remove("RUSTUP_TOOLCHAIN")
+            .env_remove("RUSTC")
+            .env_remove("CARGO")
+            .env(
+                "RUSTFLAGS",
+                "-Zsanitizer=address -Cunsafe-allow-abi-mismatch=sanitizer",
+            ),
+        "cargo +nightly rustc with -Zsanitizer=address",
+    );
+    let lib = target_dir.join("x86_64-unknown-linux-gnu/release/libdepthor_ffi.a");
+    let dir = tempfile::tempdir().unwrap();
+    let (blob, image, host) = inputs(dir.path());
+    let exe = dir.path().join("test_api_rust_asan");
+    let r = repo();
+    run_ok(
+        Command::new("gcc")
+            .args(C_FLAGS)
+            .args([
+                "-g",
+                "-fsanitize=address,undefined",
+                "-fno-sanitize-recover=all",
+            ])
+            .arg("-I")
+            .arg(r.join("ffi/include"))
+            .arg("-I")
+            .arg(r.join("firmware-sim/c"))
+            .arg(r.join("ffi/c/test_api.c"))
+            .arg(r.join("firmware-sim/c/replay.c"))
+            .arg(&lib)
+            .args(NATIVE_LIBS)
+            .arg("-o")
+            .arg(&exe),
+        "gcc test_api with the instrumented library",
+    );
+    let out = Command::new(&exe)
+        .arg(&blob)
+        .arg(&image)
+        .env("ASAN_OPTIONS", "detect_leaks=1:exitcode=86")
+        .env("UBSAN_OPTIONS", "print_stacktrace=1:halt_on_error=1")
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(
+        out.status.success(),
+        "exit {}:\n{stdout}\n{stderr}",
+        out.status
+    );
+    assert!(
+        !stderr.contains("Sanitizer") && !stderr.contains("runtime error"),
+        "{stderr}"
+    );
+    assert!(stdout.contains("errors 0"), "{stdout}");
+    assert_eq!(frame_lines(&stdout), host);
+}
