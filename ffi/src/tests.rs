@@ -600,3 +600,30 @@ fn projection_matches_the_core_and_its_error_paths() {
         DEPTHOR_E_LENGTH
     );
 }
+
+#[test]
+fn two_engines_on_two_threads_share_one_blob() {
+    // docs/ffi.md: distinct engines (own memory and arena) may run concurrently on one blob.
+    let need = arena_bytes(BLOB, H as u32, W as u32).unwrap();
+    let (rgb, sparse) = frame(H * W);
+    let results: Vec<Vec<u32>> = std::thread::scope(|s| {
+        let handles: Vec<_> = (0..2)
+            .map(|_| {
+                let (rgb, sparse) = (&rgb, &sparse);
+                s.spawn(move || {
+                    let mut st = storage();
+                    let mem = st.0.as_mut_ptr().cast::<depthor_engine>();
+                    let mut arena = vec![0u8; need];
+                    assert_eq!(init(mem, BLOB, &mut arena, H as u32, W as u32), DEPTHOR_OK);
+                    let mut depth = vec![0f32; H * W];
+                    for _ in 0..3 {
+                        assert_eq!(run(mem, rgb, sparse, &mut depth), DEPTHOR_OK);
+                    }
+                    depth.iter().map(|d| d.to_bits()).collect()
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    assert_eq!(results[0], results[1]);
+}
