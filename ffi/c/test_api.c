@@ -20,6 +20,11 @@
 
 static int failures = 0;
 
+/* A pointer `off` bytes past `p`, made through an integer: converting a misaligned address
+ * from an integer is implementation-defined (C99 6.3.2.3p5), converting a misaligned pointer
+ * would be undefined (p7). The library must refuse it without dereferencing it. */
+#define MISALIGN(p, off) ((void *)((uintptr_t)(const void *)(p) + (off)))
+
 static void check(const char *name, int32_t got, int32_t want) {
     printf("check %s got=%d want=%d%s\n", name, (int)got, (int)want, got == want ? "" : " FAIL");
     if (got != want) failures++;
@@ -170,7 +175,7 @@ static void error_paths(const uint8_t *blob, size_t blob_len, const replay_image
     check("init_null_arena", depthor_engine_init(eng, blob, blob_len, NULL, need, H, W),
           DEPTHOR_E_NULL);
     check("init_misaligned_engine",
-          depthor_engine_init((depthor_engine *)(void *)(mem_bytes + 1), blob, blob_len, arena,
+          depthor_engine_init((depthor_engine *)MISALIGN(mem_bytes, 1), blob, blob_len, arena,
                               need, H, W),
           DEPTHOR_E_ALIGN);
     check("init_arena_too_small", depthor_engine_init(eng, blob, blob_len, arena, need - 16, H, W),
@@ -199,15 +204,15 @@ static void error_paths(const uint8_t *blob, size_t blob_len, const replay_image
     check("run_null_depth", depthor_engine_run(eng, rgb, 3 * n, sparse, n, NULL, n),
           DEPTHOR_E_NULL);
     check("run_misaligned_engine",
-          depthor_engine_run((depthor_engine *)(void *)(mem_bytes + 4), rgb, 3 * n, sparse, n,
+          depthor_engine_run((depthor_engine *)MISALIGN(mem_bytes, 4), rgb, 3 * n, sparse, n,
                              depth, n),
           DEPTHOR_E_ALIGN);
     check("run_misaligned_sparse",
-          depthor_engine_run(eng, rgb, 3 * n, (const float *)(const void *)((const char *)sparse + 1),
+          depthor_engine_run(eng, rgb, 3 * n, (const float *)MISALIGN(sparse, 1),
                              n, depth, n),
           DEPTHOR_E_ALIGN);
     check("run_misaligned_depth",
-          depthor_engine_run(eng, rgb, 3 * n, sparse, n, (float *)(void *)((char *)depth + 2), n),
+          depthor_engine_run(eng, rgb, 3 * n, sparse, n, (float *)MISALIGN(depth, 2), n),
           DEPTHOR_E_ALIGN);
     check("run_short_rgb", depthor_engine_run(eng, rgb, 3 * n - 1, sparse, n, depth, n),
           DEPTHOR_E_LENGTH);
