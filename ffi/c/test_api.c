@@ -20,10 +20,11 @@
 
 static int failures = 0;
 
-/* A pointer `off` bytes past `p`, made through an integer: converting a misaligned address
- * from an integer is implementation-defined (C99 6.3.2.3p5), converting a misaligned pointer
- * would be undefined (p7). The library must refuse it without dereferencing it. */
-#define MISALIGN(p, off) ((void *)((uintptr_t)(const void *)(p) + (off)))
+/* The address `off` bytes past `p` as an integer, cast straight to the pointer type: an
+ * integer-to-pointer conversion of a misaligned address is implementation-defined (C99
+ * 6.3.2.3p5), a pointer-to-pointer one would be undefined (p7). The library must refuse the
+ * pointer without dereferencing it. */
+#define MISALIGN(p, off) ((uintptr_t)(const void *)(p) + (uintptr_t)(off))
 
 static void check(const char *name, int32_t got, int32_t want) {
     printf("check %s got=%d want=%d%s\n", name, (int)got, (int)want, got == want ? "" : " FAIL");
