@@ -21,7 +21,7 @@
  *
  * Stack (Cortex-M4F, the mcu_lite blob at 120x160, measured): depthor_arena_bytes 90 KB,
  * depthor_engine_init 148 KB (planner tables and a temporary engine object), a frame
- * (projection + run) under 20 KB. Prepare once where the stack is deep.
+ * (projection + run) 13 KB. Prepare once where the stack is deep.
  */
 #ifndef DEPTHOR_H
 #define DEPTHOR_H
@@ -130,8 +130,10 @@ int32_t depthor_arena_bytes(const uint8_t *blob, size_t blob_len, uint32_t heigh
                             uint32_t width, size_t *out_bytes);
 
 /* Prepares an engine in `engine` (depthor_engine_size() bytes, depthor_engine_align()
- * aligned) for height x width (0, 0: the blob's native size). `blob` and `arena` must stay
- * valid while the engine is used; the engine memory, arena and blob must not overlap.
+ * aligned) for height x width (0, 0: the blob's native size), with the fastest plan that fits
+ * arena_len (at the depthor_arena_bytes() minimum the smallest; a larger arena may buy a less
+ * fused, faster plan; the output bits are the same). `blob` and `arena` must stay valid while
+ * the engine is used; the engine memory, arena and blob must not overlap.
  * Calling it again on the same memory re-initialises it (nothing to release). */
 int32_t depthor_engine_init(depthor_engine *engine, const uint8_t *blob, size_t blob_len,
                             uint8_t *arena, size_t arena_len, uint32_t height, uint32_t width);

@@ -34,7 +34,7 @@ use depthor_core::blob::{parse, BlobError};
 use depthor_core::calibration::{
     Calibration, CameraIntrinsics, DistanceKind, DtofGeometry, Extrinsics,
 };
-use depthor_core::engine::{required_arena_bytes, Engine, Error};
+use depthor_core::engine::{required_arena_bytes, Engine, Error, Memory};
 use depthor_core::hal::ZoneView;
 use depthor_core::projection::{project_to_sparse, ProjectionError};
 
@@ -330,7 +330,10 @@ pub unsafe extern "C" fn depthor_arena_bytes(
 }
 
 /// Prepares an engine in the caller's `engine` memory for `height × width` (`0, 0`: the
-/// blob's native size): validates the blob, plans the arena and caches constants in it.
+/// blob's native size): validates the blob, plans the arena and caches constants in it. The
+/// plan is the fastest that fits `arena_len` (`Memory::Budget`): at the
+/// `depthor_arena_bytes()` minimum the smallest, with more arena possibly a less fused one;
+/// the output bits are the same.
 /// The engine borrows `blob` and `arena` until it is no longer used. Stack: the planner's
 /// tables plus a temporary engine object, ≈ 148 KB on a Cortex-M4F for `mcu_lite`.
 ///
@@ -384,9 +387,11 @@ pub unsafe extern "C" fn depthor_engine_init(
             Ok(hw) => hw,
             Err(code) => return code,
         };
-        // One call site (`Engine::new` is `with_size` at the native size): one engine
-        // temporary on the stack.
-        match Engine::with_size(blob_s, arena_s, h, w) {
+        // The fastest plan that fits the arena the caller gave (`Memory::Budget`): with the
+        // `depthor_arena_bytes()` minimum that is the smallest plan, the least fused where
+        // plans tie; a larger arena may buy a less fused, faster one. The bits are the same.
+        // One call site: one engine temporary on the stack.
+        match Engine::with_memory(blob_s, arena_s, h, w, Memory::Budget(arena_len)) {
             Ok(prepared) => {
                 // SAFETY: `engine` is valid for writes of a whole `depthor_engine` (caller's
                 // contract), aligned, and overlaps neither borrowed buffer (checked).

@@ -191,6 +191,15 @@ fn run_is_bit_exact_with_the_core_engine_and_in_place() {
     assert_eq!(code, DEPTHOR_OK);
     assert_eq!(bits(&both), bits(&want));
 
+    // A larger arena may buy a less fused plan (Memory::Budget): the same bits.
+    let mut st2 = storage();
+    let mem2 = st2.0.as_mut_ptr().cast::<depthor_engine>();
+    let mut big = vec![0u8; 4 * need];
+    assert_eq!(init(mem2, BLOB, &mut big, H as u32, W as u32), DEPTHOR_OK);
+    let mut depth2 = vec![0f32; H * W];
+    assert_eq!(run(mem2, &rgb, &sparse, &mut depth2), DEPTHOR_OK);
+    assert_eq!(bits(&depth2), bits(&want));
+
     // A second frame on the same engine is still the core's.
     let (rgb2, sparse2) = frame(H * W);
     let rgb2: Vec<u8> = rgb2.iter().map(|v| v.wrapping_add(40)).collect();

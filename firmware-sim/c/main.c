@@ -78,7 +78,7 @@ int main(void) {
         return 16;
     }
     stack_init = stack_high_water();
-    printf("engine: blob %lu B, arena %lu B of %lu B reserved, engine object %lu B\n",
+    printf("engine: blob %lu B, arena %lu B needed at least, %lu B given, engine object %lu B\n",
            (unsigned long)blob_len, (unsigned long)need, (unsigned long)sizeof arena.bytes,
            (unsigned long)depthor_engine_size());
     stack_paint();
