@@ -636,3 +636,10 @@ fn two_engines_on_two_threads_share_one_blob() {
     });
     assert_eq!(results[0], results[1]);
 }
+
+#[test]
+fn a_panic_inside_an_entry_point_becomes_internal_not_an_unwind() {
+    // The std build's second line of defence (no entry point is known to panic).
+    assert_eq!(guard(|| panic!("planted")), DEPTHOR_E_INTERNAL);
+    assert_eq!(guard(|| DEPTHOR_E_SIZE), DEPTHOR_E_SIZE);
+}
