@@ -676,5 +676,8 @@ pub extern "C" fn depthor_status_message(status: i32) -> *const c_char {
     s.as_ptr()
 }
 
+#[cfg(feature = "panic-probe")]
+pub mod probe;
+
 #[cfg(test)]
 mod tests;

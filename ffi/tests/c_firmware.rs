@@ -9,9 +9,10 @@
 //! with a message saying what to install, like the Rust firmware's.
 //! Run: `cargo test -p depthor-ffi --test c_firmware -- --nocapture`.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
-use std::sync::{Mutex, OnceLock};
+use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use depthor_replay::format::Image;
@@ -28,58 +29,58 @@ fn repo() -> PathBuf {
 }
 
 /// Builds the Cortex-M staticlib (profile `ffi-mcu`, as `ffi/build-libs.sh`) once per feature
-/// set, in its own target dir (the outer `cargo test` holds the workspace's), and returns its
-/// path.
-fn cortex_m_lib(dsp: bool) -> PathBuf {
-    static LOCK: Mutex<()> = Mutex::new(());
-    static LIBS: [OnceLock<PathBuf>; 2] = [OnceLock::new(), OnceLock::new()];
-    let _guard = LOCK.lock().unwrap_or_else(|e| e.into_inner());
-    LIBS[usize::from(dsp)]
-        .get_or_init(|| {
-            let target_dir = repo().join("target/ffi-firmware");
-            let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
-            let mut cmd = Command::new(cargo);
-            cmd.current_dir(repo())
-                .args([
-                    "rustc",
-                    "-p",
-                    "depthor-ffi",
-                    "--profile",
-                    "ffi-mcu",
-                    "--target",
-                    TARGET,
-                ])
-                .args(["--crate-type", "staticlib", "--no-default-features"])
-                .arg("--target-dir")
-                .arg(&target_dir)
-                .env_remove("RUSTFLAGS")
-                .env_remove("CARGO_ENCODED_RUSTFLAGS")
-                .env_remove("CARGO_BUILD_TARGET");
-            if dsp {
-                cmd.args(["--features", "arm-dsp"]);
-            }
-            let out = cmd.output().expect("run cargo");
-            assert!(
-                out.status.success(),
-                "building the {TARGET} staticlib failed (is the Rust target installed? \
-                 `bash scripts/setup.sh` or `rustup target add {TARGET}`):\n{}",
-                String::from_utf8_lossy(&out.stderr)
-            );
-            let built = target_dir.join(TARGET).join("ffi-mcu/libdepthor_ffi.a");
-            let keep = target_dir.join(format!(
-                "libdepthor_ffi-{}.a",
-                if dsp { "dsp" } else { "plain" }
-            ));
-            std::fs::copy(&built, &keep).expect("copy staticlib");
-            keep
-        })
-        .clone()
+/// list (`""`, `"arm-dsp"`, …), in its own target dir (the outer `cargo test` holds the
+/// workspace's), and returns its path.
+fn cortex_m_lib(features: &str) -> PathBuf {
+    static LIBS: Mutex<BTreeMap<String, PathBuf>> = Mutex::new(BTreeMap::new());
+    let mut libs = LIBS.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(p) = libs.get(features) {
+        return p.clone();
+    }
+    let target_dir = repo().join("target/ffi-firmware");
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let mut cmd = Command::new(cargo);
+    cmd.current_dir(repo())
+        .args(["rustc", "-p", "depthor-ffi", "--profile", "ffi-mcu"])
+        .args([
+            "--target",
+            TARGET,
+            "--crate-type",
+            "staticlib",
+            "--no-default-features",
+        ])
+        .arg("--target-dir")
+        .arg(&target_dir)
+        .env_remove("RUSTFLAGS")
+        .env_remove("CARGO_ENCODED_RUSTFLAGS")
+        .env_remove("CARGO_BUILD_TARGET");
+    if !features.is_empty() {
+        cmd.args(["--features", features]);
+    }
+    let out = cmd.output().expect("run cargo");
+    assert!(
+        out.status.success(),
+        "building the {TARGET} staticlib failed (is the Rust target installed? \
+         `bash scripts/setup.sh` or `rustup target add {TARGET}`):\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let built = target_dir.join(TARGET).join("ffi-mcu/libdepthor_ffi.a");
+    let keep = target_dir.join(format!("libdepthor_ffi-[{}].a", features.replace(',', "+")));
+    std::fs::copy(&built, &keep).expect("copy staticlib");
+    libs.insert(features.to_owned(), keep.clone());
+    keep
 }
 
 /// `make -C firmware-sim/c` with `lib` and `image` into `out`; the ELF.
 fn build_firmware(lib: &Path, image: &Path, blob: &Path, out: &Path) -> PathBuf {
+    build_firmware_with(lib, image, blob, out, "")
+}
+
+/// [`build_firmware`] with extra C flags (`CDEFS`).
+fn build_firmware_with(lib: &Path, image: &Path, blob: &Path, out: &Path, cdefs: &str) -> PathBuf {
     let res = Command::new("make")
         .arg("-s")
+        .arg(format!("CDEFS={cdefs}"))
         .arg("-C")
         .arg(repo().join("firmware-sim/c"))
         .arg(format!("LIB={}", lib.display()))
@@ -187,7 +188,12 @@ fn hashes_equal_host(dsp: bool) {
     let blob = write(dir.path(), "model.dblob", MCU_BLOB);
     let host = host_lines(&bytes);
     assert_eq!(host.len(), 5);
-    let elf = build_firmware(&cortex_m_lib(dsp), &image, &blob, &dir.path().join("out"));
+    let elf = build_firmware(
+        &cortex_m_lib(if dsp { "arm-dsp" } else { "" }),
+        &image,
+        &blob,
+        &dir.path().join("out"),
+    );
     let (code, stdout) = run_qemu(&elf);
     println!("{stdout}");
     assert_eq!(code, 0, "C firmware exit status; output:\n{stdout}");
@@ -241,7 +247,7 @@ fn c_firmware_rejects_bad_images_with_the_rust_codes() {
         let expected = Image::parse(&bytes).expect_err(name).exit_code();
         assert_eq!(i32::from(expected), code, "{name}: the Rust parser's code");
         let elf = build_firmware(
-            &cortex_m_lib(true),
+            &cortex_m_lib("arm-dsp"),
             &image,
             &blob,
             &dir.path().join(format!("out-{name}")),
@@ -257,4 +263,29 @@ fn c_firmware_rejects_bad_images_with_the_rust_codes() {
             "{stdout}"
         );
     }
+}
+
+/// A panic inside the no_std library (the test-only `depthor_probe_panic`, feature
+/// `panic-probe`) runs its panic handler's `udf`: the firmware's HardFault handler prints
+/// `PANIC: HardFault` and exits 101; nothing returns into C.
+#[test]
+fn c_firmware_panic_in_the_library_is_a_hardfault() {
+    let dir = tempfile::tempdir().unwrap();
+    let image = write(dir.path(), "good.dri", &image_bytes(1));
+    let blob = write(dir.path(), "model.dblob", MCU_BLOB);
+    let elf = build_firmware_with(
+        &cortex_m_lib("arm-dsp,panic-probe"),
+        &image,
+        &blob,
+        &dir.path().join("out"),
+        "-DDEPTHOR_PANIC_PROBE",
+    );
+    let (code, stdout) = run_qemu(&elf);
+    assert_eq!(code, 101, "exit status; output:\n{stdout}");
+    assert!(
+        stdout.contains("probe: calling depthor_probe_panic"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("PANIC: HardFault"), "{stdout}");
+    assert!(!stdout.contains("probe: returned"), "{stdout}");
 }

@@ -52,6 +52,16 @@ int main(void) {
     int32_t st;
     int code;
 
+#ifdef DEPTHOR_PANIC_PROBE
+    /* Test build (ffi/tests/c_firmware.rs): a panic inside the library must end in the
+     * HardFault handler (exit 101), never return. */
+    {
+        extern int32_t depthor_probe_panic(void);
+        printf("probe: calling depthor_probe_panic\n");
+        printf("probe: returned %d\n", (int)depthor_probe_panic());
+        return 1;
+    }
+#endif
     code = replay_parse(&img, replay_image_bytes, image_len);
     if (code != 0) {
         printf("ERROR %d: replay image refused\n", code);
