@@ -547,3 +547,67 @@ fn c_program_with_an_asan_instrumented_rust_library() {
     assert!(stdout.contains("errors 0"), "{stdout}");
     assert_eq!(frame_lines(&stdout), host);
 }
+
+/// `firmware-sim/c/replay.c` refuses defective replay images with the Rust parser's exit code
+/// (`ImageError::exit_code`): the C firmware and the Rust one agree on bad input too.
+#[test]
+fn c_replay_parser_refuses_what_the_rust_parser_refuses() {
+    if !have("gcc") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (blob, image, _) = inputs(dir.path());
+    let good = std::fs::read(&image).unwrap();
+    let exe = build_test_api(dir.path(), "test_api_images", &[]);
+    let mut cases: Vec<(&str, Vec<u8>)> = Vec::new();
+    let edit = |at: usize, v: u8| {
+        let mut b = good.clone();
+        b[at] = v;
+        b
+    };
+    cases.push(("magic", edit(0, b'X')));
+    cases.push(("version", edit(8, 2)));
+    cases.push(("header length", edit(10, 100)));
+    cases.push(("zero frames", {
+        let mut b = good.clone();
+        b[12..16].copy_from_slice(&0u32.to_le_bytes());
+        b
+    }));
+    cases.push(("zero height", {
+        let mut b = good.clone();
+        b[16..18].copy_from_slice(&0u16.to_le_bytes());
+        b
+    }));
+    cases.push(("zone rows 256", {
+        let mut b = good.clone();
+        b[20..22].copy_from_slice(&256u16.to_le_bytes());
+        b
+    }));
+    cases.push(("distance kind", edit(24, 2)));
+    cases.push(("reserved", edit(26, 1)));
+    cases.push(("truncated", good[..good.len() - 1].to_vec()));
+    cases.push(("short", good[..50].to_vec()));
+    cases.push(("short, not an image", b"not an image at all".to_vec()));
+    cases.push(("trailing", [good.clone(), vec![0]].concat()));
+    let last = good.len() - 1;
+    cases.push(("crc", edit(last, good[last] ^ 0xff)));
+    for (name, bytes) in cases {
+        let want = match Image::parse(&bytes) {
+            Err(e) => i32::from(e.exit_code()),
+            Ok(_) => panic!("{name}: the Rust parser accepts it"),
+        };
+        let path = dir.path().join("bad.dri");
+        std::fs::write(&path, &bytes).unwrap();
+        let out = Command::new(&exe).arg(&blob).arg(&path).output().unwrap();
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert_eq!(
+            out.status.code(),
+            Some(want),
+            "{name}: C vs Rust exit code\n{stdout}"
+        );
+        assert!(
+            stdout.contains(&format!("ERROR {want}: ")),
+            "{name}: {stdout}"
+        );
+    }
+}
