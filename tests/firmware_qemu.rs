@@ -8,12 +8,12 @@
 //! tests FAIL with a message saying what to install.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::sync::Mutex;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-use depthor_replay::format::{Image, HEADER_LEN};
-use depthor_replay::host::replay_image;
+use depthor_replay::format::HEADER_LEN;
+use depthor_replay::host::{host_lines, run_qemu_m4};
 use depthor_replay::{synthetic, writer};
 
 const TARGET: &str = "thumbv7em-none-eabihf";
@@ -67,67 +67,6 @@ fn build_firmware(bin: &str, image: &Path, dir: &Path) -> PathBuf {
     copy
 }
 
-/// Runs `elf` in QEMU; returns (exit status, stdout). Fails when QEMU is missing or hangs.
-fn run_qemu(elf: &Path) -> (i32, String) {
-    let spawned = Command::new("qemu-system-arm")
-        .args([
-            "-machine",
-            "mps2-an386",
-            "-cpu",
-            "cortex-m4",
-            "-icount",
-            "shift=0",
-        ])
-        .args([
-            "-semihosting-config",
-            "enable=on,target=native",
-            "-nographic",
-        ])
-        .args(["-monitor", "none", "-serial", "none", "-kernel"])
-        .arg(elf)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn();
-    let mut child = match spawned {
-        Ok(c) => c,
-        Err(e) => panic!(
-            "cannot run qemu-system-arm ({e}); install it: \
-             `bash scripts/setup.sh` or `apt-get install -y qemu-system-arm` (Debian). This test must not be skipped."
-        ),
-    };
-    let start = Instant::now();
-    let status = loop {
-        if let Some(status) = child.try_wait().expect("wait for qemu") {
-            break status;
-        }
-        if start.elapsed() > QEMU_TIMEOUT {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("qemu-system-arm ran longer than {QEMU_TIMEOUT:?}: firmware hung");
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    let out = child.wait_with_output().expect("collect qemu output");
-    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
-    let code = status
-        .code()
-        .unwrap_or_else(|| panic!("qemu killed by a signal; output:\n{stdout}"));
-    (code, stdout)
-}
-
-/// The host build of the loop (same engine and blob) over `bytes`: the `frame …` lines it prints.
-fn host_lines(bytes: &[u8]) -> Vec<String> {
-    struct NoDelay;
-    impl embedded_hal::delay::DelayNs for NoDelay {
-        fn delay_ns(&mut self, _ns: u32) {}
-    }
-    let image = Image::parse(bytes).expect("host parses the image");
-    let mut lines = Vec::new();
-    replay_image::<64>(image, NoDelay, |out| lines.push(out.to_string())).expect("host loop runs");
-    lines
-}
-
 fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
     let path = dir.join(name);
     std::fs::write(&path, bytes).expect("write image");
@@ -148,7 +87,7 @@ fn qemu_hashes_equal_host_bit_for_bit() {
     assert_eq!(host.len(), frames as usize);
 
     let elf = build_firmware("replay", &image, dir.path());
-    let (code, stdout) = run_qemu(&elf);
+    let (code, stdout) = run_qemu_m4(&elf, QEMU_TIMEOUT);
     assert_eq!(code, 0, "firmware exit status; output:\n{stdout}");
     let firmware: Vec<String> = stdout
         .lines()
@@ -180,7 +119,7 @@ fn assert_firmware_rejects(name: &str, bytes: &[u8], code: u8) {
     let dir = tempfile::tempdir().expect("tempdir");
     let image = write(dir.path(), name, bytes);
     let elf = build_firmware("replay", &image, dir.path());
-    let (status, stdout) = run_qemu(&elf);
+    let (status, stdout) = run_qemu_m4(&elf, QEMU_TIMEOUT);
     assert_eq!(
         status,
         i32::from(code),
@@ -242,7 +181,7 @@ fn qemu_instruction_count_method_checks_out() {
     let dir = tempfile::tempdir().expect("tempdir");
     let image = write(dir.path(), "any.dri", &good_bytes(1));
     let elf = build_firmware("icount_check", &image, dir.path());
-    let (code, stdout) = run_qemu(&elf);
+    let (code, stdout) = run_qemu_m4(&elf, QEMU_TIMEOUT);
     assert_eq!(code, 0, "{stdout}");
     assert!(stdout.contains("TEST OK"), "{stdout}");
 }

@@ -11,12 +11,12 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::sync::Mutex;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use depthor_replay::format::Image;
-use depthor_replay::host::replay_image;
+use depthor_replay::host::{host_lines, run_qemu_m4};
 use depthor_replay::model::MCU_BLOB;
 use depthor_replay::{synthetic, writer};
 
@@ -104,69 +104,6 @@ fn build_firmware_with(lib: &Path, image: &Path, blob: &Path, out: &Path, cdefs:
     out.join("replay-c.elf")
 }
 
-/// Runs `elf` in QEMU; (exit status, stdout).
-fn run_qemu(elf: &Path) -> (i32, String) {
-    let spawned = Command::new("qemu-system-arm")
-        .args([
-            "-machine",
-            "mps2-an386",
-            "-cpu",
-            "cortex-m4",
-            "-icount",
-            "shift=0",
-        ])
-        .args([
-            "-semihosting-config",
-            "enable=on,target=native",
-            "-nographic",
-        ])
-        .args(["-monitor", "none", "-serial", "none", "-kernel"])
-        .arg(elf)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn();
-    let mut child = match spawned {
-        Ok(c) => c,
-        Err(e) => panic!(
-            "cannot run qemu-system-arm ({e}); install it: `bash scripts/setup.sh` or \
-             `apt-get install -y qemu-system-arm`. This test must not be skipped."
-        ),
-    };
-    let start = Instant::now();
-    let status = loop {
-        if let Some(status) = child.try_wait().expect("wait for qemu") {
-            break status;
-        }
-        if start.elapsed() > QEMU_TIMEOUT {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("qemu-system-arm ran longer than {QEMU_TIMEOUT:?}: firmware hung");
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    let out = child.wait_with_output().expect("qemu output");
-    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    let code = status
-        .code()
-        .unwrap_or_else(|| panic!("qemu killed by a signal:\n{stdout}\n{stderr}"));
-    (code, stdout)
-}
-
-fn host_lines(bytes: &[u8]) -> Vec<String> {
-    struct NoDelay;
-    impl embedded_hal::delay::DelayNs for NoDelay {
-        fn delay_ns(&mut self, _ns: u32) {}
-    }
-    let mut lines = Vec::new();
-    replay_image::<64>(Image::parse(bytes).expect("image"), NoDelay, |o| {
-        lines.push(o.to_string())
-    })
-    .expect("host loop");
-    lines
-}
-
 fn image_bytes(frames: u32) -> Vec<u8> {
     writer::image_bytes(
         &synthetic::mcu_calibration(),
@@ -194,7 +131,7 @@ fn hashes_equal_host(dsp: bool) {
         &blob,
         &dir.path().join("out"),
     );
-    let (code, stdout) = run_qemu(&elf);
+    let (code, stdout) = run_qemu_m4(&elf, QEMU_TIMEOUT);
     println!("{stdout}");
     assert_eq!(code, 0, "C firmware exit status; output:\n{stdout}");
     let firmware: Vec<String> = stdout
@@ -252,7 +189,7 @@ fn c_firmware_rejects_bad_images_with_the_rust_codes() {
             &blob,
             &dir.path().join(format!("out-{name}")),
         );
-        let (status, stdout) = run_qemu(&elf);
+        let (status, stdout) = run_qemu_m4(&elf, QEMU_TIMEOUT);
         assert_eq!(status, code, "{name}: exit status; output:\n{stdout}");
         assert!(
             stdout.contains(&format!("ERROR {code}: ")),
@@ -280,7 +217,7 @@ fn c_firmware_panic_in_the_library_is_a_hardfault() {
         &dir.path().join("out"),
         "-DDEPTHOR_PANIC_PROBE",
     );
-    let (code, stdout) = run_qemu(&elf);
+    let (code, stdout) = run_qemu_m4(&elf, QEMU_TIMEOUT);
     assert_eq!(code, 101, "exit status; output:\n{stdout}");
     assert!(
         stdout.contains("probe: calling depthor_probe_panic"),

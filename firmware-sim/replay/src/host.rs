@@ -47,6 +47,70 @@ pub fn replay_image<const N: usize>(
     ReplayLoop::new(image, delay).run_all(&mut engine, &mut ws, emit)
 }
 
+/// The `frame …` lines the host build of the loop prints for the replay image `bytes` (what the
+/// firmware must print bit for bit); panics on an image the host refuses (a test helper).
+pub fn host_lines(bytes: &[u8]) -> Vec<String> {
+    struct NoDelay;
+    impl DelayNs for NoDelay {
+        fn delay_ns(&mut self, _ns: u32) {}
+    }
+    let image = Image::parse(bytes).expect("host parses the image");
+    let mut lines = Vec::new();
+    replay_image::<64>(image, NoDelay, |out| lines.push(out.to_string())).expect("host loop runs");
+    lines
+}
+
+/// Runs the Cortex-M4 firmware `elf` under `qemu-system-arm` (mps2-an386, `-icount shift=0`,
+/// semihosting) and returns (exit status, stdout); panics, naming what to install, when QEMU is
+/// missing, and when the run exceeds `timeout` (a hung firmware). A test helper shared by the Rust
+/// and the C firmware tests.
+pub fn run_qemu_m4(elf: &std::path::Path, timeout: std::time::Duration) -> (i32, String) {
+    use std::process::{Command, Stdio};
+    let spawned = Command::new("qemu-system-arm")
+        .args(["-machine", "mps2-an386", "-cpu", "cortex-m4"])
+        .args(["-icount", "shift=0"])
+        .args(["-semihosting-config", "enable=on,target=native"])
+        .args([
+            "-nographic",
+            "-monitor",
+            "none",
+            "-serial",
+            "none",
+            "-kernel",
+        ])
+        .arg(elf)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn();
+    let mut child = match spawned {
+        Ok(c) => c,
+        Err(e) => panic!(
+            "cannot run qemu-system-arm ({e}); install it: `bash scripts/setup.sh` or \
+             `apt-get install -y qemu-system-arm` (Debian). This test must not be skipped."
+        ),
+    };
+    let start = std::time::Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("wait for qemu") {
+            break status;
+        }
+        if start.elapsed() > timeout {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("qemu-system-arm ran longer than {timeout:?}: firmware hung");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    };
+    let out = child.wait_with_output().expect("collect qemu output");
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let code = status
+        .code()
+        .unwrap_or_else(|| panic!("qemu killed by a signal:\n{stdout}\n{stderr}"));
+    (code, stdout)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
