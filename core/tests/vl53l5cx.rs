@@ -113,7 +113,7 @@ fn init_configure_range_and_read_frames() {
     assert_eq!(tof.i2c().frames(), 4);
     assert!(
         !tof.check_data_ready().unwrap(),
-        "no new frame before the last one was read out"
+        "the next frame needs 3 more ticks"
     );
     tof.stop_ranging().unwrap();
     assert!(!tof.i2c().ranging());

@@ -18,9 +18,10 @@
 //!   checks the output list against the zone configuration and publishes the results size.
 //!   The status word at `0x2C00` reads `[kind, 3, 0, 0]` when done, `[kind, 3, 0x80, 0]` when
 //!   the command was malformed.
-//! - Results: after `start`, a frame is published on the first data-ready read (4 bytes at
-//!   index 0) once [`SimVl53l5cx::set_latency_polls`] polls have passed; reading the results
-//!   (more than 4 bytes at 0) re-arms the next frame. Blocks follow the programmed output list,
+//! - Results: after `start` the sensor runs free: every data-ready read (4 bytes at index 0)
+//!   counts one tick, and a new frame is published on the tick after
+//!   [`SimVl53l5cx::set_latency_polls`] ticks without one (so a host that stops reading still
+//!   sees the stream count move on). Blocks follow the programmed output list,
 //!   built from the zones given to [`SimVl53l5cx::set_zones`] in the sensor's units and byte
 //!   order.
 //!
@@ -102,7 +103,6 @@ pub struct SimVl53l5cx {
     results_len: usize,
     results: [u8; MAX_RESULTS],
     stream: u8,
-    published: bool,
     latency_polls: u32,
     polls_left: u32,
     zones: [SimZone; 64],
@@ -142,7 +142,6 @@ impl SimVl53l5cx {
             results_len: 0,
             results: [0; MAX_RESULTS],
             stream: 255,
-            published: false,
             latency_polls: 0,
             polls_left: 0,
             zones: [SimZone::NONE; 64],
@@ -500,7 +499,6 @@ impl SimVl53l5cx {
         self.dci_store(dci::RANGE_DATA_INFO, &info);
         self.results_len = size;
         self.ranging = true;
-        self.published = false;
         self.polls_left = self.latency_polls;
         self.results = [0; MAX_RESULTS];
         self.results[0] = 255;
@@ -590,7 +588,7 @@ impl SimVl53l5cx {
     }
 
     fn data_ready_poll(&mut self) {
-        if !self.ranging || self.published {
+        if !self.ranging {
             return;
         }
         if self.polls_left > 0 {
@@ -598,7 +596,7 @@ impl SimVl53l5cx {
             return;
         }
         self.publish();
-        self.published = true;
+        self.polls_left = self.latency_polls;
     }
 }
 
@@ -638,10 +636,6 @@ impl I2c for SimVl53l5cx {
                     for b in buf.iter_mut() {
                         *b = self.read_byte(p);
                         p = p.wrapping_add(1);
-                    }
-                    if self.page == 2 && start == RESULTS_INDEX && buf.len() > 4 && self.published {
-                        self.published = false;
-                        self.polls_left = self.latency_polls;
                     }
                     pointer = Some(p);
                 }
