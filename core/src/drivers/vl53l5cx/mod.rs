@@ -275,6 +275,7 @@ const STOP_POLLS: u32 = 500;
 const MIN_IO: usize = 32;
 
 /// The VL53L5CX driver; owns its bus and delay, borrows ST's buffers and the I/O buffer.
+#[derive(Debug)]
 pub struct Vl53l5cx<'a, I2C, D> {
     i2c: I2C,
     delay: D,
