@@ -711,3 +711,83 @@ fn a_corrupt_result_header_is_bad_data_and_the_next_frame_is_identical() {
     tof.read_frame(&mut frame).unwrap();
     assert_eq!(frame, reference);
 }
+
+/// A bus whose every read returns bytes from a fixed random stream (a broken or foreign device).
+struct Noise {
+    bytes: Vec<u8>,
+    at: usize,
+}
+impl i2c::ErrorType for Noise {
+    type Error = i2c::ErrorKind;
+}
+impl I2c for Noise {
+    fn transaction(&mut self, _a: u8, ops: &mut [Operation<'_>]) -> Result<(), Self::Error> {
+        for op in ops {
+            if let Operation::Read(r) = op {
+                for b in r.iter_mut() {
+                    *b = self
+                        .bytes
+                        .get(self.at % self.bytes.len().max(1))
+                        .copied()
+                        .unwrap_or(0);
+                    self.at += 1;
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+mod never_panics {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+
+        /// Any bytes decode to a result or an error; on error the output is untouched.
+        #[test]
+        fn decode_any_bytes(bytes in proptest::collection::vec(any::<u8>(), 0..1600), eight in any::<bool>()) {
+            let zones = if eight { 64 } else { 16 };
+            let mut out = ResultsData::new();
+            out.distance_mm[0] = 1234;
+            let before = out.clone();
+            if depthor_core::drivers::vl53l5cx::decode_results(&bytes, zones, &mut out).is_err() {
+                prop_assert_eq!(out, before);
+            }
+        }
+
+        /// Corrupt the block headers of real results: never a panic, never a wrong zone count.
+        #[test]
+        fn decode_corrupted_results(flips in proptest::collection::vec((16usize..1432, any::<u8>()), 1..8)) {
+            let mut dev = SimVl53l5cx::new();
+            dev.set_zones(&zones(6));
+            let mut io = [0u8; 1452];
+            let mut tof = ready(dev, &mut io, Config::default()).unwrap();
+            let mut frame = ZoneFrame::<64>::new();
+            tof.read_frame(&mut frame).unwrap();
+            let mut buf = vec![0u8; 1440];
+            tof.i2c_mut().write_read(0x29, &[0, 0], &mut buf).unwrap();
+            for (at, v) in flips {
+                buf[at] = v;
+            }
+            let mut out = ResultsData::new();
+            if depthor_core::drivers::vl53l5cx::decode_results(&buf, 64, &mut out).is_ok() {
+                prop_assert_eq!(out.zones, 64);
+            }
+        }
+
+        /// The driver over a device that answers noise: typed errors (or a frame), no panic.
+        #[test]
+        fn driver_on_noise(bytes in proptest::collection::vec(any::<u8>(), 1..64)) {
+            let mut io = [0u8; 1452];
+            let mut tof = Vl53l5cx::new(Noise { bytes, at: 0 }, NoDelay, sim::stand_in_buffers(), &mut io, Config::default());
+            let _ = tof.init();
+            let _ = tof.set_resolution(Resolution::R8x8);
+            let _ = tof.start_ranging();
+            let mut frame = ZoneFrame::<64>::new();
+            let _ = tof.read_frame(&mut frame);
+            let _ = tof.stop_ranging();
+        }
+    }
+}

@@ -993,13 +993,11 @@ impl<'a, I2C: I2c, D: DelayNs> Vl53l5cx<'a, I2C, D> {
         }
         let size = self.data_read_size;
         let step = Step::Results;
+        let got = self.io.len();
         let buf = self
             .io
             .get_mut(..size)
-            .ok_or(Vl53l5cxError::IoBufferTooSmall {
-                needed: size,
-                got: 0,
-            })?;
+            .ok_or(Vl53l5cxError::IoBufferTooSmall { needed: size, got })?;
         self.i2c
             .write_read(self.config.address, &RESULTS_INDEX.to_be_bytes(), buf)
             .map_err(|error| Vl53l5cxError::Bus { step, error })?;
