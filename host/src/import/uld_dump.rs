@@ -106,7 +106,10 @@ fn number(path: &Path, line: usize, what: &str, text: &str) -> Result<f64, Impor
         .ok()
         .filter(|v| v.is_finite())
         .ok_or_else(|| {
-            ImportError::invalid(path, format!("line {line}: {what}: {text:?} is not a number"))
+            ImportError::invalid(
+                path,
+                format!("line {line}: {what}: {text:?} is not a number"),
+            )
         })
 }
 
@@ -198,7 +201,10 @@ fn zone_line(path: &Path, line: usize, text: &str, p: &mut Partial) -> Result<()
     if zone != p.distance.len() {
         return Err(ImportError::invalid(
             path,
-            format!("line {line}: zone {zone} out of order (expected {})", p.distance.len()),
+            format!(
+                "line {line}: zone {zone} out of order (expected {})",
+                p.distance.len()
+            ),
         ));
     }
     p.distance.push(distance);
@@ -257,7 +263,10 @@ fn parse(path: &Path, text: &str) -> Result<Vec<DtofFrame>, ImportError> {
 pub(super) fn load(src: &Path) -> Result<(super::Loaded, ImportedDtof), ImportError> {
     let files = dump_files(src)?;
     if files.is_empty() {
-        return Err(ImportError::invalid(src, "no .txt/.log/.dump ULD dumps here"));
+        return Err(ImportError::invalid(
+            src,
+            "no .txt/.log/.dump ULD dumps here",
+        ));
     }
     let f = SIDE as f32 / 2.0 / (FOV_DEG.to_radians() / 2.0).tan();
     let camera = CameraIntrinsics {
@@ -278,7 +287,13 @@ pub(super) fn load(src: &Path) -> Result<(super::Loaded, ImportedDtof), ImportEr
             .file_stem()
             .map_or_else(|| "dump".into(), |s| s.to_string_lossy().into_owned())
             .chars()
-            .map(|c| if c.is_ascii_alphanumeric() || c == '-' { c } else { '_' })
+            .map(|c| {
+                if c.is_ascii_alphanumeric() || c == '-' {
+                    c
+                } else {
+                    '_'
+                }
+            })
             .collect();
         for (i, z) in parse(path, &text)?.into_iter().enumerate() {
             if let Some(first) = zones.first() {
@@ -405,7 +420,10 @@ mod tests {
                 ),
                 "line 1: target_status: \"300\" is not 0–255",
             ),
-            ("Zone : 0, Status : 5, Distance : 10 mm\n", "line 1: a zone line before"),
+            (
+                "Zone : 0, Status : 5, Distance : 10 mm\n",
+                "line 1: a zone line before",
+            ),
             (
                 "Print data no : 0\nZone : 1, Status : 5, Distance : 10 mm\n",
                 "line 2: zone 1 out of order",
