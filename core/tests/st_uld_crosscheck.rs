@@ -146,7 +146,10 @@ thread_local! {
 }
 
 extern "C" fn st_rd(addr: u8, index: u16, buf: *mut u8, len: u32) -> c_int {
-    // SAFETY: ST's driver passes a buffer of at least `len` bytes that it owns for the call.
+    if buf.is_null() {
+        return 1;
+    }
+    // SAFETY: non-null; ST's driver passes a buffer of at least `len` bytes it owns for the call.
     let buf = unsafe { std::slice::from_raw_parts_mut(buf, len as usize) };
     ST_BUS.with(|b| match b.borrow_mut().as_mut() {
         Some(bus) => bus
@@ -157,7 +160,10 @@ extern "C" fn st_rd(addr: u8, index: u16, buf: *mut u8, len: u32) -> c_int {
 }
 
 extern "C" fn st_wr(addr: u8, index: u16, buf: *const u8, len: u32) -> c_int {
-    // SAFETY: ST's driver passes `len` readable bytes (its buffers or a local byte).
+    if buf.is_null() {
+        return 1;
+    }
+    // SAFETY: non-null; ST's driver passes `len` readable bytes (its buffers or a local byte).
     let data = unsafe { std::slice::from_raw_parts(buf, len as usize) };
     let mut frame = index.to_be_bytes().to_vec();
     frame.extend_from_slice(data);

@@ -137,7 +137,7 @@ const OUTPUT_LIST_TEMPLATE: [u32; 12] = [
     0xCC50_08C0, // motion indicator, 140 B
 ];
 
-/// Output enables programmed with [`OUTPUT_LIST_TEMPLATE`]: all twelve outputs.
+/// Output enables programmed with [`output_list`]: all twelve outputs.
 pub const OUTPUT_ENABLES: [u32; 4] = [0x0000_0FFF, 0, 0, 0xC000_0000];
 
 /// A decoded block header: `type` (bits 0..4), `size` (bits 4..16), `idx` (bits 16..32).
