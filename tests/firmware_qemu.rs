@@ -107,6 +107,9 @@ fn qemu_hashes_equal_host_bit_for_bit() {
         "estimate (not a measurement)",
         "ram: statics",
         "flash: ",
+        "vl53l5cx init (once, before frame 0): instructions=",
+        "vl53l5cx frame 0 driver_instructions=",
+        "vl53l5cx: mean driver instructions/frame",
         "TEST OK",
     ] {
         assert!(stdout.contains(needle), "missing {needle:?} in:\n{stdout}");
@@ -173,6 +176,19 @@ fn qemu_rejects_more_zones_than_the_build_holds() {
         .collect();
     let bytes = writer::image_bytes(&cal, &frames).expect("make image");
     assert_firmware_rejects("zones_10x10.dri", &bytes, 13);
+}
+
+#[test]
+fn qemu_rejects_a_grid_the_vl53l5cx_does_not_have() {
+    // A valid 6×6 image fits the build's 64 zones, but the VL53L5CX has 4×4 or 8×8 (code 12).
+    let mut cal = synthetic::mcu_calibration();
+    cal.dtof.rows = 6;
+    cal.dtof.cols = 6;
+    let frames: Vec<_> = (0..2)
+        .map(|i| synthetic::frame(i, 6, 6, 120, 160))
+        .collect();
+    let bytes = writer::image_bytes(&cal, &frames).expect("make image");
+    assert_firmware_rejects("zones_6x6.dri", &bytes, 12);
 }
 
 #[test]

@@ -1,8 +1,10 @@
 //! `pipeline::depth_frame` under faulty sensors: the real zone-bridge dToF driver over an I2C bus
 //! that NACKs, loses arbitration mid-frame, never raises `DATA_READY` (timeout) or serves frames
-//! whose zones are all invalid, and a camera that delivers short frames or fails. Each fault is
-//! the right [`FrameError`], leaves the output untouched, and the next good frame comes out
-//! bit-identical to a run that never saw a fault.
+//! whose zones are all invalid, and a camera that delivers short frames or fails; then the same
+//! for the VL53L5CX driver over the simulated VL53L5CX (NACK, arbitration loss in the results
+//! read, no new frame, a corrupt result block header, a GO2 error in the data-ready word, all
+//! zones without a target). Each fault is the right [`FrameError`], leaves the output untouched,
+//! and the next good frame comes out bit-identical to a run that never saw a fault.
 
 mod common;
 
@@ -10,6 +12,7 @@ use common::{frame, rgb_planar, tiny_net};
 use depthor_core::calibration::{
     Calibration, CameraIntrinsics, DistanceKind, DtofGeometry, Extrinsics,
 };
+use depthor_core::drivers::vl53l5cx as vl53;
 use depthor_core::drivers::zone_bridge::{reg, Config, ZoneBridgeDevice, ZoneBridgeSensor};
 use depthor_core::engine::{required_arena_bytes, Engine};
 use depthor_core::hal::{ErrorKind, ErrorType, RgbCamera, RgbFrame, ZoneFrame};
@@ -305,4 +308,180 @@ fn each_fault_is_the_right_frame_error_and_the_next_good_frame_is_normal() {
         FrameError::NoValidZones { zones: 16 }.to_string(),
         "dToF sensor: none of the 16 zones is valid"
     );
+}
+
+/// What the VL53L5CX's bus does on the next frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum VlFault {
+    None,
+    /// Every transaction is not acknowledged.
+    Nack,
+    /// The data-ready poll succeeds, the results read loses arbitration.
+    ArbitrationLossInResults,
+    /// The stream count never moves (the sensor stopped ranging).
+    NeverReady,
+    /// The first block header of the results reads as a distance block of 0x7FF zones.
+    CorruptHeader,
+    /// The data-ready word carries a GO2 error (bit 7 of byte 3, code in byte 2).
+    McuError,
+    /// Every zone reports no target.
+    AllZonesInvalid,
+}
+
+struct FaultyVl53 {
+    dev: vl53::sim::SimVl53l5cx,
+    zones: [vl53::sim::SimZone; 64],
+    fault: Rc<Cell<VlFault>>,
+}
+
+impl i2c::ErrorType for FaultyVl53 {
+    type Error = i2c::ErrorKind;
+}
+
+impl I2c for FaultyVl53 {
+    fn transaction(&mut self, address: u8, ops: &mut [Operation<'_>]) -> Result<(), Self::Error> {
+        let fault = self.fault.get();
+        let results_read = match ops {
+            [Operation::Write([0, 0]), Operation::Read(r)] => Some(r.len()),
+            _ => None,
+        };
+        if results_read == Some(4) {
+            let none = [vl53::sim::SimZone::NONE; 64];
+            let zones = if fault == VlFault::AllZonesInvalid {
+                &none
+            } else {
+                &self.zones
+            };
+            self.dev.set_zones(zones);
+        }
+        match (fault, results_read) {
+            (VlFault::Nack, _) => {
+                return Err(i2c::ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address))
+            }
+            (VlFault::ArbitrationLossInResults, Some(n)) if n > 4 => {
+                return Err(i2c::ErrorKind::ArbitrationLoss)
+            }
+            (VlFault::NeverReady, Some(4)) => {
+                if let [_, Operation::Read(r)] = ops {
+                    r.fill(0);
+                }
+                return Ok(());
+            }
+            _ => {}
+        }
+        self.dev.transaction(address, ops)?;
+        if let [_, Operation::Read(r)] = ops {
+            match (fault, results_read) {
+                (VlFault::CorruptHeader, Some(n)) if n > 4 => {
+                    r[16..20].copy_from_slice(&[0xD3, 0x3C, 0x7F, 0xF2]);
+                }
+                (VlFault::McuError, Some(4)) => r.copy_from_slice(&[r[0], 0, 0x42, 0x80]),
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+}
+
+#[test]
+fn vl53l5cx_faults_are_the_right_frame_error_and_the_next_good_frame_is_normal() {
+    let net = tiny_net(H, W);
+    let (rgb, _) = frame(H, W);
+    let blob = net.to_blob(&net.run_float(&rgb_planar(&rgb, H, W), &frame(H, W).1));
+    let mut arena = vec![0u8; required_arena_bytes(&blob, H, W).unwrap() + 64];
+    let mut engine = Engine::new(&blob, &mut arena).unwrap();
+    let cal = calibration();
+
+    // 4×4 mode; zone k at 1 m + 0.1 m·k, zone 5 without a target.
+    let zones: [vl53::sim::SimZone; 64] = std::array::from_fn(|k| {
+        if k == 5 {
+            vl53::sim::SimZone::NONE
+        } else {
+            vl53::sim::SimZone {
+                distance_mm: 1000 + 100 * k as i16,
+                status: 5,
+                sigma_mm: 3,
+                signal_kcps: 200,
+                ambient_kcps: 2,
+            }
+        }
+    });
+    let fault = Rc::new(Cell::new(VlFault::None));
+    let mut dev = vl53::sim::SimVl53l5cx::new();
+    dev.set_latency_polls(1);
+    let bus = FaultyVl53 {
+        dev,
+        zones,
+        fault: fault.clone(),
+    };
+    let mut io = [0u8; 600];
+    let config = vl53::Config {
+        frame_timeout_us: 5_000,
+        ..vl53::Config::default()
+    };
+    let mut sensor =
+        vl53::Vl53l5cx::new(bus, NoDelay, vl53::sim::stand_in_buffers(), &mut io, config);
+    sensor.init().unwrap();
+    sensor.set_ranging_frequency_hz(30).unwrap();
+    sensor.start_ranging().unwrap();
+    let mut camera = FlakyCamera {
+        rgb: rgb.clone(),
+        fault: CameraFault::None,
+        captures: 0,
+    };
+    let (mut rgb_buf, mut sparse_buf) = (vec![0u8; 3 * H * W], vec![0f32; H * W]);
+    let mut zone_frame = ZoneFrame::<16>::new();
+    let mut step = |f: VlFault, engine: &mut Engine<'_>| {
+        fault.set(f);
+        let mut out = vec![f32::from_bits(0x7fc0_dead); H * W];
+        let r = depth_frame(
+            &mut camera,
+            &mut sensor,
+            &cal,
+            engine,
+            &mut FrameBuffers {
+                rgb: &mut rgb_buf,
+                sparse_m: &mut sparse_buf,
+                zones: &mut zone_frame,
+            },
+            DepthOut::Metres(&mut out),
+        );
+        (r.map(|rep| rep.projection.projected), out)
+    };
+    let (r, reference) = step(VlFault::None, &mut engine);
+    assert_eq!(r, Ok(15), "15 of 16 zones have a target");
+    let reference: Vec<u32> = reference.iter().map(|v| v.to_bits()).collect();
+    let faults = [
+        (VlFault::Nack, FrameError::Sensor(ErrorKind::Bus)),
+        (
+            VlFault::ArbitrationLossInResults,
+            FrameError::Sensor(ErrorKind::Bus),
+        ),
+        (VlFault::NeverReady, FrameError::Sensor(ErrorKind::Timeout)),
+        (
+            VlFault::CorruptHeader,
+            FrameError::Sensor(ErrorKind::BadData),
+        ),
+        (VlFault::McuError, FrameError::Sensor(ErrorKind::BadData)),
+        (
+            VlFault::AllZonesInvalid,
+            FrameError::NoValidZones { zones: 16 },
+        ),
+    ];
+    for round in 0..2 {
+        for &(f, want) in &faults {
+            for _ in 0..2 {
+                let (r, out) = step(f, &mut engine);
+                assert_eq!(r, Err(want), "round {round}: {f:?}");
+                assert!(
+                    out.iter().all(|v| v.to_bits() == 0x7fc0_dead),
+                    "{f:?}: output written"
+                );
+            }
+            let (r, out) = step(VlFault::None, &mut engine);
+            assert_eq!(r, Ok(15), "after {f:?}");
+            let bits: Vec<u32> = out.iter().map(|v| v.to_bits()).collect();
+            assert!(bits == reference, "after {f:?}: the good frame differs");
+        }
+    }
 }

@@ -211,3 +211,50 @@ fn vl53l5cx_logs_become_zone_only_recordings() {
         assert!(out.contains("no RGB"), "{out}");
     }
 }
+
+#[test]
+fn uld_dumps_become_zone_only_recordings() {
+    let tmp = tempfile::tempdir().unwrap();
+    let src = tmp.path().join("dumps");
+    std::fs::create_dir_all(&src).unwrap();
+    let list = |f: &dyn Fn(usize) -> String| (0..16).map(f).collect::<Vec<_>>().join(",");
+    // One frame a line (4×4), as VL53L5CX_ResultsData fields; zone 2 has no target.
+    let line = |d: usize| {
+        format!(
+            "distance_mm={} target_status={} nb_target_detected={} range_sigma_mm={}",
+            list(&|z| (d + z).to_string()),
+            list(&|_| "5".into()),
+            list(&|z| if z == 2 { "0".into() } else { "1".into() }),
+            list(&|z| (z % 3).to_string()),
+        )
+    };
+    std::fs::write(
+        src.join("run1.txt"),
+        format!("# ULD 1.3.0\n{}\n{}\n", line(600), line(900)),
+    )
+    .unwrap();
+    let rec = tmp.path().join("rec");
+    let out = depthor_ok(&["import", "uld-dump", s(&src), "--out", s(&rec)]);
+    assert!(
+        out.contains("no RGB") && out.contains("zones valid 30/32"),
+        "{out}"
+    );
+    let r = Recording::open(&rec).unwrap();
+    let z = r.read_frame(1).unwrap().dtof.unwrap();
+    assert_eq!(
+        (z.distance_mm[0], z.status[2], z.status[3]),
+        (900.0, 255, 5)
+    );
+    assert_eq!(z.sigma_mm.as_ref().unwrap()[4], 1.0);
+    // A malformed dump names the file and the line.
+    std::fs::write(src.join("run2.txt"), "distance_mm=1,2 target_status=5,5\n").unwrap();
+    let o = depthor(&[
+        "import",
+        "uld-dump",
+        s(&src),
+        "--out",
+        s(&tmp.path().join("rec2")),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("run2.txt") && err.contains("line 1"), "{err}");
+}

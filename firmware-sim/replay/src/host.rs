@@ -6,9 +6,9 @@ use embedded_hal::delay::DelayNs;
 
 use crate::format::Image;
 use crate::model::{prepare, ARENA_BUDGET_BYTES, MCU_BLOB};
-use crate::pipeline::{FrameOutput, LoopError, ReplayLoop, Workspace};
+use crate::pipeline::{FrameOutput, LoopError, ReplayLoop, Workspace, VL53_IO_BYTES};
 
-/// A [`DelayNs`] that sleeps for real (the simulated bridge is always ready, so the driver
+/// A [`DelayNs`] that sleeps for real (the simulated sensor answers at once, so the driver
 /// never waits in practice).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct StdDelay;
@@ -19,8 +19,9 @@ impl DelayNs for StdDelay {
     }
 }
 
-/// Runs every frame of `image` through the loop with the embedded model, holding up to `N` zones
-/// (the firmware holds 64), and calls `emit` with each frame's output; returns the frame count.
+/// Runs every frame of `image` through the loop with the embedded model and the VL53L5CX driver
+/// over the simulated sensor (as the firmware does), holding up to `N` zones (the firmware holds
+/// 64), and calls `emit` with each frame's output; returns the frame count.
 pub fn replay_image<const N: usize>(
     image: Image<'_>,
     delay: impl DelayNs,
@@ -44,7 +45,8 @@ pub fn replay_image<const N: usize>(
         bridge_mm: &mut bridge,
         zones: &mut zones,
     };
-    ReplayLoop::new(image, delay).run_all(&mut engine, &mut ws, emit)
+    let mut io = vec![0u8; VL53_IO_BYTES];
+    ReplayLoop::with_vl53l5cx(image, delay, &mut io, || 0).run_all(&mut engine, &mut ws, emit)
 }
 
 /// The `frame …` lines the host build of the loop prints for the replay image `bytes` (what the

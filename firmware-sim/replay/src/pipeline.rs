@@ -2,10 +2,15 @@
 //! frame is one call of the core's [`depth_frame_probed`] (`depthor_core::pipeline`) over:
 //!
 //! 1. **RGB**: [`ReplayCamera`] (an [`depthor_core::hal::RgbCamera`]) fills the RGB buffer.
-//! 2. **dToF**: the frame's zones are latched into a simulated zone bridge
-//!    ([`ZoneBridgeDevice`], an embedded-hal I2C device) and read back by the real driver
-//!    [`ZoneBridgeSensor`] (an [`depthor_core::hal::DtofSensor`]), so the bytes cross the same
-//!    register protocol a board's bus would carry.
+//! 2. **dToF**: by default ([`ReplayLoop::with_vl53l5cx`]) the frame's zones are given to a
+//!    simulated VL53L5CX ([`SimVl53l5cx`], an embedded-hal I2C device speaking ST's ULD protocol)
+//!    and read back by the real driver [`Vl53l5cx`] (an [`depthor_core::hal::DtofSensor`]):
+//!    initialised once (stand-in firmware upload, 8×8 or 4×4, 15 Hz continuous, start) before
+//!    the first frame, then one data-ready poll and one results read per frame, so the bytes
+//!    cross the register protocol a board's bus would carry. [`SimBus`] counts the bytes and the
+//!    clock ticks spent inside the simulation, so the driver's own cost can be told apart.
+//!    [`ReplayLoop::new`] keeps the zone-bridge path ([`ZoneBridgeDevice`] read by
+//!    [`ZoneBridgeSensor`]).
 //! 3. **Projection**: `project_to_sparse` writes the sparse depth map `S`.
 //! 4. **Model**: the int8 [`Engine`] (prepared once by the caller, see [`crate::model`]) runs on
 //!    the RGB frame and `S` and writes the dense depth map into [`Workspace::depth_m`].
@@ -13,17 +18,23 @@
 //! [`FrameOutput`] hashes the depth output (FNV-1a 64 over the `f32` bits, little endian) and
 //! formats the line both builds print, so the host and the firmware can be compared bit for bit.
 //!
-//! The driver is created per frame over a device holding that frame (the device borrows the
-//! frame's zones and the driver owns the device); it reads the header registers again each
-//! frame, which costs one 11-byte transaction. A frame without one valid zone is
+//! The bridge driver is created per frame over a device holding that frame (the device borrows
+//! the frame's zones and the driver owns the device); it reads the header registers again each
+//! frame, which costs one 11-byte transaction. The VL53L5CX sends distances as mm × 4 in an
+//! `i16`, so distances beyond ±8191 mm saturate, and a zone with status 255 (no target) comes
+//! back with distance 0. A frame without one valid zone is
 //! [`LoopError::Frame`] (exit 17): the core does not run the model without metric depth.
 
+use depthor_core::drivers::vl53l5cx::sim::{self, SimVl53l5cx, SimZone};
+use depthor_core::drivers::vl53l5cx::{Config, RangingMode, Resolution, Vl53l5cx};
 use depthor_core::drivers::zone_bridge::{DeviceError, ZoneBridgeDevice, ZoneBridgeSensor};
 use depthor_core::engine::{self, Engine, RunStats};
+use depthor_core::hal::Error as _;
 use depthor_core::hal::{ErrorKind, ZoneFrame};
 use depthor_core::pipeline::{depth_frame_probed, DepthOut, FrameBuffers, FrameError};
 use depthor_core::projection::{ProjectionError, ProjectionStats};
 use embedded_hal::delay::DelayNs;
+use embedded_hal::i2c::{I2c, Operation};
 
 use crate::camera::ReplayCamera;
 use crate::format::Image;
@@ -55,6 +66,13 @@ pub enum LoopError {
     Sensor(ErrorKind),
     /// The simulated bridge refused the image's geometry.
     Device(DeviceError),
+    /// The VL53L5CX has 4×4 or 8×8 zones; the image has another grid.
+    DtofGrid {
+        /// Zone rows of the image.
+        rows: u16,
+        /// Zone columns of the image.
+        cols: u16,
+    },
     /// The image has more zones per frame than the workspace holds.
     ZoneCapacity {
         /// Zones per frame of the image.
@@ -92,7 +110,7 @@ impl LoopError {
         match self {
             LoopError::Camera(_) => 10,
             LoopError::Sensor(_) => 11,
-            LoopError::Device(_) => 12,
+            LoopError::Device(_) | LoopError::DtofGrid { .. } => 12,
             LoopError::ZoneCapacity { .. } => 13,
             LoopError::Workspace(_) => 14,
             LoopError::Projection(_) => 15,
@@ -108,6 +126,12 @@ impl core::fmt::Display for LoopError {
             LoopError::Camera(k) => write!(f, "replay camera: {k}"),
             LoopError::Sensor(k) => write!(f, "dToF driver: {k}"),
             LoopError::Device(e) => write!(f, "zone bridge device: {e}"),
+            LoopError::DtofGrid { rows, cols } => {
+                write!(
+                    f,
+                    "the VL53L5CX has 4x4 or 8x8 zones, the image {rows}x{cols}"
+                )
+            }
             LoopError::ZoneCapacity { zones, capacity } => write!(
                 f,
                 "the image has {zones} zones per frame, this build holds {capacity}"
@@ -194,24 +218,137 @@ pub fn fnv1a64_f32(values: &[f32]) -> u64 {
     h
 }
 
+/// Bytes the VL53L5CX path's I/O buffer needs (8×8 results, every ULD output).
+pub const VL53_IO_BYTES: usize = 1440;
+
+/// Traffic between the VL53L5CX driver and the simulated sensor.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BusStats {
+    /// I2C transactions.
+    pub transactions: u32,
+    /// Bytes written (register indices included).
+    pub bytes_written: u32,
+    /// Bytes read.
+    pub bytes_read: u32,
+    /// Clock ticks spent inside the simulated sensor (0 with a clock that reads 0).
+    pub device_ticks: u64,
+}
+
+/// The simulated VL53L5CX behind a counter of bytes and of the clock ticks spent inside it.
+#[derive(Debug)]
+pub struct SimBus {
+    dev: SimVl53l5cx,
+    clock: fn() -> u64,
+    stats: BusStats,
+}
+
+impl embedded_hal::i2c::ErrorType for SimBus {
+    type Error = embedded_hal::i2c::ErrorKind;
+}
+
+impl I2c for SimBus {
+    fn transaction(
+        &mut self,
+        address: u8,
+        operations: &mut [Operation<'_>],
+    ) -> Result<(), Self::Error> {
+        let s = &mut self.stats;
+        s.transactions = s.transactions.wrapping_add(1);
+        for op in operations.iter() {
+            match op {
+                Operation::Write(w) => {
+                    s.bytes_written = s.bytes_written.wrapping_add(w.len() as u32)
+                }
+                Operation::Read(r) => s.bytes_read = s.bytes_read.wrapping_add(r.len() as u32),
+            }
+        }
+        let t0 = (self.clock)();
+        let r = self.dev.transaction(address, operations);
+        self.stats.device_ticks += (self.clock)().wrapping_sub(t0);
+        r
+    }
+}
+
+/// The dToF path of the loop.
+// One loop per run and no allocator to box into: the VL53L5CX variant's size is fine.
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug)]
+enum Dtof<'a, D> {
+    /// Zone bridge, a driver per frame.
+    Bridge(D),
+    /// VL53L5CX driver over the simulated sensor; `ready` once initialised and ranging.
+    Vl53 {
+        sensor: Vl53l5cx<'a, SimBus, D>,
+        ready: bool,
+    },
+}
+
+/// What the VL53L5CX path did: initialisation (once) and the last frame's read.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Vl53Stats {
+    /// Traffic of init, resolution, frequency, mode and start.
+    pub init: BusStats,
+    /// Clock ticks of the whole initialisation (driver and simulation).
+    pub init_ticks: u64,
+    /// Traffic of the last frame's `read_frame`.
+    pub frame: BusStats,
+}
+
 /// The replay loop over one image; `D` is the delay the dToF driver sleeps with between polls.
 #[derive(Debug)]
 pub struct ReplayLoop<'a, D> {
     image: Image<'a>,
     camera: ReplayCamera<'a>,
-    delay: D,
+    dtof: Dtof<'a, D>,
+    clock: fn() -> u64,
+    vl53: Vl53Stats,
     next: u32,
 }
 
+fn no_clock() -> u64 {
+    0
+}
+
 impl<'a, D: DelayNs> ReplayLoop<'a, D> {
-    /// A loop at the image's first frame.
+    /// A loop at the image's first frame reading zones through the zone bridge.
     pub fn new(image: Image<'a>, delay: D) -> Self {
         ReplayLoop {
             image,
             camera: ReplayCamera::new(image),
-            delay,
+            dtof: Dtof::Bridge(delay),
+            clock: no_clock,
+            vl53: Vl53Stats::default(),
             next: 0,
         }
+    }
+
+    /// A loop at the image's first frame reading zones through the VL53L5CX driver over the
+    /// simulated sensor (with the stand-in ST buffers); `io` is the driver's I/O buffer (at
+    /// least [`VL53_IO_BYTES`]), `clock` a tick counter for [`BusStats::device_ticks`]. The
+    /// sensor is initialised before the first frame.
+    pub fn with_vl53l5cx(image: Image<'a>, delay: D, io: &'a mut [u8], clock: fn() -> u64) -> Self {
+        let bus = SimBus {
+            dev: SimVl53l5cx::new(),
+            clock,
+            stats: BusStats::default(),
+        };
+        let sensor = Vl53l5cx::new(bus, delay, sim::stand_in_buffers(), io, Config::default());
+        ReplayLoop {
+            image,
+            camera: ReplayCamera::new(image),
+            dtof: Dtof::Vl53 {
+                sensor,
+                ready: false,
+            },
+            clock,
+            vl53: Vl53Stats::default(),
+            next: 0,
+        }
+    }
+
+    /// The VL53L5CX path's figures (all zero on the bridge path or before the first frame).
+    pub fn vl53_stats(&self) -> Vl53Stats {
+        self.vl53
     }
 
     /// Reads the next frame's sensors, projects its zones into `ws.sparse_m` and runs `engine`
@@ -239,18 +376,11 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
         let cal = self.image.calibration();
         let pixels = cal.camera.width as usize * cal.camera.height as usize;
 
-        // The frame's zones are latched into the simulated bridge, which the real driver reads.
         let zones = frame.zones();
         let staged = ws
             .bridge_mm
             .get_mut(..zones)
             .ok_or(LoopError::ZoneCapacity { zones, capacity: N })?;
-        for (d, mm) in staged.iter_mut().zip(frame.distance_mm()) {
-            *d = f32::from(mm);
-        }
-        let device =
-            ZoneBridgeDevice::new(&cal.dtof, &*staged, frame.status).map_err(LoopError::Device)?;
-        let mut sensor = ZoneBridgeSensor::new(device, &mut self.delay);
         let depth = ws
             .depth_m
             .get_mut(..pixels)
@@ -260,17 +390,75 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
             sparse_m: &mut *ws.sparse_m,
             zones: &mut *ws.zones,
         };
-        // Camera → driver → projection → engine (prepared once, outside the loop): the core's
-        // one-frame pipeline.
-        let report = depth_frame_probed(
-            &mut self.camera,
-            &mut sensor,
-            &cal,
-            engine,
-            &mut buffers,
-            DepthOut::Metres(depth),
-            probe,
-        )
+        let report = match &mut self.dtof {
+            Dtof::Bridge(delay) => {
+                // The frame's zones are latched into the simulated bridge, which the real
+                // driver reads.
+                for (d, mm) in staged.iter_mut().zip(frame.distance_mm()) {
+                    *d = f32::from(mm);
+                }
+                let device = ZoneBridgeDevice::new(&cal.dtof, &*staged, frame.status)
+                    .map_err(LoopError::Device)?;
+                let mut sensor = ZoneBridgeSensor::new(device, delay);
+                // Camera → driver → projection → engine (prepared once, outside the loop): the
+                // core's one-frame pipeline.
+                depth_frame_probed(
+                    &mut self.camera,
+                    &mut sensor,
+                    &cal,
+                    engine,
+                    &mut buffers,
+                    DepthOut::Metres(depth),
+                    probe,
+                )
+            }
+            Dtof::Vl53 { sensor, ready } => {
+                if !*ready {
+                    let resolution = match (cal.dtof.rows, cal.dtof.cols) {
+                        (4, 4) => Resolution::R4x4,
+                        (8, 8) => Resolution::R8x8,
+                        (rows, cols) => return Err(LoopError::DtofGrid { rows, cols }),
+                    };
+                    let t0 = (self.clock)();
+                    let sensor_err = |e: depthor_core::drivers::vl53l5cx::Vl53l5cxError<_>| {
+                        LoopError::Sensor(e.kind())
+                    };
+                    sensor.init().map_err(sensor_err)?;
+                    sensor.set_resolution(resolution).map_err(sensor_err)?;
+                    sensor.set_ranging_frequency_hz(15).map_err(sensor_err)?;
+                    sensor
+                        .set_ranging_mode(RangingMode::Continuous)
+                        .map_err(sensor_err)?;
+                    sensor.start_ranging().map_err(sensor_err)?;
+                    self.vl53.init_ticks = (self.clock)().wrapping_sub(t0);
+                    self.vl53.init = core::mem::take(&mut sensor.i2c_mut().stats);
+                    *ready = true;
+                }
+                // The frame's zones are what the simulated sensor measures next.
+                let mut sim_zones = [SimZone::NONE; 64];
+                for ((z, mm), &status) in sim_zones
+                    .iter_mut()
+                    .zip(frame.distance_mm())
+                    .zip(frame.status)
+                {
+                    z.distance_mm = mm;
+                    z.status = status;
+                }
+                sensor.i2c_mut().dev.set_zones(&sim_zones);
+                sensor.i2c_mut().stats = BusStats::default();
+                let report = depth_frame_probed(
+                    &mut self.camera,
+                    sensor,
+                    &cal,
+                    engine,
+                    &mut buffers,
+                    DepthOut::Metres(depth),
+                    probe,
+                );
+                self.vl53.frame = sensor.i2c().stats;
+                report
+            }
+        }
         .map_err(LoopError::from)?;
         self.next += 1;
         Ok(Some(Processed {
@@ -377,6 +565,84 @@ mod tests {
             assert_ne!(fnv1a64_f32(&direct), fnv1a64_f32(&want_depth));
         }
         assert_eq!(replay.process(&mut engine, &mut ws).unwrap(), None);
+    }
+
+    #[test]
+    fn vl53l5cx_path_reads_the_zones_through_the_uld_protocol() {
+        let cal = mcu_calibration();
+        let frames = mcu_frames(3);
+        let bytes = image_bytes(&cal, &frames).unwrap();
+        let image = Image::parse(&bytes).unwrap();
+        let (mut rgb, mut sparse) = (vec![0u8; 57_600], vec![0f32; 19_200]);
+        let mut depth = vec![0f32; 19_200];
+        let (mut bridge, mut zones) = ([0f32; 64], ZoneFrame::<64>::new());
+        let mut ws = Workspace {
+            rgb: &mut rgb,
+            sparse_m: &mut sparse,
+            depth_m: &mut depth,
+            bridge_mm: &mut bridge,
+            zones: &mut zones,
+        };
+        let mut arena = vec![0u8; ARENA_BUDGET_BYTES];
+        let mut engine = prepare(MCU_BLOB, &mut arena, 120, 160).unwrap();
+        let mut io = vec![0u8; VL53_IO_BYTES];
+        let mut replay = ReplayLoop::with_vl53l5cx(image, NoDelay, &mut io, || 0);
+        for f in &frames {
+            replay.process(&mut engine, &mut ws).unwrap().unwrap();
+            // Zones with a target come through (mm × 4 in an i16: 12 m saturates at 8191 mm);
+            // "no target" reads distance 0.
+            let want: Vec<f32> = f
+                .distance_mm
+                .iter()
+                .zip(&f.status)
+                .map(|(&d, &s)| {
+                    if s == 255 {
+                        0.0
+                    } else {
+                        f32::from(d.min(8191))
+                    }
+                })
+                .collect();
+            assert_eq!(ws.zones.view().distance_mm, &want[..]);
+            assert_eq!(ws.zones.view().status, &f.status[..]);
+            let s = replay.vl53_stats();
+            // One data-ready poll (2 + 4 bytes) and one results read (2 + 1440 bytes).
+            assert_eq!(s.frame.transactions, 2);
+            assert_eq!(s.frame.bytes_read, 4 + 1440);
+            assert_eq!(s.frame.bytes_written, 4);
+            assert!(s.init.bytes_written > 86_016, "{:?}", s.init);
+        }
+        assert_eq!(replay.process(&mut engine, &mut ws).unwrap(), None);
+    }
+
+    #[test]
+    fn vl53l5cx_path_refuses_grids_it_does_not_have() {
+        let mut cal = mcu_calibration();
+        cal.dtof.rows = 6;
+        cal.dtof.cols = 6;
+        let frames: Vec<_> = (0..1)
+            .map(|i| crate::synthetic::frame(i, 6, 6, 120, 160))
+            .collect();
+        let bytes = image_bytes(&cal, &frames).unwrap();
+        let image = Image::parse(&bytes).unwrap();
+        let (mut rgb, mut sparse) = (vec![0u8; 57_600], vec![0f32; 19_200]);
+        let mut depth = vec![0f32; 19_200];
+        let (mut bridge, mut zones) = ([0f32; 64], ZoneFrame::<64>::new());
+        let mut ws = Workspace {
+            rgb: &mut rgb,
+            sparse_m: &mut sparse,
+            depth_m: &mut depth,
+            bridge_mm: &mut bridge,
+            zones: &mut zones,
+        };
+        let mut arena = vec![0u8; ARENA_BUDGET_BYTES];
+        let mut engine = prepare(MCU_BLOB, &mut arena, 120, 160).unwrap();
+        let mut io = vec![0u8; VL53_IO_BYTES];
+        let err = ReplayLoop::with_vl53l5cx(image, NoDelay, &mut io, || 0)
+            .process(&mut engine, &mut ws)
+            .unwrap_err();
+        assert_eq!(err, LoopError::DtofGrid { rows: 6, cols: 6 });
+        assert_eq!(err.exit_code(), 12);
     }
 
     #[test]

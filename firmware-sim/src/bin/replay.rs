@@ -14,7 +14,9 @@ use depthor_core::projection::project_to_sparse;
 use depthor_firmware_sim::{console, cycles, memory, println};
 use depthor_replay::format::Image;
 use depthor_replay::model::{self, ARENA_BUDGET_BYTES, MCU_BLOB};
-use depthor_replay::pipeline::{FrameOutput, LoopError, Probe, ReplayLoop, Stage, Workspace};
+use depthor_replay::pipeline::{
+    FrameOutput, LoopError, Probe, ReplayLoop, Stage, Workspace, VL53_IO_BYTES,
+};
 
 /// 4-byte alignment for the embedded image, so its (4-aligned) RGB records copy by words.
 #[repr(C, align(4))]
@@ -58,8 +60,8 @@ const ZONES: usize = 64;
 #[repr(C, align(16))]
 struct Arena([u8; ARENA_BUDGET_BYTES]);
 
-/// Busy-wait delay for the dToF driver's polls (the simulated bridge is always ready, so it
-/// does not run in practice). Assumes the 25 MHz core clock of the board model.
+/// Busy-wait delay for the dToF driver's waits (the simulated VL53L5CX answers at once, so
+/// only the ULD's fixed boot waits run: 1 ms + 100 ms + one 10 ms wait per command poll). Assumes the 25 MHz core clock of the board model.
 struct SpinDelay;
 
 impl embedded_hal::delay::DelayNs for SpinDelay {
@@ -73,7 +75,11 @@ const KINDS: usize = 24;
 
 /// Runs the last frame's inputs once more through [`Engine::run_observed`], reading SysTick after
 /// every op, and prints the instructions of each op and of each op kind.
-fn profile_ops<const N: usize>(engine: &mut Engine<'_>, ws: &mut Workspace<'_, N>, cal: &Calibration) {
+fn profile_ops<const N: usize>(
+    engine: &mut Engine<'_>,
+    ws: &mut Workspace<'_, N>,
+    cal: &Calibration,
+) {
     let ops = engine.graph().ops.len();
     let mut per_op = [0u64; depthor_core::blob::format::MAX_OPS];
     // The frame ran in place on `sparse_m`: project its zones again for the sparse input.
@@ -158,6 +164,7 @@ fn main() -> ! {
     static mut ARENA: Arena = Arena([0; ARENA_BUDGET_BYTES]);
     static mut BRIDGE: [f32; ZONES] = [0.0; ZONES];
     static mut ZONE_FRAME: ZoneFrame<ZONES> = ZoneFrame::new();
+    static mut VL53_IO: [u8; VL53_IO_BYTES] = [0; VL53_IO_BYTES];
 
     memory::paint_stack();
     let Some(peripherals) = cortex_m::Peripherals::take() else {
@@ -212,7 +219,10 @@ fn main() -> ! {
         bridge_mm: BRIDGE,
         zones: ZONE_FRAME,
     };
-    let mut replay = ReplayLoop::new(image, SpinDelay);
+    // dToF: the VL53L5CX driver over the simulated sensor (ST's ULD protocol); the clock lets
+    // the loop count the ticks spent inside the simulation, to tell the driver's share apart.
+    let mut replay = ReplayLoop::with_vl53l5cx(image, SpinDelay, VL53_IO, cycles::ticks);
+    let (mut driver_total, mut device_total) = (0u64, 0u64);
 
     let (mut frames, mut min, mut max) = (0u64, u64::MAX, 0u64);
     let mut stage_totals = [0u64; STAGES.len()];
@@ -228,6 +238,30 @@ fn main() -> ! {
                     "icount frame {} instructions={instructions} camera={} dtof={} projection={} \
                      model={}",
                     processed.index, per_stage[0], per_stage[1], per_stage[2], per_stage[3]
+                );
+                let vl53 = replay.vl53_stats();
+                if processed.index == 0 {
+                    println!(
+                        "vl53l5cx init (once, before frame 0): instructions={} (of which \
+                         simulated sensor {}) transactions={} bytes_written={} bytes_read={}",
+                        cycles::instructions(vl53.init_ticks),
+                        cycles::instructions(vl53.init.device_ticks),
+                        vl53.init.transactions,
+                        vl53.init.bytes_written,
+                        vl53.init.bytes_read
+                    );
+                }
+                let device = cycles::instructions(vl53.frame.device_ticks);
+                let driver = per_stage[1].saturating_sub(device);
+                driver_total += driver;
+                device_total += device;
+                println!(
+                    "vl53l5cx frame {} driver_instructions={driver} simulated_sensor={device} \
+                     transactions={} bytes_read={} bytes_written={}",
+                    processed.index,
+                    vl53.frame.transactions,
+                    vl53.frame.bytes_read,
+                    vl53.frame.bytes_written
                 );
                 frames += 1;
                 for (total, n) in stage_totals.iter_mut().zip(per_stage) {
@@ -253,6 +287,11 @@ fn main() -> ! {
     let flash = memory::flash_bytes();
     println!("frames {frames}");
     let mean = |n: u64| n / frames.max(1);
+    println!(
+        "vl53l5cx: mean driver instructions/frame {} (dtof stage minus the simulated sensor's {})",
+        mean(driver_total),
+        mean(device_total)
+    );
     let mean_total = mean(stage_totals.iter().sum());
     println!(
         "instructions/frame: mean {mean_total} min {min} max {max}; mean camera {} dtof {} \

@@ -1,6 +1,6 @@
 //! `depthor import <kind> <src> --out DIR`: converts a real set into a `depthor-recording/1`
 //! with rgb.png, depth.png and the camera intrinsics; sets with their own zones (`zjul5`,
-//! `vl53l5cx-log`) keep them as dtof.json, the others get simulated ones from
+//! `vl53l5cx-log`, `uld-dump`) keep them as dtof.json, the others get simulated ones from
 //! `depthor sim --recording`.
 
 use anyhow::{Context, Result};
@@ -15,6 +15,7 @@ use std::path::{Path, PathBuf};
   depthor import nyu ../shared/data/real/metric3d-nyu-demo --out rec/nyu --overwrite
   depthor import zjul5 ZJUL5/ --out rec/zjul5                    # .h5 files: rgb, depth, zones
   depthor import vl53l5cx-log ../shared/data/real/vecihi-vl53l5cx-flights --out rec/flights
+  depthor import uld-dump uld_results.txt --out rec/uld         # ST ULD VL53L5CX_ResultsData dumps
 Then: depthor info --recording rec/middlebury")]
 pub struct Args {
     /// Which dataset layout `src` holds.

@@ -16,6 +16,7 @@ mod redwood;
 mod resample;
 mod sun;
 mod tum;
+mod uld_dump;
 mod vl53l5cx_log;
 mod zjul5;
 
@@ -25,7 +26,7 @@ use depthor_core::calibration::CameraIntrinsics;
 use image::RgbImage;
 
 /// Which kind of set [`load`] reads. CLI names: `middlebury`, `nyu`, `redwood`, `tum`, `sun`,
-/// `nyu-raw`, `arkit`, `zjul5`, `vl53l5cx-log`.
+/// `nyu-raw`, `arkit`, `zjul5`, `vl53l5cx-log`, `uld-dump`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum ImportKind {
     /// Middlebury 2014 stereo (MiddEval3, `<scene>/{im0.png,disp0GT.pfm,calib.txt}`): every scene.
@@ -47,6 +48,10 @@ pub enum ImportKind {
     /// VL53L5CX zone logs (`*.json`, `{"tof": {"distances": [[64 mm]…]}}`): zones only, no RGB.
     #[value(name = "vl53l5cx-log")]
     Vl53l5cxLog,
+    /// ST ULD result dumps (`*.txt`/`*.log`/`*.dump`: `VL53L5CX_ResultsData` fields one frame a
+    /// line, or ST's example printout): zones only, no RGB.
+    #[value(name = "uld-dump")]
+    UldDump,
 }
 
 impl ImportKind {
@@ -62,6 +67,7 @@ impl ImportKind {
             ImportKind::Arkit => "arkit",
             ImportKind::Zjul5 => "zjul5",
             ImportKind::Vl53l5cxLog => "vl53l5cx-log",
+            ImportKind::UldDump => "uld-dump",
         }
     }
 }
@@ -150,7 +156,7 @@ pub struct ImportedSet {
     pub frames: Vec<ImportedFrame>,
     /// Assumptions and choices the importer made (guessed intrinsics, resampling, byte order…).
     pub notes: Vec<String>,
-    /// The set's own dToF zones (ZJU-L5, VL53L5CX logs), one zone frame per frame.
+    /// The set's own dToF zones (ZJU-L5, VL53L5CX logs, ULD dumps), one zone frame per frame.
     pub dtof: Option<ImportedDtof>,
     /// Whether the frames have colour images (`false`: zone logs; see docs/recording.md).
     pub has_rgb: bool,
@@ -242,6 +248,12 @@ pub fn load(kind: ImportKind, src: &Path) -> Result<ImportedSet, ImportError> {
         }
         ImportKind::Vl53l5cxLog => {
             let (loaded, zones) = vl53l5cx_log::load(src)?;
+            dtof = Some(zones);
+            has_rgb = false;
+            loaded
+        }
+        ImportKind::UldDump => {
+            let (loaded, zones) = uld_dump::load(src)?;
             dtof = Some(zones);
             has_rgb = false;
             loaded
