@@ -72,7 +72,8 @@ fn print_config_fed_back_through_config_reproduces_it() {
     ]);
     assert_eq!(alone, first);
     assert_eq!(over_mcu, first);
-    // And it simulates: same recording from the partial over the preset and from the full file.
+    // And it simulates alike: the same scenes (the preset also picks the scene generator's
+    // ranges) with the partial file and with the printed one give the same zones.
     let a = tmp.path().join("a");
     let b = tmp.path().join("b");
     let common_args = [
@@ -95,12 +96,21 @@ fn print_config_fed_back_through_config_reproduces_it() {
     );
     depthor_ok(
         &[
-            &["sim", "--config", s(&full), "--out", s(&b)][..],
+            &[
+                "sim",
+                "--preset",
+                "phone",
+                "--config",
+                s(&full),
+                "--out",
+                s(&b),
+            ][..],
             &common_args,
         ]
         .concat(),
     );
-    let dtof = |d: &std::path::Path| std::fs::read(d.join("frames/000000/dtof.json")).unwrap();
+    let dtof =
+        |d: &std::path::Path| std::fs::read_to_string(d.join("frames/000000/dtof.json")).unwrap();
     assert_eq!(dtof(&a), dtof(&b));
 }
 
@@ -344,7 +354,11 @@ fn misregistration_and_estimators_on_a_staircase() {
     assert_eq!(row0(&cfg), [2.0, 3.0, 4.0, 0.0]);
     // Half a zone: each window straddles two walls, half each (the last keeps its own half).
     cfg.misregistration.shift_zones = 0.5;
-    assert_eq!(row0(&cfg), [1.0, 2.0, 3.0, 4.0], "peak: ties go to the nearer");
+    assert_eq!(
+        row0(&cfg),
+        [1.0, 2.0, 3.0, 4.0],
+        "peak: ties go to the nearer"
+    );
     cfg.zone_estimator.estimator = Estimator::Mean;
     assert_eq!(row0(&cfg), [1.5, 2.5, 3.5, 4.0]);
     cfg.zone_estimator.estimator = Estimator::Nearest;

@@ -630,6 +630,8 @@ mod tests {
         let clean = &c[1].config;
         assert!(!clean.anomalies.enabled && !clean.calibration_shift.enabled);
         assert_eq!(clean.overall_distribution.max_translation, 0.0);
+        // The sensor's own range limit stays: a sensor never reports beyond it.
+        assert_eq!(clean.range, preset.range);
         let noise = c.iter().find(|c| c.name == "noise_5pct").unwrap();
         let mut back = noise.config.clone();
         back.range_noise = clean.range_noise.clone();
