@@ -28,7 +28,8 @@ use std::path::{Path, PathBuf};
   depthor eval --model mcu --recording rec/mcu-test --out eval/mcu
   depthor eval --model phone --recording rec/a --recording rec/b --aggregate pixel --json
   depthor eval --recording rec/middlebury --native --save-depth --out eval/mb --overwrite
-Metrics and outputs: docs/eval.md.")]
+Metrics and outputs: docs/eval.md. Measurement conditions × sets (clean, noisy, misregistered
+zones …): depthor eval-grid --help.")]
 pub struct Args {
     /// `mcu`, `phone` or a model folder (depthor.dblob, depthor.nnef.tgz, prior.nnef.tgz).
     #[arg(long, default_value = "mcu")]

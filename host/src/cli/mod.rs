@@ -27,7 +27,7 @@ pub const EXIT_FAILURE: u8 = 2;
     name = "depthor",
     version,
     about,
-    after_help = "Examples:\n  depthor demo                                   # the main job, embedded mcu model\n  depthor info --recording rec/l5\n  depthor eval --model mcu --recording rec/mcu-test --out eval/mcu\n\nEvery command: `depthor <command> --help` shows its options and examples."
+    after_help = "Examples:\n  depthor demo                                   # the main job, embedded mcu model\n  depthor info --recording rec/l5\n  depthor eval --model mcu --recording rec/mcu-test --out eval/mcu\n  depthor eval-grid --model mcu_lite --set rec/middlebury --set rec/mcu-test --out eval/grid\n\nEvery command: `depthor <command> --help` shows its options and examples."
 )]
 pub struct Cli {
     /// Folder holding the model variants (`mcu/`, `phone/`), looked in first (default: beside
