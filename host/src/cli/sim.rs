@@ -20,7 +20,7 @@ use depthor_host::dataset::{
 };
 use depthor_host::plot::{figure, robust_range, ColourMap, Panel};
 use depthor_host::recording::{Frame, FrameMeta, Recording, RecordingWriter, Shard, WriteOptions};
-use depthor_host::sim::{preset, SimConfig};
+use depthor_host::sim::{preset, SimConfig, SimError};
 use depthor_host::viz::{
     depth_image, draw_points, labels_image, points_csv, Overlay, LABEL_COLOURS,
 };
@@ -143,12 +143,15 @@ pub fn sim_config(preset_name: Option<&str>, config: Option<&Path>) -> Result<Si
         Some(name) => preset(name)?.with_overrides(&text),
         None => SimConfig::from_json(&text),
     };
-    cfg.with_context(|| match preset_name {
-        Some(_) => path.display().to_string(),
-        None => format!(
-            "{} (a partial configuration needs --preset to take the other fields from)",
-            path.display()
-        ),
+    cfg.map_err(|e| {
+        let missing = matches!(&e, SimError::Json { message, .. }
+            if message.starts_with("missing field"));
+        let hint = if missing && preset_name.is_none() {
+            " (a partial configuration needs --preset to take the other fields from)"
+        } else {
+            ""
+        };
+        anyhow::Error::new(e).context(format!("{}{hint}", path.display()))
     })
 }
 
