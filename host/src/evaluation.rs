@@ -25,6 +25,7 @@ use crate::reference::{FloatReference, ReferenceError};
 use crate::sim::{preset, simulate, SimConfig, SimError, SimOutput};
 use crate::viz::{depth_image, draw_points, Overlay};
 
+pub mod grid;
 pub mod output;
 
 /// Why frames could not be made, a model not loaded or run, or a figure not written. The
@@ -49,6 +50,9 @@ pub enum EvalError {
     /// Drawing a figure.
     #[error(transparent)]
     Plot(#[from] PlotError),
+    /// A prediction and its reference differ in size.
+    #[error("metrics: {0}")]
+    Metrics(depthor_core::metrics::MetricsError),
     /// A rendered scene's RGB does not have `width × height` pixels.
     #[error("scene size")]
     SceneSize,
@@ -254,8 +258,38 @@ impl RecordingFrames {
 
     /// Frame `i` resampled to `width × height`: its zones projected at the recording's own
     /// resolution and mapped onto the resampled image, or the preset's sensor simulated on its
-    /// reference depth when it has no dToF.
+    /// reference depth (seed `i`) when it has no dToF.
     pub fn frame(&self, i: usize, width: u32, height: u32) -> Result<EvalFrame> {
+        let src = self.source(i, width, height)?;
+        let meta = self.rec.meta().dtof.as_ref();
+        let (Some(d), Some(cal), Some(meta)) = (&src.dtof, self.rec.calibration(i), meta) else {
+            return src.simulated(&self.cfg, i as u64);
+        };
+        let (w, h) = (width, height);
+        let (cam, r) = (&src.camera, &src.resampled);
+        let (sx, sy) = (r.camera.fx / cam.fx, r.camera.fy / cam.fy);
+        let mut points = Vec::new();
+        for_each_point(&cal.as_core(), &d.view(meta), |p| {
+            let u = (p.u - cam.cx) * sx + r.camera.cx;
+            let v = (p.v - cam.cy) * sy + r.camera.cy;
+            let (x, y) = ((u + 0.5).floor(), (v + 0.5).floor());
+            if x >= 0.0 && y >= 0.0 && x < w as f32 && y < h as f32 {
+                points.push(ProjectedPoint {
+                    u,
+                    v,
+                    x: x as u32,
+                    y: y as u32,
+                    ..p
+                });
+            }
+        })?;
+        Ok(src.into_eval_frame(points, meta.rows, meta.cols))
+    }
+
+    /// Frame `i` resampled to `width × height`, before any zones: what
+    /// [`SourceFrame::simulated`] puts simulated zones on (the evaluation grid simulates every
+    /// condition on the same source frame).
+    pub fn source(&self, i: usize, width: u32, height: u32) -> Result<SourceFrame> {
         let (w, h) = (width, height);
         let frame = self.rec.read_frame(i)?;
         let cam = self.rec.camera(i);
@@ -263,7 +297,7 @@ impl RecordingFrames {
             .depth_m
             .clone()
             .unwrap_or_else(|| vec![0.0; (cam.width * cam.height) as usize]);
-        let r = resample_frame(&cam, &frame.rgb, &depth, frame.labels.as_deref(), w, h);
+        let resampled = resample_frame(&cam, &frame.rgb, &depth, frame.labels.as_deref(), w, h);
         let native = frame.depth_m.as_ref().map(|d| {
             let (x0, y0, cw, ch) = crate::dataset::centre_crop(cam.width, cam.height, w, h);
             let depth_m = (y0..y0 + ch)
@@ -276,42 +310,53 @@ impl RecordingFrames {
                 depth_m,
             }
         });
-        let meta = self.rec.meta().dtof.as_ref();
-        let (points, rows, cols) = match (&frame.dtof, self.rec.calibration(i), meta) {
-            (Some(d), Some(cal), Some(meta)) => {
-                let (sx, sy) = (r.camera.fx / cam.fx, r.camera.fy / cam.fy);
-                let mut pts = Vec::new();
-                for_each_point(&cal.as_core(), &d.view(meta), |p| {
-                    let u = (p.u - cam.cx) * sx + r.camera.cx;
-                    let v = (p.v - cam.cy) * sy + r.camera.cy;
-                    let (x, y) = ((u + 0.5).floor(), (v + 0.5).floor());
-                    if x >= 0.0 && y >= 0.0 && x < w as f32 && y < h as f32 {
-                        pts.push(ProjectedPoint {
-                            u,
-                            v,
-                            x: x as u32,
-                            y: y as u32,
-                            ..p
-                        });
-                    }
-                })?;
-                (pts, meta.rows, meta.cols)
-            }
-            _ => {
-                let sim = simulate(&self.cfg, &r.sim_input(), i as u64)?;
-                let pts = sim_points(&self.cfg, &sim, &r.camera)?;
-                (pts, self.cfg.grid.rows, self.cfg.grid.cols)
-            }
-        };
-        Ok(EvalFrame {
+        Ok(SourceFrame {
             id: frame.id,
-            rgb: r.rgb,
-            reference_m: r.depth_m,
+            camera: cam,
+            resampled,
+            native,
+            dtof: frame.dtof,
+        })
+    }
+}
+
+/// A recording's frame at a model's size, before its zones are projected or simulated.
+#[derive(Clone, Debug)]
+pub struct SourceFrame {
+    /// Frame id.
+    pub id: String,
+    /// The recording's camera for this frame (its own resolution).
+    pub camera: CameraIntrinsics,
+    /// RGB, reference depth and labels at the model's size, with the camera at that size.
+    pub resampled: crate::dataset::Resampled,
+    /// The reference at the recording's resolution over the crop (see [`NativeReference`]).
+    pub native: Option<NativeReference>,
+    /// The recording's own zones, if it has them.
+    pub dtof: Option<crate::recording::DtofFrame>,
+}
+
+impl SourceFrame {
+    /// The frame with zones simulated by `cfg` (frame seed `seed`) on its resampled reference
+    /// depth, labels and RGB; the recording's own zones, if any, are not used.
+    pub fn simulated(&self, cfg: &SimConfig, seed: u64) -> Result<EvalFrame> {
+        let r = &self.resampled;
+        let sim = simulate(cfg, &r.sim_input(), seed)?;
+        let points = sim_points(cfg, &sim, &r.camera)?;
+        Ok(self
+            .clone()
+            .into_eval_frame(points, cfg.grid.rows, cfg.grid.cols))
+    }
+
+    fn into_eval_frame(self, points: Vec<ProjectedPoint>, rows: u16, cols: u16) -> EvalFrame {
+        EvalFrame {
+            id: self.id,
+            rgb: self.resampled.rgb,
+            reference_m: self.resampled.depth_m,
             points,
             rows,
             cols,
-            native,
-        })
+            native: self.native,
+        }
     }
 }
 
@@ -516,10 +561,12 @@ pub fn metrics_table(rows: &[(&str, Metrics)]) -> String {
 }
 
 /// The comparison figure of one frame and the numbers behind it: RGB with the dToF points |
-/// reference | `pred` (`label`) | `extra` (`extra_label`, if any) on one Turbo depth scale from
-/// the 2nd to the 98th percentile of the reference, with its colour bar in metres, then
-/// |pred − reference| on Viridis from 0 to its 98th percentile, with its own bar. The CSV has one
-/// row per panel: `panel,colour_map,lo_m,hi_m,valid_pixels,median_m`.
+/// reference | `pred` (`label`) | `extra` (`extra_label`, if any: `depthor eval` gives the frame's
+/// best baseline) on one Turbo depth scale from the 2nd to the 98th percentile of the reference,
+/// with its colour bar in metres; then |pred − reference| (and |extra − reference|) on Viridis
+/// from 0 to the larger of their 98th percentiles, one scale for both, with its bar. A legend
+/// under the RGB says what the points are. The CSV has one row per panel:
+/// `panel,colour_map,lo_m,hi_m,valid_pixels,median_m`.
 pub fn comparison_mosaic(
     f: &EvalFrame,
     pred: (&str, &[f32]),
@@ -530,51 +577,70 @@ pub fn comparison_mosaic(
     let (lo, hi) = robust_range(&f.reference_m, 0.02, 0.98)
         .or_else(|| robust_range(pred.1, 0.02, 0.98))
         .unwrap_or((0.0, 1.0));
-    let err: Vec<f32> = pred
-        .1
+    let abs_err = |d: &[f32]| -> Vec<f32> {
+        d.iter()
+            .zip(&f.reference_m)
+            .map(|(p, r)| if *r > 0.0 { (p - r).abs() } else { f32::NAN })
+            .collect()
+    };
+    let shown: Vec<(&str, &[f32])> = std::iter::once(pred).chain(extra).collect();
+    let errs: Vec<Vec<f32>> = shown.iter().map(|(_, d)| abs_err(d)).collect();
+    let err_hi = errs
         .iter()
-        .zip(&f.reference_m)
-        .map(|(p, r)| if *r > 0.0 { (p - r).abs() } else { f32::NAN })
-        .collect();
-    let err_hi = robust_range(&err, 0.0, 0.98).map_or(0.1, |r| r.1.max(0.01));
+        .filter_map(|e| robust_range(e, 0.0, 0.98))
+        .fold(0.01f32, |a, r| a.max(r.1));
     let overlay = Overlay {
         lo_m: lo,
         hi_m: hi,
         ..Overlay::auto(w, h, &f.points)
     };
     let depth = |d: &[f32]| depth_image(d, w, h, lo, hi);
+    let legend = vec![
+        (
+            ColourMap::Turbo.at(0.5),
+            "disc: a zone's point, coloured by its depth (depth bar)".to_string(),
+        ),
+        (
+            image::Rgb([0, 0, 0]),
+            "black in depth panels: no depth".to_string(),
+        ),
+    ];
     let mut panels = vec![
         Panel::new(
             format!("RGB + {}×{} dToF zones", f.rows, f.cols),
             draw_points(&f.rgb, &f.points, &overlay),
-        ),
+        )
+        .with_legend(legend),
         Panel::new("reference depth", depth(&f.reference_m)),
-        Panel::new(pred.0, depth(pred.1)),
     ];
-    if let Some((label, x)) = extra {
-        panels.push(Panel::new(label, depth(x)));
+    for (label, d) in &shown {
+        panels.push(Panel::new(*label, depth(d)));
     }
     if let Some(last) = panels.last_mut() {
         *last = last
             .clone()
             .with_bar(ColourMap::Turbo, lo, hi, "depth (m), black = none");
     }
-    let err_img = RgbImage::from_fn(w, h, |x, y| {
-        let e = err[(y * w + x) as usize];
-        if e.is_finite() {
-            ColourMap::Viridis.of(e, 0.0, err_hi)
-        } else {
-            image::Rgb([255, 255, 255])
-        }
-    });
-    panels.push(
-        Panel::new(format!("|{} − reference|", pred.0), err_img).with_bar(
+    for ((label, _), err) in shown.iter().zip(&errs) {
+        let err_img = RgbImage::from_fn(w, h, |x, y| {
+            let e = err[(y * w + x) as usize];
+            if e.is_finite() {
+                ColourMap::Viridis.of(e, 0.0, err_hi)
+            } else {
+                image::Rgb([255, 255, 255])
+            }
+        });
+        let name = label.split(" (").next().unwrap_or(label);
+        panels.push(Panel::new(format!("|{name} − reference|"), err_img));
+    }
+    if let Some(last) = panels.last_mut() {
+        *last = last.clone().with_bar(
             ColourMap::Viridis,
             0.0,
             err_hi,
             "abs. error (m), white = no ref.",
-        ),
-    );
+        );
+    }
     let img = figure(&format!("frame {} ({w}×{h})", f.id), &panels, 240)?;
     let median = |d: &[f32]| {
         let mut v: Vec<f32> = d
@@ -591,11 +657,17 @@ pub fn comparison_mosaic(
         csv += &format!("{name},{map},{lo:.4},{hi:.4},{n},{m:.4}\n");
     };
     row("reference", "turbo", lo, hi, &f.reference_m);
-    row(pred.0, "turbo", lo, hi, pred.1);
-    if let Some((label, x)) = extra {
-        row(label, "turbo", lo, hi, x);
+    for (label, d) in &shown {
+        row(label, "turbo", lo, hi, d);
     }
-    row("abs_error", "viridis", 0.0, err_hi, &err);
+    for (i, err) in errs.iter().enumerate() {
+        let name = if i == 0 {
+            "abs_error"
+        } else {
+            "abs_error_extra"
+        };
+        row(name, "viridis", 0.0, err_hi, err);
+    }
     Ok((img, csv))
 }
 

@@ -24,6 +24,26 @@ pub(crate) fn locate<T: DeserializeOwned>(
     missing_walk(base, doc, missing, &mut Vec::new())
 }
 
+/// Merges `patch` into `base` field by field: members of a JSON object in `patch` replace or
+/// merge into (when both are objects) the member of the same name in `base`; any other value
+/// (numbers, strings, arrays, `null`) replaces `base`'s wholesale. Members `base` lacks are added,
+/// so that the type's own deserialisation refuses them as unknown fields.
+pub(crate) fn merge(base: &mut Value, patch: &Value) {
+    match (base, patch) {
+        (Value::Object(b), Value::Object(p)) => {
+            for (k, v) in p {
+                match b.get_mut(k) {
+                    Some(slot) => merge(slot, v),
+                    None => {
+                        b.insert(k.clone(), v.clone());
+                    }
+                }
+            }
+        }
+        (slot, v) => *slot = v.clone(),
+    }
+}
+
 /// One step of a JSON path.
 #[derive(Clone)]
 enum Step {
@@ -181,6 +201,18 @@ mod tests {
             .unwrap()
             .to_string();
         locate::<Outer>(&base, &doc, &msg)
+    }
+
+    #[test]
+    fn merge_replaces_leaves_and_recurses_into_objects() {
+        let mut base: Value =
+            serde_json::from_str(r#"{"inner": {"n": 1, "pair": [1, 2]}, "flag": true}"#).unwrap();
+        let patch: Value = serde_json::from_str(r#"{"inner": {"pair": [3]}, "x": 0}"#).unwrap();
+        merge(&mut base, &patch);
+        let want: Value =
+            serde_json::from_str(r#"{"inner": {"n": 1, "pair": [3]}, "flag": true, "x": 0}"#)
+                .unwrap();
+        assert_eq!(base, want);
     }
 
     #[test]

@@ -620,6 +620,123 @@ pub fn zone_heat_map(
     save_with_csv(path, w, h, fig.into_raw(), &csv)
 }
 
+/// A table of ratios as a heat map: one row per `row_labels`, one column per `col_labels`, each
+/// cell coloured on the blue–white–red scale centred on 1 (blue below: better than the
+/// reference; red above) and labelled with its value (`—` where not finite); a colour bar with
+/// `bar_label`, a title. With `means`, the last row and column are set apart by a gap (they hold
+/// means over the others). The numbers are written as `<path>.csv` (`row,col,value`).
+pub fn ratio_heat_map(
+    path: &Path,
+    title: &str,
+    bar_label: &str,
+    row_labels: &[String],
+    col_labels: &[String],
+    values: &[Vec<f64>],
+    means: bool,
+) -> Result<(), PlotError> {
+    let what = path.display().to_string();
+    let e = |x| err(&what, x);
+    let (nr, nc) = (row_labels.len(), col_labels.len());
+    // The scale: symmetric about 1, wide enough for the values, at least ±0.25, at most ±1.
+    let m = values
+        .iter()
+        .flatten()
+        .filter(|v| v.is_finite())
+        .fold(0.25f64, |a, v| a.max((v - 1.0).abs()))
+        .min(1.0);
+    let (lo, hi) = (1.0 - m, 1.0 + m);
+    let text_w = |t: &str, size: u32| (t.chars().count() as u32 * size * 6).div_ceil(10);
+    let label_w = row_labels.iter().map(|l| text_w(l, 14)).max().unwrap_or(0) + 12;
+    let cell_w = col_labels
+        .iter()
+        .map(|l| text_w(l, 14) + 12)
+        .max()
+        .unwrap_or(0)
+        .max(78);
+    let cell_h = 26u32;
+    let sep = 8u32;
+    let head_h = 26u32;
+    let gap = |i: usize, n: usize| if means && i + 1 == n && n > 1 { sep } else { 0 };
+    let grid_w = nc as u32 * cell_w + gap(nc - 1, nc);
+    let grid_h = nr as u32 * cell_h + gap(nr - 1, nr);
+    let x0 = MARGIN + label_w;
+    let y0 = TITLE_H + head_h;
+    // Tall enough for the bar's label, written along it.
+    let bar_h = grid_h.max(text_w(bar_label, 13) + 24);
+    let w = (x0 + grid_w + 12 + BAR_AREA_W + MARGIN).max(2 * MARGIN + text_w(title, 18));
+    let h = y0 + bar_h + 2 * MARGIN;
+    let mut buf = vec![255u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.draw(&Text::new(title.to_string(), (MARGIN as i32, 8), font(18)))
+            .map_err(e)?;
+        let cx = |c: usize| (x0 + c as u32 * cell_w + gap(c, nc)) as i32;
+        let ry = |r: usize| (y0 + r as u32 * cell_h + gap(r, nr)) as i32;
+        for (c, l) in col_labels.iter().enumerate() {
+            let x = cx(c) + (cell_w as i32 - text_w(l, 14) as i32) / 2;
+            root.draw(&Text::new(l.clone(), (x, (TITLE_H + 4) as i32), font(14)))
+                .map_err(e)?;
+        }
+        for (r, l) in row_labels.iter().enumerate() {
+            let y = ry(r);
+            root.draw(&Text::new(l.clone(), (MARGIN as i32, y + 5), font(14)))
+                .map_err(e)?;
+            for c in 0..nc {
+                let v = values.get(r).and_then(|row| row.get(c)).copied();
+                let v = v.unwrap_or(f64::NAN);
+                let (fill, dark) = if v.is_finite() {
+                    let t = ((v - lo) / (hi - lo)) as f32;
+                    (ColourMap::Diverging.at(t), (2.0 * t - 1.0).abs() > 0.6)
+                } else {
+                    (Rgb([230, 230, 230]), false)
+                };
+                let x = cx(c);
+                let rect = [(x, y), (x + cell_w as i32, y + cell_h as i32)];
+                root.draw(&Rectangle::new(
+                    rect,
+                    RGBColor(fill[0], fill[1], fill[2]).filled(),
+                ))
+                .map_err(e)?;
+                root.draw(&Rectangle::new(
+                    rect,
+                    RGBColor(160, 160, 160).stroke_width(1),
+                ))
+                .map_err(e)?;
+                let label = if v.is_finite() {
+                    format!("{v:.2}")
+                } else {
+                    "—".into()
+                };
+                let colour = if dark { WHITE } else { BLACK };
+                let tx = x + (cell_w as i32 - text_w(&label, 14) as i32) / 2;
+                root.draw(&Text::new(
+                    label,
+                    (tx, y + 5),
+                    (FAMILY, 14).into_font().color(&colour),
+                ))
+                .map_err(e)?;
+            }
+        }
+        let bar = ColourBar {
+            map: ColourMap::Diverging,
+            lo: lo as f32,
+            hi: hi as f32,
+            label: bar_label.to_string(),
+        };
+        let bx = x0 + grid_w + 12;
+        colour_bar(&root, &bar, bx, y0, bar_h).map_err(e)?;
+        root.present().map_err(e)?;
+    }
+    let mut csv = String::from("row,col,value\n");
+    for (r, rl) in row_labels.iter().enumerate() {
+        for (c, cl) in col_labels.iter().enumerate() {
+            let v = values.get(r).and_then(|row| row.get(c)).copied();
+            csv += &format!("{rl},{cl},{}\n", v.unwrap_or(f64::NAN));
+        }
+    }
+    save_with_csv(path, w, h, buf, &csv)
+}
+
 /// Blue (−1) – white (0) – red (+1).
 fn diverging(t: f32) -> Rgb<u8> {
     let t = if t.is_nan() { 0.0 } else { t.clamp(-1.0, 1.0) };

@@ -3,7 +3,8 @@
 //! one or more recordings. Writes `<out>/frames.csv` (one row per recording, frame and method),
 //! `<out>/summary.json` (metrics over all frames of each recording and over their union, the best
 //! baseline, int8 against it and against float; the depthor version, commit, blob SHA-256),
-//! `<out>/mosaic_<recording>_<id>.png` for a sample of frames and, with `--save-depth`,
+//! `<out>/mosaic_<recording>_<id>.png` for a sample of frames (the int8 model beside the frame's
+//! best baseline) and, with `--save-depth`,
 //! `<out>/depth/<recording>/<method>/<id>.png` (16-bit PNG, millimetres). The metrics, their
 //! aggregation and every output are documented in docs/eval.md.
 
@@ -27,7 +28,8 @@ use std::path::{Path, PathBuf};
   depthor eval --model mcu --recording rec/mcu-test --out eval/mcu
   depthor eval --model phone --recording rec/a --recording rec/b --aggregate pixel --json
   depthor eval --recording rec/middlebury --native --save-depth --out eval/mb --overwrite
-Metrics and outputs: docs/eval.md.")]
+Metrics and outputs: docs/eval.md. Measurement conditions × sets (clean, noisy, misregistered
+zones …): depthor eval-grid --help.")]
 pub struct Args {
     /// `mcu`, `phone` or a model folder (depthor.dblob, depthor.nnef.tgz, prior.nnef.tgz).
     #[arg(long, default_value = "mcu")]
@@ -163,12 +165,15 @@ pub fn handle(args: Args) -> Result<()> {
             }
             totals.frames += 1;
             let preds = eval.predict(&frame)?;
+            // This frame's RMSE per method, for the mosaic's best baseline.
+            let mut frame_rmse = Vec::with_capacity(preds.len());
             for (k, p) in preds.iter().enumerate() {
                 let (pred, reference, sw, sh) = scored(&frame, &p.depth_m, args.native)?;
                 native_size.get_or_insert((sh, sw));
                 let mut acc = MetricsAccumulator::new(args.max_depth);
                 acc.add_map(&pred, reference, sw as usize, sh as usize)?;
                 totals.sets[k].add_image(&acc);
+                frame_rmse.push(acc.finish().rmse);
                 totals.seconds[k] += p.seconds;
                 csv.push(csv_row(
                     &name,
@@ -183,7 +188,21 @@ pub fn handle(args: Args) -> Result<()> {
             }
             if i % mosaic_every == 0 {
                 let path = out.join(format!("mosaic_{name}_{}.png", frame.id));
-                write_mosaic(&path, &frame, ("int8 model", &preds[0].depth_m), None)?;
+                let best = preds
+                    .iter()
+                    .zip(&frame_rmse)
+                    .filter(|(p, _)| p.method.is_baseline())
+                    .min_by(|a, b| a.1.total_cmp(b.1));
+                let int8_label = format!("int8 model (RMSE {:.3} m)", frame_rmse[0]);
+                let best_label = best
+                    .map(|(p, r)| format!("best baseline: {} (RMSE {r:.3} m)", p.method.label()));
+                write_mosaic(
+                    &path,
+                    &frame,
+                    (&int8_label, &preds[0].depth_m),
+                    best.zip(best_label.as_deref())
+                        .map(|((p, _), l)| (l, p.depth_m.as_slice())),
+                )?;
             }
         }
         if totals.frames == 0 {

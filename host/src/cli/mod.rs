@@ -7,6 +7,7 @@ mod bench;
 pub mod common;
 mod demo;
 mod eval;
+mod eval_grid;
 mod firmware;
 mod gap;
 mod gap_bench;
@@ -26,7 +27,7 @@ pub const EXIT_FAILURE: u8 = 2;
     name = "depthor",
     version,
     about,
-    after_help = "Examples:\n  depthor demo                                   # the main job, embedded mcu model\n  depthor info --recording rec/l5\n  depthor eval --model mcu --recording rec/mcu-test --out eval/mcu\n\nEvery command: `depthor <command> --help` shows its options and examples."
+    after_help = "Examples:\n  depthor demo                                   # the main job, embedded mcu model\n  depthor info --recording rec/l5\n  depthor eval --model mcu --recording rec/mcu-test --out eval/mcu\n  depthor eval-grid --model mcu_lite --set rec/middlebury --set rec/mcu-test --out eval/grid\n\nEvery command: `depthor <command> --help` shows its options and examples."
 )]
 pub struct Cli {
     /// Folder holding the model variants (`mcu/`, `phone/`), looked in first (default: beside
@@ -46,6 +47,8 @@ enum Command {
     Demo(demo::Args),
     /// Evaluate a model (int8 core, float tract) and the baselines on a recording.
     Eval(eval::Args),
+    /// Evaluation grid: measurement conditions (partial simulator configs) × sets, every method.
+    EvalGrid(eval_grid::Args),
     /// Write a firmware-sim replay flash image (RGB 120×160 + zones) from a recording.
     FirmwareImage(firmware::ImageArgs),
     /// Host build of the firmware-sim loop: per-frame depth hashes, as the QEMU firmware prints.
@@ -77,6 +80,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Bench(args) => bench::handle(args),
         Command::Demo(args) => demo::handle(args),
         Command::Eval(args) => eval::handle(args),
+        Command::EvalGrid(args) => eval_grid::handle(args),
         Command::FirmwareImage(args) => firmware::handle_image(args),
         Command::FirmwareReplay(args) => firmware::handle_replay(args),
         Command::Gap(args) => gap::handle(args),

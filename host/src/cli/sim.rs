@@ -5,6 +5,8 @@
 //! depthor sim --preset l5 --scenes N --seed S --out DIR [--width W --height H] [--preview]
 //!             [--scene-config scenes.json]
 //! depthor sim --config cfg.json --from RECORDING --out DIR [--preview]
+//! depthor sim --preset mcu --config partial.json …   # the fields it names over the preset's
+//! depthor sim --preset mcu [--config partial.json] --print-config   # the effective config
 //! depthor sim … --shard K/N      # frames K, K+N, … of the same run (join with `depthor merge`)
 //! ```
 
@@ -18,7 +20,7 @@ use depthor_host::dataset::{
 };
 use depthor_host::plot::{figure, robust_range, ColourMap, Panel};
 use depthor_host::recording::{Frame, FrameMeta, Recording, RecordingWriter, Shard, WriteOptions};
-use depthor_host::sim::{preset, SimConfig};
+use depthor_host::sim::{preset, SimConfig, SimError};
 use depthor_host::viz::{
     depth_image, draw_points, labels_image, points_csv, Overlay, LABEL_COLOURS,
 };
@@ -32,14 +34,22 @@ use std::path::{Path, PathBuf};
   depthor sim --preset l5 --scenes 100 --out rec/l5 --preview
   depthor sim --preset mcu --recording rec/middlebury --out rec/middlebury-mcu
   depthor sim --preset mcu --scenes 100 --scene-config models/scenes/close_range.json --out rec/near
-  depthor sim --config my_sim.json --scenes 10 --width 320 --height 240 --out rec/mine --overwrite")]
+  depthor sim --config my_sim.json --scenes 10 --width 320 --height 240 --out rec/mine --overwrite
+  depthor sim --preset mcu --config host/eval_grid/clean.json --recording rec/mb --out rec/mb-clean
+  depthor sim --preset mcu --print-config > mcu.json     # every field; feeds back through --config")]
 pub struct Args {
     /// Sensor preset: l5, phone or mcu (docs/design.md "Sensor presets").
     #[arg(long)]
     preset: Option<String>,
-    /// Simulator configuration JSON (overrides --preset's aspects; see `depthor_host::sim`).
+    /// Simulator configuration JSON. With --preset it may be partial: the fields it names
+    /// replace the preset's, objects merged field by field (`{"anomalies": {"enabled": false}}`);
+    /// alone it must be complete (as --print-config writes it). See docs/sim.md.
     #[arg(long)]
     config: Option<PathBuf>,
+    /// Print the effective simulator configuration (the preset with --config's fields) as JSON
+    /// on stdout and exit; the output fed back through --config reproduces it.
+    #[arg(long)]
+    print_config: bool,
     /// Number of synthetic scenes to render and simulate.
     #[arg(long, conflicts_with = "from")]
     scenes: Option<u64>,
@@ -55,8 +65,8 @@ pub struct Args {
     #[arg(long, default_value_t = super::common::DEFAULT_SEED)]
     seed: u64,
     /// Output recording folder.
-    #[arg(long)]
-    out: PathBuf,
+    #[arg(long, required_unless_present = "print_config")]
+    out: Option<PathBuf>,
     /// Image width (default: the preset's, or the source recording's).
     #[arg(long)]
     width: Option<u32>,
@@ -80,14 +90,13 @@ const CHUNK: u64 = 32;
 
 /// Validates the arguments, generates and writes the recording, then the previews.
 pub fn handle(args: Args) -> Result<()> {
-    let cfg = match (&args.config, &args.preset) {
-        (Some(path), _) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("{}: cannot read", path.display()))?;
-            SimConfig::from_json(&text).with_context(|| format!("{}", path.display()))?
-        }
-        (None, Some(name)) => preset(name)?,
-        (None, None) => bail!("sim: give --preset l5|phone|mcu or --config cfg.json"),
+    let cfg = sim_config(args.preset.as_deref(), args.config.as_deref())?;
+    if args.print_config {
+        println!("{}", cfg.to_json());
+        return Ok(());
+    }
+    let Some(out_dir) = args.out.as_deref() else {
+        bail!("sim: --out: required (the output recording folder)");
     };
     let preset_name = args.preset.as_deref().unwrap_or("");
     // Where the configuration came from, in front of its errors.
@@ -99,13 +108,13 @@ pub fn handle(args: Args) -> Result<()> {
         (Some(n), None) => {
             let (h, w) = size(&args, preset_name, None)?;
             check_memory(&cfg, w, h, CHUNK.min(args.shard.len(*n)), &source)?;
-            synthetic(&args, &cfg, preset_name, *n, w, h)?
+            synthetic(&args, out_dir, &cfg, preset_name, *n, w, h)?
         }
         (None, Some(src)) => {
             let rec = Recording::open(src)?;
             let (h, w) = size(&args, preset_name, Some(&rec))?;
             check_memory(&cfg, w, h, args.shard.len(rec.len() as u64), &source)?;
-            from_recording(&args, &cfg, &rec, w, h)?
+            from_recording(&args, out_dir, &cfg, &rec, w, h)?
         }
         _ => bail!("sim: give either --scenes N or --recording DIR"),
     };
@@ -116,6 +125,34 @@ pub fn handle(args: Args) -> Result<()> {
     let out = out.commit()?;
     println!("wrote {}", out.display());
     Ok(())
+}
+
+/// The simulator configuration of `--preset` and `--config`: the preset, with the fields the
+/// file names replaced; the file alone when no preset is given (then it must be complete).
+/// Errors name the file and the field.
+pub fn sim_config(preset_name: Option<&str>, config: Option<&Path>) -> Result<SimConfig> {
+    let Some(path) = config else {
+        let Some(name) = preset_name else {
+            bail!("sim: give --preset l5|phone|mcu or --config cfg.json");
+        };
+        return Ok(preset(name)?);
+    };
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read", path.display()))?;
+    let cfg = match preset_name {
+        Some(name) => preset(name)?.with_overrides(&text),
+        None => SimConfig::from_json(&text),
+    };
+    cfg.map_err(|e| {
+        let missing = matches!(&e, SimError::Json { message, .. }
+            if message.starts_with("missing field"));
+        let hint = if missing && preset_name.is_none() {
+            " (a partial configuration needs --preset to take the other fields from)"
+        } else {
+            ""
+        };
+        anyhow::Error::new(e).context(format!("{}{hint}", path.display()))
+    })
 }
 
 /// Refuses a run whose memory estimate (rayon's workers simulating, `held` frames kept) is over
@@ -151,6 +188,7 @@ fn size(args: &Args, preset_name: &str, src: Option<&Recording>) -> Result<(u32,
 /// Renders and simulates this shard's frames of `n` scenes, writing them in order.
 fn synthetic(
     args: &Args,
+    out: &Path,
     cfg: &SimConfig,
     preset_name: &str,
     n: u64,
@@ -162,7 +200,7 @@ fn synthetic(
     let nominal = depthor_host::scene::camera_for(&scene_cfg, args.seed, w, h);
     let meta = recording_meta(cfg, &nominal);
     let mut writer = RecordingWriter::create_with(
-        &args.out,
+        out,
         meta,
         WriteOptions {
             overwrite: args.overwrite,
@@ -189,6 +227,7 @@ fn synthetic(
 /// Simulates the sensor for this shard's frames of `rec` at `w × h`.
 fn from_recording(
     args: &Args,
+    out: &Path,
     cfg: &SimConfig,
     rec: &Recording,
     w: u32,
@@ -225,7 +264,7 @@ fn from_recording(
         }
     };
     let mut writer = RecordingWriter::create_with(
-        &args.out,
+        out,
         recording_meta(cfg, first),
         WriteOptions {
             overwrite: args.overwrite,

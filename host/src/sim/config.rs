@@ -23,13 +23,23 @@ use super::effects::range_dropout::RangeDropout;
 use super::effects::range_noise::RangeNoise;
 use super::effects::zone_crosstalk::ZoneCrosstalk;
 use super::error::SimError;
+use super::estimator::ZoneEstimator;
 use super::frame::ZoneEffect;
 use super::grid::{GridConfig, OverallDistribution};
 use super::halving::DepthHalving;
 use super::learned::Learned;
+use super::misregistration::Misregistration;
 use super::range::RangeAspect;
 use super::signal_loss::SignalLoss;
 use super::surfaces::{Surface, SurfaceAspect};
+
+/// Parses JSON text; a syntax error is reported as the field `JSON syntax`.
+fn parse_json(text: &str) -> Result<serde_json::Value, SimError> {
+    serde_json::from_str(text).map_err(|e| SimError::Json {
+        field: "JSON syntax".into(),
+        message: e.to_string(),
+    })
+}
 
 /// Default memory limit of a run (see [`SimConfig::check_memory`]): 8 GiB, or
 /// `DEPTHOR_MEMORY_LIMIT_MIB` from the environment.
@@ -71,6 +81,12 @@ pub struct SimConfig {
     /// Random window motion and peak-of-histogram zone values.
     #[serde(default)]
     pub overall_distribution: OverallDistribution,
+    /// The value a zone reports from its window's depths (peak, mean, median, nearest).
+    #[serde(default)]
+    pub zone_estimator: ZoneEstimator,
+    /// Rigid shift of the whole zone grid against the image (extrinsic calibration error).
+    #[serde(default)]
+    pub misregistration: Misregistration,
     /// Transparent surfaces (label 1): loss or the surface behind.
     #[serde(default)]
     pub transparent: SurfaceAspect,
@@ -136,6 +152,8 @@ impl SimConfig {
             grid,
             depth_halving: DepthHalving::default(),
             overall_distribution: OverallDistribution::default(),
+            zone_estimator: ZoneEstimator::default(),
+            misregistration: Misregistration::default(),
             transparent: SurfaceAspect::default(),
             specular: SurfaceAspect::default(),
             dark: DarkAspect::default(),
@@ -189,27 +207,63 @@ impl SimConfig {
         self.grid.validate()?;
         self.depth_halving.validate()?;
         self.overall_distribution.validate()?;
+        self.zone_estimator.validate()?;
+        self.misregistration.validate()?;
         for e in self.zone_effects() {
             e.validate()?;
         }
         Ok(())
     }
 
-    /// Parses and validates a JSON configuration. A wrong type, unknown or missing field names
-    /// its JSON path (`grid.rows: invalid type: string "8", expected u16`).
+    /// Parses and validates a complete JSON configuration. A wrong type, unknown or missing
+    /// field names its JSON path (`grid.rows: invalid type: string "8", expected u16`).
     pub fn from_json(text: &str) -> Result<SimConfig, SimError> {
-        let doc: serde_json::Value = serde_json::from_str(text).map_err(|e| SimError::Json {
-            field: "JSON syntax".into(),
+        let doc = parse_json(text)?;
+        let base = super::presets::preset("l5")
+            .ok()
+            .and_then(|c| serde_json::to_value(c).ok())
+            .unwrap_or_default();
+        Self::from_value(doc.clone(), &base, &doc)
+    }
+
+    /// This configuration with the fields a partial JSON configuration names replaced: objects
+    /// are merged field by field (`{"anomalies": {"enabled": false}}` switches the anomalies off
+    /// and keeps their rates), every other value (numbers, arrays) replaces the one here. Unknown
+    /// fields and wrong types are refused with their JSON path (`anomalies.noise_fractio:
+    /// unknown field …`); the result is validated.
+    pub fn with_overrides(&self, text: &str) -> Result<SimConfig, SimError> {
+        let patch = parse_json(text)?;
+        self.with_overrides_value(&patch)
+    }
+
+    /// [`SimConfig::with_overrides`] of an already parsed JSON value.
+    pub fn with_overrides_value(&self, patch: &serde_json::Value) -> Result<SimConfig, SimError> {
+        if !patch.is_object() {
+            return Err(SimError::Json {
+                field: "(root)".into(),
+                message: "expected a JSON object of the fields to replace".into(),
+            });
+        }
+        let base = serde_json::to_value(self).map_err(|e| SimError::Json {
+            field: "JSON".into(),
             message: e.to_string(),
         })?;
-        let cfg: SimConfig = serde_json::from_value(doc.clone()).map_err(|e| {
+        let mut merged = base.clone();
+        crate::json_field::merge(&mut merged, patch);
+        Self::from_value(merged, &base, patch)
+    }
+
+    /// Deserialises and validates `doc`; a refusal is located by grafting `named` (the values
+    /// the user wrote) onto `base` (a configuration serde accepts).
+    fn from_value(
+        doc: serde_json::Value,
+        base: &serde_json::Value,
+        named: &serde_json::Value,
+    ) -> Result<SimConfig, SimError> {
+        let cfg: SimConfig = serde_json::from_value(doc).map_err(|e| {
             let message = e.to_string();
-            let base = super::presets::preset("l5")
-                .ok()
-                .and_then(|c| serde_json::to_value(c).ok())
-                .unwrap_or_default();
             SimError::Json {
-                field: crate::json_field::locate::<SimConfig>(&base, &doc, &message)
+                field: crate::json_field::locate::<SimConfig>(base, named, &message)
                     .unwrap_or_else(|| "JSON".into()),
                 message,
             }

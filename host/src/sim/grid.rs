@@ -7,6 +7,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::error::{check_above, check_in, invalid, SimError};
+use super::estimator::ZoneEstimator;
 use super::frame::{Scene, Zone, ZoneGrid};
 use super::truth::{ZoneEvents, ZoneTruth};
 use crate::rng::Rng;
@@ -118,6 +119,7 @@ impl GridConfig {
             cols,
             centres,
             ifov_px: [self.ifov[0] * h, self.ifov[1] * w],
+            cell_px: [cell_h, cell_w],
             fov_centre: [(t + b) / 2.0 * h, (l + r) / 2.0 * w],
         }
     }
@@ -133,6 +135,8 @@ pub(crate) struct Layout {
     pub centres: Vec<[f32; 2]>,
     /// iFoV `[height, width]` in pixels.
     pub ifov_px: [f32; 2],
+    /// One zone cell of the grid (FoV bounds / rows, cols) `[height, width]` in pixels.
+    pub cell_px: [f32; 2],
     /// Centre of the FoV bounds `[y, x]`: the rotation centre.
     pub fov_centre: [f32; 2],
 }
@@ -268,13 +272,17 @@ impl OverallDistribution {
         }
     }
 
-    /// Measures every zone's ground-truth value: the histogram peak over its window (on) or the
-    /// nominal centre pixel (off). Zones with no depth report no target.
+    /// Measures every zone's ground-truth value: `estimator`'s value over its window (on; the
+    /// histogram peak by default) or the pixel at its centre (off): the nominal centre, or the
+    /// moved one (`centres`) when `moved` (a rigid misregistration). Zones with no depth report no
+    /// target.
     pub(crate) fn measure(
         &self,
         layout: &Layout,
         scene: &Scene<'_>,
         centres: &[[f32; 2]],
+        estimator: &ZoneEstimator,
+        moved: bool,
     ) -> ZoneGrid {
         let mut scratch = PeakScratch::default();
         let mut depths = Vec::new();
@@ -296,10 +304,16 @@ impl OverallDistribution {
                             .map(|&i| scene.depth(i as usize))
                             .filter(|&d| d > 0.0),
                     );
-                    histogram_peak(&depths, self.bin_m, &mut scratch)
+                    estimator.estimate(&mut depths, self.bin_m, &mut scratch)
                 } else {
-                    let [y, x] = layout.centres[z];
-                    scene.depth(y as usize * layout.width + x as usize)
+                    let [y, x] = if moved { centres[z] } else { layout.centres[z] };
+                    let inside =
+                        y >= 0.0 && x >= 0.0 && y < layout.height as f32 && x < layout.width as f32;
+                    if inside {
+                        scene.depth(y as usize * layout.width + x as usize)
+                    } else {
+                        0.0
+                    }
                 };
                 if peak <= 0.0 && !truth.events.contains(ZoneEvents::OUT_OF_IMAGE) {
                     truth.events.insert(ZoneEvents::NO_DEPTH);

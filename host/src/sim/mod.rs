@@ -5,7 +5,8 @@
 //! Pipeline of one frame, each stage an aspect in its own module, switchable in [`SimConfig`]:
 //! 1. [`halving`]: optional Hypersim trick, halve over-deep frames.
 //! 2. [`grid`]: lay the zone grid over the FoV bounds, move the iFoV windows by a random
-//!    translation and rotation, and let each zone report the peak of its depth histogram.
+//!    translation and rotation (and by [`misregistration`], a rigid shift of the whole grid), and
+//!    let each zone report one value of its depths ([`estimator`]: the histogram peak by default).
 //! 3. Per-zone physics: [`surfaces`] (transparent, specular), [`dark`], [`range`],
 //!    [`signal_loss`].
 //! 4. [`effects::calibration_shift`]: background zones take a neighbour's measurement.
@@ -39,10 +40,12 @@ pub mod covariates;
 pub mod dark;
 pub mod effects;
 pub mod error;
+pub mod estimator;
 mod frame;
 pub mod grid;
 pub mod halving;
 pub mod learned;
+pub mod misregistration;
 pub mod presets;
 pub mod range;
 pub mod signal_loss;
@@ -191,10 +194,21 @@ fn simulate_inner(
     let depth_scale = cfg.depth_halving.scale(input);
     let layout = cfg.grid.layout(input.width, input.height);
     let dist = &cfg.overall_distribution;
-    let pose = dist.draw_pose(&layout, &mut stream(seed, grid::DISTRIBUTION));
+    let mut pose = dist.draw_pose(&layout, &mut stream(seed, grid::DISTRIBUTION));
+    let misregistration = &cfg.misregistration;
+    let [dy, dx] =
+        misregistration.offset_px(layout.cell_px, &mut stream(seed, misregistration::NAME));
+    pose.translation_px[0] += dy;
+    pose.translation_px[1] += dx;
     let (px, start, centres) = layout.windows(&pose);
     let scene = Scene::new(input, depth_scale, dist.bin_m, px, start);
-    let mut zones = dist.measure(&layout, &scene, &centres);
+    let mut zones = dist.measure(
+        &layout,
+        &scene,
+        &centres,
+        &cfg.zone_estimator,
+        misregistration.enabled,
+    );
     for effect in cfg.zone_effects() {
         if effect.enabled() {
             effect.apply(&scene, &mut zones, &mut stream(seed, effect.name()));

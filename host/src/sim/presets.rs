@@ -60,6 +60,8 @@ fn l5() -> SimConfig {
             enabled: true,
             ..OverallDistribution::default()
         },
+        zone_estimator: Default::default(),
+        misregistration: Default::default(),
         transparent: lossy.clone(),
         specular: lossy,
         // No L5 figure in the paper: the phone's V < 40 / p = 0.8.
@@ -114,6 +116,8 @@ fn phone() -> SimConfig {
             enabled: true,
             ..OverallDistribution::default()
         },
+        zone_estimator: Default::default(),
+        misregistration: Default::default(),
         transparent: SurfaceAspect {
             enabled: true,
             ..SurfaceAspect::default()
