@@ -154,6 +154,103 @@ fn absorbed_offset_is_named_as_a_joint_pair() {
     }
 }
 
+/// Issue 44 item 1: a null run states per family the smallest effect these frames could have
+/// shown (scaled from the 40-frame calibration to these 32 frames and their covariates), in
+/// `report.json` and `report.md`; an effect at twice that size is then named on the same frames.
+#[test]
+fn null_states_detection_limits_and_twice_the_limit_is_found() {
+    let base = preset("mcu").unwrap();
+    let null = Case {
+        label: "null".into(),
+        hidden: vec![],
+        size: 0.0,
+        outside: false,
+        scenes: SceneSet::Sim,
+    };
+    let (r, a) = run_case(scenes(), &base, &null, &GapOptions::default(), 5).unwrap();
+    assert!(r.named.is_empty(), "{:?}", r.named);
+    let report = serde_json::to_value(Report::of(&a)).unwrap();
+    let limits = report["detection_limits"].as_array().unwrap();
+    // Every library family varies in rendered frames: each gets a limit.
+    assert_eq!(
+        limits.len(),
+        depthor_host::gap::effects::ALL.len(),
+        "{report:#}"
+    );
+    let md = depthor_host::gap::report::markdown(&a, &Report::of(&a));
+    for name in ["range_bias", "range_dropout", "dark_dropout"] {
+        let l = a.limits.iter().find(|l| l.effect == name).unwrap();
+        assert!(l.detectable, "{l:?}");
+        assert!(
+            l.statement.starts_with(&format!("no {name} larger than")),
+            "{l:?}"
+        );
+        assert!(md.contains(&l.statement), "{md}");
+        let size = 2.0 * l.multiple;
+        let case = Case {
+            label: format!("{name}@2x-limit"),
+            hidden: vec![(name, sized(name, size).unwrap())],
+            size,
+            outside: false,
+            scenes: SceneSet::Sim,
+        };
+        let (r, an) = run_case(scenes(), &base, &case, &GapOptions::default(), 5).unwrap();
+        assert_eq!(
+            r.named.first().map(String::as_str),
+            Some(name),
+            "{name} at 2× its stated limit ({l:?}) not named:\n{}",
+            an.selection.log.join("\n")
+        );
+    }
+}
+
+/// Issue 44 item 2: a loss of close returns (falling with range) on frames where range and grid
+/// radius are correlated is named by range or reported with range and radius inseparable, never
+/// as `border_dropout` alone.
+#[test]
+fn confounded_range_loss_is_named_by_range_or_inseparable() {
+    use depthor_host::gap::confound::correlation;
+    use depthor_host::gap::shapes::{run_shape_case, ShapeCase, CONFOUNDED};
+    use depthor_host::sim::learned::TermCovariate;
+    let base = preset("mcu").unwrap();
+    for sh in CONFOUNDED {
+        let case = ShapeCase {
+            label: format!("{}/{}@4x", sh.family, sh.name),
+            shape: Some(sh),
+            size: 4.0,
+            unit: 1.0,
+            scenes: "sim",
+        };
+        let (r, a) = run_shape_case(scenes(), &base, &case, &GapOptions::default(), 21).unwrap();
+        let log = a.selection.log.join("\n");
+        let frames = depthor_host::gap::model::prepare(
+            &base,
+            &make_real(scenes(), &base, 21, None).unwrap(),
+            2,
+            1,
+            &|| {},
+        )
+        .unwrap();
+        let rho = correlation(&frames, TermCovariate::Range, TermCovariate::Radius);
+        assert!(
+            rho.abs() >= 0.3,
+            "range and radius must be confounded here: r = {rho}"
+        );
+        assert!(!r.named.is_empty(), "{}: nothing named\n{log}", sh.name);
+        assert!(
+            r.top1(),
+            "{}: first finding {:?} attributed to {:?}\n{log}",
+            sh.name,
+            r.named,
+            r.first_covariates
+        );
+        assert!(
+            !(r.named[0] == "border_dropout" && r.first_covariates == ["grid_radius"]),
+            "{log}"
+        );
+    }
+}
+
 /// Writes `data` (the first `n` frames) as a recording at `dir`; `depth` false drops depth.png.
 fn write_recording(dir: &Path, data: &GapData, n: usize, depth: bool) {
     let f0 = &data.frames[0];
