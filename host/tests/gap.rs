@@ -204,12 +204,11 @@ fn null_states_detection_limits_and_twice_the_limit_is_found() {
     }
 }
 
-/// Issue 44 item 2: a loss of close returns (falling with range) on frames where range and grid
-/// radius are correlated is named by range or reported with range and radius inseparable, never
-/// as `border_dropout` alone.
+/// Issue 44 item 2: a loss of close returns (falling with range) on rendered frames, where near
+/// surfaces sit low in the image so grid radius carries the evidence too, is named by range or
+/// reported with range and radius inseparable, never as `border_dropout` alone.
 #[test]
 fn confounded_range_loss_is_named_by_range_or_inseparable() {
-    use depthor_host::gap::confound::correlation;
     use depthor_host::gap::shapes::{run_shape_case, ShapeCase, CONFOUNDED};
     use depthor_host::sim::learned::TermCovariate;
     let base = preset("mcu").unwrap();
@@ -223,20 +222,16 @@ fn confounded_range_loss_is_named_by_range_or_inseparable() {
         };
         let (r, a) = run_shape_case(scenes(), &base, &case, &GapOptions::default(), 21).unwrap();
         let log = a.selection.log.join("\n");
-        let frames = depthor_host::gap::model::prepare(
-            &base,
-            &make_real(scenes(), &base, 21, None).unwrap(),
-            2,
-            1,
-            &|| {},
-        )
-        .unwrap();
-        let rho = correlation(&frames, TermCovariate::Range, TermCovariate::Radius);
-        assert!(
-            rho.abs() >= 0.3,
-            "range and radius must be confounded here: r = {rho}"
-        );
         assert!(!r.named.is_empty(), "{}: nothing named\n{log}", sh.name);
+        // Confounded here: grid radius alone also carries the evidence, so the conditional
+        // tests ran.
+        assert!(
+            a.selection
+                .separations
+                .iter()
+                .any(|s| [s.covariate, s.other].contains(&TermCovariate::Radius)),
+            "{log}"
+        );
         assert!(
             r.top1(),
             "{}: first finding {:?} attributed to {:?}\n{log}",

@@ -1,20 +1,18 @@
 //! Confounded covariates (docs/gap.md "Confounded covariates"): an effect that acts along one
 //! covariate (a loss, bias or noise curve over range, brightness or grid radius) can show its
-//! evidence along another that is correlated with it in the recording: near surfaces sit low in
-//! the image, so a loss of close returns also looks like a loss at the grid's border. When the
-//! covariate of an accepted effect is correlated with another one (|r| ≥
-//! [`CORRELATION_TRIGGER`] over the zones), selection tests each conditional on the other (a
-//! direction-free curve over the other covariate fitted on top of the effect, and the effect
-//! refitted on top of that curve, both cross-fitted and scored on held-out frames) and names the
-//! one that survives; when neither survives alone both are reported as inseparable, with the
-//! correlation and the evidence ([`Separation`]).
+//! evidence along another that is confounded with it in the recording: near surfaces sit low in
+//! the image, so a loss of close returns also looks like a loss at the grid's lower border. The
+//! association need not be linear (the upper border is far, the lower one near: Pearson r between
+//! range and grid radius is small over all zones), so the trigger is the evidence itself: when a
+//! direction-free curve of the chosen effect's kind over another covariate also reaches a
+//! significant held-out gain alone, selection tests each conditional on the other (the curve
+//! fitted on top of the effect, and the effect refitted on top of the curve, both cross-fitted
+//! and scored on held-out frames) and names the one that survives; when neither survives alone
+//! both are reported as inseparable, with their correlation over the zones and the evidence
+//! ([`Separation`]).
 
 use super::model::Prepared;
 use crate::sim::learned::{TermCovariate, TermKind};
-
-/// |Pearson r| between two covariates over the zones above which an accepted effect's covariate
-/// is tested against the other.
-pub const CORRELATION_TRIGGER: f64 = 0.3;
 
 /// Family name of the probe curve ([`crate::sim::learned::Term::family`]) that stands for "an
 /// effect of the same kind along the other covariate" while it is tested.
@@ -140,7 +138,7 @@ impl Separation {
         let (go, po) = self.own_given_other;
         let (gt, pt) = self.other_given_own;
         let tests = format!(
-            "{} and {} are correlated over the zones (r = {:+.2}); {} given a curve over {}: {go:+.4} nats/zone held out (p = {po:.4}); a curve over {} given {}: {gt:+.4} (p = {pt:.4})",
+            "{} and {} both carry the evidence (Pearson r over the zones {:+.2}); {} given a curve over {}: {go:+.4} nats/zone held out (p = {po:.4}); a curve over {} given {}: {gt:+.4} (p = {pt:.4})",
             self.covariate.name(),
             self.other.name(),
             self.correlation,

@@ -7,7 +7,7 @@
 
 use std::collections::BTreeMap;
 
-use super::confound::{correlation, Separation, Verdict, CORRELATION_TRIGGER, COVARIATES, PROBE};
+use super::confound::{correlation, Separation, Verdict, COVARIATES, PROBE};
 use super::effects::{self, library, EffectFit, ALL, JOINT_PAIRS};
 use super::flexible::{self, Form};
 use super::likelihood::Density;
@@ -851,10 +851,11 @@ fn per_fold(
     Some([f(folds.ctx[0], &models[0])?, f(folds.ctx[1], &models[1])?])
 }
 
-/// Confounded covariates ([`super::confound`]): when the single effect `chosen` acts along a
-/// covariate correlated with another (|r| ≥ [`CORRELATION_TRIGGER`]), tests each conditional on
-/// the other, cross-fitted: the effect refitted on top of a direction-free curve of its kind over
-/// the other covariate, and that curve added on top of the effect. When only the other survives,
+/// Confounded covariates ([`super::confound`]): when the single effect `chosen` acts along one
+/// covariate and a direction-free curve of its kind over another covariate also carries
+/// significant evidence on its own (cross-fitted held-out gain over the current model, p ≤ α),
+/// tests each conditional on the other, cross-fitted: the effect refitted on top of that curve,
+/// and the curve added on top of the effect. When only the other survives,
 /// the effect is replaced by the better (Akaike-charged, cross-fitted) of the other covariate's
 /// library family and a learned curve over it; when neither survives, it is kept and reported as
 /// inseparable. Returns the names to accept and each fold's model with them; records every test.
@@ -874,8 +875,7 @@ fn separate(
     };
     let frames = folds.ctx[0].frames;
     for other in COVARIATES {
-        let r = correlation(frames, own, other);
-        if other == own || r.abs() < CORRELATION_TRIGGER {
+        if other == own || !super::localise::varies(frames, other.covariate()) {
             continue;
         }
         progress(&format!(
@@ -896,6 +896,13 @@ fn separate(
         let Some(other_alone) = per_fold(folds, models, |c, m| with_curve(c, m, &probe)) else {
             continue;
         };
+        let seed = 4242;
+        let other_nlls = folds.nlls(&other_alone);
+        let (g_alone, p_alone, _) = folds.gain(cur, &other_nlls, opts.permutations, seed);
+        if p_alone > opts.alpha || g_alone < opts.min_gain {
+            continue; // the other covariate carries no evidence of its own
+        }
+        let r = correlation(frames, own, other);
         let Some(other_then_own) = per_fold(folds, &other_alone, refit) else {
             continue;
         };
@@ -903,9 +910,8 @@ fn separate(
         else {
             continue;
         };
-        let seed = 4242;
         let (g_own, p_own, _) = folds.gain(
-            &folds.nlls(&other_alone),
+            &other_nlls,
             &folds.nlls(&other_then_own),
             opts.permutations,
             seed,
