@@ -5,9 +5,9 @@
 //! association need not be linear (the upper border is far, the lower one near: Pearson r between
 //! range and grid radius is small over all zones), so the trigger is the evidence itself: when a
 //! direction-free curve of the chosen effect's kind over another covariate also reaches a
-//! significant held-out gain alone, selection tests each conditional on the other (the curve
-//! fitted on top of the effect, and the effect refitted on top of the curve, both cross-fitted
-//! and scored on held-out frames) and names the one that survives; when neither survives alone
+//! significant held-out gain alone, selection tests each covariate conditional on the other
+//! (each represented by a direction-free curve of the kind, one fitted on top of the other, both
+//! ways, cross-fitted and scored on held-out frames) and names the one that survives; when neither survives alone
 //! both are reported as inseparable, with their correlation over the zones and the evidence
 //! ([`Separation`]).
 
@@ -17,6 +17,10 @@ use crate::sim::learned::{TermCovariate, TermKind};
 /// Family name of the probe curve ([`crate::sim::learned::Term::family`]) that stands for "an
 /// effect of the same kind along the other covariate" while it is tested.
 pub const PROBE: &str = "confound_probe";
+
+/// Family name of the probe curve that stands for the chosen effect's own covariate (a
+/// direction-free curve of its kind: the family's form may be constrained in direction).
+pub const PROBE_OWN: &str = "confound_probe_own";
 
 /// The covariates a single-covariate effect can act along.
 pub const COVARIATES: [TermCovariate; 3] = [
@@ -112,10 +116,10 @@ pub struct Separation {
     pub other: TermCovariate,
     /// Pearson r between them over the zones.
     pub correlation: f64,
-    /// Cross-fitted held-out gain (nats per zone) and p of the first effect added on top of a
-    /// curve over `other`.
+    /// Cross-fitted held-out gain (nats per zone) and p of a curve over `covariate` added on
+    /// top of a curve over `other` (both direction-free, of the effect's kind).
     pub own_given_other: (f64, f64),
-    /// The same for a curve over `other` added on top of the first effect.
+    /// The same for a curve over `other` added on top of a curve over `covariate`.
     pub other_given_own: (f64, f64),
     /// The outcome.
     pub verdict: Verdict,
@@ -138,14 +142,14 @@ impl Separation {
         let (go, po) = self.own_given_other;
         let (gt, pt) = self.other_given_own;
         let tests = format!(
-            "{} and {} both carry the evidence (Pearson r over the zones {:+.2}); {} given a curve over {}: {go:+.4} nats/zone held out (p = {po:.4}); a curve over {} given {}: {gt:+.4} (p = {pt:.4})",
+            "{} and {} both carry the evidence (Pearson r over the zones {:+.2}); {} given {}: {go:+.4} nats/zone held out (p = {po:.4}); {} given {}: {gt:+.4} (p = {pt:.4})",
             self.covariate.name(),
             self.other.name(),
             self.correlation,
-            self.effect,
+            self.covariate.name(),
             self.other.name(),
             self.other.name(),
-            self.effect,
+            self.covariate.name(),
         );
         let what = match self.verdict {
             Verdict::Own => format!("{} survives, {} does not", self.covariate.name(), self.other.name()),

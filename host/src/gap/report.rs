@@ -56,9 +56,10 @@ pub struct SeparationJson {
     pub other: &'static str,
     /// Pearson r between them over the zones.
     pub correlation: f64,
-    /// Held-out gain (nats/zone) and p of the chosen effect on top of a curve over `other`.
+    /// Held-out gain (nats/zone) and p of a curve over `covariate` on top of a curve over
+    /// `other` (both direction-free, of the finding's kind).
     pub own_given_other: [f64; 2],
-    /// Held-out gain and p of a curve over `other` on top of the chosen effect.
+    /// Held-out gain and p of a curve over `other` on top of a curve over `covariate`.
     pub other_given_own: [f64; 2],
     /// `own`, `other` (renamed after it), `both` or `inseparable`.
     pub verdict: &'static str,

@@ -7,7 +7,7 @@
 
 use std::collections::BTreeMap;
 
-use super::confound::{correlation, Separation, Verdict, COVARIATES, PROBE};
+use super::confound::{correlation, Separation, Verdict, COVARIATES, PROBE, PROBE_OWN};
 use super::effects::{self, library, EffectFit, ALL, JOINT_PAIRS};
 use super::flexible::{self, Form};
 use super::likelihood::Density;
@@ -854,8 +854,9 @@ fn per_fold(
 /// Confounded covariates ([`super::confound`]): when the single effect `chosen` acts along one
 /// covariate and a direction-free curve of its kind over another covariate also carries
 /// significant evidence on its own (cross-fitted held-out gain over the current model, p ≤ α),
-/// tests each conditional on the other, cross-fitted: the effect refitted on top of that curve,
-/// and the curve added on top of the effect. When only the other survives,
+/// tests the two covariates conditional on each other, cross-fitted, each represented by a
+/// direction-free curve of the kind: the effect's covariate's curve added on top of the other's,
+/// and the other's added on top of the effect's. When only the other survives,
 /// the effect is replaced by the better (Akaike-charged, cross-fitted) of the other covariate's
 /// library family and a learned curve over it; when neither survives, it is kept and reported as
 /// inseparable. Returns the names to accept and each fold's model with them; records every test.
@@ -884,15 +885,6 @@ fn separate(
             other.name()
         ));
         let probe = free_form(PROBE, kind, other);
-        // The effect refitted on top of the other covariate's curve (the learned curve keeps its
-        // covariate: it is re-estimated in its own form).
-        let refit = |ctx: &Ctx<'_>, m: &SimConfig| -> Option<SimConfig> {
-            if name == flexible::LEARNED {
-                with_curve(ctx, m, &free_form(flexible::LEARNED, kind, own))
-            } else {
-                Some(ctx.fit_one(m, library(name), opts))
-            }
-        };
         let Some(other_alone) = per_fold(folds, models, |c, m| with_curve(c, m, &probe)) else {
             continue;
         };
@@ -903,10 +895,17 @@ fn separate(
             continue; // the other covariate carries no evidence of its own
         }
         let r = correlation(frames, own, other);
-        let Some(other_then_own) = per_fold(folds, &other_alone, refit) else {
+        // Each covariate is represented by a direction-free curve of the kind: the family's own
+        // form may be constrained (range_dropout's loss only rises with range) and would then
+        // test the form, not the covariate.
+        let own_form = free_form(PROBE_OWN, kind, own);
+        let (Some(own_alone), Some(other_then_own)) = (
+            per_fold(folds, models, |c, m| with_curve(c, m, &own_form)),
+            per_fold(folds, &other_alone, |c, m| with_curve(c, m, &own_form)),
+        ) else {
             continue;
         };
-        let Some(own_then_other) = per_fold(folds, &chosen.models, |c, m| with_curve(c, m, &probe))
+        let Some(own_then_other) = per_fold(folds, &own_alone, |c, m| with_curve(c, m, &probe))
         else {
             continue;
         };
@@ -917,7 +916,7 @@ fn separate(
             seed,
         );
         let (g_other, p_other, _) = folds.gain(
-            &chosen.after,
+            &folds.nlls(&own_alone),
             &folds.nlls(&own_then_other),
             opts.permutations,
             seed + 1,
