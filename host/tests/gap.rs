@@ -328,7 +328,7 @@ fn gap_run(
 /// Eight frames with a 6 cm range bias (the Middlebury case): cross-fitted, all eight
 /// are scored and the sign-flip test can reach 2^−8 ≤ α/2 = 0.005, so the run names the bias.
 /// Five frames cannot (2^−5 > 0.005): the run ends in "inconclusive" with the frames needed,
-/// never in "no significant missing physics".
+/// never in a null ("no effect larger than …").
 #[test]
 fn few_frames_are_named_or_inconclusive_never_a_null() {
     let tmp = tempfile::tempdir().unwrap();
@@ -337,7 +337,7 @@ fn few_frames_are_named_or_inconclusive_never_a_null() {
     let data = make_real(&scenes()[..8], &hidden, 5, None).unwrap();
     let (_, report, out) = gap_run(&tmp.path().join("eight"), &data, 8);
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
-    assert!(!md.contains("No significant missing physics"), "{md}");
+    assert!(!md.contains("No effect larger than"), "{md}");
     assert_eq!(report["conclusive"], true, "{report:#}");
     assert_eq!(report["heldout_frames"], 8);
     assert_eq!(report["findings"][0]["effect"], "range_bias", "{report:#}");
@@ -350,7 +350,7 @@ fn few_frames_are_named_or_inconclusive_never_a_null() {
     // 2^−8 = 0.0039 ≤ 0.005 < 2^−7: eight frames.
     assert_eq!(report["frames_needed"], 8);
     assert!(md.starts_with("**Inconclusive**"), "{md}");
-    assert!(!md.contains("No significant missing physics"), "{md}");
+    assert!(!md.contains("No effect larger than"), "{md}");
     assert!(String::from_utf8_lossy(&o.stdout).contains("inconclusive"));
 }
 

@@ -433,11 +433,16 @@ fn shape_bench(args: &Args) -> anyhow::Result<()> {
         if args.verbose {
             bar.suspend(|| {
                 eprintln!(
-                    "{}: a {:.4}, named {:?}\n  {}",
+                    "{}: a {:.4}, named {:?}\n  {}\n  {}",
                     c.label,
                     r.amplitude,
                     r.named,
-                    a.selection.log.join("\n  ")
+                    a.selection.log.join("\n  "),
+                    a.limits
+                        .iter()
+                        .map(|l| l.statement.as_str())
+                        .collect::<Vec<_>>()
+                        .join("\n  ")
                 )
             });
         }

@@ -202,7 +202,11 @@ mod tests {
         // Radius falls with range (near surfaces low in the image); the zone without depth is
         // left out.
         let f = frame(&[(0.5, 1.0), (1.0, 0.8), (2.0, 0.4), (3.0, 0.1), (0.0, 0.0)]);
-        let r = correlation(&[f.clone()], TermCovariate::Range, TermCovariate::Radius);
+        let r = correlation(
+            std::slice::from_ref(&f),
+            TermCovariate::Range,
+            TermCovariate::Radius,
+        );
         assert!(r < -0.95, "{r}");
         assert_eq!(
             correlation(&[f], TermCovariate::Range, TermCovariate::Brightness),
