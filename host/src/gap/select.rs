@@ -1044,20 +1044,17 @@ fn fit_trials(
             dims,
         }
     };
-    let both = |f: &dyn Fn(&Ctx<'_>, &SimConfig) -> Option<SimConfig>| -> Option<[SimConfig; 2]> {
-        Some([f(folds.ctx[0], &models[0])?, f(folds.ctx[1], &models[1])?])
-    };
     let mut trials = Vec::new();
     for c in cands {
         progress(&format!("round {} · fitting {}", round + 1, c.name));
-        if let Some(m) = both(&|x, m| Some(x.fit_one(m, c, opts))) {
+        if let Some(m) = per_fold(folds, models, |x, m| Some(x.fit_one(m, c, opts))) {
             trials.push(trial(vec![c.name], m));
         }
     }
     // Physics outside the library, beside the library's effects (only while not accepted).
     if learned_open {
         progress(&format!("round {} · fitting the residual", round + 1));
-        if let Some(m) = both(&|x, m| x.fit_learned(m, opts)) {
+        if let Some(m) = per_fold(folds, models, |x, m| x.fit_learned(m, opts)) {
             trials.push(trial(vec![flexible::LEARNED], m));
         }
     }
@@ -1074,7 +1071,7 @@ fn fit_trials(
         }
         progress(&format!("round {} · fitting {a}+{b} jointly", round + 1));
         let pair = [a, b];
-        if let Some(m) = both(&|x, m| Some(x.fit_joint(m, &pair, opts))) {
+        if let Some(m) = per_fold(folds, models, |x, m| Some(x.fit_joint(m, &pair, opts))) {
             trials.push(trial(pair.to_vec(), m));
         }
     }
