@@ -7,12 +7,12 @@ use depthor_host::gap::bench::{
     case_seed, dark_far, real_cases, real_scenes, render_scenes, run_case, standard_cases, table,
     SceneSet,
 };
-use depthor_host::gap::leave_one_out;
 use depthor_host::gap::shapes::{
     self, run_shape_case, shape_cases, shape_table, shape_unit, SHAPES,
 };
 use depthor_host::gap::units::{calibrate, CalibrateOptions, UnitTable};
 use depthor_host::gap::{effects, GapOptions};
+use depthor_host::gap::{leave_one_out, power};
 use depthor_host::sim::preset;
 
 /// Arguments of `depthor gap-bench`.
@@ -90,6 +90,13 @@ pub struct Args {
     /// Log-bisection steps inside the calibration bracket.
     #[arg(long, default_value_t = 1)]
     refine: usize,
+    /// Add to the committed unit table (`host/data/gap_units.json`) each unit's reference gain
+    /// instead of running the benchmark: the expected held-out gain of the effect at 1× on the
+    /// calibration's scenes (`--trials` sets of `--frames` rendered frames from
+    /// `--calibrate-seed`), which `depthor gap` scales to a recording's detection limits
+    /// (docs/gap.md "Detection limits"). Writes the table to `--out`.
+    #[arg(long)]
+    reference_gains: bool,
     /// Run the misspecified-shape benchmark instead (docs/gap.md "Shape bench"): every effect
     /// family injected with forward models other than the library's, by the benchmark's own
     /// code, at `--shape-size` × the shape's measured detection limit
@@ -122,7 +129,9 @@ pub struct Args {
 pub fn handle(args: Args) -> anyhow::Result<()> {
     // Refused before the (long) run, not after it.
     if let Some(p) = &args.out {
-        let name = if args.calibrate_units && args.shapes {
+        let name = if args.reference_gains {
+            "gap_units.json"
+        } else if args.calibrate_units && args.shapes {
             "gap_shape_units.json"
         } else if args.calibrate_units {
             "gap_units.json"
@@ -136,6 +145,9 @@ pub fn handle(args: Args) -> anyhow::Result<()> {
                 f.path.display()
             );
         }
+    }
+    if args.reference_gains {
+        return reference_gains(&args);
     }
     if args.calibrate_units {
         return calibrate_units(&args);
@@ -225,17 +237,9 @@ pub fn handle(args: Args) -> anyhow::Result<()> {
 /// whose name contains `--only`) and writes the unit table.
 fn calibrate_units(args: &Args) -> anyhow::Result<()> {
     let t0 = Instant::now();
-    let (n, k) = (args.frames as u64, args.trials.max(1) as u64);
-    let (bench0, bench1) = (args.seed, args.seed + n);
-    let (cal0, cal1) = (args.calibrate_seed, args.calibrate_seed + k * n);
-    anyhow::ensure!(
-        cal1 <= bench0 || cal0 >= bench1,
-        "calibration scene seeds {cal0}..{cal1} overlap the benchmark's {bench0}..{bench1}"
-    );
     let base = preset("mcu")?;
-    let sets: Vec<_> = (0..k)
-        .map(|t| render_scenes(args.frames, args.width, args.height, cal0 + t * n))
-        .collect();
+    let sets = calibration_sets(args)?;
+    let k = sets.len() as u64;
     let keep = |n: &str| args.only.as_ref().is_none_or(|o| n.contains(o.as_str()));
     let names: Vec<String> = if args.shapes {
         SHAPES.iter().map(shapes::key).filter(|n| keep(n)).collect()
@@ -272,14 +276,11 @@ fn calibrate_units(args: &Args) -> anyhow::Result<()> {
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let table = UnitTable {
-        command: std::iter::once("depthor".to_string())
-            .chain(std::env::args().skip(1))
-            .collect::<Vec<_>>()
-            .join(" "),
+    let mut table = UnitTable {
+        command: command_line(),
         frames: args.frames,
         trials: k as usize,
-        seed: cal0,
+        seed: args.calibrate_seed,
         width: args.width,
         height: args.height,
         draws: args.draws,
@@ -288,7 +289,13 @@ fn calibrate_units(args: &Args) -> anyhow::Result<()> {
         refine: opts.refine,
         wall_s: t0.elapsed().as_secs_f64(),
         units,
+        reference_command: String::new(),
     };
+    if !args.shapes {
+        // The detection limits of `depthor gap` scale each unit by its reference gain.
+        let command = table.command.clone();
+        power::add_reference_gains(&mut table, &base, &sets, &opts.gap, &command)?;
+    }
     let json = serde_json::to_string_pretty(&table)?;
     println!("{json}");
     if let Some(p) = &args.out {
@@ -298,6 +305,53 @@ fn calibrate_units(args: &Args) -> anyhow::Result<()> {
             "gap_units.json"
         };
         super::common::OutFile::new(p, name).write((json + "\n").as_bytes(), args.overwrite)?;
+    }
+    Ok(())
+}
+
+/// The command line as run, `depthor …`.
+fn command_line() -> String {
+    std::iter::once("depthor".to_string())
+        .chain(std::env::args().skip(1))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// The calibration's scene sets: `--trials` sets of `--frames` rendered frames from
+/// `--calibrate-seed`, refused when they overlap the benchmark's seeds.
+fn calibration_sets(args: &Args) -> anyhow::Result<Vec<Vec<depthor_host::scene::SceneFrame>>> {
+    let (n, k) = (args.frames as u64, args.trials.max(1) as u64);
+    let (bench0, bench1) = (args.seed, args.seed + n);
+    let (cal0, cal1) = (args.calibrate_seed, args.calibrate_seed + k * n);
+    anyhow::ensure!(
+        cal1 <= bench0 || cal0 >= bench1,
+        "calibration scene seeds {cal0}..{cal1} overlap the benchmark's {bench0}..{bench1}"
+    );
+    Ok((0..k)
+        .map(|t| render_scenes(args.frames, args.width, args.height, cal0 + t * n))
+        .collect())
+}
+
+/// `depthor gap-bench --reference-gains`: the committed unit table with each unit's reference
+/// gain ([`power::add_reference_gains`]) on the calibration's scenes.
+fn reference_gains(args: &Args) -> anyhow::Result<()> {
+    let base = preset("mcu")?;
+    let sets = calibration_sets(args)?;
+    let mut table = depthor_host::gap::units::calibrated().clone();
+    anyhow::ensure!(
+        !table.units.is_empty(),
+        "the committed unit table host/data/gap_units.json is empty"
+    );
+    let opts = GapOptions {
+        draws: args.draws,
+        ..GapOptions::default()
+    };
+    power::add_reference_gains(&mut table, &base, &sets, &opts, &command_line())?;
+    let json = serde_json::to_string_pretty(&table)?;
+    println!("{json}");
+    if let Some(p) = &args.out {
+        super::common::OutFile::new(p, "gap_units.json")
+            .write((json + "\n").as_bytes(), args.overwrite)?;
     }
     Ok(())
 }
@@ -379,11 +433,16 @@ fn shape_bench(args: &Args) -> anyhow::Result<()> {
         if args.verbose {
             bar.suspend(|| {
                 eprintln!(
-                    "{}: a {:.4}, named {:?}\n  {}",
+                    "{}: a {:.4}, named {:?}\n  {}\n  {}",
                     c.label,
                     r.amplitude,
                     r.named,
-                    a.selection.log.join("\n  ")
+                    a.selection.log.join("\n  "),
+                    a.limits
+                        .iter()
+                        .map(|l| l.statement.as_str())
+                        .collect::<Vec<_>>()
+                        .join("\n  ")
                 )
             });
         }

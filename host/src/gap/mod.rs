@@ -6,11 +6,13 @@
 //! Pipeline: [`model::prepare`] (Monte-Carlo draws of the base simulator per frame, zone
 //! covariates) → [`likelihood`] (per-zone dropout probability and heavy-tailed density) →
 //! [`select::select`] (fit on even frames and test on odd ones, and the reverse: 2-fold
-//! cross-fitting; Holm-controlled acceptance, joint refit, pruning, confounding) →
+//! cross-fitting; Holm-controlled acceptance, confounded covariates ([`confound`]), joint
+//! refit, pruning, confounding) →
 //! [`localise`] (residual slices with BH control, PIT, zone maps) → [`report`] (report.md,
 //! report.json, plots, fitted `sim_config`).
 
 pub mod bench;
+pub mod confound;
 pub mod data;
 pub mod effects;
 pub mod flexible;
@@ -82,6 +84,9 @@ pub struct Analysis {
     pub split: (usize, usize),
     /// Whether the held-out frames could show an effect.
     pub power: power::Power,
+    /// Per library family not accepted, the smallest effect these frames could have shown
+    /// ([`power::detection_limits`]); empty when the run is inconclusive.
+    pub limits: Vec<power::FamilyLimit>,
 }
 
 /// Compares `data` with `base`: prepares the draws, selects and fits effects, localises what is
@@ -120,6 +125,37 @@ pub fn analyze(
         test: (1..n).step_by(2).collect(),
     };
     let selection = select(&ctx, &opts.select, |m| progress(Some(m)));
+    let power = power::Power::of(
+        n,
+        opts.select.permutations,
+        opts.select.alpha / 2.0,
+        !selection.findings.is_empty(),
+    );
+    let limits = if power.conclusive {
+        progress(Some("detection limits"));
+        let accepted: Vec<&str> = selection
+            .findings
+            .iter()
+            .map(|f| f.effect.as_str())
+            .collect();
+        let families: Vec<&str> = effects::ALL
+            .iter()
+            .filter(|c| !c.enabled(base) && !accepted.contains(&c.name))
+            .filter(|c| !opts.select.exclude.iter().any(|e| e == c.name))
+            .filter(|c| localise::varies(&frames, c.stratum))
+            .map(|c| c.name)
+            .collect();
+        power::detection_limits(
+            &density,
+            base,
+            &selection.estimate,
+            &frames,
+            &families,
+            opts.seed,
+        )
+    } else {
+        Vec::new()
+    };
     let before = records(&density, base, base, &frames, &ctx.test);
     let after = records(&density, &selection.model, base, &frames, &ctx.test);
     Ok(Analysis {
@@ -132,12 +168,8 @@ pub fn analyze(
         after,
         grid: (usize::from(base.grid.rows), usize::from(base.grid.cols)),
         split: (ctx.train.len(), ctx.test.len()),
-        power: power::Power::of(
-            n,
-            opts.select.permutations,
-            opts.select.alpha / 2.0,
-            !selection.findings.is_empty(),
-        ),
+        power,
+        limits,
         selection,
     })
 }

@@ -37,6 +37,32 @@ pub struct FindingJson {
     /// The fitted curve of a flexible finding; absent otherwise.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub curve: Option<crate::sim::learned::Term>,
+    /// The covariates the finding is attributed to (both of an inseparable pair).
+    pub covariates: Vec<&'static str>,
+    /// Conditional tests against correlated covariates ([`super::confound`]); absent when none
+    /// was needed.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub separation: Vec<SeparationJson>,
+}
+
+/// One conditional test of `report.json` (a finding's covariate against a correlated one).
+#[derive(Clone, Debug, Serialize)]
+pub struct SeparationJson {
+    /// The effect first chosen (the finding's name unless the other covariate won).
+    pub chosen: String,
+    /// Its covariate.
+    pub covariate: &'static str,
+    /// The correlated covariate.
+    pub other: &'static str,
+    /// Pearson r between them over the zones.
+    pub correlation: f64,
+    /// Held-out gain (nats/zone) and p of a curve over `covariate` on top of a curve over
+    /// `other` (both direction-free, of the finding's kind).
+    pub own_given_other: [f64; 2],
+    /// Held-out gain and p of a curve over `other` on top of a curve over `covariate`.
+    pub other_given_own: [f64; 2],
+    /// `own`, `other` (renamed after it), `both` or `inseparable`.
+    pub verdict: &'static str,
 }
 
 /// `report.json`.
@@ -54,6 +80,10 @@ pub struct Report {
     /// `min_achievable_p`, `level`, `frames_needed`, at the top level).
     #[serde(flatten)]
     pub power: super::power::Power,
+    /// Per library family not accepted, the smallest effect these frames could have shown: a
+    /// null is "no effect larger than …", never a bare "nothing missing" (empty when the run is
+    /// inconclusive).
+    pub detection_limits: Vec<super::power::FamilyLimit>,
 }
 
 impl Report {
@@ -92,6 +122,24 @@ impl Report {
                         j.p_value
                     );
                 }
+                let separation: Vec<SeparationJson> = a
+                    .selection
+                    .separations
+                    .iter()
+                    .filter(|s| s.named == f.effect)
+                    .map(|s| {
+                        let _ = write!(evidence, "; {}", s.evidence());
+                        SeparationJson {
+                            chosen: s.effect.clone(),
+                            covariate: s.covariate.name(),
+                            other: s.other.name(),
+                            correlation: s.correlation,
+                            own_given_other: [s.own_given_other.0, s.own_given_other.1],
+                            other_given_own: [s.other_given_own.0, s.other_given_own.1],
+                            verdict: s.verdict.name(),
+                        }
+                    })
+                    .collect();
                 if let Some(t) = &f.curve {
                     let shown: Vec<String> = t
                         .knots
@@ -117,6 +165,8 @@ impl Report {
                     heldout_gain_nats_per_zone: f.heldout_gain,
                     zones_affected: f.zones_affected,
                     evidence,
+                    covariates: a.selection.attributed_covariates(&f.effect),
+                    separation,
                 }
             })
             .collect();
@@ -126,6 +176,7 @@ impl Report {
             fit_after: a.fit_after,
             sim_config: serde_json::to_value(&a.selection.estimate).unwrap_or_default(),
             power: a.power,
+            detection_limits: a.limits.clone(),
         }
     }
 }
@@ -262,7 +313,11 @@ pub fn markdown(a: &Analysis, r: &Report) -> String {
     s.push_str(&metrics_row("before", &r.fit_before));
     s.push_str(&metrics_row("after", &r.fit_after));
     if r.findings.is_empty() && r.power.conclusive {
-        s.push_str("\n**No significant missing physics**: no effect of the library improves the held-out likelihood significantly.\n");
+        let _ = writeln!(
+            s,
+            "\n**No effect larger than the detection limits below** is missing: no effect of the library improves the held-out likelihood significantly, and these {} frames could have shown each family from the size given.",
+            a.split.0 + a.split.1
+        );
     }
     for f in &r.findings {
         let _ = writeln!(s, "\n## `{}`\n", f.effect);
@@ -271,6 +326,13 @@ pub fn markdown(a: &Analysis, r: &Report) -> String {
             _ => library(&f.effect).physics.to_string(),
         };
         let _ = writeln!(s, "Physics: {physics}.\n");
+        if f.covariates.len() > 1 {
+            let _ = writeln!(
+                s,
+                "**Inseparable** along {}: the data cannot tell which carries it (evidence below).\n",
+                f.covariates.join(" and ")
+            );
+        }
         if let Some(t) = &f.curve {
             let _ = writeln!(
                 s,
@@ -306,6 +368,21 @@ pub fn markdown(a: &Analysis, r: &Report) -> String {
             s,
             "Before/after in its stratum: ![{stratum}](covariate_{stratum}.png)"
         );
+    }
+    if !r.detection_limits.is_empty() {
+        let _ = writeln!(
+            s,
+            "\n## {}\n",
+            if r.findings.is_empty() {
+                "Detection limits"
+            } else {
+                "Nothing more: detection limits of the other families"
+            }
+        );
+        s.push_str("Per family, the smallest effect these frames could have shown (the calibrated limit, scaled to this recording's frames and covariates by the expected held-out gain):\n\n");
+        for l in &r.detection_limits {
+            let _ = writeln!(s, "- {}", l.statement);
+        }
     }
     let unexplained: Vec<&Slice> = a.slices_after.iter().filter(|x| x.significant).collect();
     let _ = writeln!(s, "\n## Unexplained residual\n");

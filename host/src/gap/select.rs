@@ -7,12 +7,13 @@
 
 use std::collections::BTreeMap;
 
+use super::confound::{correlation, Separation, Verdict, COVARIATES, PROBE, PROBE_OWN};
 use super::effects::{self, library, EffectFit, ALL, JOINT_PAIRS};
-use super::flexible;
+use super::flexible::{self, Form};
 use super::likelihood::Density;
 use super::model::{eval_frame, frame_nlls, Prepared};
 use super::stats::{fixed_sequence, grid_golden_min, holm, sign_flip_p};
-use crate::sim::learned::Term;
+use crate::sim::learned::{Term, TermCovariate, TermKind};
 use crate::sim::SimConfig;
 
 /// Range of the kernel floor fitted for the final estimate ([`Ctx::fit_kernel`]), metres.
@@ -134,8 +135,44 @@ pub struct Selection {
     pub confounds: Vec<Confound>,
     /// Pairs accepted jointly.
     pub joints: Vec<Joint>,
+    /// Conditional tests of accepted effects' covariates against correlated ones
+    /// ([`super::confound`]), of the effects still accepted.
+    pub separations: Vec<Separation>,
     /// Round-by-round log: candidate, gain, p.
     pub log: Vec<String>,
+}
+
+impl Selection {
+    /// The covariates accepted effect `effect` is attributed to: those of its
+    /// [`Separation`]s (both covariates when inseparable), else the covariate of its curve or
+    /// its family's stratum.
+    pub fn attributed_covariates(&self, effect: &str) -> Vec<&'static str> {
+        let mut v: Vec<&'static str> = self
+            .separations
+            .iter()
+            .filter(|s| s.named == effect)
+            .flat_map(|s| s.covariates())
+            .collect();
+        if v.is_empty() {
+            v.push(match kind_and_covariate(effect, &self.estimate) {
+                Some((_, on)) => on.name(),
+                None => effects::by_name(effect).map_or("", |c| c.stratum.name()),
+            });
+        }
+        v.sort_unstable();
+        v.dedup();
+        v
+    }
+}
+
+/// What a single-covariate effect changes and along which covariate: a library family with a
+/// flexible form (its form's), or the learned curve in `model`; `None` for the others.
+pub fn kind_and_covariate(name: &str, model: &SimConfig) -> Option<(TermKind, TermCovariate)> {
+    if name == flexible::LEARNED {
+        flexible::term(model, name).map(|t| (t.kind, t.on))
+    } else {
+        flexible::form(name).map(|f| (f.kind, f.on))
+    }
 }
 
 /// The frames, their split and the base configuration.
@@ -228,8 +265,11 @@ impl Ctx<'_> {
     /// ([`flexible::residual_forms`]; not those that are the flexible form of a family among
     /// the candidates) are estimated on the fitting frames and the one with the lowest training
     /// NLL is kept: its covariate is the one that explains the residual. The held-out gate
-    /// decides, as for every candidate. `None`: no curve could be estimated.
+    /// decides, as for every candidate. A `model` that already holds a learned curve (a refit)
+    /// keeps that curve's kind and covariate. `None`: no curve could be estimated.
     pub fn fit_learned(&self, model: &SimConfig, opts: &SelectOptions) -> Option<SimConfig> {
+        // A refit keeps the form selection named (kind and covariate).
+        let pinned = flexible::term(model, flexible::LEARNED).map(|t| (t.kind, t.on));
         let mut m = model.clone();
         flexible::remove(&mut m, flexible::LEARNED);
         let k = self.density.kernel_m;
@@ -244,7 +284,10 @@ impl Ctx<'_> {
         flexible::residual_forms()
             .iter()
             .filter(|f| super::localise::varies(self.frames, f.on.covariate()))
-            .filter(|f| flexible::family_of(f).is_none_or(|n| !offered(n)))
+            .filter(|f| match pinned {
+                Some(p) => (f.kind, f.on) == p,
+                None => flexible::family_of(f).is_none_or(|n| !offered(n)),
+            })
             .filter_map(|f| flexible::estimate(f, &m, self.base, self.frames, &self.train, k))
             .map(|t| flexible::with_term(&m, t))
             .map(|c| (self.train_nll(&c), c))
@@ -605,6 +648,7 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
     let mut models = [ctx.base.clone(), ctx.base.clone()];
     let mut accepted: Vec<&'static str> = Vec::new();
     let mut joints: Vec<Joint> = Vec::new();
+    let mut separations: Vec<Separation> = Vec::new();
     let mut log = Vec::new();
     let mut cur = folds.nlls(&models);
     // An effect whose covariate takes one value in these frames (material on imports without
@@ -695,8 +739,21 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
             let Some(b) = best else { break };
             b
         };
-        accepted.extend(&chosen.names);
-        models = folds.refit(&chosen.models, &accepted, opts);
+        let (names, fitted) = if chosen.names.len() == 1 {
+            separate(
+                &folds,
+                opts,
+                (&models, &cur),
+                chosen,
+                &accepted,
+                (&mut separations, &mut log),
+                progress,
+            )
+        } else {
+            (chosen.names.clone(), chosen.models.clone())
+        };
+        accepted.extend(&names);
+        models = folds.refit(&fitted, &accepted, opts);
         cur = folds.nlls(&models);
     }
     let cond = prune(
@@ -710,6 +767,7 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
     let [model, _] = models;
     // A joint pair stands only while pruning kept both of its effects.
     joints.retain(|j| j.effects.iter().all(|e| accepted.contains(&e.as_str())));
+    separations.retain(|s| accepted.contains(&s.named.as_str()));
     let confounds = confounding(ctx, opts, &accepted, &cond, &solo, progress);
     let mut full = ctx.all_frames();
     let estimate = if accepted.is_empty() {
@@ -755,8 +813,201 @@ pub fn select(ctx: &Ctx<'_>, opts: &SelectOptions, mut progress: impl FnMut(&str
         findings,
         confounds,
         joints,
+        separations,
         log,
     }
+}
+
+/// `model` with a curve of `form` estimated on `ctx`'s fitting frames on top of it (`None`
+/// when no curve can be estimated).
+fn with_curve(ctx: &Ctx<'_>, model: &SimConfig, form: &Form) -> Option<SimConfig> {
+    flexible::estimate(
+        form,
+        model,
+        ctx.base,
+        ctx.frames,
+        &ctx.train,
+        ctx.density.kernel_m,
+    )
+    .map(|t| flexible::with_term(model, t))
+}
+
+/// A direction-free curve of `kind` over `on` under family name `family`.
+fn free_form(family: &'static str, kind: TermKind, on: TermCovariate) -> Form {
+    Form {
+        family,
+        kind,
+        on,
+        monotone: None,
+    }
+}
+
+/// Each fold's model with `f` applied to it (`None` when a fold gives none).
+fn per_fold(
+    folds: &Folds<'_, '_>,
+    models: &[SimConfig; 2],
+    f: impl Fn(&Ctx<'_>, &SimConfig) -> Option<SimConfig>,
+) -> Option<[SimConfig; 2]> {
+    Some([f(folds.ctx[0], &models[0])?, f(folds.ctx[1], &models[1])?])
+}
+
+/// Confounded covariates ([`super::confound`]): when the single effect `chosen` acts along one
+/// covariate and a direction-free curve of its kind over another covariate also carries
+/// significant evidence on its own (cross-fitted held-out gain over the current model, p ≤ α),
+/// tests the two covariates conditional on each other, cross-fitted, each represented by a
+/// direction-free curve of the kind: the effect's covariate's curve added on top of the other's,
+/// and the other's added on top of the effect's. When only the other survives,
+/// the effect is replaced by the better (Akaike-charged, cross-fitted) of the other covariate's
+/// library family and a learned curve over it; when neither survives, it is kept and reported as
+/// inseparable. Returns the names to accept and each fold's model with them; records every test.
+fn separate(
+    folds: &Folds<'_, '_>,
+    opts: &SelectOptions,
+    (models, cur): (&[SimConfig; 2], &[Vec<f64>; 2]),
+    chosen: &Trial,
+    accepted: &[&'static str],
+    (out, log): (&mut Vec<Separation>, &mut Vec<String>),
+    progress: &mut dyn FnMut(&str),
+) -> (Vec<&'static str>, [SimConfig; 2]) {
+    let name = chosen.names[0];
+    let keep = (chosen.names.clone(), chosen.models.clone());
+    let Some((kind, own)) = kind_and_covariate(name, &chosen.models[0]) else {
+        return keep;
+    };
+    let frames = folds.ctx[0].frames;
+    for other in COVARIATES {
+        if other == own || !super::localise::varies(frames, other.covariate()) {
+            continue;
+        }
+        progress(&format!(
+            "separating {name} ({}) from {}",
+            own.name(),
+            other.name()
+        ));
+        let probe = free_form(PROBE, kind, other);
+        let Some(other_alone) = per_fold(folds, models, |c, m| with_curve(c, m, &probe)) else {
+            continue;
+        };
+        let seed = 4242;
+        let other_nlls = folds.nlls(&other_alone);
+        let (g_alone, p_alone, _) = folds.gain(cur, &other_nlls, opts.permutations, seed);
+        if p_alone > opts.alpha || g_alone < opts.min_gain {
+            continue; // the other covariate carries no evidence of its own
+        }
+        let r = correlation(frames, own, other);
+        // Each covariate is represented by a direction-free curve of the kind: the family's own
+        // form may be constrained (range_dropout's loss only rises with range) and would then
+        // test the form, not the covariate.
+        let own_form = free_form(PROBE_OWN, kind, own);
+        let (Some(own_alone), Some(other_then_own)) = (
+            per_fold(folds, models, |c, m| with_curve(c, m, &own_form)),
+            per_fold(folds, &other_alone, |c, m| with_curve(c, m, &own_form)),
+        ) else {
+            continue;
+        };
+        let Some(own_then_other) = per_fold(folds, &own_alone, |c, m| with_curve(c, m, &probe))
+        else {
+            continue;
+        };
+        let (g_own, p_own, _) = folds.gain(
+            &other_nlls,
+            &folds.nlls(&other_then_own),
+            opts.permutations,
+            seed,
+        );
+        let (g_other, p_other, _) = folds.gain(
+            &folds.nlls(&own_alone),
+            &folds.nlls(&own_then_other),
+            opts.permutations,
+            seed + 1,
+        );
+        let mut verdict = Verdict::of(
+            (g_own, p_own),
+            (g_other, p_other),
+            opts.alpha,
+            opts.min_gain,
+        );
+        let mut named = name;
+        let mut result = None;
+        if verdict == Verdict::Other {
+            match rename(folds, opts, (models, cur), kind, other, accepted) {
+                Some((n, m)) => {
+                    named = n;
+                    result = Some((vec![n], m));
+                }
+                // Nothing free to name it by: the data say the other, the tool cannot.
+                None => verdict = Verdict::Inseparable,
+            }
+        }
+        let sep = Separation {
+            effect: name.to_string(),
+            named: named.to_string(),
+            kind,
+            covariate: own,
+            other,
+            correlation: r,
+            own_given_other: (g_own, p_own),
+            other_given_own: (g_other, p_other),
+            verdict,
+        };
+        log.push(format!("separation: {}", sep.evidence()));
+        out.push(sep);
+        if let Some(r) = result {
+            return r;
+        }
+    }
+    keep
+}
+
+/// The effect along covariate `on` that replaces one whose own covariate did not survive:
+/// `on`'s library family of the same kind and a direction-free learned curve over `on` (each
+/// only while free), fitted on each fold on top of `models`, the one with the larger
+/// cross-fitted held-out gain over `cur` less two nats per fitted parameter.
+fn rename(
+    folds: &Folds<'_, '_>,
+    opts: &SelectOptions,
+    (models, cur): (&[SimConfig; 2], &[Vec<f64>; 2]),
+    kind: TermKind,
+    on: TermCovariate,
+    accepted: &[&'static str],
+) -> Option<(&'static str, [SimConfig; 2])> {
+    let base = folds.ctx[0].base;
+    let family = flexible::FORMS
+        .iter()
+        .find(|f| f.kind == kind && f.on == on)
+        .map(|f| f.family)
+        .filter(|n| {
+            !accepted.contains(n)
+                && !library(n).enabled(base)
+                && !opts.exclude.iter().any(|e| e == n)
+        });
+    let mut options: Vec<(&'static str, [SimConfig; 2])> = Vec::new();
+    if let Some(n) = family {
+        if let Some(m) = per_fold(folds, models, |c, m| Some(c.fit_one(m, library(n), opts))) {
+            options.push((n, m));
+        }
+    }
+    if !accepted.contains(&flexible::LEARNED) {
+        let form = free_form(flexible::LEARNED, kind, on);
+        if let Some(m) = per_fold(folds, models, |c, m| with_curve(c, m, &form)) {
+            options.push((flexible::LEARNED, m));
+        }
+    }
+    options
+        .into_iter()
+        .map(|(n, m)| {
+            let (_, _, fold) = folds.gain(cur, &folds.nlls(&m), 0, 0);
+            // A curve (learned, or a family's flexible form where it fitted better) has a
+            // parameter per bin.
+            let dims = if m.iter().any(|x| flexible::term(x, n).is_some()) {
+                flexible::BINS
+            } else {
+                library(n).params.len()
+            };
+            (fold[0] + fold[1] - 2.0 * dims as f64, n, m)
+        })
+        .max_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, n, m)| (n, m))
 }
 
 /// Round `round`'s trials on top of each fold's current model `models` (whose held-out NLLs are
@@ -793,20 +1044,17 @@ fn fit_trials(
             dims,
         }
     };
-    let both = |f: &dyn Fn(&Ctx<'_>, &SimConfig) -> Option<SimConfig>| -> Option<[SimConfig; 2]> {
-        Some([f(folds.ctx[0], &models[0])?, f(folds.ctx[1], &models[1])?])
-    };
     let mut trials = Vec::new();
     for c in cands {
         progress(&format!("round {} · fitting {}", round + 1, c.name));
-        if let Some(m) = both(&|x, m| Some(x.fit_one(m, c, opts))) {
+        if let Some(m) = per_fold(folds, models, |x, m| Some(x.fit_one(m, c, opts))) {
             trials.push(trial(vec![c.name], m));
         }
     }
     // Physics outside the library, beside the library's effects (only while not accepted).
     if learned_open {
         progress(&format!("round {} · fitting the residual", round + 1));
-        if let Some(m) = both(&|x, m| x.fit_learned(m, opts)) {
+        if let Some(m) = per_fold(folds, models, |x, m| x.fit_learned(m, opts)) {
             trials.push(trial(vec![flexible::LEARNED], m));
         }
     }
@@ -823,7 +1071,7 @@ fn fit_trials(
         }
         progress(&format!("round {} · fitting {a}+{b} jointly", round + 1));
         let pair = [a, b];
-        if let Some(m) = both(&|x, m| Some(x.fit_joint(m, &pair, opts))) {
+        if let Some(m) = per_fold(folds, models, |x, m| Some(x.fit_joint(m, &pair, opts))) {
             trials.push(trial(pair.to_vec(), m));
         }
     }

@@ -13,7 +13,8 @@
 //! of the zones per step) instead of being clamped. Each shape's own detection limit is measured
 //! (`--calibrate-units --shapes`, [`calibrate`], committed as `host/data/gap_shape_units.json`)
 //! and the bench runs at a multiple of it. A case is right when the tool's first finding is the
-//! family's name.
+//! family's name. The confounded shapes ([`CONFOUNDED`], a loss of close returns) are right when
+//! the first finding is attributed to range, alone or inseparable from grid radius.
 
 use rayon::prelude::*;
 
@@ -39,11 +40,41 @@ pub struct Shape {
     pub name: &'static str,
     /// The forward model in words.
     pub what: &'static str,
+    /// For a confounded shape ([`CONFOUNDED`]), the covariate that carries it: the case is right
+    /// when the first finding is attributed to it (alone, or inseparable from a correlated one),
+    /// whatever its name. `None`: right when the first finding is `family`.
+    pub covariate: Option<&'static str>,
 }
 
 const fn s(family: &'static str, name: &'static str, what: &'static str) -> Shape {
-    Shape { family, name, what }
+    Shape {
+        family,
+        name,
+        what,
+        covariate: None,
+    }
 }
+
+/// Confounded shapes (issue 44 item 2): a loss driven by range whose evidence also shows along
+/// grid radius, because near surfaces sit low in the image (range and radius correlated in the
+/// frames). The tool must name it by range or report range and radius as inseparable, never
+/// `border_dropout` alone. Sized like `range_dropout` (the library's range loss) at equal mean
+/// loss.
+pub const CONFOUNDED: [Shape; 2] = [
+    Shape {
+        family: "range_dropout",
+        name: "near",
+        what:
+            "p = a·(1 − d/d50)₊: loss of close returns, falling with range to 0 at the median range",
+        covariate: Some("range_m"),
+    },
+    Shape {
+        family: "range_dropout",
+        name: "near_step",
+        what: "p = a below the 30th range percentile of the valid zones, 0 beyond",
+        covariate: Some("range_m"),
+    },
+];
 
 /// Every shape, by family.
 pub const SHAPES: [Shape; 13] = [
@@ -169,7 +200,8 @@ fn quantile(v: &mut [f32], q: f64) -> f32 {
 }
 
 /// Recording-level thresholds the shapes use, over the zones with depth that the plain
-/// simulation left valid: the range cut-off (70th percentile), the median range, the dark
+/// simulation left valid: the range cut-off (70th percentile), the median range, the near
+/// cut-off (30th) and the end of the near ramp (50th) of the confounded shapes, the dark
 /// threshold (30th brightness percentile), the end of the dark ramp (60th), the border radius
 /// (0.75). `widen` steps move each dropout cut-off by 10 % of the zones (0.1 in radius) towards
 /// more affected zones.
@@ -177,6 +209,8 @@ fn quantile(v: &mut [f32], q: f64) -> f32 {
 pub struct Thresholds {
     d70: f32,
     d50: f32,
+    d30: f32,
+    near: f32,
     v30: f32,
     v60: f32,
     r75: f32,
@@ -206,6 +240,8 @@ impl Thresholds {
         Thresholds {
             d70: quantile(&mut d, (0.7 - k).max(0.0)),
             d50: quantile(&mut d, 0.5),
+            d30: quantile(&mut d, (0.3 + k).min(1.0)),
+            near: quantile(&mut d, (0.5 + k).min(1.0)).max(1e-3),
             v30: quantile(&mut v, (0.3 + k).min(1.0)),
             v60: quantile(&mut v, (0.6 + k).min(1.0)).max(1e-3),
             r75: (0.75 - k as f32).max(0.0),
@@ -221,6 +257,8 @@ pub fn unit_value(shape: &Shape, t: &Thresholds, z: &ZoneFacts, measured_m: f32)
     let bin = measured_m / 0.3;
     match (shape.family, shape.name) {
         ("range_dropout", "logistic") => 1.0 / (1.0 + (-(d - t.d70) / 0.15).exp()),
+        ("range_dropout", "near") => (1.0 - d / t.near).max(0.0),
+        ("range_dropout", "near_step") => f32::from(u8::from(d < t.d30)),
         ("range_dropout", _) => f32::from(u8::from(d > t.d70)),
         ("dark_dropout", "threshold") => f32::from(u8::from(z.v < t.v30)),
         ("dark_dropout", _) => (1.0 - z.v / t.v60).max(0.0).powi(2),
@@ -349,6 +387,9 @@ pub struct ShapeResult {
     pub widen: u8,
     /// Effects named, most important first.
     pub named: Vec<String>,
+    /// The covariates the first finding is attributed to (both of an inseparable pair); empty
+    /// without a finding.
+    pub first_covariates: Vec<String>,
     /// Whether report.json would say the held-out frames can reach significance.
     pub conclusive: bool,
     /// Held-out gain of each accepted finding, nats per zone.
@@ -356,11 +397,13 @@ pub struct ShapeResult {
 }
 
 impl ShapeResult {
-    /// The first finding is the family's name.
+    /// The first finding is the family's name; for a confounded shape, the first finding is
+    /// attributed to the shape's covariate (alone or inseparable from another).
     pub fn top1(&self) -> bool {
-        self.case
-            .shape
-            .is_some_and(|s| self.named.first().is_some_and(|n| n == s.family))
+        self.case.shape.is_some_and(|s| match s.covariate {
+            Some(c) => self.first_covariates.iter().any(|x| x == c),
+            None => self.named.first().is_some_and(|n| n == s.family),
+        })
     }
 }
 
@@ -411,6 +454,13 @@ pub fn run_shape_case(
             .iter()
             .map(|f| f.effect.clone())
             .collect(),
+        first_covariates: an.selection.findings.first().map_or(Vec::new(), |f| {
+            an.selection
+                .attributed_covariates(&f.effect)
+                .into_iter()
+                .map(String::from)
+                .collect()
+        }),
         conclusive: an.power.conclusive,
         finding_gains: an
             .selection
@@ -439,7 +489,7 @@ pub fn shape_cases(
             format!("{set}:")
         };
         for r in 0..repeats {
-            for sh in SHAPES {
+            for sh in SHAPES.into_iter().chain(CONFOUNDED) {
                 v.push(ShapeCase {
                     label: format!("{pre}{}/{}@{size}x#{r}", sh.family, sh.name),
                     shape: Some(sh),
@@ -543,6 +593,7 @@ pub fn calibrate(
                 multiple,
                 ladder,
                 bracketed,
+                reference_gain_nats: None,
             },
         );
     }
@@ -595,15 +646,17 @@ pub fn shape_table(results: &[ShapeResult]) -> String {
     for set in &sets {
         let mut fams: Vec<&str> = SHAPES.iter().map(|x| x.family).collect();
         fams.dedup();
-        fams.push("all");
+        fams.extend(["confounded", "all"]);
         for fam in fams {
             let rs: Vec<&ShapeResult> = results
                 .iter()
                 .filter(|r| r.case.scenes == *set)
                 .filter(|r| {
-                    r.case
-                        .shape
-                        .is_some_and(|x| fam == "all" || x.family == fam)
+                    r.case.shape.is_some_and(|x| match fam {
+                        "all" => true,
+                        "confounded" => x.covariate.is_some(),
+                        _ => x.family == fam && x.covariate.is_none(),
+                    })
                 })
                 .collect();
             if rs.is_empty() {
@@ -675,10 +728,36 @@ mod tests {
     }
 
     #[test]
+    fn confounded_shapes_lose_close_returns() {
+        let t = Thresholds {
+            d30: 1.5,
+            near: 2.0,
+            ..Thresholds::default()
+        };
+        let at = |sh: &Shape, d: f32| {
+            let z = ZoneFacts {
+                range_m: d,
+                v: 0.5,
+                radius: 0.5,
+            };
+            unit_value(sh, &t, &z, d)
+        };
+        let [ramp, step] = &CONFOUNDED;
+        assert_eq!(
+            (at(ramp, 0.5), at(ramp, 1.0), at(ramp, 3.0)),
+            (0.75, 0.5, 0.0)
+        );
+        assert_eq!((at(step, 1.0), at(step, 2.0)), (1.0, 0.0));
+        assert!(CONFOUNDED.iter().all(|s| s.covariate == Some("range_m")));
+    }
+
+    #[test]
     fn shapes_differ_from_the_library_forms_and_injections_do_what_they_say() {
         let t = Thresholds {
             d70: 3.0,
             d50: 2.0,
+            d30: 1.5,
+            near: 2.0,
             v30: 0.2,
             v60: 0.5,
             r75: 0.75,
@@ -742,7 +821,7 @@ mod tests {
                 1.0
             }
         });
-        assert_eq!(cases.len(), 2 * (2 * SHAPES.len() + 3));
+        assert_eq!(cases.len(), 2 * (2 * (SHAPES.len() + CONFOUNDED.len()) + 3));
         assert!(cases
             .iter()
             .filter(|c| c.shape.is_some_and(|s| s.family == "range_noise"))

@@ -37,6 +37,12 @@ pub struct CalibratedUnit {
     /// False when no rung up to the parameter's bound reached the detection threshold (then
     /// `multiple` is the largest rung tried).
     pub bracketed: bool,
+    /// Expected held-out gain (nats) of the effect at 1× on the calibration's scenes
+    /// ([`super::power::reference_gains`], the mean over the reference scene sets): what a
+    /// recording must offer for the tool to name it in half of the trials
+    /// ([`super::power::detection_limits`]). Absent in tables written before it existed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference_gain_nats: Option<f64>,
 }
 
 /// `host/data/gap_units.json`: the calibrated units and how they were obtained.
@@ -66,6 +72,10 @@ pub struct UnitTable {
     pub wall_s: f64,
     /// Per effect.
     pub units: BTreeMap<String, CalibratedUnit>,
+    /// The command that added the reference gains (`depthor gap-bench --reference-gains`;
+    /// empty when the table has none).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub reference_command: String,
 }
 
 /// The committed table (`host/data/gap_units.json`); empty when it does not parse.
@@ -258,6 +268,7 @@ pub fn calibrate(
                 multiple,
                 ladder,
                 bracketed,
+                reference_gain_nats: None,
             },
         );
     }
