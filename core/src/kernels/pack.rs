@@ -18,7 +18,8 @@
 //!
 //! **Layouts.** [`Pairs`]: `L = 2`, 16-bit `x − zp` (pad 0) for `vpmaddwd` / `SMLAD`.
 //! [`Quads`]: `L = 4`, bytes `x + 128` (pad `zp + 128`) for `vpdpbusd`; the sums then carry
-//! `(zp + 128)·Σw` per channel, which the caller subtracts.
+//! `(zp + 128)·Σw` per channel, which the caller subtracts. [`SignedQuads`]: `L = 4`, the codes
+//! `x` as they are (pad `zp`) for the signed×signed `SDOT` of aarch64; the sums carry `zp·Σw`.
 
 use super::conv::ConvGeometry;
 use super::Shape;
@@ -102,6 +103,30 @@ impl Layout for Quads {
     #[inline(always)]
     fn bias_term(zp: i32, sum_w: i32) -> i32 {
         (zp + 128).wrapping_mul(sum_w)
+    }
+}
+
+/// Signed bytes `x`, four channels per word (padding `zp`).
+pub struct SignedQuads;
+impl Layout for SignedQuads {
+    type Elem = i8;
+    type W = i8;
+    const L: usize = 4;
+    #[inline(always)]
+    fn elem(x: i8, _zp: i32) -> i8 {
+        x
+    }
+    #[inline(always)]
+    fn pad(zp: i32) -> i8 {
+        zp as i8
+    }
+    #[inline(always)]
+    fn weight(w: i8) -> i8 {
+        w
+    }
+    #[inline(always)]
+    fn bias_term(zp: i32, sum_w: i32) -> i32 {
+        zp.wrapping_mul(sum_w)
     }
 }
 

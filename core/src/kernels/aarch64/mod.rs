@@ -1,0 +1,5 @@
+//! aarch64 micro-kernels (`core::arch::aarch64` intrinsics, and `asm!` for `SDOT`, whose
+//! intrinsics are not stable yet); callers check [`super::isa::Isa::available`] first.
+
+pub mod dotprod;
+pub mod neon;
