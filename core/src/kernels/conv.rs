@@ -294,6 +294,12 @@ impl Conv2d<'_> {
             };
             return;
         }
+        #[cfg(target_arch = "aarch64")]
+        if matches!(isa, Isa::Neon | Isa::NeonDot)
+            && super::aarch64::requant::block(rq, acc, PB, n, output, at, plane, requant_one)
+        {
+            return;
+        }
         let _ = isa;
         for (j, (r, a)) in rq.iter().zip(acc.chunks_exact(PB)).enumerate() {
             let dst = &mut output[at + j * plane..at + j * plane + n];
@@ -334,6 +340,13 @@ impl Conv2d<'_> {
                 }
             };
             return;
+        }
+        #[cfg(target_arch = "aarch64")]
+        if matches!(isa, Isa::Neon | Isa::NeonDot) {
+            let one = core::slice::from_ref(rq);
+            if super::aarch64::requant::block(one, acc, n, n, dst, 0, n, requant_one) {
+                return;
+            }
         }
         let _ = isa;
         if rq.simple {
@@ -1932,13 +1945,14 @@ pub(crate) mod tests {
             let mut row = [0i8; 1];
             requant_row(&k, &[x], &mut row);
             prop_assert_eq!(row[0], want, "requant_row");
-            // Rows of every length up to 9 (the arm-dsp loops take two sums per pass, then
-            // the odd one), with sums of both signs, narrow where the single one is.
+            // Rows of every length up to 17 (the arm-dsp loops take two sums per pass, then
+            // the odd one; the NEON one 8, then the rest), with sums of both signs, narrow
+            // where the single one is.
             let vary = |i: usize| {
                 let v = x.wrapping_mul(1 + i as i32 % 3) >> (i % 5);
                 if i % 2 == 1 { v.wrapping_neg() } else { v }
             };
-            for len in 1..=9usize {
+            for len in 1..=17usize {
                 let sums: std::vec::Vec<i32> = (0..len)
                     .map(|i| if k.narrow { vary(i).clamp(-(1 << 30) + 1, (1 << 30) - 1) } else { vary(i) })
                     .collect();
@@ -1948,6 +1962,14 @@ pub(crate) mod tests {
                     prop_assert_eq!(got[i], requant_one(&k, v), "requant_row, {} of {}", i, len);
                 }
                 prop_assert_eq!(got[len], 0, "requant_row wrote past its row");
+                #[cfg(target_arch = "aarch64")]
+                {
+                    let one = core::slice::from_ref(&k);
+                    let mut neon = std::vec![0i8; len + 1];
+                    let ran = crate::kernels::aarch64::requant::block(one, &sums, len, len, &mut neon, 0, len, requant_one);
+                    prop_assert!(ran, "the NEON requantisation refused a simple row");
+                    prop_assert_eq!(&neon, &got, "NEON requantisation, {} sums", len);
+                }
             }
         }
     }

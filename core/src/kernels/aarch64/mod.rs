@@ -3,3 +3,4 @@
 
 pub mod dotprod;
 pub mod neon;
+pub mod requant;
