@@ -1,6 +1,7 @@
 //! aarch64 micro-kernels (`core::arch::aarch64` intrinsics, and `asm!` for `SDOT`, whose
 //! intrinsics are not stable yet); callers check [`super::isa::Isa::available`] first.
 
+pub mod depthwise;
 pub mod dotprod;
 pub mod neon;
 pub mod requant;
