@@ -1969,6 +1969,13 @@ pub(crate) mod tests {
                     let ran = crate::kernels::aarch64::requant::block(one, &sums, len, len, &mut neon, 0, len, requant_one);
                     prop_assert!(ran, "the NEON requantisation refused a simple row");
                     prop_assert_eq!(&neon, &got, "NEON requantisation, {} sums", len);
+                    // Sums readable past the row (a block's row): a short row through a buffer.
+                    let mut padded = sums.clone();
+                    padded.resize(len.max(8), i32::MAX);
+                    let mut neon = std::vec![0i8; len + 1];
+                    let ran = crate::kernels::aarch64::requant::block(one, &padded, len, len, &mut neon, 0, len, requant_one);
+                    prop_assert!(ran);
+                    prop_assert_eq!(&neon, &got, "NEON requantisation, {} sums + padding", len);
                 }
             }
         }

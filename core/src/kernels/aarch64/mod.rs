@@ -4,4 +4,5 @@
 pub mod depthwise;
 pub mod dotprod;
 pub mod neon;
+pub mod pack;
 pub mod requant;
