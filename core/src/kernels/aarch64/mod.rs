@@ -6,5 +6,6 @@ pub mod depthwise;
 pub mod dotprod;
 pub mod neon;
 pub mod pack;
+pub mod refine;
 pub mod requant;
 pub mod vmath;
