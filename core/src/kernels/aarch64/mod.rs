@@ -8,4 +8,5 @@ pub mod neon;
 pub mod pack;
 pub mod refine;
 pub mod requant;
+pub mod resize;
 pub mod vmath;
