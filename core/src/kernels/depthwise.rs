@@ -258,6 +258,8 @@ pub(super) fn bands(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) ->
                     if let Some(src) = src.filter(|_| p_lo < p_hi) {
                         let first = (p_lo as isize * sx as isize + off) as usize;
                         let d = &mut dst_phase[p_lo..p_hi];
+                        let done = widen_fast(isa, &src[first..], sx, zp, d);
+                        let (d, first) = (&mut d[done..], first + done * sx);
                         if sx == 1 {
                             for (d, &x) in d.iter_mut().zip(&src[first..]) {
                                 *d = (i32::from(x) - zp) as i16;
@@ -309,6 +311,18 @@ pub(super) fn bands(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) ->
         }
     }
     true
+}
+
+/// `d[k] = src[k·sx] − zp` for the leading part that the kernel set converts with vectors
+/// (NEON, [`super::aarch64::depthwise::widen`]); returns how many (0 elsewhere).
+#[inline(always)]
+fn widen_fast(isa: Isa, src: &[i8], sx: usize, zp: i32, d: &mut [i16]) -> usize {
+    #[cfg(target_arch = "aarch64")]
+    if matches!(isa, Isa::Neon | Isa::NeonDot) {
+        return super::aarch64::depthwise::widen(src, sx, zp, d);
+    }
+    let _ = (isa, src, sx, zp, d);
+    0
 }
 
 /// [`bands`]' taps with the NEON kernel ([`super::aarch64::depthwise::taps`]) where the set is

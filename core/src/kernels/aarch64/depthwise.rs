@@ -59,3 +59,42 @@ unsafe fn taps_neon(x: &[i16], offs: &[usize], w: &[i16], out: &mut [i32]) {
         i += 1;
     }
 }
+
+/// `dst[k] = src[k·sx] − zp` (16-bit) for the leading multiple of 16 of `dst` whose reads of
+/// 16·`sx` codes lie in `src`, at column stride `sx` 1 or 2 (`LD2` keeps the even codes);
+/// returns how many it did (0 without NEON, for other strides or a zero point outside int8).
+pub fn widen(src: &[i8], sx: usize, zp: i32, dst: &mut [i16]) -> usize {
+    let n = if (1..=2).contains(&sx) {
+        dst.len().min(src.len() / sx) / 16 * 16
+    } else {
+        0
+    };
+    let Ok(zp) = i8::try_from(zp) else {
+        return 0;
+    };
+    if !crate::kernels::isa::Isa::Neon.available() || n == 0 {
+        return 0;
+    }
+    // SAFETY: NEON is available; the reads end at `n·sx ≤ src.len()`, the writes at `n ≤
+    // dst.len()`.
+    unsafe { widen_neon(src, sx, zp, &mut dst[..n]) };
+    n
+}
+
+#[target_feature(enable = "neon")]
+unsafe fn widen_neon(src: &[i8], sx: usize, zp: i8, dst: &mut [i16]) {
+    let zpv = vdup_n_s8(zp);
+    let (sp, dp) = (src.as_ptr(), dst.as_mut_ptr());
+    let mut k = 0;
+    while k + 16 <= dst.len() {
+        let x = if sx == 2 {
+            vld2q_s8(sp.add(2 * k)).0
+        } else {
+            vld1q_s8(sp.add(k))
+        };
+        // x − zp exactly in 16 bits: SSUBL widens both before subtracting.
+        vst1q_s16(dp.add(k), vsubl_s8(vget_low_s8(x), zpv));
+        vst1q_s16(dp.add(k + 8), vsubl_high_s8(x, vdupq_n_s8(zp)));
+        k += 16;
+    }
+}
