@@ -32,11 +32,32 @@ pub fn block(
     if !crate::kernels::isa::Isa::Neon.available() || !fits || !consts.iter().all(|k| k.simple) {
         return false;
     }
+    // SAFETY: NEON is available (checked).
+    unsafe { block_neon(consts, acc, acc_stride, n, out, at, out_stride, tail) };
+    true
+}
+
+/// [`block`]'s loop, compiled with NEON so that [`row`] inlines into it.
+///
+/// # Safety
+/// The CPU must have NEON; the slice conditions [`block`] checks hold.
+#[target_feature(enable = "neon")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn block_neon(
+    consts: &[RowQuant],
+    acc: &[i32],
+    acc_stride: usize,
+    n: usize,
+    out: &mut [i8],
+    at: usize,
+    out_stride: usize,
+    tail: impl Fn(&RowQuant, i32) -> i8,
+) {
     for (j, k) in consts.iter().enumerate() {
         let a = &acc[j * acc_stride..j * acc_stride + n];
         let o = &mut out[at + j * out_stride..at + j * out_stride + n];
-        // SAFETY (all three calls): NEON is available (checked); `row` reads and writes whole
-        // groups of 8 inside the slices it is given.
+        // SAFETY (all three calls): NEON is available (the caller's contract); `row` reads and
+        // writes whole groups of 8 inside the slices it is given.
         let mut done = unsafe { row(k, a, o) };
         if done < n && n >= 8 {
             // The last 8 again, overlapping: the same values rewritten.
@@ -56,7 +77,6 @@ pub fn block(
             *d = tail(k, v);
         }
     }
-    true
 }
 
 /// Requantises the leading multiple of 8 of `acc` (`k.base` added) into `out` (`acc.len() ≥
@@ -66,6 +86,7 @@ pub fn block(
 /// # Safety
 /// The CPU must have NEON.
 #[target_feature(enable = "neon")]
+#[inline]
 unsafe fn row(k: &RowQuant, acc: &[i32], out: &mut [i8]) -> usize {
     if k.pos_m == k.neg_m && k.pos_r == k.neg_r {
         let (m, e) = (vdupq_n_s32(k.pos_m), vdupq_n_s32(-k.pos_r));
