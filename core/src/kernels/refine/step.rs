@@ -178,6 +178,9 @@ fn row_i8_chunks(
     cur: &[f32],
     nxt: &mut [f32],
 ) -> Result<(), KernelError> {
+    // The kernel set picks the NEON chunk loop on aarch64; other targets have one loop.
+    #[cfg(not(target_arch = "aarch64"))]
+    let _ = isa;
     let rad = br.rad;
     let (x0, x1) = if w > 2 * rad { (rad, w - rad) } else { (w, w) };
     let inside = br.inside_rows(h, y);
