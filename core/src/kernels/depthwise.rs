@@ -279,7 +279,9 @@ pub(super) fn bands(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) ->
             if !vector_done {
                 sums.fill(0);
             }
-            for ky in (0..kh).filter(|_| !vector_done) {
+            // The taps' rows left to the loop below: none where the vector kernel did them.
+            let rows_left = if vector_done { 0 } else { kh };
+            for ky in 0..rows_left {
                 for kx in 0..kw {
                     let wv = i16::from(w[ky * kw + kx]);
                     let col = (kx * dx) % sx * phase_w + kx * dx / sx;

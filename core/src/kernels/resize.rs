@@ -394,12 +394,22 @@ fn narrow_row(
         *v = i32::from(a) * (dy - fy) + i32::from(b) * fy;
     }
     v[iw] = v[iw - 1];
-    let done = cols(v, taps, orow).min(orow.len());
-    for (o, &t) in orow[done..].iter_mut().zip(&taps[done..]) {
-        // The mask keeps both reads inside `v` without a bounds branch (x0 < iw ≤ ROW already).
-        let x0 = t as usize & (ROW - 1);
-        let f = (t >> 16) as i32;
-        *o = finish(v[x0] * (den - f) + v[x0 + 1] * f);
+    let v: &[i32; ROW + 1] = v;
+    let scalar = |orow: &mut [i8], taps: &[u32]| {
+        for (o, &t) in orow.iter_mut().zip(taps) {
+            // The mask keeps both reads inside `v` without a bounds branch (x0 < iw ≤ ROW).
+            let x0 = t as usize & (ROW - 1);
+            let f = (t >> 16) as i32;
+            *o = finish(v[x0] * (den - f) + v[x0 + 1] * f);
+        }
+    };
+    // One loop where `cols` did nothing (the portable set), another after its columns.
+    match cols(v, taps, orow) {
+        0 => scalar(orow, taps),
+        done => scalar(
+            orow.get_mut(done..).unwrap_or_default(),
+            taps.get(done..).unwrap_or_default(),
+        ),
     }
 }
 
