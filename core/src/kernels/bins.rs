@@ -132,6 +132,10 @@ pub fn bins_head_i8(
                 super::x86_64::bins::head(features, p, c, zp, weights, channels, centres, out)
             }
         }
+        #[cfg(target_arch = "aarch64")]
+        Isa::Neon | Isa::NeonDot => {
+            super::aarch64::bins::head(features, p, c, zp, weights, channels, centres, out)
+        }
         _ => 0,
     };
     let mut col = [0i32; MAX_BIN_FEATURES];

@@ -10,7 +10,7 @@
 use super::depthwise::{self, Depthwise};
 use super::dot::{self, Acc, Task};
 use super::isa::Isa;
-use super::pack::{self, Dense, Layout, Pairs, Parts, Quads, Source, NB, PB};
+use super::pack::{self, Dense, Layout, Pairs, Parts, Quads, SignedQuads, Source, NB, PB};
 use super::requant::{clamp_i8, Requant};
 use super::wide::Finish;
 use super::{need, KernelError, Shape};
@@ -294,6 +294,12 @@ impl Conv2d<'_> {
             };
             return;
         }
+        #[cfg(target_arch = "aarch64")]
+        if matches!(isa, Isa::Neon | Isa::NeonDot)
+            && super::aarch64::requant::block(rq, acc, PB, n, output, at, plane, requant_one)
+        {
+            return;
+        }
         let _ = isa;
         for (j, (r, a)) in rq.iter().zip(acc.chunks_exact(PB)).enumerate() {
             let dst = &mut output[at + j * plane..at + j * plane + n];
@@ -334,6 +340,13 @@ impl Conv2d<'_> {
                 }
             };
             return;
+        }
+        #[cfg(target_arch = "aarch64")]
+        if matches!(isa, Isa::Neon | Isa::NeonDot) {
+            let one = core::slice::from_ref(rq);
+            if super::aarch64::requant::block(one, acc, n, n, dst, 0, n, requant_one) {
+                return;
+            }
         }
         let _ = isa;
         if rq.simple {
@@ -664,6 +677,9 @@ pub fn conv2d_rows_packed(
         Isa::Avx512Vnni => {
             run::<Quads, _, _>(isa, op, &src, in_shape, out, dst, output, scratch, packed)
         }
+        Isa::NeonDot => {
+            run::<SignedQuads, _, _>(isa, op, &src, in_shape, out, dst, output, scratch, packed)
+        }
         _ => run::<Pairs, _, _>(isa, op, &src, in_shape, out, dst, output, scratch, packed),
     }
     Ok(out)
@@ -694,6 +710,9 @@ pub fn conv2d_parts_with(
     match isa {
         Isa::Avx512Vnni => {
             run::<Quads, _, _>(isa, op, input, in_shape, out, dst, output, scratch, false)
+        }
+        Isa::NeonDot => {
+            run::<SignedQuads, _, _>(isa, op, input, in_shape, out, dst, output, scratch, false)
         }
         _ => run::<Pairs, _, _>(isa, op, input, in_shape, out, dst, output, scratch, false),
     }
@@ -727,6 +746,9 @@ pub fn conv2d_i16_with(
         Isa::Avx512Vnni => {
             run::<Quads, _, _>(isa, op, &src, in_shape, out, &dst, output, scratch, false)
         }
+        Isa::NeonDot => {
+            run::<SignedQuads, _, _>(isa, op, &src, in_shape, out, &dst, output, scratch, false)
+        }
         _ => run::<Pairs, _, _>(isa, op, &src, in_shape, out, &dst, output, scratch, false),
     }
     Ok(out)
@@ -757,6 +779,8 @@ impl Micro for Pairs {
             Isa::Avx2 => super::x86_64::avx2::pairs(t, acc),
             #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
             Isa::ArmDsp => super::arm::dsp::pairs(t, acc),
+            #[cfg(target_arch = "aarch64")]
+            Isa::Neon => super::aarch64::neon::pairs(t, acc),
             _ => false,
         };
         if !done {
@@ -775,6 +799,20 @@ impl Micro for Quads {
         };
         if !done {
             dot::portable::<u8, i8, 4>(t, acc);
+        }
+    }
+}
+
+impl Micro for SignedQuads {
+    #[inline]
+    fn kernel(isa: Isa, t: &Task<i8, i8>, acc: &mut Acc) {
+        let done = match isa {
+            #[cfg(target_arch = "aarch64")]
+            Isa::NeonDot => super::aarch64::dotprod::quads(t, acc),
+            _ => false,
+        };
+        if !done {
+            dot::portable::<i8, i8, 4>(t, acc);
         }
     }
 }
@@ -1271,10 +1309,30 @@ pub(crate) mod tests {
     ) -> Result<Shape, KernelError> {
         with_isa(Isa::Avx512Vnni, op, x, s, y, t)
     }
+    fn neon(
+        op: &Conv2d,
+        x: &[i8],
+        s: Shape,
+        y: &mut [i8],
+        t: &mut [i32],
+    ) -> Result<Shape, KernelError> {
+        with_isa(Isa::Neon, op, x, s, y, t)
+    }
+    fn neon_dot(
+        op: &Conv2d,
+        x: &[i8],
+        s: Shape,
+        y: &mut [i8],
+        t: &mut [i32],
+    ) -> Result<Shape, KernelError> {
+        with_isa(Isa::NeonDot, op, x, s, y, t)
+    }
     kernel_tests!(suite_portable, ref: conv2d_ref, fast: portable, golden: golden, arb: arb_valid(), check: check);
     kernel_tests!(suite_arm_dsp, ref: conv2d_ref, fast: arm_dsp, golden: golden, arb: arb_valid(), check: check);
     kernel_tests!(suite_avx2, ref: conv2d_ref, fast: avx2, golden: golden, arb: arb_valid(), check: check);
     kernel_tests!(suite_avx512_vnni, ref: conv2d_ref, fast: avx512_vnni, golden: golden, arb: arb_valid(), check: check);
+    kernel_tests!(suite_neon, ref: conv2d_ref, fast: neon, golden: golden, arb: arb_valid(), check: check);
+    kernel_tests!(suite_neon_dot, ref: conv2d_ref, fast: neon_dot, golden: golden, arb: arb_valid(), check: check);
 
     /// Input rows packed once into row slots and reused: convs whose weights take several packs
     /// (`MAX_PACKED_WEIGHTS`), dilations whose rows take distinct slots (`gcd(dh, kh) = 1`) and
@@ -1327,7 +1385,7 @@ pub(crate) mod tests {
                 act: Activation::None,
                 expect: None,
             };
-            for f in [portable, arm_dsp, avx2, avx512_vnni] {
+            for f in [portable, arm_dsp, avx2, avx512_vnni, neon, neon_dot] {
                 check(&case, f);
             }
             let (out, whole) = run(&case, conv2d_ref);
@@ -1451,6 +1509,8 @@ pub(crate) mod tests {
                     Isa::ArmDsp => arm_dsp,
                     Isa::Avx2 => avx2,
                     Isa::Avx512Vnni => avx512_vnni,
+                    Isa::Neon => neon,
+                    Isa::NeonDot => neon_dot,
                 };
                 let (_, y) = run(&case, f);
                 assert_eq!(y, yr, "{} k{k} s{s} d{d} p{p} {h}x{w}", isa.name());
@@ -1713,6 +1773,8 @@ pub(crate) mod tests {
                         Isa::ArmDsp => arm_dsp,
                         Isa::Avx2 => avx2,
                         Isa::Avx512Vnni => avx512_vnni,
+                        Isa::Neon => neon,
+                        Isa::NeonDot => neon_dot,
                     },
                 );
                 assert_eq!(y, yr, "{} x={x} zp={zp} w={wv}", isa.name());
@@ -1778,6 +1840,8 @@ pub(crate) mod tests {
             ("arm-dsp", arm_dsp as Impl),
             ("avx2", avx2 as Impl),
             ("avx512-vnni", avx512_vnni as Impl),
+            ("neon", neon as Impl),
+            ("neon-dot", neon_dot as Impl),
         ] {
             // `CONV_SPEED_ONLY=<name>` runs one kernel set (for a profiler).
             if std::env::var("CONV_SPEED_ONLY").is_ok_and(|only| only != name) {
@@ -1881,13 +1945,14 @@ pub(crate) mod tests {
             let mut row = [0i8; 1];
             requant_row(&k, &[x], &mut row);
             prop_assert_eq!(row[0], want, "requant_row");
-            // Rows of every length up to 9 (the arm-dsp loops take two sums per pass, then
-            // the odd one), with sums of both signs, narrow where the single one is.
+            // Rows of every length up to 17 (the arm-dsp loops take two sums per pass, then
+            // the odd one; the NEON one 8, then the rest), with sums of both signs, narrow
+            // where the single one is.
             let vary = |i: usize| {
                 let v = x.wrapping_mul(1 + i as i32 % 3) >> (i % 5);
                 if i % 2 == 1 { v.wrapping_neg() } else { v }
             };
-            for len in 1..=9usize {
+            for len in 1..=17usize {
                 let sums: std::vec::Vec<i32> = (0..len)
                     .map(|i| if k.narrow { vary(i).clamp(-(1 << 30) + 1, (1 << 30) - 1) } else { vary(i) })
                     .collect();
@@ -1897,6 +1962,21 @@ pub(crate) mod tests {
                     prop_assert_eq!(got[i], requant_one(&k, v), "requant_row, {} of {}", i, len);
                 }
                 prop_assert_eq!(got[len], 0, "requant_row wrote past its row");
+                #[cfg(target_arch = "aarch64")]
+                {
+                    let one = core::slice::from_ref(&k);
+                    let mut neon = std::vec![0i8; len + 1];
+                    let ran = crate::kernels::aarch64::requant::block(one, &sums, len, len, &mut neon, 0, len, requant_one);
+                    prop_assert!(ran, "the NEON requantisation refused a simple row");
+                    prop_assert_eq!(&neon, &got, "NEON requantisation, {} sums", len);
+                    // Sums readable past the row (a block's row): a short row through a buffer.
+                    let mut padded = sums.clone();
+                    padded.resize(len.max(8), i32::MAX);
+                    let mut neon = std::vec![0i8; len + 1];
+                    let ran = crate::kernels::aarch64::requant::block(one, &padded, len, len, &mut neon, 0, len, requant_one);
+                    prop_assert!(ran);
+                    prop_assert_eq!(&neon, &got, "NEON requantisation, {} sums + padding", len);
+                }
             }
         }
     }

@@ -258,6 +258,8 @@ pub(super) fn bands(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) ->
                     if let Some(src) = src.filter(|_| p_lo < p_hi) {
                         let first = (p_lo as isize * sx as isize + off) as usize;
                         let d = &mut dst_phase[p_lo..p_hi];
+                        let done = widen_fast(isa, &src[first..], sx, zp, d);
+                        let (d, first) = (&mut d[done..], first + done * sx);
                         if sx == 1 {
                             for (d, &x) in d.iter_mut().zip(&src[first..]) {
                                 *d = (i32::from(x) - zp) as i16;
@@ -273,8 +275,13 @@ pub(super) fn bands(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) ->
             // Row j's sums at `j·pitch`; `span` covers the last row's `ow`.
             let span = (n - 1) * pitch + ow;
             let sums = &mut sums[..span];
-            sums.fill(0);
-            for ky in 0..kh {
+            let vector_done = neon_taps(call, c, x16, (pitch, row_w, phase_w), sums);
+            if !vector_done {
+                sums.fill(0);
+            }
+            // The taps' rows left to the loop below: none where the vector kernel did them.
+            let rows_left = if vector_done { 0 } else { kh };
+            for ky in 0..rows_left {
                 for kx in 0..kw {
                     let wv = i16::from(w[ky * kw + kx]);
                     let col = (kx * dx) % sx * phase_w + kx * dx / sx;
@@ -306,6 +313,73 @@ pub(super) fn bands(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) ->
         }
     }
     true
+}
+
+/// `d[k] = src[k·sx] − zp` for the leading part that the kernel set converts with vectors
+/// (NEON, [`super::aarch64::depthwise::widen`]); returns how many (0 elsewhere).
+#[inline(always)]
+fn widen_fast(isa: Isa, src: &[i8], sx: usize, zp: i32, d: &mut [i16]) -> usize {
+    #[cfg(target_arch = "aarch64")]
+    if matches!(isa, Isa::Neon | Isa::NeonDot) {
+        return super::aarch64::depthwise::widen(src, sx, zp, d);
+    }
+    let _ = (isa, src, sx, zp, d);
+    0
+}
+
+/// [`bands`]' taps with the NEON kernel ([`super::aarch64::depthwise::taps`]) where the set is
+/// `neon` or `neon-dot`: each output row of the band (or, at stride 1, the whole band at once)
+/// is one call over the tap offsets of channel `c`. `geo` is `(pitch, row_w, phase_w)`.
+/// `false` (nothing written) elsewhere or for kernels over [`MAX_DEPTHWISE_TAPS`] taps.
+#[inline(always)]
+fn neon_taps(
+    call: &Depthwise,
+    c: usize,
+    x16: &[i16],
+    (pitch, row_w, phase_w): (usize, usize, usize),
+    sums: &mut [i32],
+) -> bool {
+    #[cfg(target_arch = "aarch64")]
+    if matches!(call.isa, Isa::Neon | Isa::NeonDot) {
+        let g = &call.op.geometry;
+        let (kh, kw) = (g.kernel[0], g.kernel[1]);
+        let (sx, sy) = (g.stride[1], g.stride[0]);
+        let (dx, dy) = (g.dilation[1], g.dilation[0]);
+        let ow = call.out.w;
+        let n_taps = kh * kw;
+        let Some(wc) = call.op.weights.get(c * n_taps..(c + 1) * n_taps) else {
+            return false;
+        };
+        if n_taps > MAX_DEPTHWISE_TAPS || sx == 0 {
+            return false;
+        }
+        let (mut offs, mut ws) = ([0usize; MAX_DEPTHWISE_TAPS], [0i16; MAX_DEPTHWISE_TAPS]);
+        for (t, (o, wv)) in offs.iter_mut().zip(&mut ws).take(n_taps).enumerate() {
+            let (ky, kx) = (t / kw, t % kw);
+            *o = ky * dy * row_w + (kx * dx) % sx * phase_w + kx * dx / sx;
+            *wv = i16::from(wc[t]);
+        }
+        let (offs, ws) = (&offs[..n_taps], &ws[..n_taps]);
+        if sx == 1 && sy == 1 {
+            return super::aarch64::depthwise::taps(x16, offs, ws, sums);
+        }
+        // Row j of the band starts `j·sy` input rows down.
+        for (j, acc) in sums.chunks_mut(pitch).enumerate() {
+            let Some(acc) = acc.get_mut(..ow) else {
+                return false;
+            };
+            let mut shifted = [0usize; MAX_DEPTHWISE_TAPS];
+            for (s, &o) in shifted.iter_mut().zip(offs) {
+                *s = o + j * sy * row_w;
+            }
+            if !super::aarch64::depthwise::taps(x16, &shifted[..n_taps], ws, acc) {
+                return false;
+            }
+        }
+        return true;
+    }
+    let _ = (call, c, x16, pitch, row_w, phase_w, sums);
+    false
 }
 
 /// Halfwords per strip column of [`ring3`]: the three held input rows and a zero.

@@ -10,13 +10,17 @@
 //! Kernels check every length up front and return [`KernelError`] instead of panicking.
 //!
 //! **Kernel sets** ([`isa::Isa`], chosen at run time: core reads CPUID itself on x86-64; the
-//! Cortex-M DSP set is the `arm-dsp` build feature): `portable` (any target), `avx2`,
-//! `avx512-vnni` (x86-64, `x86_64/`), `arm-dsp` (`SMLAD`, `arm/`). Integer sums are exact, so
+//! Cortex-M DSP set is the `arm-dsp` build feature; on aarch64 Linux/Android it asks the C
+//! library's `getauxval` for the dot product): `portable` (any target), `avx2`,
+//! `avx512-vnni` (x86-64, `x86_64/`), `arm-dsp` (`SMLAD`, `arm/`), `neon` and `neon-dot`
+//! (aarch64 `SMLAL` and `SDOT`, `aarch64/`). Integer sums are exact, so
 //! every set gives the reference's bits; the f32 refinement and bins head keep each pixel's
 //! operation order (lanes run pixels side by side, never reassociate), so they too give the same
 //! bits. The convolution ([`conv`]) packs each output row's input rows with channels innermost
 //! ([`pack`]) and runs register-blocked micro-kernels ([`dot`]) of 4 output channels × 32
 //! pixels, then requantises the block (vectorised on x86).
+#[cfg(target_arch = "aarch64")]
+pub mod aarch64;
 #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
 pub mod arm;
 pub mod bins;

@@ -18,7 +18,8 @@
 //!
 //! **Layouts.** [`Pairs`]: `L = 2`, 16-bit `x − zp` (pad 0) for `vpmaddwd` / `SMLAD`.
 //! [`Quads`]: `L = 4`, bytes `x + 128` (pad `zp + 128`) for `vpdpbusd`; the sums then carry
-//! `(zp + 128)·Σw` per channel, which the caller subtracts.
+//! `(zp + 128)·Σw` per channel, which the caller subtracts. [`SignedQuads`]: `L = 4`, the codes
+//! `x` as they are (pad `zp`) for the signed×signed `SDOT` of aarch64; the sums carry `zp·Σw`.
 
 use super::conv::ConvGeometry;
 use super::Shape;
@@ -48,6 +49,11 @@ pub trait Layout {
     /// would, where the target has a faster way; returns how many pixels it packed (0: none).
     #[inline(always)]
     fn interleave2_fast(_a: &[i8], _b: &[i8], _zp: i32, _out: &mut [Self::Elem]) -> usize {
+        0
+    }
+    /// As [`Layout::interleave2_fast`] for four channel rows.
+    #[inline(always)]
+    fn interleave4_fast(_src: [&[i8]; 4], _zp: i32, _out: &mut [Self::Elem]) -> usize {
         0
     }
 }
@@ -102,6 +108,35 @@ impl Layout for Quads {
     #[inline(always)]
     fn bias_term(zp: i32, sum_w: i32) -> i32 {
         (zp + 128).wrapping_mul(sum_w)
+    }
+}
+
+/// Signed bytes `x`, four channels per word (padding `zp`).
+pub struct SignedQuads;
+impl Layout for SignedQuads {
+    type Elem = i8;
+    type W = i8;
+    const L: usize = 4;
+    #[inline(always)]
+    fn elem(x: i8, _zp: i32) -> i8 {
+        x
+    }
+    #[inline(always)]
+    fn pad(zp: i32) -> i8 {
+        zp as i8
+    }
+    #[inline(always)]
+    fn weight(w: i8) -> i8 {
+        w
+    }
+    #[inline(always)]
+    fn bias_term(zp: i32, sum_w: i32) -> i32 {
+        zp.wrapping_mul(sum_w)
+    }
+    #[cfg(target_arch = "aarch64")]
+    #[inline(always)]
+    fn interleave4_fast(src: [&[i8]; 4], _zp: i32, out: &mut [i8]) -> usize {
+        super::aarch64::pack::interleave4(src, out)
     }
 }
 
@@ -399,7 +434,10 @@ type Run<'a> = (&'a [i8], Option<&'a [i8; 256]>);
 #[inline]
 fn interleave4<F: Layout>(src: [Run; 4], zp: i32, out: &mut [F::Elem]) {
     if src.iter().all(|s| s.1.is_none()) {
-        let it = src[0].0.iter().zip(src[1].0).zip(src[2].0).zip(src[3].0);
+        let done = F::interleave4_fast(src.map(|s| s.0), zp, out);
+        let rest = src.map(|s| s.0.get(done..).unwrap_or_default());
+        let out = out.get_mut(done * 4..).unwrap_or_default();
+        let it = rest[0].iter().zip(rest[1]).zip(rest[2]).zip(rest[3]);
         for (d, (((&a, &b), &c), &e)) in out.chunks_exact_mut(4).zip(it) {
             d[0] = F::elem(a, zp);
             d[1] = F::elem(b, zp);

@@ -7,6 +7,7 @@
 //! [`ResizeRescale`], the output has its own and the interpolation and the requantisation still
 //! round once (an upsample written at the scale of the concat that reads it).
 
+use super::isa::Isa;
 use super::requant::QParams;
 use super::{need, KernelError, Shape};
 
@@ -105,6 +106,26 @@ struct NarrowRescale {
 }
 
 impl NarrowRescale {
+    /// The leading columns of [`narrow_row`] with vectors where `isa` has them (NEON); returns
+    /// how many it did (0 elsewhere).
+    #[inline(always)]
+    fn vector_cols(
+        self,
+        isa: Isa,
+        v: &[i32; ROW + 1],
+        taps: &[u32; OUT_ROW],
+        den: i32,
+        out: &mut [i8],
+    ) -> usize {
+        #[cfg(target_arch = "aarch64")]
+        if matches!(isa, Isa::Neon | Isa::NeonDot) {
+            let r = (self.k, self.bias, self.shift_hi, self.zp_out);
+            return super::aarch64::resize::rescaled_cols(v, taps, ROW - 1, den, r, out);
+        }
+        let _ = (isa, v, taps, den, out);
+        0
+    }
+
     #[inline(always)]
     fn apply(self, n: i32) -> i8 {
         let hi = ((i64::from(n) * i64::from(self.k) + self.bias) >> 32) as i32;
@@ -257,6 +278,19 @@ pub fn upsample_bilinear_to(
     out_shape: Shape,
     rescale: Option<&ResizeRescale>,
 ) -> Result<(), KernelError> {
+    upsample_bilinear_to_with(Isa::best(), input, in_shape, out, out_shape, rescale)
+}
+
+/// As [`upsample_bilinear_to`] with kernel set `isa` (the NEON sets run the rescaled columns
+/// with vectors; every set gives the same bits).
+pub fn upsample_bilinear_to_with(
+    isa: Isa,
+    input: &[i8],
+    in_shape: Shape,
+    out: &mut [i8],
+    out_shape: Shape,
+    rescale: Option<&ResizeRescale>,
+) -> Result<(), KernelError> {
     check(input, in_shape, out, out_shape)?;
     let (ih, iw) = (in_shape.h, in_shape.w);
     // The column blend of `narrow_row`, one past the row, and its output columns' taps (made
@@ -289,8 +323,16 @@ pub fn upsample_bilinear_to(
                 match rescale {
                     None => narrow_row_same(rows, &taps, orow, &mut blend),
                     Some(r) => match r.narrow() {
-                        Some(nr) => narrow_row(rows, &taps, orow, &mut blend, move |n| nr.apply(n)),
-                        None => narrow_row(rows, &taps, orow, &mut blend, |n| r.apply(n.into())),
+                        Some(nr) => {
+                            let cols = |v: &[i32; ROW + 1], t: &[u32; OUT_ROW], o: &mut [i8]| {
+                                nr.vector_cols(isa, v, t, den, o)
+                            };
+                            narrow_row(rows, &taps, orow, &mut blend, cols, move |n| nr.apply(n))
+                        }
+                        None => {
+                            let cols = |_: &_, _: &_, _: &mut _| 0;
+                            narrow_row(rows, &taps, orow, &mut blend, cols, |n| r.apply(n.into()))
+                        }
                     },
                 }
                 continue;
@@ -334,12 +376,14 @@ const OUT_ROW: usize = 1024;
 /// [`Coords`]' sequence, `den` its denominator), the same integer as the reference's
 /// `top·(dy − fy) + bot·fy` (exact), turned into the output code by `finish` (the reference's
 /// rounding: the same bits). `|n| ≤ 128·den·dy < 2^31`, `r0.len() ≤ ROW`, every `x0 < r0.len()`.
+/// `cols` may do the leading columns first (a vector path; it returns how many).
 #[inline(always)]
 fn narrow_row(
     (r0, r1, fy, dy, den): (&[i8], &[i8], i32, i32, i32),
     taps: &[u32; OUT_ROW],
     orow: &mut [i8],
     v: &mut [i32; ROW + 1],
+    cols: impl FnOnce(&[i32; ROW + 1], &[u32; OUT_ROW], &mut [i8]) -> usize,
     finish: impl Fn(i32) -> i8,
 ) {
     let iw = r0.len().min(r1.len()).min(ROW);
@@ -350,11 +394,22 @@ fn narrow_row(
         *v = i32::from(a) * (dy - fy) + i32::from(b) * fy;
     }
     v[iw] = v[iw - 1];
-    for (o, &t) in orow.iter_mut().zip(taps) {
-        // The mask keeps both reads inside `v` without a bounds branch (x0 < iw ≤ ROW already).
-        let x0 = t as usize & (ROW - 1);
-        let f = (t >> 16) as i32;
-        *o = finish(v[x0] * (den - f) + v[x0 + 1] * f);
+    let v: &[i32; ROW + 1] = v;
+    let scalar = |orow: &mut [i8], taps: &[u32]| {
+        for (o, &t) in orow.iter_mut().zip(taps) {
+            // The mask keeps both reads inside `v` without a bounds branch (x0 < iw ≤ ROW).
+            let x0 = t as usize & (ROW - 1);
+            let f = (t >> 16) as i32;
+            *o = finish(v[x0] * (den - f) + v[x0 + 1] * f);
+        }
+    };
+    // One loop where `cols` did nothing (the portable set), another after its columns.
+    match cols(v, taps, orow) {
+        0 => scalar(orow, taps),
+        done => scalar(
+            orow.get_mut(done..).unwrap_or_default(),
+            taps.get(done..).unwrap_or_default(),
+        ),
     }
 }
 
@@ -370,7 +425,8 @@ fn narrow_row_same(
 ) {
     let d = rows.4 * rows.3;
     let half = d / 2;
-    narrow_row(rows, taps, orow, v, move |n: i32| {
+    let cols = |_: &_, _: &_, _: &mut _| 0;
+    narrow_row(rows, taps, orow, v, cols, move |n: i32| {
         let sign = n >> 31;
         let q = (((((n ^ sign) - sign) + half) / d) ^ sign) - sign;
         q.clamp(-128, 127) as i8
@@ -528,16 +584,18 @@ mod tests {
 
     kernel_tests!(suite, ref: upsample_bilinear_ref, fast: upsample_bilinear, golden: golden, arb: arb(), check: check_case);
 
-    /// A resize into other parameters: fast = reference bits, and within half an output step
+    /// A resize into other parameters: fast (every kernel set) = reference bits, and within half an output step
     /// (plus the factor's 2^−30 relative error) of the exact resize of the dequantised input,
     /// where the output does not clamp.
     fn check_rescaled(c: &Case, from: QParams, to: QParams) {
         let r = ResizeRescale::new(from, to, c.s, c.o);
         let mut fast = std::vec![0i8; c.o.len().unwrap()];
         let mut slow = fast.clone();
-        upsample_bilinear_to(&c.x, c.s, &mut fast, c.o, Some(&r)).unwrap();
         upsample_bilinear_to_ref(&c.x, c.s, &mut slow, c.o, Some(&r)).unwrap();
-        assert_eq!(fast, slow);
+        for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+            upsample_bilinear_to_with(isa, &c.x, c.s, &mut fast, c.o, Some(&r)).unwrap();
+            assert_eq!(fast, slow, "{}", isa.name());
+        }
         let xf: Vec<f32> = c.x.iter().map(|&v| from.dequantize(v)).collect();
         let mut exact = std::vec![0f32; fast.len()];
         upsample_bilinear_f32(&xf, c.s, &mut exact, c.o).unwrap();

@@ -108,7 +108,7 @@ pub(crate) fn eval(e: Eval) -> Result<(), Error> {
                 None
             };
             let (x, out) = (typed(e.ins[0], i)?, typed_mut(e.out, i)?);
-            resize::upsample_bilinear_to(x, e.x, out, e.out_shape, r).map_err(kerr)?
+            resize::upsample_bilinear_to_with(e.isa, x, e.x, out, e.out_shape, r).map_err(kerr)?
         }
         DType::F32 => {
             let (x, out) = (typed(e.ins[0], i)?, typed_mut(e.out, i)?);

@@ -68,7 +68,8 @@ enum What {
         #[arg(long)]
         per_op: bool,
         /// Kernel set of the core: `best` (default), `all` (every set this CPU runs, side by
-        /// side), or one of `portable`, `avx2`, `avx512-vnni`.
+        /// side), or one of `portable`, `avx2`, `avx512-vnni` (x86-64), `neon`, `neon-dot`
+        /// (aarch64).
         #[arg(long, default_value = "best")]
         kernels: String,
     },
@@ -183,7 +184,7 @@ fn kernel_sets(name: &str) -> Result<Vec<Isa>> {
         "all" => Isa::ALL.into_iter().filter(|i| i.available()).collect(),
         n => {
             let isa = Isa::from_name(n).with_context(|| {
-                format!("--kernels: unknown kernel set {n:?} (allowed: best, all, portable, arm-dsp, avx2, avx512-vnni)")
+                format!("--kernels: unknown kernel set {n:?} (allowed: best, all, portable, arm-dsp, avx2, avx512-vnni, neon, neon-dot)")
             })?;
             anyhow::ensure!(isa.available(), "--kernels: {n} does not run on this CPU");
             vec![isa]

@@ -148,7 +148,7 @@ pub fn step_row<A: Map>(
         },
         _ => match (a.as_i8(), &br.lut) {
             (Some(m), Some((q, lut))) if *q == m.q() => {
-                return row_i8_chunks(m, lut, br, h, w, y, at, cur, nxt)
+                return row_i8_chunks(isa, m, lut, br, h, w, y, at, cur, nxt)
             }
             _ => row_lanes::<A, PORTABLE_LANES>(a, br, h, w, y, at, cur, nxt),
         },
@@ -167,6 +167,7 @@ const CHUNK: usize = 64;
 /// the `r` columns at each side go through [`step_pixel`].
 #[allow(clippy::too_many_arguments)]
 fn row_i8_chunks(
+    isa: Isa,
     a: &I8Map,
     lut: &[f32; 256],
     br: &Branch,
@@ -177,6 +178,9 @@ fn row_i8_chunks(
     cur: &[f32],
     nxt: &mut [f32],
 ) -> Result<(), KernelError> {
+    // The kernel set picks the NEON chunk loop on aarch64; other targets have one loop.
+    #[cfg(not(target_arch = "aarch64"))]
+    let _ = isa;
     let rad = br.rad;
     let (x0, x1) = if w > 2 * rad { (rad, w - rad) } else { (w, w) };
     let inside = br.inside_rows(h, y);
@@ -220,6 +224,15 @@ fn row_i8_chunks(
                 unsafe { arm::four(q, d, [g0, g1, g2, g3], lut, s.as_mut_ptr(), len) };
                 j += 4;
                 continue;
+            }
+            #[cfg(target_arch = "aarch64")]
+            if matches!(isa, Isa::Neon | Isa::NeonDot) {
+                use crate::kernels::aarch64::refine as neon;
+                let (q, d) = ([q0, q1, q2, q3], [d0, d1, d2, d3]);
+                if neon::four(q, d, [g0, g1, g2, g3], lut, s, acc) {
+                    j += 4;
+                    continue;
+                }
             }
             #[allow(unreachable_code)]
             for i in 0..len {

@@ -1,0 +1,92 @@
+//! NEON adaptive-bins head, 8 pixels per pass: [`crate::kernels::bins::bins_head_i8`]'s
+//! per-pixel logits (exact integer sums, `SMLAL` by a scalar weight on 16-bit `x − zp`), max
+//! (the scalar fold's `if l > m`), exponentials and sums in its order, so the bits equal the
+//! scalar path's.
+
+use super::vmath::softmax_exp_f32x4;
+use crate::kernels::bins::{BinChannel, MAX_BINS, MAX_BIN_FEATURES};
+use core::arch::aarch64::*;
+
+/// The head for the first `⌊p/8⌋·8` pixels; returns how many it did (0 without NEON or where
+/// a length does not hold: `features` `c × p` codes, `weights` `n × c`, `centres` `n`,
+/// `c ≤ MAX_BIN_FEATURES`, `n ≤ MAX_BINS`, `out` `p`).
+#[allow(clippy::too_many_arguments)]
+pub fn head(
+    features: &[i8],
+    p: usize,
+    c: usize,
+    zp: i32,
+    weights: &[i8],
+    channels: &[BinChannel],
+    centres: &[f32],
+    out: &mut [f32],
+) -> usize {
+    let n = channels.len();
+    let ok = n <= MAX_BINS
+        && c <= MAX_BIN_FEATURES
+        && centres.len() >= n
+        && weights.len() >= n * c
+        && features.len() >= c * p
+        && out.len() >= p
+        && i16::try_from(zp).is_ok();
+    if !crate::kernels::isa::Isa::Neon.available() || !ok {
+        return 0;
+    }
+    // SAFETY: NEON is available and the lengths hold (both checked).
+    unsafe { head_neon(features, p, c, zp, weights, channels, centres, out) }
+}
+
+#[target_feature(enable = "neon")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn head_neon(
+    features: &[i8],
+    p: usize,
+    c: usize,
+    zp: i32,
+    weights: &[i8],
+    channels: &[BinChannel],
+    centres: &[f32],
+    out: &mut [f32],
+) -> usize {
+    let n = channels.len();
+    let mut x = [vdupq_n_s16(0); MAX_BIN_FEATURES];
+    let mut logits = [[vdupq_n_f32(0.0); 2]; MAX_BINS];
+    let zpv = vdupq_n_s16(zp as i16);
+    let mut i = 0;
+    while i + 8 <= p {
+        for (k, xk) in x[..c].iter_mut().enumerate() {
+            // |x − zp| ≤ 255: exact in 16 bits.
+            *xk = vsubq_s16(vmovl_s8(vld1_s8(features.as_ptr().add(k * p + i))), zpv);
+        }
+        for ((lg, ch), wrow) in logits[..n]
+            .iter_mut()
+            .zip(channels)
+            .zip(weights.chunks_exact(c.max(1)))
+        {
+            let (mut lo, mut hi) = (vdupq_n_s32(ch.bias), vdupq_n_s32(ch.bias));
+            for (xk, &w) in x[..c].iter().zip(wrow) {
+                lo = vmlal_n_s16(lo, vget_low_s16(*xk), i16::from(w));
+                hi = vmlal_high_n_s16(hi, *xk, i16::from(w));
+            }
+            lg[0] = vmulq_n_f32(vcvtq_f32_s32(lo), ch.scale);
+            lg[1] = vmulq_n_f32(vcvtq_f32_s32(hi), ch.scale);
+        }
+        for half in 0..2 {
+            let mut m = vdupq_n_f32(f32::NEG_INFINITY);
+            for lg in &logits[..n] {
+                m = vbslq_f32(vcgtq_f32(lg[half], m), lg[half], m);
+            }
+            let (mut s, mut d) = (vdupq_n_f32(0.0), vdupq_n_f32(0.0));
+            for (lg, &cb) in logits[..n].iter().zip(centres) {
+                let e = softmax_exp_f32x4(vsubq_f32(lg[half], m));
+                s = vaddq_f32(s, e);
+                d = vaddq_f32(d, vmulq_n_f32(e, cb));
+            }
+            let pos = vcgtq_f32(s, vdupq_n_f32(0.0));
+            let r = vreinterpretq_f32_u32(vandq_u32(vreinterpretq_u32_f32(vdivq_f32(d, s)), pos));
+            vst1q_f32(out.as_mut_ptr().add(i + 4 * half), r);
+        }
+        i += 8;
+    }
+    i
+}

@@ -1,0 +1,100 @@
+//! NEON depthwise taps for the band path of [`crate::kernels::depthwise`]: 16 sums held in
+//! registers across every tap (`SMLAL`/`SMLAL2` by a scalar weight on 16-bit `x − zp`), stored
+//! once, instead of one load, add and store of the sums per tap. Exact (|w·x| ≤ 128·255), so
+//! the same sums as the portable loop.
+
+use core::arch::aarch64::*;
+
+/// `out[i] = Σ_t w[t] · x[offs[t] + i]` for every `i < out.len()` (wrapping, as exact as the
+/// portable loop). Returns `false` (and does nothing) without NEON, where `offs` and `w` differ
+/// in length, or where a run would leave `x`.
+pub fn taps(x: &[i16], offs: &[usize], w: &[i16], out: &mut [i32]) -> bool {
+    let n = out.len();
+    let inside = offs
+        .iter()
+        .all(|&o| o.checked_add(n).is_some_and(|e| e <= x.len()));
+    if !crate::kernels::isa::Isa::Neon.available() || offs.len() != w.len() || !inside {
+        return false;
+    }
+    // SAFETY: NEON is available; every read `x[o + i]`, `i < n`, is inside `x` (checked) and
+    // every write inside `out`.
+    unsafe { taps_neon(x, offs, w, out) };
+    true
+}
+
+#[target_feature(enable = "neon")]
+unsafe fn taps_neon(x: &[i16], offs: &[usize], w: &[i16], out: &mut [i32]) {
+    let n = out.len();
+    let (xp, op) = (x.as_ptr(), out.as_mut_ptr());
+    let mut i = 0;
+    while i + 16 <= n {
+        let mut a = [vdupq_n_s32(0); 4];
+        for (&o, &wv) in offs.iter().zip(w) {
+            let p = xp.add(o + i);
+            let (x0, x1) = (vld1q_s16(p), vld1q_s16(p.add(8)));
+            a[0] = vmlal_n_s16(a[0], vget_low_s16(x0), wv);
+            a[1] = vmlal_high_n_s16(a[1], x0, wv);
+            a[2] = vmlal_n_s16(a[2], vget_low_s16(x1), wv);
+            a[3] = vmlal_high_n_s16(a[3], x1, wv);
+        }
+        for (q, v) in a.into_iter().enumerate() {
+            vst1q_s32(op.add(i + 4 * q), v);
+        }
+        i += 16;
+    }
+    while i + 4 <= n {
+        let mut a = vdupq_n_s32(0);
+        for (&o, &wv) in offs.iter().zip(w) {
+            a = vmlal_n_s16(a, vld1_s16(xp.add(o + i)), wv);
+        }
+        vst1q_s32(op.add(i), a);
+        i += 4;
+    }
+    while i < n {
+        let mut s = 0i32;
+        for (&o, &wv) in offs.iter().zip(w) {
+            s = s.wrapping_add(i32::from(wv) * i32::from(*xp.add(o + i)));
+        }
+        *op.add(i) = s;
+        i += 1;
+    }
+}
+
+/// `dst[k] = src[k·sx] − zp` (16-bit) for the leading multiple of 16 of `dst` whose reads of
+/// 16·`sx` codes lie in `src`, at column stride `sx` 1 or 2 (`LD2` keeps the even codes);
+/// returns how many it did (0 without NEON, for other strides or a zero point outside int8).
+pub fn widen(src: &[i8], sx: usize, zp: i32, dst: &mut [i16]) -> usize {
+    let n = if (1..=2).contains(&sx) {
+        dst.len().min(src.len() / sx) / 16 * 16
+    } else {
+        0
+    };
+    let Ok(zp) = i8::try_from(zp) else {
+        return 0;
+    };
+    if !crate::kernels::isa::Isa::Neon.available() || n == 0 {
+        return 0;
+    }
+    // SAFETY: NEON is available; the reads end at `n·sx ≤ src.len()`, the writes at `n ≤
+    // dst.len()`.
+    unsafe { widen_neon(src, sx, zp, &mut dst[..n]) };
+    n
+}
+
+#[target_feature(enable = "neon")]
+unsafe fn widen_neon(src: &[i8], sx: usize, zp: i8, dst: &mut [i16]) {
+    let zpv = vdup_n_s8(zp);
+    let (sp, dp) = (src.as_ptr(), dst.as_mut_ptr());
+    let mut k = 0;
+    while k + 16 <= dst.len() {
+        let x = if sx == 2 {
+            vld2q_s8(sp.add(2 * k)).0
+        } else {
+            vld1q_s8(sp.add(k))
+        };
+        // x − zp exactly in 16 bits: SSUBL widens both before subtracting.
+        vst1q_s16(dp.add(k), vsubl_s8(vget_low_s8(x), zpv));
+        vst1q_s16(dp.add(k + 8), vsubl_high_s8(x, vdupq_n_s8(zp)));
+        k += 16;
+    }
+}

@@ -1,0 +1,12 @@
+//! aarch64 micro-kernels (`core::arch::aarch64` intrinsics, and `asm!` for `SDOT`, whose
+//! intrinsics are not stable yet); callers check [`super::isa::Isa::available`] first.
+
+pub mod bins;
+pub mod depthwise;
+pub mod dotprod;
+pub mod neon;
+pub mod pack;
+pub mod refine;
+pub mod requant;
+pub mod resize;
+pub mod vmath;

@@ -1,0 +1,151 @@
+//! NEON conv requantisation, 16 accumulators per pass: the scalar `requant_row` of
+//! [`crate::kernels::conv`] (TFLite `MultiplyByQuantizedMultiplier` for right shifts, LeakyReLU's
+//! second multiplier for negative sums, zero point, clamp) in exact integer arithmetic.
+//! `SQRDMULH` is `⌊(x·m + 2³⁰) / 2³¹⌋` exactly (it saturates only for `x = m = −2³¹`, and
+//! `m ≥ 0` here); `SRSHL` by `−e` is `⌊(q + 2^(e−1)) / 2^e⌋` without overflow, so subtracting
+//! 1 from negative `q` first (`q > −2³¹` since `m < 2³¹`) rounds half away from zero as
+//! `RoundingDivideByPOT` does.
+
+use crate::kernels::conv::RowQuant;
+use core::arch::aarch64::*;
+
+/// Requantises each of the `consts.len()` rows of `acc` (row `j` at `j·acc_stride`, `n` sums)
+/// into `out` at `at + j·out_stride`: 16 or 8 at a time with NEON, the last `n mod 8` as an
+/// overlapping 8 (or, in a row shorter than 8 with 8 sums readable, through a buffer), else
+/// through `tail`.
+/// Returns `false` (and does nothing) where a row is not `simple` or a slice is short.
+#[allow(clippy::too_many_arguments)]
+pub fn block(
+    consts: &[RowQuant],
+    acc: &[i32],
+    acc_stride: usize,
+    n: usize,
+    out: &mut [i8],
+    at: usize,
+    out_stride: usize,
+    tail: impl Fn(&RowQuant, i32) -> i8,
+) -> bool {
+    let rows = consts.len();
+    let fits = rows == 0
+        || ((rows - 1) * acc_stride + n <= acc.len()
+            && at + (rows - 1) * out_stride + n <= out.len());
+    if !crate::kernels::isa::Isa::Neon.available() || !fits || !consts.iter().all(|k| k.simple) {
+        return false;
+    }
+    // SAFETY: NEON is available (checked).
+    unsafe { block_neon(consts, acc, acc_stride, n, out, at, out_stride, tail) };
+    true
+}
+
+/// [`block`]'s loop, compiled with NEON so that [`row`] inlines into it.
+///
+/// # Safety
+/// The CPU must have NEON; the slice conditions [`block`] checks hold.
+#[target_feature(enable = "neon")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn block_neon(
+    consts: &[RowQuant],
+    acc: &[i32],
+    acc_stride: usize,
+    n: usize,
+    out: &mut [i8],
+    at: usize,
+    out_stride: usize,
+    tail: impl Fn(&RowQuant, i32) -> i8,
+) {
+    for (j, k) in consts.iter().enumerate() {
+        let a = &acc[j * acc_stride..j * acc_stride + n];
+        let o = &mut out[at + j * out_stride..at + j * out_stride + n];
+        // SAFETY (all three calls): NEON is available (the caller's contract); `row` reads and
+        // writes whole groups of 8 inside the slices it is given.
+        let mut done = unsafe { row(k, a, o) };
+        if done < n && n >= 8 {
+            // The last 8 again, overlapping: the same values rewritten.
+            unsafe { row(k, &a[n - 8..], &mut o[n - 8..]) };
+            done = n;
+        } else if let Some(wide) = acc
+            .get(j * acc_stride..j * acc_stride + 8)
+            .filter(|_| done < n)
+        {
+            // A short row with 8 sums readable (the rest of a block's row): into a buffer.
+            let mut t = [0i8; 8];
+            unsafe { row(k, wide, &mut t) };
+            o.copy_from_slice(&t[..n]);
+            done = n;
+        }
+        for (d, &v) in o[done..].iter_mut().zip(&a[done..]) {
+            *d = tail(k, v);
+        }
+    }
+}
+
+/// Requantises the leading multiple of 8 of `acc` (`k.base` added) into `out` (`acc.len() ≥
+/// out.len()`); returns how many it did. One multiplier and shift for both signs (no LeakyReLU
+/// slope) skips the per-lane selects.
+///
+/// # Safety
+/// The CPU must have NEON.
+#[target_feature(enable = "neon")]
+#[inline]
+unsafe fn row(k: &RowQuant, acc: &[i32], out: &mut [i8]) -> usize {
+    if k.pos_m == k.neg_m && k.pos_r == k.neg_r {
+        let (m, e) = (vdupq_n_s32(k.pos_m), vdupq_n_s32(-k.pos_r));
+        // All ones where there is a right shift: then negative q lose 1 before it.
+        let shifts = vdupq_n_u32(if k.pos_r > 0 { u32::MAX } else { 0 });
+        rows_with(k, acc, out, |x| {
+            let q = vqrdmulhq_s32(x, m);
+            let adj = vandq_u32(vcltzq_s32(q), shifts);
+            vrshlq_s32(vaddq_s32(q, vreinterpretq_s32_u32(adj)), e)
+        })
+    } else {
+        let (pm, nm) = (vdupq_n_s32(k.pos_m), vdupq_n_s32(k.neg_m));
+        let (pe, ne) = (vdupq_n_s32(-k.pos_r), vdupq_n_s32(-k.neg_r));
+        rows_with(k, acc, out, |x| {
+            let neg = vcltzq_s32(x);
+            let (m, e) = (vbslq_s32(neg, nm, pm), vbslq_s32(neg, ne, pe));
+            let q = vqrdmulhq_s32(x, m);
+            // −1 where q < 0 and there is a shift (e < 0 here is a right shift).
+            let adj = vandq_u32(vcltzq_s32(q), vcltzq_s32(e));
+            vrshlq_s32(vaddq_s32(q, vreinterpretq_s32_u32(adj)), e)
+        })
+    }
+}
+
+/// The loops of [`row`] around `scaled` (the rounded, shifted product of `base + acc`): the
+/// zero point added with saturation, then saturating narrowing to 16 and 8 bits and the clamp
+/// to `min ..= max` (inside the int8 range, so the same as the scalar saturating add and
+/// clamp): 16 sums per pass, then 8; returns how many it did.
+#[inline(always)]
+unsafe fn rows_with(
+    k: &RowQuant,
+    acc: &[i32],
+    out: &mut [i8],
+    scaled: impl Fn(int32x4_t) -> int32x4_t,
+) -> usize {
+    let n = out.len().min(acc.len());
+    let base = vdupq_n_s32(k.base);
+    let zp = vdupq_n_s32(k.zp);
+    let (lo, hi) = (k.min.clamp(-128, 127) as i8, k.max.clamp(-128, 127) as i8);
+    let one = |p: *const i32| vqaddq_s32(scaled(vaddq_s32(base, vld1q_s32(p))), zp);
+    let (ap, op) = (acc.as_ptr(), out.as_mut_ptr());
+    let mut i = 0;
+    while i + 16 <= n {
+        let p = ap.add(i);
+        let h0 = vcombine_s16(vqmovn_s32(one(p)), vqmovn_s32(one(p.add(4))));
+        let h1 = vcombine_s16(vqmovn_s32(one(p.add(8))), vqmovn_s32(one(p.add(12))));
+        let b = vcombine_s8(vqmovn_s16(h0), vqmovn_s16(h1));
+        vst1q_s8(
+            op.add(i),
+            vminq_s8(vmaxq_s8(b, vdupq_n_s8(lo)), vdupq_n_s8(hi)),
+        );
+        i += 16;
+    }
+    while i + 8 <= n {
+        let p = ap.add(i);
+        let h = vcombine_s16(vqmovn_s32(one(p)), vqmovn_s32(one(p.add(4))));
+        let b = vqmovn_s16(h);
+        vst1_s8(op.add(i), vmin_s8(vmax_s8(b, vdup_n_s8(lo)), vdup_n_s8(hi)));
+        i += 8;
+    }
+    i
+}

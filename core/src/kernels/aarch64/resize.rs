@@ -1,0 +1,58 @@
+//! NEON columns of the int8 bilinear resize into other parameters (`resize::narrow_row` with a
+//! 32-bit rescale): per output column the two blended input columns read as one pair, then
+//! `n = v[x0]·(den − f) + v[x0 + 1]·f`, `((n·k + bias) >> 32) >> shift_hi` (`SMULL` and
+//! `ADDHN`, the high word of the 64-bit sum), the zero point and the int8 clamp (saturating
+//! narrows): the scalar integers exactly.
+
+use core::arch::aarch64::*;
+
+/// The constants of the 32-bit rescale: `k`, `bias`, `shift_hi` (`0..32`), output zero point.
+pub type Rescale = (i32, i64, u32, i32);
+
+/// `orow[o]` for the leading multiple of 8 columns, `taps[o] = x0 | f << 16` with `x0` read
+/// through `mask` (`v.len() > mask + 1`, else nothing is done); returns how many it did.
+pub fn rescaled_cols(
+    v: &[i32],
+    taps: &[u32],
+    mask: usize,
+    den: i32,
+    r: Rescale,
+    orow: &mut [i8],
+) -> usize {
+    let n = orow.len().min(taps.len()) / 8 * 8;
+    if !crate::kernels::isa::Isa::Neon.available() || v.len() <= mask + 1 || r.2 >= 32 {
+        return 0;
+    }
+    // SAFETY: NEON is available; every column read is `x0 & mask` and the one after it, inside
+    // `v` (checked); `n` taps and outputs exist.
+    unsafe { cols_neon(v, taps, mask, den, r, &mut orow[..n]) };
+    n
+}
+
+#[target_feature(enable = "neon")]
+unsafe fn cols_neon(v: &[i32], taps: &[u32], mask: usize, den: i32, r: Rescale, out: &mut [i8]) {
+    let (k, bias, shift_hi, zp) = r;
+    let (denv, biasv) = (vdupq_n_s32(den), vdupq_n_s64(bias));
+    let (shift, zpv) = (vdupq_n_s32(-(shift_hi as i32)), vdupq_n_s32(zp));
+    let vp = v.as_ptr();
+    let four = |o: usize| -> int32x4_t {
+        let tp = taps.as_ptr().add(o);
+        let pair = |i: usize| vld1_s32(vp.add(*tp.add(i) as usize & mask));
+        let (ab01, ab23) = (
+            vcombine_s32(pair(0), pair(1)),
+            vcombine_s32(pair(2), pair(3)),
+        );
+        let (a, b) = (vuzp1q_s32(ab01, ab23), vuzp2q_s32(ab01, ab23));
+        let f = vreinterpretq_s32_u32(vshrq_n_u32::<16>(vld1q_u32(tp)));
+        let n = vmlaq_s32(vmulq_s32(a, vsubq_s32(denv, f)), b, f);
+        let lo = vaddhn_s64(vmull_n_s32(vget_low_s32(n), k), biasv);
+        let hi = vaddhn_high_s64(lo, vmull_high_n_s32(n, k), biasv);
+        vaddq_s32(vshlq_s32(hi, shift), zpv)
+    };
+    let mut o = 0;
+    while o + 8 <= out.len() {
+        let h = vcombine_s16(vqmovn_s32(four(o)), vqmovn_s32(four(o + 4)));
+        vst1_s8(out.as_mut_ptr().add(o), vqmovn_s16(h));
+        o += 8;
+    }
+}
