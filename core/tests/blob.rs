@@ -199,7 +199,11 @@ const SMALL: (usize, usize) = (32, 32);
 
 /// As [`exercise`] at [`SMALL`]; true when a frame ran to the end.
 fn exercise_small(b: &[u8]) -> bool {
-    let (h, w) = SMALL;
+    exercise_small_at(b, SMALL.0, SMALL.1)
+}
+
+/// As [`exercise_small`] at `h × w`.
+fn exercise_small_at(b: &[u8], h: usize, w: usize) -> bool {
     let Ok(need) = required_arena_bytes(b, h, w) else {
         return false;
     };
@@ -277,4 +281,42 @@ proptest! {
         fix_crc(&mut b);
         exercise_small(&b);
     }
+}
+
+/// The fuzzing seed blob `core/fuzz/seeds/tiny_net.dblob` (the `engine_run` and `replay_image`
+/// targets embed it; `parse_blob`'s seeds are it with a mode byte in front) is this file's
+/// 12×16 test network, every opcode of the vocabulary included, and it runs. Rewrite the seeds
+/// after changing the network with `DEPTHOR_WRITE_FUZZ_SEEDS=1 cargo test -p depthor-core
+/// --test blob fuzz_seed`.
+#[test]
+fn fuzz_seed_blob_is_the_test_network() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/seeds");
+    let path = dir.join("tiny_net.dblob");
+    if std::env::var_os("DEPTHOR_WRITE_FUZZ_SEEDS").is_some() {
+        std::fs::write(&path, blob()).unwrap();
+        let seeds = dir.join("parse_blob");
+        std::fs::create_dir_all(&seeds).unwrap();
+        // Mode 0: CRC as stored, native size, streamed plan; 1: CRC repaired, whole plan, 8×8.
+        for (mode, name) in [(0u8, "tiny_net"), (0b100011, "tiny_net_whole_8x8")] {
+            let mut seed = vec![mode];
+            seed.extend_from_slice(blob());
+            std::fs::write(seeds.join(name), seed).unwrap();
+        }
+    }
+    let seed = std::fs::read(&path).unwrap();
+    assert!(
+        seed == blob(),
+        "{} is stale: rewrite it (see the doc)",
+        path.display()
+    );
+    let g = parse(&seed).unwrap();
+    // Every opcode but the stand-alone relu and leaky_relu tables (the convs fuse them).
+    use depthor_core::blob::format::opcode::{LEAKY_RELU, RELU};
+    for code in (1..=18u8).filter(|&c| c != RELU && c != LEAKY_RELU) {
+        assert!(
+            g.ops.iter().any(|op| op.code == code),
+            "opcode {code} missing"
+        );
+    }
+    assert!(exercise_small_at(&seed, 12, 16));
 }

@@ -1,14 +1,23 @@
-//! Fuzzes `parse` → `required_arena_bytes` → `Engine::with_size` → `run` on arbitrary bytes.
-//! The first byte chooses whether the CRC is repaired, so mutations reach the validation behind
-//! the checksum. Nothing may panic.
+//! Fuzzes the model blob: `parse` → `plan_with` / `required_arena_bytes_with` →
+//! `Engine::with_memory` → `run` on arbitrary bytes, at a small size and under an arena limit.
+//!
+//! Input: `mode, blob…`. Bit 0 of `mode` repairs the CRC, so mutations reach the validation
+//! behind the checksum; bits 1–2 pick the plan (streamed, whole, budget); bits 3–5 pick the run
+//! size (the blob's own, clamped to 32, or a smaller one). Nothing may panic; a blob that parses
+//! must plan the same way twice and run within the arena it asked for.
 #![no_main]
 
 use depthor_core::blob::{checksum::crc32, format::HEADER_LEN, parse};
-use depthor_core::engine::{required_arena_bytes, Engine};
+use depthor_core::engine::{plan_with, required_arena_bytes_with, Engine, Memory};
 use libfuzzer_sys::fuzz_target;
 
+/// Largest arena the target hands out (the firmware's budget is 384 KiB).
+const ARENA_LIMIT: usize = 1 << 22;
+
 fuzz_target!(|input: &[u8]| {
-    let Some((&mode, rest)) = input.split_first() else { return };
+    let Some((&mode, rest)) = input.split_first() else {
+        return;
+    };
     let mut blob = rest.to_vec();
     if mode & 1 == 1 && blob.len() >= HEADER_LEN {
         let len = u32::from_le_bytes([blob[8], blob[9], blob[10], blob[11]]) as usize;
@@ -17,15 +26,35 @@ fuzz_target!(|input: &[u8]| {
         blob[12..16].copy_from_slice(&c.to_le_bytes());
     }
     let Ok(g) = parse(&blob) else { return };
-    let (h, w) = (g.height.min(32), g.width.min(32));
-    let Ok(need) = required_arena_bytes(&blob, h, w) else { return };
-    if need > 1 << 24 {
+    let memory = match (mode >> 1) & 3 {
+        0 | 3 => Memory::Streamed,
+        1 => Memory::Whole,
+        _ => Memory::Budget(ARENA_LIMIT / 4),
+    };
+    let (h, w) = match (mode >> 3) & 7 {
+        0..=3 => (g.height.min(32), g.width.min(32)),
+        4 => (8, 8),
+        5 => (4, 4),
+        6 => (1, 1),
+        _ => (g.height.min(32), 0),
+    };
+    let Ok(plan) = plan_with(&g, h, w, memory) else {
+        return;
+    };
+    let Ok(need) = required_arena_bytes_with(&blob, h, w, memory) else {
+        panic!("plan_with succeeded, required_arena_bytes_with failed");
+    };
+    assert_eq!(need, plan.arena_bytes(), "two plans of one blob differ");
+    if need > ARENA_LIMIT {
         return;
     }
     let mut arena = vec![0u8; need];
-    if let Ok(mut e) = Engine::with_size(&blob, &mut arena, h, w) {
+    if let Ok(mut e) = Engine::with_memory(&blob, &mut arena, h, w, memory) {
+        assert_eq!(e.input_shape(), (h, w));
         let rgb = vec![128u8; 3 * h * w];
-        let sparse = vec![1.5f32; h * w];
+        let sparse: Vec<f32> = (0..h * w)
+            .map(|i| if i % 5 == 0 { 1.5 } else { 0.0 })
+            .collect();
         let mut out = vec![0f32; h * w];
         let _ = e.run(&rgb, &sparse, &mut out);
     }

@@ -10,3 +10,9 @@ pub mod parse;
 
 pub use error::BlobError;
 pub use parse::{parse, Graph, OpInfo, TensorInfo};
+
+/// The 12×16 test network's blob (every op of the vocabulary; `core/tests/common`), committed
+/// as the fuzzing seed: unit tests of the parser and the engine run on it (small enough for
+/// Miri).
+#[cfg(test)]
+pub(crate) static TEST_BLOB: &[u8] = include_bytes!("../../fuzz/seeds/tiny_net.dblob");

@@ -649,3 +649,87 @@ fn check_types(
         ))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    //! Small parser checks on [`crate::blob::TEST_BLOB`], sized for Miri
+    //! (`cargo +nightly miri test -p depthor-core --lib blob::`); the exhaustive corruption
+    //! suites are `core/tests/blob.rs` and the `parse_blob` fuzz target.
+    use super::*;
+    use crate::blob::checksum::crc32;
+    use crate::blob::format::HEADER_LEN;
+    use crate::blob::TEST_BLOB;
+    use std::vec;
+    use std::vec::Vec;
+
+    fn payload_end(b: &[u8]) -> usize {
+        HEADER_LEN + u32::from_le_bytes([b[8], b[9], b[10], b[11]]) as usize
+    }
+
+    fn fix_crc(b: &mut [u8]) {
+        let end = payload_end(b).min(b.len());
+        let c = crc32(&b[HEADER_LEN..end]);
+        b[12..16].copy_from_slice(&c.to_le_bytes());
+    }
+
+    #[test]
+    fn test_blob_parses() {
+        let g = parse(TEST_BLOB).unwrap();
+        assert_eq!((g.height, g.width), (12, 16));
+        assert!(g.ops.len() >= 30 && g.tensors.len() == g.ops.len() + 2);
+        assert_eq!(g.blob.len(), TEST_BLOB.len());
+    }
+
+    #[test]
+    fn truncations_are_errors() {
+        let end = payload_end(TEST_BLOB);
+        assert!(end <= TEST_BLOB.len());
+        // Under Miri every parse is slow (a CRC over 15 KB): a few lengths only.
+        let step = if cfg!(miri) { 3001 } else { 61 };
+        for len in (0..end).step_by(step).chain([end - 1]) {
+            assert!(parse(&TEST_BLOB[..len]).is_err(), "{len} bytes parsed");
+        }
+    }
+
+    #[test]
+    fn corruptions_with_a_repaired_crc_are_errors_or_graphs() {
+        // The header and the tables byte by byte, the rest sparsely; no panic, and the header
+        // fields the reader must refuse are refused.
+        let (mut refused, mut tried) = (0, 0);
+        // Under Miri (slow: each parse runs the bitwise CRC over 15 KB) a few header, table and
+        // op bytes with one value; natively every header and table byte and every 211th other.
+        let first_op = parse(TEST_BLOB).unwrap().ops[0].offset;
+        let (picks, values): (Vec<usize>, &[u8]) = if cfg!(miri) {
+            (vec![4, 17, 21, 40, first_op + 1, first_op + 9], &[0xff])
+        } else {
+            let head = 0..first_op + 32;
+            let tail = (first_op + 32..TEST_BLOB.len()).step_by(211);
+            (head.chain(tail).collect(), &[0, 0x7f, 0xff])
+        };
+        for i in picks {
+            for &v in values {
+                let mut b = TEST_BLOB.to_vec();
+                if b[i] == v {
+                    continue;
+                }
+                b[i] = v;
+                fix_crc(&mut b);
+                tried += 1;
+                let r = parse(&b);
+                if i < 8 {
+                    assert!(r.is_err(), "magic/version byte {i} = {v:#x} accepted");
+                }
+                refused += usize::from(r.is_err());
+            }
+        }
+        assert!(refused * 4 > tried, "{refused} of {tried} refused");
+    }
+
+    #[test]
+    fn a_bad_crc_is_refused() {
+        let mut b: Vec<u8> = TEST_BLOB.to_vec();
+        let last = payload_end(&b) - 1;
+        b[last] ^= 1;
+        assert!(matches!(parse(&b), Err(BlobError::BadChecksum { .. })));
+    }
+}

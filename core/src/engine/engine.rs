@@ -494,3 +494,87 @@ impl core::fmt::Debug for Engine<'_> {
             .finish()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    //! The engine's safe API at a small size on [`crate::blob::TEST_BLOB`], with the portable
+    //! kernels, sized for Miri (`cargo +nightly miri test -p depthor-core --lib engine::`).
+    use super::*;
+    use crate::blob::TEST_BLOB;
+    use std::vec;
+    use std::vec::Vec;
+
+    /// 8×8 natively; 4×4 under Miri (every op of the network still runs).
+    const H: usize = if cfg!(miri) { 4 } else { 8 };
+    const W: usize = H;
+
+    fn frame() -> (Vec<u8>, Vec<f32>) {
+        let rgb = (0..3 * H * W).map(|i| (i * 37 % 256) as u8).collect();
+        let sparse = (0..H * W)
+            .map(|i| {
+                if i % 5 == 3 {
+                    0.5 + i as f32 / 16.0
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        (rgb, sparse)
+    }
+
+    fn run(memory: Memory, in_place: bool) -> Vec<f32> {
+        let need = required_arena_bytes_with(TEST_BLOB, H, W, memory).unwrap();
+        let mut arena = vec![0u8; need];
+        let mut e = Engine::with_memory(TEST_BLOB, &mut arena, H, W, memory).unwrap();
+        e.set_kernels(Isa::Portable).unwrap();
+        assert_eq!(e.input_shape(), (H, W));
+        let (rgb, sparse) = frame();
+        let mut out = vec![0f32; H * W];
+        let stats = if in_place {
+            out.copy_from_slice(&sparse);
+            e.run_in_place(&rgb, &mut out).unwrap()
+        } else {
+            e.run(&rgb, &sparse, &mut out).unwrap()
+        };
+        assert_eq!(stats.ops, e.graph().ops.len());
+        out
+    }
+
+    #[test]
+    fn runs_at_a_small_size_in_place_and_whole_alike() {
+        let out = run(Memory::Streamed, false);
+        assert!(out.iter().all(|v| v.is_finite() && *v > 0.0), "{out:?}");
+        if cfg!(miri) {
+            // Each prepare plans (the order search) and checks the CRC: one engine under Miri.
+            return;
+        }
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&run(Memory::Streamed, true)), bits(&out));
+        assert_eq!(bits(&run(Memory::Whole, false)), bits(&out));
+    }
+
+    #[test]
+    #[cfg_attr(
+        miri,
+        ignore = "slow under Miri: the run above covers the engine's safe API"
+    )]
+    fn wrong_buffers_and_a_short_arena_are_errors() {
+        let need = required_arena_bytes(TEST_BLOB, H, W).unwrap();
+        let mut short = vec![0u8; need / 2];
+        assert!(matches!(
+            Engine::with_size(TEST_BLOB, &mut short, H, W),
+            Err(Error::ArenaTooSmall { .. })
+        ));
+        let mut arena = vec![0u8; need];
+        let mut e = Engine::with_size(TEST_BLOB, &mut arena, H, W).unwrap();
+        e.set_kernels(Isa::Portable).unwrap();
+        let (rgb, sparse) = frame();
+        let mut out = vec![0f32; H * W];
+        let shape = |r: Result<RunStats, Error>| matches!(r, Err(Error::ShapeMismatch { .. }));
+        assert!(shape(e.run(&rgb[1..], &sparse, &mut out)));
+        assert!(shape(e.run(&rgb, &sparse[1..], &mut out)));
+        assert!(shape(e.run(&rgb, &sparse, &mut out[1..])));
+        assert!(shape(e.run_in_place(&rgb, &mut out[1..])));
+        assert_eq!(out, vec![0f32; H * W], "output touched by a refused run");
+    }
+}

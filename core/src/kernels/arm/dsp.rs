@@ -647,6 +647,10 @@ pub unsafe fn ring3_row(strip: *const i16, taps: &[i16; 12], sx: usize, acc: &mu
 }
 
 /// [`ring3_row`] with the pixel step `STEP` bytes as an immediate.
+///
+/// # Safety
+/// The conditions of [`ring3_row`] with `STEP = 8·sx` bytes, and `acc` is not empty (the loop
+/// runs until `a` reaches `end`, so an empty `acc` would never stop).
 #[inline(always)]
 unsafe fn ring3<const STEP: usize>(strip: *const i16, w: &[u32; 6], acc: &mut [i32]) {
     core::arch::asm!(

@@ -351,6 +351,9 @@ fn row_i8_avx2(
     }
 }
 
+/// # Safety
+/// The CPU must have AVX2 (the only requirement: `row_lanes` indexes the slices with bounds
+/// checks; the feature only lets it be vectorised).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[allow(clippy::too_many_arguments)]

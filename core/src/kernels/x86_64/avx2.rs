@@ -17,6 +17,9 @@ pub fn pairs(t: &Task<i16, i16>, acc: &mut Acc) -> bool {
     true
 }
 
+/// # Safety
+/// The CPU must have AVX2 and `t.in_bounds(2)` must hold (every row and weight read of the
+/// block lies inside `t.rows` and `t.weights`); [`pairs`] checks both.
 #[target_feature(enable = "avx2")]
 unsafe fn pairs_avx2(t: &Task<i16, i16>, acc: &mut Acc) {
     const _: () = assert!(NB == 4 && PB.is_multiple_of(16));

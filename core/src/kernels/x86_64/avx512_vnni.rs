@@ -18,6 +18,9 @@ pub fn quads(t: &Task<u8, i8>, acc: &mut Acc) -> bool {
     true
 }
 
+/// # Safety
+/// The CPU must have AVX-512 F, BW and VNNI and `t.in_bounds(4)` must hold (every row and
+/// weight read lies inside `t.rows` and `t.weights`); [`quads`] checks both.
 #[target_feature(enable = "avx512f,avx512bw,avx512vnni")]
 unsafe fn quads_vnni(t: &Task<u8, i8>, acc: &mut Acc) {
     const _: () = assert!(NB == 4 && PB == 32);

@@ -7,6 +7,9 @@ use crate::kernels::refine::RowAt;
 use core::arch::x86_64::*;
 
 /// Dequantised codes `i..i + 8` of channel `c`: `scale · (q − zp)`.
+///
+/// # Safety
+/// The CPU must have AVX2 and codes `c·plane + i .. c·plane + i + 8` must lie inside `m`.
 #[target_feature(enable = "avx2")]
 #[inline]
 unsafe fn load8(m: &I8Map, c: usize, i: usize) -> __m256 {
@@ -17,6 +20,11 @@ unsafe fn load8(m: &I8Map, c: usize, i: usize) -> __m256 {
 /// The f32 vector operations the interior step needs, for 8 (AVX2) and 16 (AVX-512) lanes.
 /// Every method is one IEEE instruction (or a load), so both widths give each pixel the same
 /// operations in the same order.
+///
+/// # Safety
+/// Every method needs the CPU feature of its vector type (AVX2 for `__m256`, AVX-512 F for
+/// `__m512`); `dequant`, `load` and `store` read or write `L` elements at `p`, which must be
+/// valid for that. The implementations below carry this contract.
 trait Lanes: Copy {
     /// Pixels per vector.
     const L: usize;
@@ -32,6 +40,8 @@ trait Lanes: Copy {
     unsafe fn store(p: *mut f32, v: Self);
 }
 
+// SAFETY: each method is one AVX2 instruction (or an unaligned load/store of 8 lanes at `p`),
+// under the [`Lanes`] contract: the caller has AVX2 and `p` valid for 8 elements.
 impl Lanes for __m256 {
     const L: usize = 8;
     #[inline(always)]
@@ -74,6 +84,8 @@ impl Lanes for __m256 {
     }
 }
 
+// SAFETY: each method is one AVX-512 F instruction (or an unaligned load/store of 16 lanes at
+// `p`), under the [`Lanes`] contract: the caller has AVX-512 F and `p` valid for 16 elements.
 impl Lanes for __m512 {
     const L: usize = 16;
     #[inline(always)]
@@ -120,6 +132,10 @@ impl Lanes for __m512 {
 /// step into `nxt[x0..x1]`, `L` pixels per vector, over the neighbours `j0 ..` whose offsets
 /// and Gaussians are `delta`, `g` (those whose row is inside the image; their columns inside
 /// for every pixel of `x0..x1`).
+///
+/// # Safety
+/// The conditions of [`step_run`] with `x1 − x0` a multiple of `V::L`, and the CPU feature
+/// of `V` (see [`Lanes`]).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 unsafe fn step_lanes<V: Lanes>(
@@ -195,6 +211,9 @@ pub unsafe fn step_run512(
 }
 
 /// Codes `i..i + 8` of channel `c` as i32.
+///
+/// # Safety
+/// The CPU must have AVX2 and codes `c·plane + i .. c·plane + i + 8` must lie inside `m`.
 #[target_feature(enable = "avx2")]
 #[inline]
 unsafe fn codes8(m: &I8Map, c: usize, i: usize) -> __m256i {
@@ -203,6 +222,10 @@ unsafe fn codes8(m: &I8Map, c: usize, i: usize) -> __m256i {
 }
 
 /// `Mix::at` of pixels `i..i + 8` of a 3-channel int8 map with its exponential table `e`.
+///
+/// # Safety
+/// The CPU must have AVX2, `m` must have 3 channels and pixels `i .. i + 8` must lie inside
+/// each; the gathers index `e` with `max − q ∈ 0..=255`, inside the table.
 #[target_feature(enable = "avx2")]
 #[inline]
 unsafe fn softmax3(m: &I8Map, e: &[f32; 256], i: usize) -> [__m256; 3] {

@@ -8,6 +8,9 @@ pub use crate::kernels::conv::RowQuant as RowConsts;
 
 /// `trunc((a·b + nudge) / 2³¹)` of the even 32-bit lanes (`b ≥ 0`), in the low half of each
 /// 64-bit lane.
+///
+/// # Safety
+/// The CPU must have AVX2 (register-only arithmetic, no memory access).
 #[target_feature(enable = "avx2")]
 #[inline]
 unsafe fn srdhm_even(a: __m256i, b: __m256i) -> __m256i {
@@ -149,6 +152,9 @@ pub unsafe fn row(k: &RowConsts, acc: &[i32], out: &mut [i8]) -> usize {
 }
 
 /// `trunc((a·b + nudge) / 2³¹)` of the even 32-bit lanes (`b ≥ 0`), 64-bit lanes.
+///
+/// # Safety
+/// The CPU must have AVX-512 F (register-only arithmetic, no memory access).
 #[target_feature(enable = "avx512f")]
 #[inline]
 unsafe fn srdhm_even512(a: __m512i, b: __m512i) -> __m512i {
@@ -167,6 +173,10 @@ unsafe fn srdhm_even512(a: __m512i, b: __m512i) -> __m512i {
 }
 
 /// [`row`] with 16 lanes; returns how many leading elements it did (a multiple of 16).
+///
+/// # Safety
+/// The CPU must have AVX-512 F and BW; it reads and writes only the first
+/// `min(out.len(), acc.len())` rounded down to 16 elements of each slice.
 #[target_feature(enable = "avx512f,avx512bw")]
 #[inline]
 unsafe fn row512(k: &RowConsts, acc: &[i32], out: &mut [i8]) -> usize {

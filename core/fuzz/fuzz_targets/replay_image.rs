@@ -1,0 +1,101 @@
+//! Fuzzes the replay flash image (`depthor_replay::format::Image::parse`, `DPTHRPLY` v1, what
+//! the firmware reads from flash) and, when it parses, the firmware loop over it: the replay
+//! camera, the simulated zone bridge read back by the real driver, projection with the image's
+//! calibration, and the int8 engine (the 12×16 test network run at the image's size, up to
+//! 32×32) — `ReplayLoop::process`, at most 4 frames.
+//!
+//! Input: `mode, image…`. Bit 0 of `mode` recomputes the trailing CRC, so mutations reach the
+//! checks behind it (zone counts, reserved fields, the frames themselves). Checks: nothing
+//! panics; every frame of a parsed image is readable with the header's sizes; a frame the loop
+//! completes has a finite depth map.
+#![no_main]
+
+#[path = "common.rs"]
+mod common;
+
+use common::{NoDelay, TINY_BLOB};
+use depthor_core::blob::checksum::crc32;
+use depthor_core::engine::{required_arena_bytes, Engine};
+use depthor_core::hal::{RgbCamera, RgbFrame, ZoneFrame};
+use depthor_replay::camera::ReplayCamera;
+use depthor_replay::format::{Image, CRC_LEN};
+use depthor_replay::pipeline::{ReplayLoop, Workspace};
+use libfuzzer_sys::fuzz_target;
+
+/// Zones the loop's workspace holds (the firmware's is 64).
+const ZONES: usize = 256;
+
+fuzz_target!(|input: &[u8]| {
+    let Some((&mode, rest)) = input.split_first() else {
+        return;
+    };
+    let mut bytes = rest.to_vec();
+    if mode & 1 == 1 && bytes.len() >= CRC_LEN {
+        let body = bytes.len() - CRC_LEN;
+        let c = crc32(&bytes[..body]);
+        bytes[body..].copy_from_slice(&c.to_le_bytes());
+    }
+    let Ok(image) = Image::parse(&bytes) else {
+        return;
+    };
+    let (h, w) = image.size();
+    let (rows, cols) = image.zone_grid();
+    let (h, w, zones) = (
+        usize::from(h),
+        usize::from(w),
+        usize::from(rows) * usize::from(cols),
+    );
+    let shown = image.frame_count().min(64);
+    for i in 0..shown {
+        let f = image
+            .frame(i)
+            .expect("every frame of a parsed image is readable");
+        assert_eq!(f.rgb.len(), 3 * h * w);
+        assert_eq!((f.zones(), f.distance_mm().count()), (zones, zones));
+    }
+    assert!(image.frame(image.frame_count()).is_none());
+
+    // The camera alone, over every frame shown above and one past the end.
+    let mut camera = ReplayCamera::new(image);
+    let mut rgb = vec![0u8; 3 * h * w];
+    for _ in 0..=shown.min(4) {
+        let mut frame = RgbFrame {
+            width: w as u32,
+            height: h as u32,
+            data: &mut rgb,
+        };
+        if camera.capture(&mut frame).is_err() {
+            break;
+        }
+    }
+
+    // The firmware loop, at small sizes only.
+    if h * w > 32 * 32 {
+        return;
+    }
+    let Ok(need) = required_arena_bytes(TINY_BLOB, h, w) else {
+        return;
+    };
+    let mut arena = vec![0u8; need];
+    let Ok(mut engine) = Engine::with_size(TINY_BLOB, &mut arena, h, w) else {
+        return;
+    };
+    let mut sparse = vec![0f32; h * w];
+    let mut depth = vec![0f32; h * w];
+    let mut bridge = [0f32; ZONES];
+    let mut zone_frame = Box::new(ZoneFrame::<ZONES>::new());
+    let mut ws = Workspace {
+        rgb: &mut rgb,
+        sparse_m: &mut sparse,
+        depth_m: &mut depth,
+        bridge_mm: &mut bridge,
+        zones: &mut zone_frame,
+    };
+    let mut replay = ReplayLoop::new(image, NoDelay);
+    for _ in 0..4 {
+        match replay.process(&mut engine, &mut ws) {
+            Ok(Some(p)) => assert!(ws.depth_m[..p.pixels].iter().all(|v| v.is_finite())),
+            Ok(None) | Err(_) => break,
+        }
+    }
+});
