@@ -17,37 +17,14 @@
 //! `nb_target_detected` is 0 gets status 255, as the ULD does. The recording has zones only, on a
 //! virtual 160×160 camera with the sensor's 45° × 45° field of view (as `vl53l5cx-log`).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use depthor_core::calibration::CameraIntrinsics;
 use image::RgbImage;
 
 use super::{ImportError, ImportedDtof, ImportedFrame};
 use crate::recording::{DistanceMeta, DtofFrame, DtofMeta};
 
-/// Side of the virtual camera, pixels.
-const SIDE: u32 = 160;
-/// The sensor's field of view, degrees.
-const FOV_DEG: f32 = 45.0;
-
-fn dump_files(src: &Path) -> Result<Vec<PathBuf>, ImportError> {
-    if src.is_file() {
-        return Ok(vec![src.to_path_buf()]);
-    }
-    let entries = std::fs::read_dir(src).map_err(|err| ImportError::Io {
-        path: src.to_path_buf(),
-        err,
-    })?;
-    let mut out: Vec<PathBuf> = entries
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| {
-            p.extension()
-                .is_some_and(|x| x == "txt" || x == "log" || x == "dump")
-        })
-        .collect();
-    out.sort();
-    Ok(out)
-}
+use super::vl53l5cx_log::{files_with_extensions, virtual_camera, FOV_DEG, SIDE};
 
 /// One frame being read.
 #[derive(Default)]
@@ -261,22 +238,14 @@ fn parse(path: &Path, text: &str) -> Result<Vec<DtofFrame>, ImportError> {
 
 /// Loads every dump under `src` (a folder of dumps, or one dump).
 pub(super) fn load(src: &Path) -> Result<(super::Loaded, ImportedDtof), ImportError> {
-    let files = dump_files(src)?;
+    let files = files_with_extensions(src, &["txt", "log", "dump"])?;
     if files.is_empty() {
         return Err(ImportError::invalid(
             src,
             "no .txt/.log/.dump ULD dumps here",
         ));
     }
-    let f = SIDE as f32 / 2.0 / (FOV_DEG.to_radians() / 2.0).tan();
-    let camera = CameraIntrinsics {
-        width: SIDE,
-        height: SIDE,
-        fx: f,
-        fy: f,
-        cx: (SIDE as f32 - 1.0) / 2.0,
-        cy: (SIDE as f32 - 1.0) / 2.0,
-    };
+    let camera = virtual_camera();
     let (mut frames, mut zones) = (Vec::new(), Vec::<DtofFrame>::new());
     for path in &files {
         let text = std::fs::read_to_string(path).map_err(|err| ImportError::Io {

@@ -17,11 +17,15 @@ use super::{ImportError, ImportedDtof, ImportedFrame};
 use crate::recording::{DistanceMeta, DtofFrame, DtofMeta};
 
 /// Side of the virtual camera, pixels.
-const SIDE: u32 = 160;
+pub(super) const SIDE: u32 = 160;
 /// The sensor's field of view, degrees (ST datasheet: 45° horizontal and vertical).
-const FOV_DEG: f32 = 45.0;
+pub(super) const FOV_DEG: f32 = 45.0;
 
-fn json_files(src: &Path) -> Result<Vec<PathBuf>, ImportError> {
+/// The files under `src` (one file, or a folder's files whose extension is one of `exts`), sorted.
+pub(super) fn files_with_extensions(
+    src: &Path,
+    exts: &[&str],
+) -> Result<Vec<PathBuf>, ImportError> {
     if src.is_file() {
         return Ok(vec![src.to_path_buf()]);
     }
@@ -31,27 +35,37 @@ fn json_files(src: &Path) -> Result<Vec<PathBuf>, ImportError> {
     })?;
     let mut out: Vec<PathBuf> = entries
         .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|x| x == "json"))
+        .filter(|p| {
+            p.extension()
+                .and_then(|x| x.to_str())
+                .is_some_and(|x| exts.contains(&x))
+        })
         .collect();
     out.sort();
     Ok(out)
 }
 
-/// Loads every log under `src` (a folder of `.json` logs, or one log).
-pub(super) fn load(src: &Path) -> Result<(super::Loaded, ImportedDtof), ImportError> {
-    let files = json_files(src)?;
-    if files.is_empty() {
-        return Err(ImportError::invalid(src, "no .json zone logs here"));
-    }
+/// The virtual `SIDE × SIDE` pinhole camera with the sensor's field of view that zone-only
+/// recordings carry.
+pub(super) fn virtual_camera() -> CameraIntrinsics {
     let f = SIDE as f32 / 2.0 / (FOV_DEG.to_radians() / 2.0).tan();
-    let camera = CameraIntrinsics {
+    CameraIntrinsics {
         width: SIDE,
         height: SIDE,
         fx: f,
         fy: f,
         cx: (SIDE as f32 - 1.0) / 2.0,
         cy: (SIDE as f32 - 1.0) / 2.0,
-    };
+    }
+}
+
+/// Loads every log under `src` (a folder of `.json` logs, or one log).
+pub(super) fn load(src: &Path) -> Result<(super::Loaded, ImportedDtof), ImportError> {
+    let files = files_with_extensions(src, &["json"])?;
+    if files.is_empty() {
+        return Err(ImportError::invalid(src, "no .json zone logs here"));
+    }
+    let camera = virtual_camera();
     let (mut frames, mut zones) = (Vec::new(), Vec::new());
     for path in &files {
         let text = std::fs::read_to_string(path).map_err(|err| ImportError::Io {
