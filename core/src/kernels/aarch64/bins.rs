@@ -36,6 +36,9 @@ pub fn head(
     unsafe { head_neon(features, p, c, zp, weights, channels, centres, out) }
 }
 
+/// # Safety
+/// The CPU must have NEON, and the slices must be as long as the safe wrapper above checks
+/// (it is the only caller).
 #[target_feature(enable = "neon")]
 #[allow(clippy::too_many_arguments)]
 unsafe fn head_neon(

@@ -22,6 +22,9 @@ pub fn taps(x: &[i16], offs: &[usize], w: &[i16], out: &mut [i32]) -> bool {
     true
 }
 
+/// # Safety
+/// The CPU must have NEON, and the slices must be as long as the safe wrapper above checks
+/// (it is the only caller).
 #[target_feature(enable = "neon")]
 unsafe fn taps_neon(x: &[i16], offs: &[usize], w: &[i16], out: &mut [i32]) {
     let n = out.len();
@@ -81,6 +84,9 @@ pub fn widen(src: &[i8], sx: usize, zp: i32, dst: &mut [i16]) -> usize {
     n
 }
 
+/// # Safety
+/// The CPU must have NEON, and the slices must be as long as the safe wrapper above checks
+/// (it is the only caller).
 #[target_feature(enable = "neon")]
 unsafe fn widen_neon(src: &[i8], sx: usize, zp: i8, dst: &mut [i16]) {
     let zpv = vdup_n_s8(zp);

@@ -37,6 +37,9 @@ unsafe fn sdot<const J: i32>(a: &mut int32x4_t, x: int8x16_t, w: int8x16_t) {
     );
 }
 
+/// # Safety
+/// The CPU must have NEON and the dot-product extension (`FEAT_DotProd`), and the task's
+/// slices must hold the block the task names; the safe wrapper checks both.
 #[target_feature(enable = "neon,dotprod")]
 unsafe fn quads_dot(t: &Task<i8, i8>, acc: &mut Acc) {
     const _: () = assert!(NB == 4 && PB.is_multiple_of(16));

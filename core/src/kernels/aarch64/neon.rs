@@ -40,6 +40,9 @@ fn mac<const E: i32, const O: i32>(
     }
 }
 
+/// # Safety
+/// The CPU must have NEON, and the slices must be as long as the safe wrapper above checks
+/// (it is the only caller).
 #[target_feature(enable = "neon")]
 unsafe fn pairs_neon(t: &Task<i16, i16>, acc: &mut Acc) {
     const _: () = assert!(NB == 4 && PB.is_multiple_of(16));

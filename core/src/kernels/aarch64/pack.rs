@@ -22,6 +22,9 @@ pub fn interleave4(src: [&[i8]; 4], out: &mut [i8]) -> usize {
     n
 }
 
+/// # Safety
+/// The CPU must have NEON, and the slices must be as long as the safe wrapper above checks
+/// (it is the only caller).
 #[target_feature(enable = "neon")]
 unsafe fn interleave4_neon(src: [&[i8]; 4], out: &mut [i8], n: usize) {
     let mut x = 0;

@@ -28,6 +28,9 @@ pub fn four(
     true
 }
 
+/// # Safety
+/// The CPU must have NEON, and the slices must be as long as the safe wrapper above checks
+/// (it is the only caller).
 #[target_feature(enable = "neon")]
 unsafe fn four_neon(
     q: [&[i8]; 4],

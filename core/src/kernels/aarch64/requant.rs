@@ -61,6 +61,7 @@ unsafe fn block_neon(
         let mut done = unsafe { row(k, a, o) };
         if done < n && n >= 8 {
             // The last 8 again, overlapping: the same values rewritten.
+            // SAFETY: as above; `n >= 8`, so both tails hold 8 elements.
             unsafe { row(k, &a[n - 8..], &mut o[n - 8..]) };
             done = n;
         } else if let Some(wide) = acc
@@ -69,6 +70,7 @@ unsafe fn block_neon(
         {
             // A short row with 8 sums readable (the rest of a block's row): into a buffer.
             let mut t = [0i8; 8];
+            // SAFETY: as above; `wide` and `t` hold 8 elements each.
             unsafe { row(k, wide, &mut t) };
             o.copy_from_slice(&t[..n]);
             done = n;
@@ -115,6 +117,10 @@ unsafe fn row(k: &RowQuant, acc: &[i32], out: &mut [i8]) -> usize {
 /// zero point added with saturation, then saturating narrowing to 16 and 8 bits and the clamp
 /// to `min ..= max` (inside the int8 range, so the same as the scalar saturating add and
 /// clamp): 16 sums per pass, then 8; returns how many it did.
+///
+/// # Safety
+/// The CPU must have NEON, and `acc` and `out` must hold the groups of 8 the loops touch;
+/// [`row`], its only caller, checks the lengths.
 #[inline(always)]
 unsafe fn rows_with(
     k: &RowQuant,

@@ -29,6 +29,9 @@ pub fn rescaled_cols(
     n
 }
 
+/// # Safety
+/// The CPU must have NEON, and the slices must be as long as the safe wrapper above checks
+/// (it is the only caller).
 #[target_feature(enable = "neon")]
 unsafe fn cols_neon(v: &[i32], taps: &[u32], mask: usize, den: i32, r: Rescale, out: &mut [i8]) {
     let (k, bias, shift_hi, zp) = r;
