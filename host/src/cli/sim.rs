@@ -8,6 +8,7 @@
 //! depthor sim --preset mcu --config partial.json …   # the fields it names over the preset's
 //! depthor sim --preset mcu [--config partial.json] --print-config   # the effective config
 //! depthor sim … --shard K/N      # frames K, K+N, … of the same run (join with `depthor merge`)
+//! depthor sim --preset mcu --measurement-mix mix.json …   # a condition drawn per frame
 //! ```
 
 use anyhow::{bail, Context, Result};
@@ -20,7 +21,7 @@ use depthor_host::dataset::{
 };
 use depthor_host::plot::{figure, robust_range, ColourMap, Panel};
 use depthor_host::recording::{Frame, FrameMeta, Recording, RecordingWriter, Shard, WriteOptions};
-use depthor_host::sim::{preset, SimConfig, SimError};
+use depthor_host::sim::{preset, MeasurementMix, SimConfig, SimError};
 use depthor_host::viz::{
     depth_image, draw_points, labels_image, points_csv, Overlay, LABEL_COLOURS,
 };
@@ -46,6 +47,12 @@ pub struct Args {
     /// alone it must be complete (as --print-config writes it). See docs/sim.md.
     #[arg(long)]
     config: Option<PathBuf>,
+    /// Measurement mix JSON (needs --preset): each frame's configuration is drawn from the
+    /// mix's weighted conditions, partial configurations over the preset with `{"uniform":
+    /// [lo, hi]}` and `{"choice": […]}` values drawn per frame (docs/sim.md "Measurement
+    /// mixes"; models/mixes/ holds the training mixes).
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["config", "print_config"], requires = "preset")]
+    measurement_mix: Option<PathBuf>,
     /// Print the effective simulator configuration (the preset with --config's fields) as JSON
     /// on stdout and exit; the output fed back through --config reproduces it.
     #[arg(long)]
@@ -91,6 +98,16 @@ const CHUNK: u64 = 32;
 /// Validates the arguments, generates and writes the recording, then the previews.
 pub fn handle(args: Args) -> Result<()> {
     let cfg = sim_config(args.preset.as_deref(), args.config.as_deref())?;
+    let measurement = match &args.measurement_mix {
+        None => Measurement::Fixed(cfg.clone()),
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("{}: cannot read", path.display()))?;
+            let mix = MeasurementMix::from_json(&cfg, &text)
+                .with_context(|| path.display().to_string())?;
+            Measurement::Mix(Box::new(mix))
+        }
+    };
     if args.print_config {
         println!("{}", cfg.to_json());
         return Ok(());
@@ -108,13 +125,13 @@ pub fn handle(args: Args) -> Result<()> {
         (Some(n), None) => {
             let (h, w) = size(&args, preset_name, None)?;
             check_memory(&cfg, w, h, CHUNK.min(args.shard.len(*n)), &source)?;
-            synthetic(&args, out_dir, &cfg, preset_name, *n, w, h)?
+            synthetic(&args, out_dir, &cfg, &measurement, preset_name, *n, w, h)?
         }
         (None, Some(src)) => {
             let rec = Recording::open(src)?;
             let (h, w) = size(&args, preset_name, Some(&rec))?;
             check_memory(&cfg, w, h, args.shard.len(rec.len() as u64), &source)?;
-            from_recording(&args, out_dir, &cfg, &rec, w, h)?
+            from_recording(&args, out_dir, &cfg, &measurement, &rec, w, h)?
         }
         _ => bail!("sim: give either --scenes N or --recording DIR"),
     };
@@ -125,6 +142,42 @@ pub fn handle(args: Args) -> Result<()> {
     let out = out.commit()?;
     println!("wrote {}", out.display());
     Ok(())
+}
+
+/// How each frame's simulator configuration is chosen.
+enum Measurement {
+    /// One configuration for every frame.
+    Fixed(SimConfig),
+    /// A condition of the mix drawn per frame.
+    Mix(Box<MeasurementMix>),
+}
+
+impl Measurement {
+    /// The configuration of frame `i` of a run seeded `seed`, with the mix condition's index.
+    fn for_frame(&self, seed: u64, i: u64) -> Result<(Option<usize>, SimConfig), SimError> {
+        match self {
+            Measurement::Fixed(cfg) => Ok((None, cfg.clone())),
+            Measurement::Mix(mix) => mix.draw(seed, i).map(|(k, cfg)| (Some(k), cfg)),
+        }
+    }
+
+    /// Prints how many frames each mix condition got (nothing for a fixed configuration).
+    fn report(&self, drawn: &[Option<usize>]) {
+        if let Measurement::Mix(mix) = self {
+            let counts: Vec<String> = mix
+                .names()
+                .enumerate()
+                .map(|(k, name)| {
+                    let n = drawn.iter().filter(|d| **d == Some(k)).count();
+                    format!("{name} {n}")
+                })
+                .collect();
+            println!(
+                "measurement mix, frames per condition: {}",
+                counts.join(", ")
+            );
+        }
+    }
 }
 
 /// The simulator configuration of `--preset` and `--config`: the preset, with the fields the
@@ -186,10 +239,12 @@ fn size(args: &Args, preset_name: &str, src: Option<&Recording>) -> Result<(u32,
 }
 
 /// Renders and simulates this shard's frames of `n` scenes, writing them in order.
+#[allow(clippy::too_many_arguments)]
 fn synthetic(
     args: &Args,
     out: &Path,
     cfg: &SimConfig,
+    measurement: &Measurement,
     preset_name: &str,
     n: u64,
     w: u32,
@@ -208,11 +263,22 @@ fn synthetic(
     )?;
     let mine: Vec<u64> = args.shard.frames(n).collect();
     let bar = super::progress(mine.len() as u64, "simulating scenes");
+    let mut drawn = Vec::with_capacity(mine.len());
     for chunk in mine.chunks(CHUNK as usize) {
-        let frames: Vec<SynthFrame> = chunk
+        let frames: Vec<(Option<usize>, SynthFrame)> = chunk
             .par_iter()
-            .map(|&i| synth_frame(&scene_cfg, cfg, args.seed, i, w, h))
-            .collect::<Result<_, _>>()?;
+            .map(|&i| {
+                let (k, cfg) = measurement.for_frame(args.seed, i)?;
+                synth_frame(&scene_cfg, &cfg, args.seed, i, w, h).map(|f| (k, f))
+            })
+            .collect::<Result<_, SimError>>()?;
+        let frames: Vec<SynthFrame> = frames
+            .into_iter()
+            .map(|(k, f)| {
+                drawn.push(k);
+                f
+            })
+            .collect();
         for (&i, f) in chunk.iter().zip(&frames) {
             let (mut fm, frame) = to_recording_frame(&format!("{i:06}"), f);
             fm.t_s = i as f64;
@@ -221,6 +287,7 @@ fn synthetic(
         }
     }
     bar.finish_and_clear();
+    measurement.report(&drawn);
     Ok(writer.seal()?)
 }
 
@@ -229,6 +296,7 @@ fn from_recording(
     args: &Args,
     out: &Path,
     cfg: &SimConfig,
+    measurement: &Measurement,
     rec: &Recording,
     w: u32,
     h: u32,
@@ -247,13 +315,16 @@ fn from_recording(
     let bar = super::progress(mine.len() as u64, "simulating frames");
     let frames = mine
         .par_iter()
-        .map(|&i| {
-            let r = simulate_recording_frame(rec, i, cfg, args.seed, w, h);
+        .map(|&i| -> Result<_> {
+            let (k, cfg) = measurement.for_frame(args.seed, i as u64)?;
+            let r = simulate_recording_frame(rec, i, &cfg, args.seed, w, h)?;
             bar.inc(1);
-            r
+            Ok((k, r))
         })
-        .collect::<Result<Vec<_>, _>>()?;
+        .collect::<Result<Vec<_>>>()?;
     bar.finish_and_clear();
+    let (drawn, frames): (Vec<Option<usize>>, Vec<_>) = frames.into_iter().unzip();
+    measurement.report(&drawn);
     // The header's camera is the source's first frame's in every shard, as unsharded.
     let first = &match mine.first() {
         Some(0) => frames[0].0.camera,

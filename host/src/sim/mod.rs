@@ -46,6 +46,7 @@ pub mod grid;
 pub mod halving;
 pub mod learned;
 pub mod misregistration;
+pub mod mix;
 pub mod presets;
 pub mod range;
 pub mod signal_loss;
@@ -54,6 +55,7 @@ pub mod truth;
 
 pub use config::{memory_limit_bytes, MemoryEstimate, SimConfig};
 pub use error::SimError;
+pub use mix::MeasurementMix;
 pub use presets::{preset, PRESETS};
 pub use truth::{ZoneEvents, ZoneTruth};
 
