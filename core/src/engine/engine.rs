@@ -1,14 +1,16 @@
 //! [`Engine`]: prepare once (`new`), run many (`run`).
 
 use super::error::Error;
-use super::plan::{plan_with, Memory, Plan, ALIGN};
+use super::plan::{plan_with, plan_with_into, Memory, Plan, ALIGN};
 use crate::blob::format::MAX_INPUTS;
-use crate::blob::parse::{parse, DType, Graph, OpInfo};
+use crate::blob::parse::{parse, parse_into, DType, Graph, OpInfo};
 use crate::kernels::isa::Isa;
 use crate::kernels::requant::QParams;
 use crate::kernels::KernelError;
 use crate::ops::{self, bad_op, split, typed, typed_mut, ConstCtx, Eval, Kind};
+use core::mem::MaybeUninit;
 use core::ops::Range;
+use core::ptr::addr_of_mut;
 
 /// What one [`Engine::run`] did.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -94,6 +96,60 @@ impl<'a> Engine<'a> {
         Self::prepare(parse(blob)?, arena, height, width, memory)
     }
 
+    /// As [`Engine::with_memory`], building the engine in the caller's `slot` (a `static` on a
+    /// microcontroller) instead of returning it by value: the ≈ 32 KiB value (on 32-bit Arm;
+    /// [`core::mem::size_of`]) never sits on the stack, only the parser's and the planner's
+    /// temporaries do while this runs. On an error the slot stays uninitialised (nothing in it
+    /// needs dropping).
+    #[inline(never)]
+    pub fn init_in<'s>(
+        slot: &'s mut MaybeUninit<Engine<'a>>,
+        blob: &'a [u8],
+        arena: &'a mut [u8],
+        height: usize,
+        width: usize,
+        memory: Memory,
+    ) -> Result<&'s mut Engine<'a>, Error> {
+        let p = slot.as_mut_ptr();
+        // SAFETY: `p` points to the slot's memory: valid for writes and aligned for `Engine`;
+        // `addr_of_mut!` makes no reference to the uninitialised value. Each table starts
+        // empty (field by field, so no engine-sized value is built on the stack) and the
+        // parser and planner fill them in place.
+        unsafe {
+            addr_of_mut!((*p).graph).write(Graph {
+                blob,
+                height: 0,
+                width: 0,
+                tensors: heapless::Vec::new(),
+                ops: heapless::Vec::new(),
+                rgb: 0,
+                sparse: 0,
+                output: 0,
+            });
+            addr_of_mut!((*p).plan).write(Plan::empty());
+        }
+        // SAFETY: both fields were initialised just above and do not overlap; nothing else
+        // refers to the slot while these references live (the fields written below are
+        // others, through `p`).
+        let (graph, plan) = unsafe {
+            (
+                &mut *addr_of_mut!((*p).graph),
+                &mut *addr_of_mut!((*p).plan),
+            )
+        };
+        parse_into(graph, blob)?;
+        plan_with_into(plan, graph, height, width, memory)?;
+        let (arena, rgb_lut) = Self::fill_arena(graph, plan, arena)?;
+        // SAFETY: the remaining fields, written once each into the slot.
+        unsafe {
+            addr_of_mut!((*p).arena).write(arena);
+            addr_of_mut!((*p).rgb_lut).write(rgb_lut);
+            addr_of_mut!((*p).isa).write(Isa::best());
+        }
+        // SAFETY: every field of the `Engine` has been written above.
+        Ok(unsafe { slot.assume_init_mut() })
+    }
+
     fn prepare(
         graph: Graph<'a>,
         arena: &'a mut [u8],
@@ -102,6 +158,23 @@ impl<'a> Engine<'a> {
         memory: Memory,
     ) -> Result<Engine<'a>, Error> {
         let plan = plan_with(&graph, h, w, memory)?;
+        let (arena, rgb_lut) = Self::fill_arena(&graph, &plan, arena)?;
+        Ok(Engine {
+            graph,
+            plan,
+            arena,
+            rgb_lut,
+            isa: Isa::best(),
+        })
+    }
+
+    /// Checks `arena` against `plan`, writes every op's constants into it and builds the RGB
+    /// table; returns the aligned part of the arena the engine uses and the table.
+    fn fill_arena(
+        graph: &Graph<'a>,
+        plan: &Plan,
+        arena: &'a mut [u8],
+    ) -> Result<(&'a mut [u8], [i8; 256]), Error> {
         let have = arena.len();
         let need = plan.arena_bytes();
         let pad = arena.as_ptr().align_offset(ALIGN);
@@ -119,20 +192,14 @@ impl<'a> Engine<'a> {
                 op: i,
                 error: KernelError::Shape,
             })?;
-            write_consts(&graph, &plan, i, op, region)?;
+            write_consts(graph, plan, i, op, region)?;
         }
         let mut rgb_lut = [0i8; 256];
         let rq = graph.tensor(graph.rgb)?.q;
         for (v, q) in rgb_lut.iter_mut().enumerate() {
             *q = rq.quantize(v as f32 / 255.0);
         }
-        Ok(Engine {
-            graph,
-            plan,
-            arena,
-            rgb_lut,
-            isa: Isa::best(),
-        })
+        Ok((arena, rgb_lut))
     }
 
     /// The kernel set the convolutions run with (the fastest this CPU has, unless set).
@@ -551,6 +618,28 @@ mod tests {
         let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(&run(Memory::Streamed, true)), bits(&out));
         assert_eq!(bits(&run(Memory::Whole, false)), bits(&out));
+    }
+
+    #[test]
+    #[cfg_attr(miri, ignore = "slow under Miri: a second prepare")]
+    fn an_engine_built_in_a_slot_runs_alike() {
+        let want = run(Memory::Streamed, false);
+        let need = required_arena_bytes(TEST_BLOB, H, W).unwrap();
+        let mut arena = vec![0u8; need];
+        let mut slot = MaybeUninit::uninit();
+        let e = Engine::init_in(&mut slot, TEST_BLOB, &mut arena, H, W, Memory::Streamed).unwrap();
+        e.set_kernels(Isa::Portable).unwrap();
+        let (rgb, sparse) = frame();
+        let mut out = vec![0f32; H * W];
+        e.run(&rgb, &sparse, &mut out).unwrap();
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&out), bits(&want));
+        let mut short = vec![0u8; need / 2];
+        let mut slot = MaybeUninit::uninit();
+        assert!(matches!(
+            Engine::init_in(&mut slot, TEST_BLOB, &mut short, H, W, Memory::Streamed),
+            Err(Error::ArenaTooSmall { .. })
+        ));
     }
 
     #[test]

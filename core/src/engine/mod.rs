@@ -41,5 +41,6 @@ pub use engine::{
 };
 pub use error::Error;
 pub use plan::{
-    plan, plan_with, BufferReq, FusedRefine, Fusion, Memory, Plan, PlanError, RefineScratch,
+    plan, plan_with, plan_with_into, BufferReq, FusedRefine, Fusion, Memory, Plan, PlanError,
+    RefineScratch,
 };

@@ -152,6 +152,28 @@ pub struct Plan {
 }
 
 impl Plan {
+    /// A plan of nothing (every table empty), to be filled by [`plan_with_into`].
+    pub const fn empty() -> Plan {
+        Plan {
+            height: 0,
+            width: 0,
+            n_tensors: 0,
+            shapes: Vec::new(),
+            reqs: Vec::new(),
+            offsets: Vec::new(),
+            consts: Vec::new(),
+            broadcast: Vec::new(),
+            fused: Vec::new(),
+            output_in_arena: true,
+            fusion: Fusion::None,
+            in_place: Vec::new(),
+            per_run_consts: false,
+            persistent_bytes: 0,
+            activation_bytes: 0,
+            macs: 0,
+        }
+    }
+
     /// Total arena bytes the caller must provide (includes up to 15 bytes of base alignment).
     pub fn arena_bytes(&self) -> usize {
         ALIGN - 1 + self.persistent_bytes + self.activation_bytes
@@ -630,14 +652,31 @@ fn fusable(graph: &Graph, fusion: Fusion) -> Result<Vec<Option<u16>, MAX_OPS>, P
 /// bytes (the most fused where they tie): on small images a ring can hold more than the map it
 /// replaces.
 pub fn plan_with(graph: &Graph, h: usize, w: usize, memory: Memory) -> Result<Plan, PlanError> {
+    let mut p = Plan::empty();
+    plan_with_into(&mut p, graph, h, w, memory)?;
+    Ok(p)
+}
+
+/// As [`plan_with`], into the caller's `plan` (its tables are reused, so no plan-sized value
+/// sits on the stack: for an engine built in place). On an error `plan` holds a partial plan:
+/// do not use it.
+#[inline(never)]
+pub fn plan_with_into(
+    plan: &mut Plan,
+    graph: &Graph,
+    h: usize,
+    w: usize,
+    memory: Memory,
+) -> Result<(), PlanError> {
     let budget = match memory {
-        Memory::Whole => return plan_fused(graph, h, w, memory, Fusion::None),
+        Memory::Whole => return plan_fused(plan, graph, h, w, memory, Fusion::None),
         Memory::Streamed => 0,
         Memory::Budget(bytes) => bytes,
     };
     let mut best: Option<(usize, Fusion)> = None;
     for fusion in [Fusion::All, Fusion::Affinities, Fusion::None] {
-        let bytes = plan_fused(graph, h, w, memory, fusion)?.arena_bytes();
+        plan_fused(plan, graph, h, w, memory, fusion)?;
+        let bytes = plan.arena_bytes();
         let fits = bytes <= budget;
         // Smallest first; within the budget, the least fused (the last that fits).
         if best.is_none_or(|(b, _)| bytes < b || (fits && b <= budget)) {
@@ -645,7 +684,10 @@ pub fn plan_with(graph: &Graph, h: usize, w: usize, memory: Memory) -> Result<Pl
         }
     }
     let (_, fusion) = best.ok_or(PlanError::TooLarge)?;
-    plan_fused(graph, h, w, memory, fusion)
+    if fusion != plan.fusion {
+        plan_fused(plan, graph, h, w, memory, fusion)?;
+    }
+    Ok(())
 }
 
 /// What a [`Memory::Streamed`] plan fuses into a refinement.
@@ -659,14 +701,34 @@ pub enum Fusion {
     None,
 }
 
-/// [`plan_with`] at one [`Fusion`] level.
+/// [`plan_with`] at one [`Fusion`] level. Out of line: its tables (≈ 12 KiB on 32-bit Arm) live
+/// in its own frame only while it runs, not in every caller's.
+#[inline(never)]
 fn plan_fused(
+    plan: &mut Plan,
     graph: &Graph,
     h: usize,
     w: usize,
     memory: Memory,
     fusion: Fusion,
-) -> Result<Plan, PlanError> {
+) -> Result<(), PlanError> {
+    let Plan {
+        shapes,
+        reqs,
+        offsets,
+        consts,
+        broadcast,
+        fused,
+        in_place,
+        ..
+    } = plan;
+    reqs.clear();
+    offsets.clear();
+    shapes.clear();
+    consts.clear();
+    broadcast.clear();
+    fused.clear();
+    in_place.clear();
     let n_t = graph.tensors.len();
     let n_ops = graph.ops.len();
     let fused_into = match memory {
@@ -677,8 +739,6 @@ fn plan_fused(
             v
         }
     };
-    let mut fused: Vec<FusedRefine, MAX_FUSED> = Vec::new();
-    let mut in_place: Vec<(u16, u16), MAX_IN_PLACE> = Vec::new();
     // Scratch bytes of each fused head (run inside its refinement, which holds it).
     let per_run_consts = memory != Memory::Whole;
     let mut head_consts: Vec<usize, MAX_OPS> = Vec::new();
@@ -690,20 +750,16 @@ fn plan_fused(
         .resize(n_ops, 0)
         .map_err(|_| PlanError::TooLarge)?;
     let zero = Shape::default();
-    let mut shapes: Vec<Shape, MAX_TENSORS> = Vec::new();
     shapes.resize(n_t, zero).map_err(|_| PlanError::TooLarge)?;
     shapes[graph.rgb as usize] = Shape::new(3, h, w);
     shapes[graph.sparse as usize] = Shape::new(1, h, w);
-    let mut reqs: Vec<BufferReq, MAX_BUFFERS> = Vec::new();
     reqs.resize(n_t + n_ops, BufferReq::default())
         .map_err(|_| PlanError::TooLarge)?;
     let last_step = n_ops + 1;
-    let mut consts: Vec<Range<usize>, MAX_OPS> = Vec::new();
-    let mut broadcast: Vec<Broadcast, MAX_OPS> = Vec::new();
     let mut persistent = 0usize;
     let mut macs = 0u64;
     for (i, op) in graph.ops.iter().enumerate() {
-        let mut p = plan_op(i, op, graph, &shapes)?;
+        let mut p = plan_op(i, op, graph, shapes)?;
         shapes[op.output as usize] = p.out;
         let step = i + 1;
         let conv = matches!(op.code, opcode::CONV2D | opcode::LINEAR);
@@ -819,29 +875,20 @@ fn plan_fused(
     if !output_in_arena {
         reqs[graph.output as usize].bytes = 0;
     }
-    let mut offsets: Vec<usize, MAX_BUFFERS> = Vec::new();
     offsets
         .resize(reqs.len(), 0)
         .map_err(|_| PlanError::TooLarge)?;
-    let activation_bytes = place(&reqs, &mut offsets)?;
-    Ok(Plan {
-        height: h,
-        width: w,
-        n_tensors: n_t,
-        shapes,
-        reqs,
-        offsets,
-        consts,
-        broadcast,
-        fused,
-        output_in_arena,
-        fusion,
-        in_place,
-        per_run_consts,
-        persistent_bytes: persistent,
-        activation_bytes,
-        macs,
-    })
+    let activation_bytes = place(reqs, offsets)?;
+    plan.height = h;
+    plan.width = w;
+    plan.n_tensors = n_t;
+    plan.output_in_arena = output_in_arena;
+    plan.fusion = fusion;
+    plan.per_run_consts = per_run_consts;
+    plan.persistent_bytes = persistent;
+    plan.activation_bytes = activation_bytes;
+    plan.macs = macs;
+    Ok(())
 }
 
 #[cfg(test)]

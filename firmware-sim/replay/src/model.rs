@@ -9,6 +9,7 @@
 //! start* (see `depthor_core::blob::format`), and [`MCU_BLOB`] is placed on a 16-byte boundary so
 //! that they are also 16-byte aligned in memory, should a kernel ever read them by words.
 
+use core::mem::MaybeUninit;
 use depthor_core::engine::{self, Engine, Memory};
 
 /// 16-byte alignment wrapper for embedded bytes.
@@ -57,6 +58,19 @@ pub fn prepare<'a>(
 ) -> Result<Engine<'a>, engine::Error> {
     let (h, w) = (usize::from(height), usize::from(width));
     Engine::with_memory(blob, arena, h, w, Memory::Budget(ARENA_BUDGET_BYTES))
+}
+
+/// As [`prepare`], building the engine in `slot` (the firmware's `static`, so the engine never
+/// sits on the stack: [`Engine::init_in`]).
+pub fn prepare_in<'s, 'a>(
+    slot: &'s mut MaybeUninit<Engine<'a>>,
+    blob: &'a [u8],
+    arena: &'a mut [u8],
+    height: u16,
+    width: u16,
+) -> Result<&'s mut Engine<'a>, engine::Error> {
+    let (h, w) = (usize::from(height), usize::from(width));
+    Engine::init_in(slot, blob, arena, h, w, Memory::Budget(ARENA_BUDGET_BYTES))
 }
 
 #[cfg(test)]
