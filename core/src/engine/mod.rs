@@ -37,10 +37,11 @@ pub mod error;
 pub mod plan;
 
 pub use engine::{
-    required_arena_bytes, required_arena_bytes_with, Engine, Observed, Observer, RunStats,
+    required_arena_bytes, required_arena_bytes_io, required_arena_bytes_with, Engine, Observed,
+    Observer, RunStats, Staging,
 };
 pub use error::Error;
 pub use plan::{
-    plan, plan_with, plan_with_into, BufferReq, FusedRefine, Fusion, Memory, Plan, PlanError,
+    plan, plan_with, plan_with_into, BufferReq, FusedRefine, Fusion, Io, Memory, Plan, PlanError,
     RefineScratch,
 };

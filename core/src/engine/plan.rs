@@ -35,7 +35,8 @@ use heapless::Vec;
 
 /// Alignment of the arena base and of every planned offset.
 pub const ALIGN: usize = 16;
-/// Most buffers one plan holds (a tensor each plus a scratch per op).
+/// Most buffers one plan holds (a tensor each plus a scratch per op, and the two input staging
+/// areas of [`Io::Arena`], which a graph with both tables full cannot have).
 pub const MAX_BUFFERS: usize = MAX_TENSORS + MAX_OPS;
 /// Most refinements per graph whose heads are fused ([`Memory::Streamed`]); others keep
 /// whole maps.
@@ -65,6 +66,24 @@ pub enum Memory {
     Budget(usize),
     /// Every op's output stored whole (for observers that compare every tensor).
     Whole,
+}
+
+/// Where a run's inputs and output live.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Io {
+    /// In the caller's buffers: `Engine::run` copies the inputs into the arena and the output
+    /// out of it (or the refinement writes the caller's output directly).
+    #[default]
+    Caller,
+    /// In the arena: the caller writes the RGB frame (`3·H·W` bytes) and the sparse depth
+    /// (`H·W` f32) into two staging areas of the arena (`Engine::staging`), placed at step 0
+    /// beside the int8 inputs they are converted into (free bytes wherever the arena peaks
+    /// later, which it does for the shipped networks), and reads the dense depth from the
+    /// arena after the run (`Engine::output_m`, or as millimetres `Engine::output_mm`). Where
+    /// the refinement would write the caller's output ([`Plan::output_in_arena`] false), an
+    /// f32 output area of `4·H·W` bytes follows the activations ([`Plan::output_tail_bytes`]).
+    /// The caller holds no frame-sized buffer at all; the bits are those of [`Io::Caller`].
+    Arena,
 }
 
 /// One buffer the planner must place: `bytes`, alive from step `first` to step `last` inclusive.
@@ -146,6 +165,8 @@ pub struct Plan {
     in_place: Vec<(u16, u16), MAX_IN_PLACE>,
     /// Whether convs compute their per-channel constants per run in their scratch.
     per_run_consts: bool,
+    /// [`Io::Arena`]: the staging areas are the last two requests.
+    io: Io,
     persistent_bytes: usize,
     activation_bytes: usize,
     macs: u64,
@@ -168,6 +189,7 @@ impl Plan {
             fusion: Fusion::None,
             in_place: Vec::new(),
             per_run_consts: false,
+            io: Io::Caller,
             persistent_bytes: 0,
             activation_bytes: 0,
             macs: 0,
@@ -176,7 +198,33 @@ impl Plan {
 
     /// Total arena bytes the caller must provide (includes up to 15 bytes of base alignment).
     pub fn arena_bytes(&self) -> usize {
-        ALIGN - 1 + self.persistent_bytes + self.activation_bytes
+        ALIGN - 1 + self.persistent_bytes + self.activation_bytes + self.output_tail_bytes()
+    }
+    /// Where the inputs and the output live ([`Io`]).
+    pub fn io(&self) -> Io {
+        self.io
+    }
+    /// [`Io::Arena`]: byte ranges in the activation region of the RGB staging area (`3·H·W`
+    /// bytes) and of the sparse-depth staging area (`4·H·W` bytes, f32); `None` otherwise.
+    pub fn staging(&self) -> Option<(Range<usize>, Range<usize>)> {
+        if self.io != Io::Arena {
+            return None;
+        }
+        let n = self.reqs.len();
+        let range = |i: usize| {
+            let (r, o) = (self.reqs.get(i)?, self.offsets.get(i)?);
+            Some(*o..*o + r.bytes)
+        };
+        Some((range(n.checked_sub(2)?)?, range(n - 1)?))
+    }
+    /// [`Io::Arena`] where the output is not a tensor of the arena: bytes of the f32 output
+    /// area after the activations (0 otherwise).
+    pub fn output_tail_bytes(&self) -> usize {
+        if self.io == Io::Arena && !self.output_in_arena {
+            round_up(self.height * self.width * 4).unwrap_or(usize::MAX)
+        } else {
+            0
+        }
     }
     /// Bytes of per-op constants at the arena head.
     pub fn persistent_bytes(&self) -> usize {
@@ -653,21 +701,22 @@ fn fusable(graph: &Graph, fusion: Fusion) -> Result<Vec<Option<u16>, MAX_OPS>, P
 /// replaces.
 pub fn plan_with(graph: &Graph, h: usize, w: usize, memory: Memory) -> Result<Plan, PlanError> {
     let mut p = Plan::empty();
-    plan_with_into(&mut p, graph, h, w, memory)?;
+    plan_with_into(&mut p, graph, (h, w), memory, Io::Caller)?;
     Ok(p)
 }
 
-/// As [`plan_with`], into the caller's `plan` (its tables are reused, so no plan-sized value
-/// sits on the stack: for an engine built in place). On an error `plan` holds a partial plan:
-/// do not use it.
+/// As [`plan_with`] at `(h, w)` with the inputs and output `io`, into the caller's `plan` (its
+/// tables are reused, so no plan-sized value sits on the stack: for an engine built in place).
+/// On an error `plan` holds a partial plan: do not use it.
 #[inline(never)]
 pub fn plan_with_into(
     plan: &mut Plan,
     graph: &Graph,
-    h: usize,
-    w: usize,
+    (h, w): (usize, usize),
     memory: Memory,
+    io: Io,
 ) -> Result<(), PlanError> {
+    plan.io = io;
     let budget = match memory {
         Memory::Whole => return plan_fused(plan, graph, h, w, memory, Fusion::None),
         Memory::Streamed => 0,
@@ -753,7 +802,9 @@ fn plan_fused(
     shapes.resize(n_t, zero).map_err(|_| PlanError::TooLarge)?;
     shapes[graph.rgb as usize] = Shape::new(3, h, w);
     shapes[graph.sparse as usize] = Shape::new(1, h, w);
-    reqs.resize(n_t + n_ops, BufferReq::default())
+    let staged = plan.io == Io::Arena;
+    let n_reqs = n_t + n_ops + if staged { 2 } else { 0 };
+    reqs.resize(n_reqs, BufferReq::default())
         .map_err(|_| PlanError::TooLarge)?;
     let last_step = n_ops + 1;
     let mut persistent = 0usize;
@@ -874,6 +925,19 @@ fn plan_fused(
     }
     if !output_in_arena {
         reqs[graph.output as usize].bytes = 0;
+    }
+    // Io::Arena: the staging areas live at step 0 only (converted into the int8 inputs there);
+    // an output outside the activations gets an area after them (`Plan::output_tail_bytes`).
+    if staged {
+        let pixels = h.checked_mul(w).ok_or(PlanError::TooLarge)?;
+        for (k, elem) in [3usize, 4].into_iter().enumerate() {
+            let bytes = pixels.checked_mul(elem).ok_or(PlanError::TooLarge)?;
+            reqs[n_t + n_ops + k] = BufferReq {
+                bytes: round_up(bytes)?,
+                first: 0,
+                last: 0,
+            };
+        }
     }
     offsets
         .resize(reqs.len(), 0)

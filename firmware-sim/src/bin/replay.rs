@@ -54,7 +54,8 @@ impl Probe for TickProbe {
     }
 }
 
-/// Image size this build holds: the `mcu` variant's 120×160 (docs/design.md).
+/// Image size the profiling build's buffers hold: the `mcu` variants' 120×160 (docs/design.md).
+#[cfg(feature = "profile")]
 const PIXELS: usize = 120 * 160;
 /// Zones this build holds: 8×8 (VL53L5CX class).
 const ZONES: usize = 64;
@@ -86,18 +87,24 @@ const KINDS: usize = 24;
 fn profile_ops<const N: usize>(
     engine: &mut Engine<'_>,
     ws: &mut Workspace<'_, N>,
-    cal: &Calibration,
+    image: &Image<'_>,
+    last: u32,
 ) {
+    let cal: Calibration = image.calibration();
+    let Some(frame) = image.frame(last) else {
+        return;
+    };
     let ops = engine.graph().ops.len();
     let mut per_op = [0u64; depthor_core::blob::format::MAX_OPS];
-    // The frame ran in place on `sparse_m`: project its zones again for the sparse input.
-    if let Err(e) = project_to_sparse(cal, &ws.zones.view(), ws.sparse_m) {
+    // The frame's inputs are gone from the arena: project its zones again, take its RGB from
+    // the image, into buffers of the profiling build only.
+    let scratch = ProfileScratch::take();
+    if let Err(e) = project_to_sparse(&cal, &ws.zones.view(), scratch.sparse) {
         println!("op profile: projection error {e}");
         return;
     }
-    let scratch_depth = DepthScratch::take();
     let mut last = cycles::ticks();
-    let result = engine.run_observed(ws.rgb, ws.sparse_m, scratch_depth.0, &mut |i, _| {
+    let result = engine.run_observed(frame.rgb, scratch.sparse, scratch.depth, &mut |i, _| {
         let now = cycles::ticks();
         if let Some(t) = per_op.get_mut(i) {
             *t = now - last;
@@ -151,18 +158,34 @@ fn profile_ops<const N: usize>(
     }
 }
 
-/// The output buffer of the profiling run (the loop's own depth buffer is borrowed by `ws`).
+/// The input and output buffers of the profiling run (the shipping build holds none: its frames
+/// live in the engine's arena).
 #[cfg(feature = "profile")]
-struct DepthScratch(&'static mut [f32]);
+struct ProfileScratch {
+    sparse: &'static mut [f32],
+    depth: &'static mut [f32],
+}
 
 #[cfg(feature = "profile")]
-impl DepthScratch {
+impl ProfileScratch {
     fn take() -> Self {
-        static mut PROFILE_DEPTH: [f32; PIXELS] = [0.0; PIXELS];
+        static mut SPARSE: [f32; PIXELS] = [0.0; PIXELS];
+        static mut DEPTH: [f32; PIXELS] = [0.0; PIXELS];
         // SAFETY: called once, from `main` after the loop, single-threaded; nothing else
-        // refers to PROFILE_DEPTH.
-        DepthScratch(unsafe { &mut *core::ptr::addr_of_mut!(PROFILE_DEPTH) })
+        // refers to these statics.
+        unsafe {
+            ProfileScratch {
+                sparse: &mut *core::ptr::addr_of_mut!(SPARSE),
+                depth: &mut *core::ptr::addr_of_mut!(DEPTH),
+            }
+        }
     }
+}
+
+/// Prints `ERROR <code>: <e>` and exits with the code.
+fn fail(e: LoopError) -> ! {
+    println!("ERROR {}: {e}", e.exit_code());
+    console::exit(e.exit_code())
 }
 
 /// Prints the RAM figures: `ram: statics … + stack high-water … = total`, then one `ram buffer`
@@ -221,9 +244,6 @@ fn init_replay(
 #[entry]
 fn main() -> ! {
     // `static mut` inside `#[entry]`: cortex-m-rt turns each into a unique `&'static mut`.
-    static mut RGB: [u8; 3 * PIXELS] = [0; 3 * PIXELS];
-    static mut SPARSE: [f32; PIXELS] = [0.0; PIXELS];
-    static mut DEPTH: [f32; PIXELS] = [0.0; PIXELS];
     static mut ARENA: Arena = Arena([0; ARENA_BUDGET_BYTES]);
     static mut BRIDGE: [f32; ZONES] = [0.0; ZONES];
     static mut ZONE_FRAME: ZoneFrame<ZONES> = ZoneFrame::new();
@@ -259,7 +279,7 @@ fn main() -> ! {
     );
 
     let before = cycles::ticks();
-    let engine = match model::prepare_in(ENGINE, MCU_BLOB, &mut ARENA.0, h, w) {
+    let engine = match model::prepare(ENGINE, MCU_BLOB, &mut ARENA.0, h, w) {
         Ok(engine) => engine,
         Err(e) => {
             let e = LoopError::Engine(e);
@@ -280,9 +300,6 @@ fn main() -> ! {
     );
 
     let mut ws = Workspace {
-        rgb: RGB,
-        sparse_m: SPARSE,
-        depth_m: DEPTH,
         bridge_mm: BRIDGE,
         zones: ZONE_FRAME,
     };
@@ -298,7 +315,22 @@ fn main() -> ! {
             Ok(Some(processed)) => {
                 let per_stage = probe.ticks.map(cycles::instructions);
                 let instructions: u64 = per_stage.iter().sum();
-                println!("{}", FrameOutput::new(&processed, ws.depth_m));
+                // The dense depth in metres, in the arena: hashed as the host hashes it, then
+                // turned into millimetres in place (what the firmware passes on).
+                let depth_m = match engine.output_m() {
+                    Ok(d) => d,
+                    Err(e) => fail(LoopError::Engine(e)),
+                };
+                println!("{}", FrameOutput::new(&processed, depth_m));
+                match engine.output_mm() {
+                    Ok(mm) => println!(
+                        "frame {} depth_mm (u16, in place) centre={} first={}",
+                        processed.index,
+                        mm.get(mm.len() / 2 + 80).copied().unwrap_or(0),
+                        mm.first().copied().unwrap_or(0)
+                    ),
+                    Err(e) => fail(LoopError::Engine(e)),
+                }
                 println!(
                     "icount frame {} instructions={instructions} camera={} dtof={} projection={} \
                      model={}",
@@ -345,7 +377,7 @@ fn main() -> ! {
 
     #[cfg(feature = "profile")]
     if frames > 0 {
-        profile_ops(engine, &mut ws, &image.calibration());
+        profile_ops(engine, &mut ws, &image, (frames - 1) as u32);
     }
 
     let stack = memory::stack_high_water();
@@ -379,16 +411,16 @@ fn main() -> ! {
         centi_fps % 100
     );
     // Every static of this build, by name (the rest: cortex-m-rt's, the console's, SysTick's).
-    let buffers: [(&str, usize); 9] = [
-        ("arena (reserved)", size_of::<Arena>()),
+    let buffers: [(&str, usize); 6] = [
+        (
+            "arena (reserved; holds the RGB, sparse and dense depth maps too)",
+            size_of::<Arena>(),
+        ),
         ("engine", size_of::<Engine>()),
         (
             "replay loop (driver + simulated sensor)",
             size_of::<ReplayLoop<SpinDelay>>(),
         ),
-        ("rgb", size_of::<[u8; 3 * PIXELS]>()),
-        ("sparse/depth f32", size_of::<[f32; PIXELS]>()),
-        ("depth f32 copy", size_of::<[f32; PIXELS]>()),
         ("zone frame", size_of::<ZoneFrame<ZONES>>()),
         ("zone bridge staging", size_of::<[f32; ZONES]>()),
         ("vl53l5cx i/o", VL53_IO_BYTES),
