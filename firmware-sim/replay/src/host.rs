@@ -59,9 +59,25 @@ pub fn host_lines(bytes: &[u8]) -> Vec<String> {
 /// missing, and when the run exceeds `timeout` (a hung firmware). A test helper shared by the Rust
 /// and the C firmware tests.
 pub fn run_qemu_m4(elf: &std::path::Path, timeout: std::time::Duration) -> (i32, String) {
+    run_qemu(elf, "mps2-an386", "cortex-m4", timeout)
+}
+
+/// As [`run_qemu_m4`] on QEMU's `mps2-an500` board, a Cortex-M7 (the same ELF: its code and RAM
+/// sit where the AN386's do).
+pub fn run_qemu_m7(elf: &std::path::Path, timeout: std::time::Duration) -> (i32, String) {
+    run_qemu(elf, "mps2-an500", "cortex-m7", timeout)
+}
+
+/// Runs `elf` on QEMU's `machine` with `cpu` (see [`run_qemu_m4`]).
+fn run_qemu(
+    elf: &std::path::Path,
+    machine: &str,
+    cpu: &str,
+    timeout: std::time::Duration,
+) -> (i32, String) {
     use std::process::{Command, Stdio};
     let spawned = Command::new("qemu-system-arm")
-        .args(["-machine", "mps2-an386", "-cpu", "cortex-m4"])
+        .args(["-machine", machine, "-cpu", cpu])
         .args(["-icount", "shift=0"])
         .args(["-semihosting-config", "enable=on,target=native"])
         .args([

@@ -261,6 +261,7 @@ fn main() -> ! {
         );
         console::exit(depthor_replay::EXIT_PANIC);
     };
+    depthor_firmware_sim::cpu::print(&peripherals.CPUID);
     cycles::start(peripherals.SYST);
 
     let image = match Image::parse(IMAGE) {
@@ -324,7 +325,7 @@ fn main() -> ! {
                 println!("{}", FrameOutput::new(&processed, depth_m));
                 match engine.output_mm() {
                     Ok(mm) => println!(
-                        "frame {} depth_mm (u16, in place) centre={} first={}",
+                        "depth_mm frame {} (u16, in place in the arena) centre={} first={}",
                         processed.index,
                         mm.get(mm.len() / 2 + 80).copied().unwrap_or(0),
                         mm.first().copied().unwrap_or(0)
