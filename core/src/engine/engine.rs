@@ -516,7 +516,8 @@ impl<'a> Engine<'a> {
             Some(ext) => ext,
             None => typed_mut::<f32>(tail, 0)?,
         };
-        for (i, op) in self.graph.ops.iter().enumerate() {
+        for i in self.plan.order() {
+            let op = self.graph.ops.get(i).ok_or(bad_op(i))?;
             if self.plan.fused_into(i).is_some() {
                 continue; // runs row by row inside its refinement
             }

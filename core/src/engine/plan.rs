@@ -38,6 +38,9 @@ pub const ALIGN: usize = 16;
 /// Most buffers one plan holds (a tensor each plus a scratch per op, and the two input staging
 /// areas of [`Io::Arena`], which a graph with both tables full cannot have).
 pub const MAX_BUFFERS: usize = MAX_TENSORS + MAX_OPS;
+// `Plan::order` holds op indices as `u8`.
+const _: () = assert!(MAX_OPS <= 256);
+
 /// Most refinements per graph whose heads are fused ([`Memory::Streamed`]); others keep
 /// whole maps.
 pub const MAX_FUSED: usize = 2;
@@ -167,6 +170,9 @@ pub struct Plan {
     per_run_consts: bool,
     /// [`Io::Arena`]: the staging areas are the last two requests.
     io: Io,
+    /// The order the ops run in (op indices; a topological order of the graph: the blob's,
+    /// with some ops deferred, see [`Plan::order`]).
+    order: Vec<u8, MAX_OPS>,
     persistent_bytes: usize,
     activation_bytes: usize,
     macs: u64,
@@ -190,6 +196,7 @@ impl Plan {
             in_place: Vec::new(),
             per_run_consts: false,
             io: Io::Caller,
+            order: Vec::new(),
             persistent_bytes: 0,
             activation_bytes: 0,
             macs: 0,
@@ -199,6 +206,13 @@ impl Plan {
     /// Total arena bytes the caller must provide (includes up to 15 bytes of base alignment).
     pub fn arena_bytes(&self) -> usize {
         ALIGN - 1 + self.persistent_bytes + self.activation_bytes + self.output_tail_bytes()
+    }
+    /// The op indices in the order they run: the blob's order, except that an op whose output
+    /// is larger than its inputs and is first read much later may run just before that reader
+    /// ([`Memory::Streamed`] and [`Memory::Budget`], where that lowers the arena; the bits do not
+    /// change: every op computes the same values from the same inputs).
+    pub fn order(&self) -> impl Iterator<Item = usize> + '_ {
+        self.order.iter().map(|&i| usize::from(i))
     }
     /// Where the inputs and the output live ([`Io`]).
     pub fn io(&self) -> Io {
@@ -718,24 +732,30 @@ pub fn plan_with_into(
 ) -> Result<(), PlanError> {
     plan.io = io;
     let budget = match memory {
-        Memory::Whole => return plan_fused(plan, graph, h, w, memory, Fusion::None),
+        Memory::Whole => return plan_fused(plan, graph, (h, w), memory, Fusion::None, false),
         Memory::Streamed => 0,
         Memory::Budget(bytes) => bytes,
     };
-    let mut best: Option<(usize, Fusion)> = None;
+    let mut best: Option<(usize, Fusion, bool)> = None;
     for fusion in [Fusion::All, Fusion::Affinities, Fusion::None] {
-        plan_fused(plan, graph, h, w, memory, fusion)?;
-        let bytes = plan.arena_bytes();
+        // Each level in the blob's op order and with ops deferred; the latter where smaller.
+        let mut level: Option<(usize, bool)> = None;
+        for defer in [false, true] {
+            plan_fused(plan, graph, (h, w), memory, fusion, defer)?;
+            let bytes = plan.arena_bytes();
+            if level.is_none_or(|(b, _)| bytes < b) {
+                level = Some((bytes, defer));
+            }
+        }
+        let (bytes, defer) = level.ok_or(PlanError::TooLarge)?;
         let fits = bytes <= budget;
         // Smallest first; within the budget, the least fused (the last that fits).
-        if best.is_none_or(|(b, _)| bytes < b || (fits && b <= budget)) {
-            best = Some((bytes, fusion));
+        if best.is_none_or(|(b, ..)| bytes < b || (fits && b <= budget)) {
+            best = Some((bytes, fusion, defer));
         }
     }
-    let (_, fusion) = best.ok_or(PlanError::TooLarge)?;
-    if fusion != plan.fusion {
-        plan_fused(plan, graph, h, w, memory, fusion)?;
-    }
+    let (_, fusion, defer) = best.ok_or(PlanError::TooLarge)?;
+    plan_fused(plan, graph, (h, w), memory, fusion, defer)?;
     Ok(())
 }
 
@@ -750,16 +770,83 @@ pub enum Fusion {
     None,
 }
 
+/// Writes the order the ops run in: the blob's, and with `defer`, each op that runs on its own,
+/// whose output has more bytes than all its inputs together and is first read more than one op
+/// later, moved to run just before that first reader (its output then lives for a step instead
+/// of the whole gap, its inputs a little longer). Topological: an op only moves later, never past
+/// a reader of its output.
+fn run_order(
+    graph: &Graph,
+    shapes: &[Shape],
+    fused_into: &[Option<u16>],
+    defer: bool,
+    order: &mut Vec<u8, MAX_OPS>,
+) -> Result<(), PlanError> {
+    let n_ops = graph.ops.len();
+    order.clear();
+    for i in 0..n_ops {
+        order
+            .push(u8::try_from(i).map_err(|_| PlanError::TooLarge)?)
+            .map_err(|_| PlanError::TooLarge)?;
+    }
+    if !defer {
+        return Ok(());
+    }
+    let bytes = |t: u16| -> usize {
+        let elem = graph
+            .tensors
+            .get(usize::from(t))
+            .map_or(4, |x| match x.dtype {
+                DType::I8 => 1,
+                DType::I16 => 2,
+                DType::F32 => 4,
+            });
+        shapes
+            .get(usize::from(t))
+            .and_then(|s| s.len())
+            .map_or(usize::MAX, |n| n.saturating_mul(elem))
+    };
+    for (x, op) in graph.ops.iter().enumerate() {
+        if fused_into.get(x).copied().flatten().is_some()
+            || op.code == opcode::REFINE
+            || op.output == graph.output
+        {
+            continue;
+        }
+        let Some(reader) = (x + 1..n_ops).find(|&j| graph.ops[j].inputs.contains(&op.output))
+        else {
+            continue;
+        };
+        let ins: usize = op
+            .inputs
+            .iter()
+            .map(|&t| bytes(t))
+            .fold(0, usize::saturating_add);
+        if reader <= x + 1 || bytes(op.output) <= ins {
+            continue;
+        }
+        let Some(from) = order.iter().position(|&k| usize::from(k) == x) else {
+            continue;
+        };
+        let moved = order.remove(from);
+        let Some(to) = order.iter().position(|&k| usize::from(k) == reader) else {
+            return Err(PlanError::TooLarge);
+        };
+        order.insert(to, moved).map_err(|_| PlanError::TooLarge)?;
+    }
+    Ok(())
+}
+
 /// [`plan_with`] at one [`Fusion`] level. Out of line: its tables (≈ 12 KiB on 32-bit Arm) live
 /// in its own frame only while it runs, not in every caller's.
 #[inline(never)]
 fn plan_fused(
     plan: &mut Plan,
     graph: &Graph,
-    h: usize,
-    w: usize,
+    (h, w): (usize, usize),
     memory: Memory,
     fusion: Fusion,
+    defer: bool,
 ) -> Result<(), PlanError> {
     let Plan {
         shapes,
@@ -769,8 +856,10 @@ fn plan_fused(
         broadcast,
         fused,
         in_place,
+        order,
         ..
     } = plan;
+    order.clear();
     reqs.clear();
     offsets.clear();
     shapes.clear();
@@ -809,10 +898,22 @@ fn plan_fused(
     let last_step = n_ops + 1;
     let mut persistent = 0usize;
     let mut macs = 0u64;
+    // Shapes first (in the blob's order, which is topological), then the run order.
     for (i, op) in graph.ops.iter().enumerate() {
+        shapes[op.output as usize] = plan_op(i, op, graph, shapes)?.out;
+    }
+    run_order(graph, shapes, &fused_into, defer, order)?;
+    consts
+        .resize(n_ops, 0..0)
+        .map_err(|_| PlanError::TooLarge)?;
+    broadcast
+        .resize(n_ops, Broadcast::None)
+        .map_err(|_| PlanError::TooLarge)?;
+    for (pos, &i) in order.iter().enumerate() {
+        let i = usize::from(i);
+        let op = &graph.ops[i];
         let mut p = plan_op(i, op, graph, shapes)?;
-        shapes[op.output as usize] = p.out;
-        let step = i + 1;
+        let step = pos + 1;
         let conv = matches!(op.code, opcode::CONV2D | opcode::LINEAR);
         // Streamed: a conv's per-channel constants are computed per run at the head of its
         // scratch instead of being held in the persistent region.
@@ -873,13 +974,9 @@ fn plan_fused(
             }
         }
         let cb = round_up(p.consts)?;
-        consts
-            .push(persistent..persistent + p.consts)
-            .map_err(|_| PlanError::TooLarge)?;
+        consts[i] = persistent..persistent + p.consts;
         persistent = persistent.checked_add(cb).ok_or(PlanError::TooLarge)?;
-        broadcast
-            .push(p.broadcast)
-            .map_err(|_| PlanError::TooLarge)?;
+        broadcast[i] = p.broadcast;
         reqs[n_t + i] = BufferReq {
             bytes: round_up(p.scratch)?,
             first: step,
