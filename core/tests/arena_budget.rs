@@ -9,7 +9,8 @@ use depthor_core::engine::{plan_with, plan_with_into, Fusion, Io, Memory, Plan};
 /// (variant, goal bytes, ceiling bytes: the streamed plan as last measured, which the planner
 /// must not exceed; +16 B since the conv scratch records which input row each row slot holds;
 /// − 57 600 B for mcu_lite, − 64 B for mcu, − 32 B for phone since ops may be deferred to just
-/// before their first reader, `Plan::order`).
+/// before their first reader, `Plan::order`; mcu_lite − 14 416 B more since a conv reads a concat
+/// with an int16 part in place and the placement also starts from the size × lifetime order).
 const BUDGETS: [(&str, usize, usize); 3] = [
     ("mcu", 384 * 1024, CEIL_MCU),
     ("mcu_lite", 384 * 1024, CEIL_MCU_LITE),
@@ -17,7 +18,7 @@ const BUDGETS: [(&str, usize, usize); 3] = [
 ];
 const CEIL_MCU: usize = 384_127;
 /// The firmware's default blob (firmware-sim `model::MCU_LITE_ARENA_BYTES` reserves this, +1).
-const CEIL_MCU_LITE: usize = 308_415;
+const CEIL_MCU_LITE: usize = 293_999;
 const CEIL_PHONE: usize = 1_672_239;
 
 #[test]

@@ -265,6 +265,10 @@ impl Plan {
             .and_then(|o| plan_op(op, o, graph, &self.shapes).ok())
             .map_or(0, |p| p.macs)
     }
+    /// All tensor shapes, by tensor id.
+    pub(crate) fn shapes(&self) -> &[Shape] {
+        &self.shapes
+    }
     /// Shape of tensor `id`.
     pub fn shape(&self, id: u16) -> Option<Shape> {
         self.shapes.get(id as usize).copied()
@@ -362,13 +366,16 @@ fn round_up(n: usize) -> Result<usize, PlanError> {
         .ok_or(PlanError::TooLarge)
 }
 
-/// Most rounds of [`place`]'s search.
+/// Most rounds of [`place`]'s search, per starting order.
 pub const PLACE_ROUNDS: usize = 64;
+/// Starting orders [`place`] tries (decreasing size; decreasing size × lifetime).
+pub const PLACE_STARTS: usize = 2;
 
 /// Places buffers: each in turn at the lowest offset that does not overlap a placed buffer
 /// alive at the same time (TFLite Micro's greedy planner), starting from the order largest
-/// first; then, for up to [`PLACE_ROUNDS`] rounds or until the total equals the bytes live at
-/// the busiest step (no placement needs fewer), the buffer that reaches the top is moved to the
+/// first (then, unless that reached the bound below, from the order of bytes × lifetime); then,
+/// for up to [`PLACE_ROUNDS`] rounds or until the total equals the bytes live at the busiest
+/// step (no placement needs fewer), the buffer that reaches the top is moved to the
 /// front of the order and everything placed again. Keeps the order with the smallest total (the
 /// first such). Writes one offset per request and returns the total bytes; deterministic.
 /// Offsets are multiples of [`ALIGN`] when the sizes are.
@@ -383,14 +390,6 @@ pub fn place(reqs: &[BufferReq], offsets: &mut [usize]) -> Result<usize, PlanErr
             order.push(i as u16).map_err(|_| PlanError::TooLarge)?;
         }
     }
-    // Decreasing size, then earlier first use, then index.
-    order.sort_unstable_by(|&a, &b| {
-        let (ra, rb) = (&reqs[a as usize], &reqs[b as usize]);
-        rb.bytes
-            .cmp(&ra.bytes)
-            .then(ra.first.cmp(&rb.first))
-            .then(a.cmp(&b))
-    });
     // No placement needs fewer bytes than are live at the busiest step: stop there.
     let steps = reqs
         .iter()
@@ -406,24 +405,44 @@ pub fn place(reqs: &[BufferReq], offsets: &mut [usize]) -> Result<usize, PlanErr
         })
         .max()
         .unwrap_or(0);
+    let life = |r: &BufferReq| r.last - r.first.min(r.last) + 1;
     let mut best = (usize::MAX, order.clone());
-    for _ in 0..PLACE_ROUNDS {
-        let total = place_in(reqs, offsets, &order)?;
-        if total < best.0 {
-            best = (total, order.clone());
+    // Starting orders, each improved by the rounds below: decreasing size (then earlier first
+    // use, then index), then decreasing size × lifetime (bytes·steps).
+    for start in 0..PLACE_STARTS {
+        order.sort_unstable_by(|&a, &b| {
+            let (ra, rb) = (&reqs[a as usize], &reqs[b as usize]);
+            let key = |r: &BufferReq| match start {
+                0 => r.bytes,
+                _ => r.bytes.saturating_mul(life(r)),
+            };
+            key(rb)
+                .cmp(&key(ra))
+                .then(rb.bytes.cmp(&ra.bytes))
+                .then(ra.first.cmp(&rb.first))
+                .then(a.cmp(&b))
+        });
+        for _ in 0..PLACE_ROUNDS {
+            let total = place_in(reqs, offsets, &order)?;
+            if total < best.0 {
+                best = (total, order.clone());
+            }
+            if total <= bound {
+                break;
+            }
+            let end = |i: u16| offsets[i as usize] + reqs[i as usize].bytes;
+            let Some(top) = order.iter().position(|&i| end(i) == total) else {
+                break;
+            };
+            if top == 0 {
+                break;
+            }
+            let i = order.remove(top);
+            order.insert(0, i).map_err(|_| PlanError::TooLarge)?;
         }
-        if total <= bound {
+        if best.0 <= bound {
             break;
         }
-        let end = |i: u16| offsets[i as usize] + reqs[i as usize].bytes;
-        let Some(top) = order.iter().position(|&i| end(i) == total) else {
-            break;
-        };
-        if top == 0 {
-            break;
-        }
-        let i = order.remove(top);
-        order.insert(0, i).map_err(|_| PlanError::TooLarge)?;
     }
     place_in(reqs, offsets, &best.1)
 }
@@ -581,8 +600,9 @@ pub fn plan(graph: &Graph, h: usize, w: usize) -> Result<Plan, PlanError> {
 /// Per op, the op it can be fused into: a `conv2d` whose output is one of the three affinity
 /// inputs of a `refine` and read by nothing else, where all three are such convs, goes into the
 /// refine; a `concat` read only by a `conv2d` with one group (not itself fused) goes into that
-/// conv, which reads its parts in place. Only int8 convs and concats fuse (int16 values run
-/// unfused, `crate::kernels::wide`).
+/// conv, which reads its parts in place. Only int8 convs and int8 concat outputs fuse (int16
+/// values run unfused, `crate::kernels::wide`); an int16 part of such a concat is requantised into
+/// the conv's scratch first ([`wide_parts_bytes`]).
 fn fusable(graph: &Graph, fusion: Fusion) -> Result<Vec<Option<u16>, MAX_OPS>, PlanError> {
     let n_ops = graph.ops.len();
     let mut fused: Vec<Option<u16>, MAX_OPS> = Vec::new();
@@ -672,6 +692,13 @@ fn fusable(graph: &Graph, fusion: Fusion) -> Result<Vec<Option<u16>, MAX_OPS>, P
             }
         }
     }
+    // An int16 part is requantised into the conv's scratch first (`wide_parts_bytes`).
+    let int8_or_16 = |id: u16| {
+        graph
+            .tensors
+            .get(id as usize)
+            .is_some_and(|x| matches!(x.dtype, DType::I8 | DType::I16))
+    };
     let mut count = 0;
     for op in graph.ops.iter() {
         let t = op.output as usize;
@@ -679,7 +706,7 @@ fn fusable(graph: &Graph, fusion: Fusion) -> Result<Vec<Option<u16>, MAX_OPS>, P
             || readers.get(t) != Some(&1)
             || op.output == graph.output
             || !int8(op.output)
-            || !op.inputs.iter().all(|&id| int8(id))
+            || !op.inputs.iter().all(|&id| int8_or_16(id))
             || op.inputs.len() > MAX_PARTS
             || count == MAX_IN_PLACE
         {
@@ -768,6 +795,31 @@ pub enum Fusion {
     Affinities,
     /// Nothing.
     None,
+}
+
+/// Bytes a conv reading concat op `concat`'s parts in place needs at the end of its scratch for
+/// the int16 parts, each requantised to the concat's int8 codes there before the conv runs (as the
+/// concat would write them): `C·H·W` bytes per int16 part, each rounded to [`ALIGN`].
+pub(crate) fn wide_parts_bytes(
+    graph: &Graph,
+    shapes: &[Shape],
+    concat: usize,
+) -> Result<usize, PlanError> {
+    let Some(op) = graph.ops.get(concat) else {
+        return Ok(0);
+    };
+    let mut total = 0usize;
+    for &id in &op.inputs {
+        if graph.tensors.get(usize::from(id)).map(|t| t.dtype) != Some(DType::I16) {
+            continue;
+        }
+        let n = shapes
+            .get(usize::from(id))
+            .and_then(|s| s.len())
+            .ok_or(PlanError::TooLarge)?;
+        total = total.checked_add(round_up(n)?).ok_or(PlanError::TooLarge)?;
+    }
+    Ok(total)
 }
 
 /// Writes the order the ops run in: the blob's, and with `defer`, each op that runs on its own,
@@ -937,6 +989,13 @@ fn plan_fused(
                 in_place
                     .push((c as u16, i as u16))
                     .map_err(|_| PlanError::TooLarge)?;
+                // Its int16 parts, requantised to int8 at the end of the conv's scratch.
+                let wide = wide_parts_bytes(graph, shapes, c)?;
+                if wide > 0 {
+                    p.scratch = round_up(p.scratch)?
+                        .checked_add(wide)
+                        .ok_or(PlanError::TooLarge)?;
+                }
                 // The parts are read while the conv runs.
                 for &id in &graph.ops[c].inputs {
                     reqs[id as usize].last = reqs[id as usize].last.max(step);
