@@ -1,6 +1,7 @@
 //! Host vs firmware, bit for bit: builds `firmware-sim` for thumbv7em-none-eabihf with a replay
-//! image made here, runs it under `qemu-system-arm` (mps2-an386, `-icount shift=0`), and
-//! requires exit status 0 and per-frame hash lines equal to the host build of the same loop.
+//! image made here, runs it under `qemu-system-arm` (mps2-an386, a Cortex-M4, and the same ELF
+//! on mps2-an500, a Cortex-M7; `-icount shift=0`), and requires exit status 0 and per-frame hash
+//! lines equal to the host build of the same loop on both.
 //! Bad images must make the firmware print `ERROR <code>` and exit with that code, not panic.
 //!
 //! Needs `qemu-system-arm` and the `thumbv7em-none-eabihf` Rust target (`bash scripts/setup.sh`
@@ -13,7 +14,7 @@ use std::sync::Mutex;
 use std::time::Duration;
 
 use depthor_replay::format::HEADER_LEN;
-use depthor_replay::host::{host_lines, run_qemu_m4};
+use depthor_replay::host::{host_lines, run_qemu_m4, run_qemu_m7};
 use depthor_replay::{synthetic, writer};
 
 const TARGET: &str = "thumbv7em-none-eabihf";
@@ -87,8 +88,21 @@ fn qemu_hashes_equal_host_bit_for_bit() {
     assert_eq!(host.len(), frames as usize);
 
     let elf = build_firmware("replay", &image, dir.path());
-    let (code, stdout) = run_qemu_m4(&elf, QEMU_TIMEOUT);
-    assert_eq!(code, 0, "firmware exit status; output:\n{stdout}");
+    for (cpu, run) in [
+        (
+            "Cortex-M4",
+            run_qemu_m4 as fn(&Path, Duration) -> (i32, String),
+        ),
+        ("Cortex-M7", run_qemu_m7),
+    ] {
+        check_replay_run(cpu, run(&elf, QEMU_TIMEOUT), &host);
+    }
+}
+
+/// One QEMU run of the replay firmware on `cpu`: exit 0, the host's frame lines, the figures.
+fn check_replay_run(cpu: &str, (code, stdout): (i32, String), host: &[String]) {
+    assert_eq!(code, 0, "firmware exit status on {cpu}; output:\n{stdout}");
+    assert!(stdout.contains(&format!("cpu: {cpu} ")), "{stdout}");
     let firmware: Vec<String> = stdout
         .lines()
         .filter(|l| l.starts_with("frame "))
@@ -97,7 +111,7 @@ fn qemu_hashes_equal_host_bit_for_bit() {
     for (i, (h, f)) in host.iter().zip(&firmware).enumerate() {
         assert_eq!(
             h, f,
-            "frame {i}: host and QEMU differ; firmware output:\n{stdout}"
+            "frame {i}: host and QEMU ({cpu}) differ; firmware output:\n{stdout}"
         );
     }
     assert_eq!(firmware.len(), host.len(), "frame count; output:\n{stdout}");
@@ -106,6 +120,8 @@ fn qemu_hashes_equal_host_bit_for_bit() {
         "instructions/frame: mean",
         "estimate (not a measurement)",
         "ram: statics",
+        "ram buffer arena",
+        "ram buffer stack (high-water)",
         "flash: ",
         "vl53l5cx init (once, before frame 0): instructions=",
         "vl53l5cx frame 0 driver_instructions=",

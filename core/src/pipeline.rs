@@ -61,17 +61,23 @@ impl DepthOut<'_> {
             }
             DepthOut::Millimetres(o) => {
                 for (o, &m) in o.iter_mut().zip(depth_m) {
-                    let mm = m * 1000.0 + 0.5;
-                    *o = if mm >= 65535.0 {
-                        u16::MAX
-                    } else if mm >= 0.0 {
-                        mm as u16
-                    } else {
-                        0
-                    };
+                    *o = metres_to_mm(m);
                 }
             }
         }
+    }
+}
+
+/// Metres to millimetres as [`DepthOut::Millimetres`] writes them: `m · 1000 + 0.5` truncated,
+/// clamped to `0..=65535` (NaN and negative values give 0).
+pub fn metres_to_mm(m: f32) -> u16 {
+    let mm = m * 1000.0 + 0.5;
+    if mm >= 65535.0 {
+        u16::MAX
+    } else if mm >= 0.0 {
+        mm as u16
+    } else {
+        0
     }
 }
 
@@ -177,6 +183,61 @@ pub trait Probe {
 
 impl Probe for () {
     fn mark(&mut self, _stage: Stage) {}
+}
+
+/// [`depth_frame_probed`] for an engine built with [`crate::engine::Io::Arena`]: the camera
+/// captures into the engine's RGB staging area and the zones are projected into its sparse one
+/// ([`Engine::staging`]), so the caller holds no frame buffer, only `zones`; the dense depth is
+/// left in the engine ([`Engine::output_m`], or in millimetres [`Engine::output_mm`]) until the
+/// next frame. The same bits as [`depth_frame`].
+pub fn depth_frame_staged<C: RgbCamera, S: DtofSensor, const N: usize>(
+    camera: &mut C,
+    sensor: &mut S,
+    cal: &Calibration,
+    engine: &mut Engine<'_>,
+    zones: &mut ZoneFrame<N>,
+    probe: &mut impl Probe,
+) -> Result<FrameReport, FrameError> {
+    let (w, h) = (cal.camera.width, cal.camera.height);
+    let pixels = (w as usize)
+        .checked_mul(h as usize)
+        .ok_or(FrameError::Buffer("camera size"))?;
+    if engine.input_shape() != (h as usize, w as usize) {
+        return Err(FrameError::Engine(engine::Error::ShapeMismatch {
+            what: "engine input size",
+            expected: pixels,
+            found: engine.input_shape().0 * engine.input_shape().1,
+        }));
+    }
+    probe.mark(Stage::Camera);
+    if camera.resolution() != (w, h) {
+        return Err(FrameError::Camera(ErrorKind::BufferShape));
+    }
+    let staging = engine.staging()?;
+    camera
+        .capture(&mut RgbFrame {
+            width: w,
+            height: h,
+            data: staging.rgb,
+        })
+        .map_err(|e| FrameError::Camera(e.kind()))?;
+    probe.mark(Stage::Dtof);
+    sensor
+        .read_frame(zones)
+        .map_err(|e| FrameError::Sensor(e.kind()))?;
+    probe.mark(Stage::Projection);
+    let staging = engine.staging()?;
+    let projection =
+        project_to_sparse(cal, &zones.view(), staging.sparse_m).map_err(FrameError::Projection)?;
+    if projection.projected == 0 {
+        return Err(FrameError::NoValidZones {
+            zones: projection.zones,
+        });
+    }
+    probe.mark(Stage::Model);
+    let run = engine.run_staged()?;
+    probe.mark(Stage::Done);
+    Ok(FrameReport { projection, run })
 }
 
 /// Captures RGB, reads the zones, projects them and runs the model into `out` (`H×W`).

@@ -180,7 +180,8 @@ fn no_two_live_buffers_overlap() {
 fn engine_struct_size_is_known() {
     let size = core::mem::size_of::<Engine>();
     println!("size_of::<Engine>() = {size} bytes");
-    assert!(size <= 48 * 1024, "Engine grew to {size} bytes");
+    // 48 KiB of tables, + 256 B since the plan holds its run order (`Plan::order`, a byte per op).
+    assert!(size <= 48 * 1024 + 256, "Engine grew to {size} bytes");
 }
 
 /// Arena of the test network at the `mcu` size, with its largest buffers (a figure for the

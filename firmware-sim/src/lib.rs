@@ -9,7 +9,8 @@
 //! - `icount_check`: checks the instruction-counting method of [`cycles`] against a loop of
 //!   known length.
 //!
-//! What's here: [`console`] (semihosting `stdout`, exit with a status), [`cycles`] (instruction
+//! What's here: [`console`] (semihosting `stdout`, exit with a status), [`cpu`] (which core runs:
+//! the same ELF runs on QEMU's `mps2-an386`, a Cortex-M4, and `mps2-an500`, a Cortex-M7), [`cycles`] (instruction
 //! counts from SysTick under `-icount shift=0`), [`memory`] (RAM and flash use from the linker
 //! symbols, stack high-water by painting), and the panic handler (prints the message, exits
 //! with [`depthor_replay::EXIT_PANIC`]).
@@ -17,6 +18,7 @@
 #![warn(missing_docs)]
 
 pub mod console;
+pub mod cpu;
 pub mod cycles;
 pub mod memory;
 

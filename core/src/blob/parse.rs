@@ -267,30 +267,57 @@ struct Header {
 
 /// Parses and validates a blob (see the module doc).
 pub fn parse(blob: &[u8]) -> Result<Graph<'_>, BlobError> {
+    let mut g = Graph {
+        blob,
+        height: 0,
+        width: 0,
+        tensors: Vec::new(),
+        ops: Vec::new(),
+        rgb: 0,
+        sparse: 0,
+        output: 0,
+    };
+    parse_into(&mut g, blob)?;
+    Ok(g)
+}
+
+/// As [`parse`], into the caller's `graph` (its tables are reused, so nothing of the graph's
+/// size sits on the stack: for an engine built in place, `Engine::init_in`). On an error the
+/// graph holds a partial parse: do not use it.
+#[inline(never)]
+pub fn parse_into<'a>(graph: &mut Graph<'a>, blob: &'a [u8]) -> Result<(), BlobError> {
     let mut r = Reader {
         b: blob,
         pos: 0,
         end: blob.len(),
     };
     let h = read_header(&mut r)?;
-    let mut tensors: Vec<TensorInfo, MAX_TENSORS> = Vec::new();
+    graph.blob = blob;
+    graph.height = h.height;
+    graph.width = h.width;
+    graph.rgb = h.rgb;
+    graph.sparse = h.sparse;
+    graph.output = h.output;
+    let tensors = &mut graph.tensors;
+    tensors.clear();
     for _ in 0..h.n_tensors {
         let at = r.pos;
         tensors
             .push(read_tensor(&mut r)?)
             .map_err(|_| bad(at, "tensor: table full"))?;
     }
-    check_io(&tensors, &h)?;
+    check_io(tensors, &h)?;
 
     // First pass over ops: record layout; parameters are resolved after the data start is known.
     let mut produced = [false; MAX_TENSORS];
     produced[h.rgb as usize] = true;
     produced[h.sparse as usize] = true;
-    let mut ops: Vec<OpInfo, MAX_OPS> = Vec::new();
+    let ops = &mut graph.ops;
+    ops.clear();
     // Raw parameter offsets per op (weights, bias, scales), relative to the data section.
     let mut raw: Vec<[u32; 3], MAX_OPS> = Vec::new();
     for _ in 0..h.n_ops {
-        let (op, refs) = read_op(&mut r, &tensors, &mut produced)?;
+        let (op, refs) = read_op(&mut r, tensors, &mut produced)?;
         let at = op.offset;
         ops.push(op).map_err(|_| bad(at, "too many ops"))?;
         raw.push(refs).map_err(|_| bad(at, "too many ops"))?;
@@ -303,18 +330,9 @@ pub fn parse(blob: &[u8]) -> Result<Graph<'_>, BlobError> {
 
     // Resolve parameter references now that the data start is known.
     for (op, refs) in ops.iter_mut().zip(raw.iter()) {
-        resolve_params(blob, op, *refs, &tensors, data, h.end)?;
+        resolve_params(blob, op, *refs, tensors, data, h.end)?;
     }
-    Ok(Graph {
-        blob,
-        height: h.height,
-        width: h.width,
-        tensors,
-        ops,
-        rgb: h.rgb,
-        sparse: h.sparse,
-        output: h.output,
-    })
+    Ok(())
 }
 
 /// Reads and checks the header: magic, version, flags, the payload's length and CRC (the

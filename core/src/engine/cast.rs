@@ -21,6 +21,8 @@ unsafe impl Pod for i8 {}
 unsafe impl Pod for i16 {}
 // SAFETY: a primitive integer: every bit pattern is a value, no padding.
 unsafe impl Pod for i32 {}
+// SAFETY: a primitive integer: every bit pattern is a value, no padding.
+unsafe impl Pod for u16 {}
 // SAFETY: every bit pattern is an `f32` (NaNs included), no padding.
 unsafe impl Pod for f32 {}
 // SAFETY: `#[repr(C)]`, an i32 and two `#[repr(C)]` `Requant`s (two i32 each): 20 bytes, no

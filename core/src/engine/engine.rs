@@ -1,14 +1,17 @@
 //! [`Engine`]: prepare once (`new`), run many (`run`).
 
 use super::error::Error;
-use super::plan::{plan_with, Memory, Plan, ALIGN};
+use super::plan::{plan_with, plan_with_into, Io, Memory, Plan, ALIGN};
 use crate::blob::format::MAX_INPUTS;
-use crate::blob::parse::{parse, DType, Graph, OpInfo};
+use crate::blob::parse::{parse, parse_into, DType, Graph, OpInfo};
 use crate::kernels::isa::Isa;
 use crate::kernels::requant::QParams;
 use crate::kernels::KernelError;
 use crate::ops::{self, bad_op, split, typed, typed_mut, ConstCtx, Eval, Kind};
+use crate::pipeline::metres_to_mm;
+use core::mem::MaybeUninit;
 use core::ops::Range;
+use core::ptr::addr_of_mut;
 
 /// What one [`Engine::run`] did.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -50,6 +53,30 @@ pub struct Engine<'a> {
 /// default [`Memory::Streamed`] plan that [`Engine::new`] and [`Engine::with_size`] use.
 pub fn required_arena_bytes(blob: &[u8], height: usize, width: usize) -> Result<usize, Error> {
     required_arena_bytes_with(blob, height, width, Memory::Streamed)
+}
+
+/// As [`required_arena_bytes`] for the plan `memory` and the inputs and output `io`
+/// ([`Engine::init_in`]).
+pub fn required_arena_bytes_io(
+    blob: &[u8],
+    height: usize,
+    width: usize,
+    memory: Memory,
+    io: Io,
+) -> Result<usize, Error> {
+    let g = parse(blob)?;
+    let mut plan = Plan::empty();
+    plan_with_into(&mut plan, &g, (height, width), memory, io)?;
+    Ok(plan.arena_bytes())
+}
+
+/// The caller's input areas inside the arena of an [`Io::Arena`] engine ([`Engine::staging`]).
+#[derive(Debug)]
+pub struct Staging<'e> {
+    /// RGB888 interleaved, `3·H·W` bytes.
+    pub rgb: &'e mut [u8],
+    /// Sparse depth in metres (0 = no point), `H·W` values.
+    pub sparse_m: &'e mut [f32],
 }
 
 /// As [`required_arena_bytes`] for the plan `memory` ([`Engine::with_memory`]).
@@ -94,6 +121,62 @@ impl<'a> Engine<'a> {
         Self::prepare(parse(blob)?, arena, height, width, memory)
     }
 
+    /// As [`Engine::with_memory`] with the inputs and output `io` ([`Io::Arena`]: the caller
+    /// holds no frame buffer, see [`Engine::staging`]), building the engine in the caller's `slot` (a `static` on a
+    /// microcontroller) instead of returning it by value: the ≈ 32 KiB value (on 32-bit Arm;
+    /// [`core::mem::size_of`]) never sits on the stack, only the parser's and the planner's
+    /// temporaries do while this runs. On an error the slot stays uninitialised (nothing in it
+    /// needs dropping).
+    #[inline(never)]
+    pub fn init_in<'s>(
+        slot: &'s mut MaybeUninit<Engine<'a>>,
+        blob: &'a [u8],
+        arena: &'a mut [u8],
+        height: usize,
+        width: usize,
+        memory: Memory,
+        io: Io,
+    ) -> Result<&'s mut Engine<'a>, Error> {
+        let p = slot.as_mut_ptr();
+        // SAFETY: `p` points to the slot's memory: valid for writes and aligned for `Engine`;
+        // `addr_of_mut!` makes no reference to the uninitialised value. Each table starts
+        // empty (field by field, so no engine-sized value is built on the stack) and the
+        // parser and planner fill them in place.
+        unsafe {
+            addr_of_mut!((*p).graph).write(Graph {
+                blob,
+                height: 0,
+                width: 0,
+                tensors: heapless::Vec::new(),
+                ops: heapless::Vec::new(),
+                rgb: 0,
+                sparse: 0,
+                output: 0,
+            });
+            addr_of_mut!((*p).plan).write(Plan::empty());
+        }
+        // SAFETY: both fields were initialised just above and do not overlap; nothing else
+        // refers to the slot while these references live (the fields written below are
+        // others, through `p`).
+        let (graph, plan) = unsafe {
+            (
+                &mut *addr_of_mut!((*p).graph),
+                &mut *addr_of_mut!((*p).plan),
+            )
+        };
+        parse_into(graph, blob)?;
+        plan_with_into(plan, graph, (height, width), memory, io)?;
+        let (arena, rgb_lut) = Self::fill_arena(graph, plan, arena)?;
+        // SAFETY: the remaining fields, written once each into the slot.
+        unsafe {
+            addr_of_mut!((*p).arena).write(arena);
+            addr_of_mut!((*p).rgb_lut).write(rgb_lut);
+            addr_of_mut!((*p).isa).write(Isa::best());
+        }
+        // SAFETY: every field of the `Engine` has been written above.
+        Ok(unsafe { slot.assume_init_mut() })
+    }
+
     fn prepare(
         graph: Graph<'a>,
         arena: &'a mut [u8],
@@ -102,10 +185,27 @@ impl<'a> Engine<'a> {
         memory: Memory,
     ) -> Result<Engine<'a>, Error> {
         let plan = plan_with(&graph, h, w, memory)?;
+        let (arena, rgb_lut) = Self::fill_arena(&graph, &plan, arena)?;
+        Ok(Engine {
+            graph,
+            plan,
+            arena,
+            rgb_lut,
+            isa: Isa::best(),
+        })
+    }
+
+    /// Checks `arena` against `plan`, writes every op's constants into it and builds the RGB
+    /// table; returns the aligned part of the arena the engine uses and the table.
+    fn fill_arena(
+        graph: &Graph<'a>,
+        plan: &Plan,
+        arena: &'a mut [u8],
+    ) -> Result<(&'a mut [u8], [i8; 256]), Error> {
         let have = arena.len();
         let need = plan.arena_bytes();
         let pad = arena.as_ptr().align_offset(ALIGN);
-        let body = plan.persistent_bytes() + plan.activation_bytes();
+        let body = plan.persistent_bytes() + plan.activation_bytes() + plan.output_tail_bytes();
         if pad >= ALIGN || have < pad + body {
             return Err(Error::ArenaTooSmall { need, have });
         }
@@ -119,20 +219,14 @@ impl<'a> Engine<'a> {
                 op: i,
                 error: KernelError::Shape,
             })?;
-            write_consts(&graph, &plan, i, op, region)?;
+            write_consts(graph, plan, i, op, region)?;
         }
         let mut rgb_lut = [0i8; 256];
         let rq = graph.tensor(graph.rgb)?.q;
         for (v, q) in rgb_lut.iter_mut().enumerate() {
             *q = rq.quantize(v as f32 / 255.0);
         }
-        Ok(Engine {
-            graph,
-            plan,
-            arena,
-            rgb_lut,
-            isa: Isa::best(),
-        })
+        Ok((arena, rgb_lut))
     }
 
     /// The kernel set the convolutions run with (the fastest this CPU has, unless set).
@@ -203,6 +297,129 @@ impl<'a> Engine<'a> {
         self.run_with(rgb, Some(sparse_m), out_depth_m, Some(observer))
     }
 
+    /// [`Io::Arena`]: the staging areas inside the arena where the caller writes the next
+    /// frame's RGB (`3·H·W` bytes) and sparse depth (`H·W` metres, 0 = no point) before
+    /// [`Engine::run_staged`]. They share bytes with the previous run's activations and output:
+    /// read the output ([`Engine::output_m`], [`Engine::output_mm`]) first. Their contents are
+    /// whatever was there: write every value (`project_to_sparse` clears the map it writes).
+    /// [`Error::NotStaged`] for an [`Io::Caller`] engine.
+    pub fn staging(&mut self) -> Result<Staging<'_>, Error> {
+        let (rgb_r, sparse_r) = self.plan.staging().ok_or(Error::NotStaged)?;
+        let n = {
+            let (h, w) = self.plan.size();
+            h * w
+        };
+        let act = self.act_mut();
+        let mut none: [&[u8]; MAX_INPUTS] = [&[]; MAX_INPUTS];
+        let (rgb, sparse) = split(act, rgb_r, sparse_r, &[], &mut none, 0)?;
+        let bad = Error::Kernel {
+            op: 0,
+            error: KernelError::Shape,
+        };
+        Ok(Staging {
+            rgb: rgb.get_mut(..3 * n).ok_or(bad)?,
+            sparse_m: typed_mut::<f32>(sparse, 0)?.get_mut(..n).ok_or(bad)?,
+        })
+    }
+
+    /// [`Io::Arena`]: runs one frame on the inputs the caller wrote into [`Engine::staging`]; the
+    /// dense depth is then in the arena ([`Engine::output_m`]) until the staging areas are
+    /// written again. The same bits as [`Engine::run`] on the same inputs.
+    pub fn run_staged(&mut self) -> Result<RunStats, Error> {
+        let (rgb_r, sparse_r) = self.plan.staging().ok_or(Error::NotStaged)?;
+        let (h, w) = self.plan.size();
+        let n = h * w;
+        let (graph, plan, lut) = (&self.graph, &self.plan, &self.rgb_lut);
+        let act = self
+            .arena
+            .get_mut(plan.persistent_bytes()..)
+            .unwrap_or(&mut []);
+        let t = |id: u16| {
+            plan.tensor_range(id).ok_or(Error::Kernel {
+                op: 0,
+                error: KernelError::Shape,
+            })
+        };
+        let mut ins: [&[u8]; MAX_INPUTS] = [&[]; MAX_INPUTS];
+        let srcs = [rgb_r, sparse_r];
+        let (rgb_t, sparse_t) = split(act, t(graph.rgb)?, t(graph.sparse)?, &srcs, &mut ins, 0)?;
+        let bad = Error::Kernel {
+            op: 0,
+            error: KernelError::Shape,
+        };
+        write_rgb(graph, n, lut, ins[0].get(..3 * n).ok_or(bad)?, rgb_t)?;
+        let sparse = typed::<f32>(ins[1], 0)?.get(..n).ok_or(bad)?;
+        write_sparse(graph, n, |i| sparse[i], sparse_t)?;
+        self.execute(None, None)
+    }
+
+    /// [`Io::Arena`]: the dense depth in metres (`H·W`) the last [`Engine::run_staged`] left in
+    /// the arena. [`Error::NotStaged`] for an [`Io::Caller`] engine or an int8 output.
+    pub fn output_m(&self) -> Result<&[f32], Error> {
+        let bytes = self.output_bytes()?;
+        let n = {
+            let (h, w) = self.plan.size();
+            h * w
+        };
+        let out = typed::<f32>(bytes, 0)?;
+        out.get(..n).ok_or(Error::NotStaged)
+    }
+
+    /// [`Io::Arena`]: converts the dense depth the last [`Engine::run_staged`] left in the arena
+    /// to millimetres in place (rounded, clamped to `0..=65535`, as
+    /// [`crate::pipeline::DepthOut::Millimetres`]) and returns them (`H·W` values in the first
+    /// half of the f32 output's bytes; [`Engine::output_m`] is no longer meaningful after this).
+    pub fn output_mm(&mut self) -> Result<&[u16], Error> {
+        let n = {
+            let (h, w) = self.plan.size();
+            h * w
+        };
+        let r = self.output_range()?;
+        let bytes = self.arena.get_mut(r).ok_or(Error::NotStaged)?;
+        if bytes.len() < 4 * n {
+            return Err(Error::NotStaged);
+        }
+        // Front to back: value i is read (bytes 4i..4i+4) before its millimetres are written
+        // (bytes 2i..2i+2), and a write never reaches a value not read yet (2i + 2 <= 4(i + 1)).
+        for i in 0..n {
+            let mut f = [0u8; 4];
+            f.copy_from_slice(&bytes[4 * i..4 * i + 4]);
+            let mm = metres_to_mm(f32::from_ne_bytes(f));
+            bytes[2 * i..2 * i + 2].copy_from_slice(&mm.to_ne_bytes());
+        }
+        let mm = typed::<u16>(bytes, 0)?;
+        mm.get(..n).ok_or(Error::NotStaged)
+    }
+
+    /// Byte range in the arena of the f32 output of an [`Io::Arena`] engine.
+    fn output_range(&self) -> Result<Range<usize>, Error> {
+        if self.plan.io() != Io::Arena || self.graph.tensor(self.graph.output)?.dtype != DType::F32
+        {
+            return Err(Error::NotStaged);
+        }
+        let p = self.plan.persistent_bytes();
+        if self.plan.output_in_arena() {
+            let r = self
+                .plan
+                .tensor_range(self.graph.output)
+                .ok_or(Error::NotStaged)?;
+            Ok(p + r.start..p + r.end)
+        } else {
+            let start = p + self.plan.activation_bytes();
+            Ok(start..start + self.plan.output_tail_bytes())
+        }
+    }
+
+    fn output_bytes(&self) -> Result<&[u8], Error> {
+        let r = self.output_range()?;
+        self.arena.get(r).ok_or(Error::NotStaged)
+    }
+
+    fn act_mut(&mut self) -> &mut [u8] {
+        let p = self.plan.persistent_bytes();
+        self.arena.get_mut(p..).unwrap_or(&mut [])
+    }
+
     /// `sparse`: the sparse depth, or `None` where `out` holds it.
     fn run_with(
         &mut self,
@@ -217,104 +434,30 @@ impl<'a> Engine<'a> {
             check_len("sparse_m", n, s.len())?;
         }
         check_len("out_depth_m", n, out.len())?;
-        self.write_rgb(rgb)?;
+        check_len("rgb", 3 * n, rgb.len())?;
+        let (graph, plan, lut) = (&self.graph, &self.plan, &self.rgb_lut);
+        let act = self
+            .arena
+            .get_mut(plan.persistent_bytes()..)
+            .unwrap_or(&mut []);
+        let t = |id: u16| {
+            plan.tensor_range(id).ok_or(Error::Kernel {
+                op: 0,
+                error: KernelError::Shape,
+            })
+        };
+        let mut none: [&[u8]; MAX_INPUTS] = [&[]; MAX_INPUTS];
+        let (rgb_t, sparse_t) = split(act, t(graph.rgb)?, t(graph.sparse)?, &[], &mut none, 0)?;
+        write_rgb(graph, n, lut, rgb, rgb_t)?;
         match sparse {
-            Some(s) => self.write_sparse(|i| s[i])?,
-            None => self.write_sparse(|i| out[i])?,
+            Some(s) => write_sparse(graph, n, |i| s[i], sparse_t)?,
+            None => write_sparse(graph, n, |i| out[i], sparse_t)?,
         }
-        let stats = self.execute(observer, out)?;
+        let stats = self.execute(observer, Some(out))?;
         if self.plan.output_in_arena() {
             self.read_output(|i, v| out[i] = v)?;
         }
         Ok(stats)
-    }
-
-    fn act(&mut self) -> &mut [u8] {
-        let p = self.plan.persistent_bytes();
-        &mut self.arena[p..]
-    }
-
-    fn write_rgb(&mut self, rgb: &[u8]) -> Result<(), Error> {
-        let (h, w) = self.plan.size();
-        let n = h * w;
-        check_len("rgb", 3 * n, rgb.len())?;
-        let info = *self.graph.tensor(self.graph.rgb)?;
-        let r = self
-            .plan
-            .tensor_range(self.graph.rgb)
-            .ok_or(Error::Kernel {
-                op: 0,
-                error: KernelError::Shape,
-            })?;
-        let lut = self.rgb_lut;
-        let buf = self.act().get_mut(r).ok_or(Error::Kernel {
-            op: 0,
-            error: KernelError::Shape,
-        })?;
-        match info.dtype {
-            DType::I8 => {
-                let t: &mut [i8] = typed_mut(buf, 0)?;
-                for (i, px) in rgb.chunks_exact(3).enumerate().take(n) {
-                    for c in 0..3 {
-                        t[c * n + i] = lut[px[c] as usize];
-                    }
-                }
-            }
-            DType::F32 => {
-                let t: &mut [f32] = typed_mut(buf, 0)?;
-                for (i, px) in rgb.chunks_exact(3).enumerate().take(n) {
-                    for c in 0..3 {
-                        t[c * n + i] = px[c] as f32 / 255.0;
-                    }
-                }
-            }
-            // The parser admits int8 or f32 only for the inputs and the output.
-            DType::I16 => {
-                return Err(Error::Kernel {
-                    op: 0,
-                    error: KernelError::Shape,
-                })
-            }
-        }
-        Ok(())
-    }
-
-    fn write_sparse(&mut self, get: impl Fn(usize) -> f32) -> Result<(), Error> {
-        let (h, w) = self.plan.size();
-        let info = *self.graph.tensor(self.graph.sparse)?;
-        let r = self
-            .plan
-            .tensor_range(self.graph.sparse)
-            .ok_or(Error::Kernel {
-                op: 0,
-                error: KernelError::Shape,
-            })?;
-        let buf = self.act().get_mut(r).ok_or(Error::Kernel {
-            op: 0,
-            error: KernelError::Shape,
-        })?;
-        match info.dtype {
-            DType::I8 => {
-                let t: &mut [i8] = typed_mut(buf, 0)?;
-                for (i, v) in t.iter_mut().enumerate().take(h * w) {
-                    *v = info.q.quantize(get(i));
-                }
-            }
-            DType::F32 => {
-                let t: &mut [f32] = typed_mut(buf, 0)?;
-                for (i, v) in t.iter_mut().enumerate().take(h * w) {
-                    *v = get(i);
-                }
-            }
-            // The parser admits int8 or f32 only for the inputs and the output.
-            DType::I16 => {
-                return Err(Error::Kernel {
-                    op: 0,
-                    error: KernelError::Shape,
-                })
-            }
-        }
-        Ok(())
     }
 
     fn read_output(&mut self, mut put: impl FnMut(usize, f32)) -> Result<(), Error> {
@@ -327,7 +470,11 @@ impl<'a> Engine<'a> {
                 op: 0,
                 error: KernelError::Shape,
             })?;
-        let buf = self.act().get(r).ok_or(Error::Kernel {
+        let act = self
+            .arena
+            .get(self.plan.persistent_bytes()..)
+            .unwrap_or(&[]);
+        let buf = act.get(r).ok_or(Error::Kernel {
             op: 0,
             error: KernelError::Shape,
         })?;
@@ -355,14 +502,22 @@ impl<'a> Engine<'a> {
 
     /// Runs every op; `ext` is the caller's f32 output (written by the graph's last op where the
     /// plan keeps the output out of the arena).
+    /// `ext` `None`: the plan's output area after the activations ([`Io::Arena`]).
     fn execute(
         &mut self,
         mut observer: Option<&mut Observer<'_>>,
-        ext: &mut [f32],
+        ext: Option<&mut [f32]>,
     ) -> Result<RunStats, Error> {
         let persistent = self.plan.persistent_bytes();
         let (consts, act) = self.arena.split_at_mut(persistent);
-        for (i, op) in self.graph.ops.iter().enumerate() {
+        let at = self.plan.activation_bytes().min(act.len());
+        let (act, tail) = act.split_at_mut(at);
+        let ext = match ext {
+            Some(ext) => ext,
+            None => typed_mut::<f32>(tail, 0)?,
+        };
+        for i in self.plan.order() {
+            let op = self.graph.ops.get(i).ok_or(bad_op(i))?;
             if self.plan.fused_into(i).is_some() {
                 continue; // runs row by row inside its refinement
             }
@@ -376,6 +531,71 @@ impl<'a> Engine<'a> {
             macs: self.plan.macs(),
         })
     }
+}
+
+/// Converts the RGB888 frame `rgb` (`3·n` bytes, interleaved) into the graph's RGB input tensor
+/// `t` (planar, int8 through `lut`, or f32 in `[0, 1]`).
+fn write_rgb(g: &Graph, n: usize, lut: &[i8; 256], rgb: &[u8], t: &mut [u8]) -> Result<(), Error> {
+    check_len("rgb", 3 * n, rgb.len())?;
+    let info = *g.tensor(g.rgb)?;
+    match info.dtype {
+        DType::I8 => {
+            let t: &mut [i8] = typed_mut(t, 0)?;
+            for (i, px) in rgb.chunks_exact(3).enumerate().take(n) {
+                for c in 0..3 {
+                    t[c * n + i] = lut[px[c] as usize];
+                }
+            }
+        }
+        DType::F32 => {
+            let t: &mut [f32] = typed_mut(t, 0)?;
+            for (i, px) in rgb.chunks_exact(3).enumerate().take(n) {
+                for c in 0..3 {
+                    t[c * n + i] = px[c] as f32 / 255.0;
+                }
+            }
+        }
+        // The parser admits int8 or f32 only for the inputs and the output.
+        DType::I16 => {
+            return Err(Error::Kernel {
+                op: 0,
+                error: KernelError::Shape,
+            })
+        }
+    }
+    Ok(())
+}
+
+/// Writes the sparse depth `get(i)` (metres, `i < n`) into the graph's sparse input tensor `t`.
+fn write_sparse(
+    g: &Graph,
+    n: usize,
+    get: impl Fn(usize) -> f32,
+    t: &mut [u8],
+) -> Result<(), Error> {
+    let info = *g.tensor(g.sparse)?;
+    match info.dtype {
+        DType::I8 => {
+            let t: &mut [i8] = typed_mut(t, 0)?;
+            for (i, v) in t.iter_mut().enumerate().take(n) {
+                *v = info.q.quantize(get(i));
+            }
+        }
+        DType::F32 => {
+            let t: &mut [f32] = typed_mut(t, 0)?;
+            for (i, v) in t.iter_mut().enumerate().take(n) {
+                *v = get(i);
+            }
+        }
+        // The parser admits int8 or f32 only for the inputs and the output.
+        DType::I16 => {
+            return Err(Error::Kernel {
+                op: 0,
+                error: KernelError::Shape,
+            })
+        }
+    }
+    Ok(())
 }
 
 /// Hands op `i`'s output tensor to `f`.
@@ -551,6 +771,77 @@ mod tests {
         let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(&run(Memory::Streamed, true)), bits(&out));
         assert_eq!(bits(&run(Memory::Whole, false)), bits(&out));
+    }
+
+    #[test]
+    #[cfg_attr(miri, ignore = "slow under Miri: a second prepare")]
+    fn an_engine_built_in_a_slot_runs_alike() {
+        let want = run(Memory::Streamed, false);
+        let need = required_arena_bytes(TEST_BLOB, H, W).unwrap();
+        let mut arena = vec![0u8; need];
+        let mut slot = MaybeUninit::uninit();
+        let e = Engine::init_in(
+            &mut slot,
+            TEST_BLOB,
+            &mut arena,
+            H,
+            W,
+            Memory::Streamed,
+            Io::Caller,
+        )
+        .unwrap();
+        e.set_kernels(Isa::Portable).unwrap();
+        let (rgb, sparse) = frame();
+        let mut out = vec![0f32; H * W];
+        e.run(&rgb, &sparse, &mut out).unwrap();
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&out), bits(&want));
+        let mut short = vec![0u8; need / 2];
+        let mut slot = MaybeUninit::uninit();
+        assert!(matches!(
+            Engine::init_in(
+                &mut slot,
+                TEST_BLOB,
+                &mut short,
+                H,
+                W,
+                Memory::Streamed,
+                Io::Caller
+            ),
+            Err(Error::ArenaTooSmall { .. })
+        ));
+    }
+
+    #[test]
+    #[cfg_attr(miri, ignore = "slow under Miri: two more prepares")]
+    fn staged_inputs_give_the_same_bits_and_millimetres() {
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        for memory in [Memory::Streamed, Memory::Whole] {
+            let want = run(memory, false);
+            let need = required_arena_bytes_io(TEST_BLOB, H, W, memory, Io::Arena).unwrap();
+            let mut arena = vec![0u8; need];
+            let mut slot = MaybeUninit::uninit();
+            let e =
+                Engine::init_in(&mut slot, TEST_BLOB, &mut arena, H, W, memory, Io::Arena).unwrap();
+            e.set_kernels(Isa::Portable).unwrap();
+            let (rgb, sparse) = frame();
+            for _ in 0..2 {
+                let s = e.staging().unwrap();
+                s.rgb.copy_from_slice(&rgb);
+                s.sparse_m.copy_from_slice(&sparse);
+                e.run_staged().unwrap();
+                assert_eq!(bits(e.output_m().unwrap()), bits(&want), "{memory:?}");
+            }
+            let mm: Vec<u16> = want.iter().map(|&m| metres_to_mm(m)).collect();
+            assert_eq!(e.output_mm().unwrap(), &mm[..]);
+        }
+        // An engine with the caller's buffers has no staging.
+        let need = required_arena_bytes(TEST_BLOB, H, W).unwrap();
+        let mut arena = vec![0u8; need];
+        let mut e = Engine::with_size(TEST_BLOB, &mut arena, H, W).unwrap();
+        assert_eq!(e.staging().unwrap_err(), Error::NotStaged);
+        assert_eq!(e.run_staged().unwrap_err(), Error::NotStaged);
+        assert_eq!(e.output_m().unwrap_err(), Error::NotStaged);
     }
 
     #[test]

@@ -30,6 +30,10 @@ pub enum Error {
     },
     /// The graph cannot be planned at the requested size.
     Plan(PlanError),
+    /// A staged-I/O call (`Engine::staging`, `Engine::run_staged`, `Engine::output_m`,
+    /// `Engine::output_mm`) on an engine not built with `Io::Arena` (or whose output is not
+    /// f32).
+    NotStaged,
     /// A kernel refused its operands (a bug in validation if it ever happens).
     Kernel {
         /// Index of the op in the blob.
@@ -67,6 +71,7 @@ impl core::fmt::Display for Error {
             }
             Error::Plan(e) => write!(f, "cannot plan the graph: {e}"),
             Error::Kernel { op, error } => write!(f, "op {op}: {error}"),
+            Error::NotStaged => f.write_str("the engine was not built for inputs in its arena"),
         }
     }
 }

@@ -35,8 +35,12 @@ use heapless::Vec;
 
 /// Alignment of the arena base and of every planned offset.
 pub const ALIGN: usize = 16;
-/// Most buffers one plan holds (a tensor each plus a scratch per op).
+/// Most buffers one plan holds (a tensor each plus a scratch per op, and the two input staging
+/// areas of [`Io::Arena`], which a graph with both tables full cannot have).
 pub const MAX_BUFFERS: usize = MAX_TENSORS + MAX_OPS;
+// `Plan::order` holds op indices as `u8`.
+const _: () = assert!(MAX_OPS <= 256);
+
 /// Most refinements per graph whose heads are fused ([`Memory::Streamed`]); others keep
 /// whole maps.
 pub const MAX_FUSED: usize = 2;
@@ -65,6 +69,24 @@ pub enum Memory {
     Budget(usize),
     /// Every op's output stored whole (for observers that compare every tensor).
     Whole,
+}
+
+/// Where a run's inputs and output live.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Io {
+    /// In the caller's buffers: `Engine::run` copies the inputs into the arena and the output
+    /// out of it (or the refinement writes the caller's output directly).
+    #[default]
+    Caller,
+    /// In the arena: the caller writes the RGB frame (`3·H·W` bytes) and the sparse depth
+    /// (`H·W` f32) into two staging areas of the arena (`Engine::staging`), placed at step 0
+    /// beside the int8 inputs they are converted into (free bytes wherever the arena peaks
+    /// later, which it does for the shipped networks), and reads the dense depth from the
+    /// arena after the run (`Engine::output_m`, or as millimetres `Engine::output_mm`). Where
+    /// the refinement would write the caller's output ([`Plan::output_in_arena`] false), an
+    /// f32 output area of `4·H·W` bytes follows the activations ([`Plan::output_tail_bytes`]).
+    /// The caller holds no frame-sized buffer at all; the bits are those of [`Io::Caller`].
+    Arena,
 }
 
 /// One buffer the planner must place: `bytes`, alive from step `first` to step `last` inclusive.
@@ -146,15 +168,77 @@ pub struct Plan {
     in_place: Vec<(u16, u16), MAX_IN_PLACE>,
     /// Whether convs compute their per-channel constants per run in their scratch.
     per_run_consts: bool,
+    /// [`Io::Arena`]: the staging areas are the last two requests.
+    io: Io,
+    /// The order the ops run in (op indices; a topological order of the graph: the blob's,
+    /// with some ops deferred, see [`Plan::order`]).
+    order: Vec<u8, MAX_OPS>,
     persistent_bytes: usize,
     activation_bytes: usize,
     macs: u64,
 }
 
 impl Plan {
+    /// A plan of nothing (every table empty), to be filled by [`plan_with_into`].
+    pub const fn empty() -> Plan {
+        Plan {
+            height: 0,
+            width: 0,
+            n_tensors: 0,
+            shapes: Vec::new(),
+            reqs: Vec::new(),
+            offsets: Vec::new(),
+            consts: Vec::new(),
+            broadcast: Vec::new(),
+            fused: Vec::new(),
+            output_in_arena: true,
+            fusion: Fusion::None,
+            in_place: Vec::new(),
+            per_run_consts: false,
+            io: Io::Caller,
+            order: Vec::new(),
+            persistent_bytes: 0,
+            activation_bytes: 0,
+            macs: 0,
+        }
+    }
+
     /// Total arena bytes the caller must provide (includes up to 15 bytes of base alignment).
     pub fn arena_bytes(&self) -> usize {
-        ALIGN - 1 + self.persistent_bytes + self.activation_bytes
+        ALIGN - 1 + self.persistent_bytes + self.activation_bytes + self.output_tail_bytes()
+    }
+    /// The op indices in the order they run: the blob's order, except that an op whose output
+    /// is larger than its inputs and is first read much later may run just before that reader
+    /// ([`Memory::Streamed`] and [`Memory::Budget`], where that lowers the arena; the bits do not
+    /// change: every op computes the same values from the same inputs).
+    pub fn order(&self) -> impl Iterator<Item = usize> + '_ {
+        self.order.iter().map(|&i| usize::from(i))
+    }
+    /// Where the inputs and the output live ([`Io`]).
+    pub fn io(&self) -> Io {
+        self.io
+    }
+    /// [`Io::Arena`]: byte ranges in the activation region of the RGB staging area (`3·H·W`
+    /// bytes) and of the sparse-depth staging area (`4·H·W` bytes, f32); `None` otherwise.
+    pub fn staging(&self) -> Option<(Range<usize>, Range<usize>)> {
+        if self.io != Io::Arena {
+            return None;
+        }
+        let n = self.reqs.len();
+        let range = |i: usize| {
+            let (r, o) = (self.reqs.get(i)?, self.offsets.get(i)?);
+            Some(*o..*o + r.bytes)
+        };
+        Some((range(n.checked_sub(2)?)?, range(n - 1)?))
+    }
+    /// [`Io::Arena`] where the output is not a tensor of the arena: bytes of the f32 output
+    /// area after the activations (0 otherwise).
+    pub fn output_tail_bytes(&self) -> usize {
+        if self.io == Io::Arena && !self.output_in_arena {
+            round_up(self.height * self.width * 4).unwrap_or(usize::MAX)
+        } else {
+            0
+        }
     }
     /// Bytes of per-op constants at the arena head.
     pub fn persistent_bytes(&self) -> usize {
@@ -180,6 +264,10 @@ impl Plan {
             .get(op)
             .and_then(|o| plan_op(op, o, graph, &self.shapes).ok())
             .map_or(0, |p| p.macs)
+    }
+    /// All tensor shapes, by tensor id.
+    pub(crate) fn shapes(&self) -> &[Shape] {
+        &self.shapes
     }
     /// Shape of tensor `id`.
     pub fn shape(&self, id: u16) -> Option<Shape> {
@@ -278,13 +366,16 @@ fn round_up(n: usize) -> Result<usize, PlanError> {
         .ok_or(PlanError::TooLarge)
 }
 
-/// Most rounds of [`place`]'s search.
+/// Most rounds of [`place`]'s search, per starting order.
 pub const PLACE_ROUNDS: usize = 64;
+/// Starting orders [`place`] tries (decreasing size; decreasing size × lifetime).
+pub const PLACE_STARTS: usize = 2;
 
 /// Places buffers: each in turn at the lowest offset that does not overlap a placed buffer
 /// alive at the same time (TFLite Micro's greedy planner), starting from the order largest
-/// first; then, for up to [`PLACE_ROUNDS`] rounds or until the total equals the bytes live at
-/// the busiest step (no placement needs fewer), the buffer that reaches the top is moved to the
+/// first (then, unless that reached the bound below, from the order of bytes × lifetime); then,
+/// for up to [`PLACE_ROUNDS`] rounds or until the total equals the bytes live at the busiest
+/// step (no placement needs fewer), the buffer that reaches the top is moved to the
 /// front of the order and everything placed again. Keeps the order with the smallest total (the
 /// first such). Writes one offset per request and returns the total bytes; deterministic.
 /// Offsets are multiples of [`ALIGN`] when the sizes are.
@@ -299,14 +390,6 @@ pub fn place(reqs: &[BufferReq], offsets: &mut [usize]) -> Result<usize, PlanErr
             order.push(i as u16).map_err(|_| PlanError::TooLarge)?;
         }
     }
-    // Decreasing size, then earlier first use, then index.
-    order.sort_unstable_by(|&a, &b| {
-        let (ra, rb) = (&reqs[a as usize], &reqs[b as usize]);
-        rb.bytes
-            .cmp(&ra.bytes)
-            .then(ra.first.cmp(&rb.first))
-            .then(a.cmp(&b))
-    });
     // No placement needs fewer bytes than are live at the busiest step: stop there.
     let steps = reqs
         .iter()
@@ -322,24 +405,44 @@ pub fn place(reqs: &[BufferReq], offsets: &mut [usize]) -> Result<usize, PlanErr
         })
         .max()
         .unwrap_or(0);
+    let life = |r: &BufferReq| r.last - r.first.min(r.last) + 1;
     let mut best = (usize::MAX, order.clone());
-    for _ in 0..PLACE_ROUNDS {
-        let total = place_in(reqs, offsets, &order)?;
-        if total < best.0 {
-            best = (total, order.clone());
+    // Starting orders, each improved by the rounds below: decreasing size (then earlier first
+    // use, then index), then decreasing size × lifetime (bytes·steps).
+    for start in 0..PLACE_STARTS {
+        order.sort_unstable_by(|&a, &b| {
+            let (ra, rb) = (&reqs[a as usize], &reqs[b as usize]);
+            let key = |r: &BufferReq| match start {
+                0 => r.bytes,
+                _ => r.bytes.saturating_mul(life(r)),
+            };
+            key(rb)
+                .cmp(&key(ra))
+                .then(rb.bytes.cmp(&ra.bytes))
+                .then(ra.first.cmp(&rb.first))
+                .then(a.cmp(&b))
+        });
+        for _ in 0..PLACE_ROUNDS {
+            let total = place_in(reqs, offsets, &order)?;
+            if total < best.0 {
+                best = (total, order.clone());
+            }
+            if total <= bound {
+                break;
+            }
+            let end = |i: u16| offsets[i as usize] + reqs[i as usize].bytes;
+            let Some(top) = order.iter().position(|&i| end(i) == total) else {
+                break;
+            };
+            if top == 0 {
+                break;
+            }
+            let i = order.remove(top);
+            order.insert(0, i).map_err(|_| PlanError::TooLarge)?;
         }
-        if total <= bound {
+        if best.0 <= bound {
             break;
         }
-        let end = |i: u16| offsets[i as usize] + reqs[i as usize].bytes;
-        let Some(top) = order.iter().position(|&i| end(i) == total) else {
-            break;
-        };
-        if top == 0 {
-            break;
-        }
-        let i = order.remove(top);
-        order.insert(0, i).map_err(|_| PlanError::TooLarge)?;
     }
     place_in(reqs, offsets, &best.1)
 }
@@ -497,8 +600,9 @@ pub fn plan(graph: &Graph, h: usize, w: usize) -> Result<Plan, PlanError> {
 /// Per op, the op it can be fused into: a `conv2d` whose output is one of the three affinity
 /// inputs of a `refine` and read by nothing else, where all three are such convs, goes into the
 /// refine; a `concat` read only by a `conv2d` with one group (not itself fused) goes into that
-/// conv, which reads its parts in place. Only int8 convs and concats fuse (int16 values run
-/// unfused, `crate::kernels::wide`).
+/// conv, which reads its parts in place. Only int8 convs and int8 concat outputs fuse (int16
+/// values run unfused, `crate::kernels::wide`); an int16 part of such a concat is requantised into
+/// the conv's scratch first ([`wide_parts_bytes`]).
 fn fusable(graph: &Graph, fusion: Fusion) -> Result<Vec<Option<u16>, MAX_OPS>, PlanError> {
     let n_ops = graph.ops.len();
     let mut fused: Vec<Option<u16>, MAX_OPS> = Vec::new();
@@ -588,6 +692,13 @@ fn fusable(graph: &Graph, fusion: Fusion) -> Result<Vec<Option<u16>, MAX_OPS>, P
             }
         }
     }
+    // An int16 part is requantised into the conv's scratch first (`wide_parts_bytes`).
+    let int8_or_16 = |id: u16| {
+        graph
+            .tensors
+            .get(id as usize)
+            .is_some_and(|x| matches!(x.dtype, DType::I8 | DType::I16))
+    };
     let mut count = 0;
     for op in graph.ops.iter() {
         let t = op.output as usize;
@@ -595,7 +706,7 @@ fn fusable(graph: &Graph, fusion: Fusion) -> Result<Vec<Option<u16>, MAX_OPS>, P
             || readers.get(t) != Some(&1)
             || op.output == graph.output
             || !int8(op.output)
-            || !op.inputs.iter().all(|&id| int8(id))
+            || !op.inputs.iter().all(|&id| int8_or_16(id))
             || op.inputs.len() > MAX_PARTS
             || count == MAX_IN_PLACE
         {
@@ -630,22 +741,49 @@ fn fusable(graph: &Graph, fusion: Fusion) -> Result<Vec<Option<u16>, MAX_OPS>, P
 /// bytes (the most fused where they tie): on small images a ring can hold more than the map it
 /// replaces.
 pub fn plan_with(graph: &Graph, h: usize, w: usize, memory: Memory) -> Result<Plan, PlanError> {
+    let mut p = Plan::empty();
+    plan_with_into(&mut p, graph, (h, w), memory, Io::Caller)?;
+    Ok(p)
+}
+
+/// As [`plan_with`] at `(h, w)` with the inputs and output `io`, into the caller's `plan` (its
+/// tables are reused, so no plan-sized value sits on the stack: for an engine built in place).
+/// On an error `plan` holds a partial plan: do not use it.
+#[inline(never)]
+pub fn plan_with_into(
+    plan: &mut Plan,
+    graph: &Graph,
+    (h, w): (usize, usize),
+    memory: Memory,
+    io: Io,
+) -> Result<(), PlanError> {
+    plan.io = io;
     let budget = match memory {
-        Memory::Whole => return plan_fused(graph, h, w, memory, Fusion::None),
+        Memory::Whole => return plan_fused(plan, graph, (h, w), memory, Fusion::None, false),
         Memory::Streamed => 0,
         Memory::Budget(bytes) => bytes,
     };
-    let mut best: Option<(usize, Fusion)> = None;
+    let mut best: Option<(usize, Fusion, bool)> = None;
     for fusion in [Fusion::All, Fusion::Affinities, Fusion::None] {
-        let bytes = plan_fused(graph, h, w, memory, fusion)?.arena_bytes();
+        // Each level in the blob's op order and with ops deferred; the latter where smaller.
+        let mut level: Option<(usize, bool)> = None;
+        for defer in [false, true] {
+            plan_fused(plan, graph, (h, w), memory, fusion, defer)?;
+            let bytes = plan.arena_bytes();
+            if level.is_none_or(|(b, _)| bytes < b) {
+                level = Some((bytes, defer));
+            }
+        }
+        let (bytes, defer) = level.ok_or(PlanError::TooLarge)?;
         let fits = bytes <= budget;
         // Smallest first; within the budget, the least fused (the last that fits).
-        if best.is_none_or(|(b, _)| bytes < b || (fits && b <= budget)) {
-            best = Some((bytes, fusion));
+        if best.is_none_or(|(b, ..)| bytes < b || (fits && b <= budget)) {
+            best = Some((bytes, fusion, defer));
         }
     }
-    let (_, fusion) = best.ok_or(PlanError::TooLarge)?;
-    plan_fused(graph, h, w, memory, fusion)
+    let (_, fusion, defer) = best.ok_or(PlanError::TooLarge)?;
+    plan_fused(plan, graph, (h, w), memory, fusion, defer)?;
+    Ok(())
 }
 
 /// What a [`Memory::Streamed`] plan fuses into a refinement.
@@ -659,14 +797,128 @@ pub enum Fusion {
     None,
 }
 
-/// [`plan_with`] at one [`Fusion`] level.
-fn plan_fused(
+/// Bytes a conv reading concat op `concat`'s parts in place needs at the end of its scratch for
+/// the int16 parts, each requantised to the concat's int8 codes there before the conv runs (as the
+/// concat would write them): `C·H·W` bytes per int16 part, each rounded to [`ALIGN`].
+pub(crate) fn wide_parts_bytes(
     graph: &Graph,
-    h: usize,
-    w: usize,
+    shapes: &[Shape],
+    concat: usize,
+) -> Result<usize, PlanError> {
+    let Some(op) = graph.ops.get(concat) else {
+        return Ok(0);
+    };
+    let mut total = 0usize;
+    for &id in &op.inputs {
+        if graph.tensors.get(usize::from(id)).map(|t| t.dtype) != Some(DType::I16) {
+            continue;
+        }
+        let n = shapes
+            .get(usize::from(id))
+            .and_then(|s| s.len())
+            .ok_or(PlanError::TooLarge)?;
+        total = total.checked_add(round_up(n)?).ok_or(PlanError::TooLarge)?;
+    }
+    Ok(total)
+}
+
+/// Writes the order the ops run in: the blob's, and with `defer`, each op that runs on its own,
+/// whose output has more bytes than all its inputs together and is first read more than one op
+/// later, moved to run just before that first reader (its output then lives for a step instead
+/// of the whole gap, its inputs a little longer). Topological: an op only moves later, never past
+/// a reader of its output.
+fn run_order(
+    graph: &Graph,
+    shapes: &[Shape],
+    fused_into: &[Option<u16>],
+    defer: bool,
+    order: &mut Vec<u8, MAX_OPS>,
+) -> Result<(), PlanError> {
+    let n_ops = graph.ops.len();
+    order.clear();
+    for i in 0..n_ops {
+        order
+            .push(u8::try_from(i).map_err(|_| PlanError::TooLarge)?)
+            .map_err(|_| PlanError::TooLarge)?;
+    }
+    if !defer {
+        return Ok(());
+    }
+    let bytes = |t: u16| -> usize {
+        let elem = graph
+            .tensors
+            .get(usize::from(t))
+            .map_or(4, |x| match x.dtype {
+                DType::I8 => 1,
+                DType::I16 => 2,
+                DType::F32 => 4,
+            });
+        shapes
+            .get(usize::from(t))
+            .and_then(|s| s.len())
+            .map_or(usize::MAX, |n| n.saturating_mul(elem))
+    };
+    for (x, op) in graph.ops.iter().enumerate() {
+        if fused_into.get(x).copied().flatten().is_some()
+            || op.code == opcode::REFINE
+            || op.output == graph.output
+        {
+            continue;
+        }
+        let Some(reader) = (x + 1..n_ops).find(|&j| graph.ops[j].inputs.contains(&op.output))
+        else {
+            continue;
+        };
+        let ins: usize = op
+            .inputs
+            .iter()
+            .map(|&t| bytes(t))
+            .fold(0, usize::saturating_add);
+        if reader <= x + 1 || bytes(op.output) <= ins {
+            continue;
+        }
+        let Some(from) = order.iter().position(|&k| usize::from(k) == x) else {
+            continue;
+        };
+        let moved = order.remove(from);
+        let Some(to) = order.iter().position(|&k| usize::from(k) == reader) else {
+            return Err(PlanError::TooLarge);
+        };
+        order.insert(to, moved).map_err(|_| PlanError::TooLarge)?;
+    }
+    Ok(())
+}
+
+/// [`plan_with`] at one [`Fusion`] level. Out of line: its tables (≈ 12 KiB on 32-bit Arm) live
+/// in its own frame only while it runs, not in every caller's.
+#[inline(never)]
+fn plan_fused(
+    plan: &mut Plan,
+    graph: &Graph,
+    (h, w): (usize, usize),
     memory: Memory,
     fusion: Fusion,
-) -> Result<Plan, PlanError> {
+    defer: bool,
+) -> Result<(), PlanError> {
+    let Plan {
+        shapes,
+        reqs,
+        offsets,
+        consts,
+        broadcast,
+        fused,
+        in_place,
+        order,
+        ..
+    } = plan;
+    order.clear();
+    reqs.clear();
+    offsets.clear();
+    shapes.clear();
+    consts.clear();
+    broadcast.clear();
+    fused.clear();
+    in_place.clear();
     let n_t = graph.tensors.len();
     let n_ops = graph.ops.len();
     let fused_into = match memory {
@@ -677,8 +929,6 @@ fn plan_fused(
             v
         }
     };
-    let mut fused: Vec<FusedRefine, MAX_FUSED> = Vec::new();
-    let mut in_place: Vec<(u16, u16), MAX_IN_PLACE> = Vec::new();
     // Scratch bytes of each fused head (run inside its refinement, which holds it).
     let per_run_consts = memory != Memory::Whole;
     let mut head_consts: Vec<usize, MAX_OPS> = Vec::new();
@@ -690,22 +940,32 @@ fn plan_fused(
         .resize(n_ops, 0)
         .map_err(|_| PlanError::TooLarge)?;
     let zero = Shape::default();
-    let mut shapes: Vec<Shape, MAX_TENSORS> = Vec::new();
     shapes.resize(n_t, zero).map_err(|_| PlanError::TooLarge)?;
     shapes[graph.rgb as usize] = Shape::new(3, h, w);
     shapes[graph.sparse as usize] = Shape::new(1, h, w);
-    let mut reqs: Vec<BufferReq, MAX_BUFFERS> = Vec::new();
-    reqs.resize(n_t + n_ops, BufferReq::default())
+    let staged = plan.io == Io::Arena;
+    let n_reqs = n_t + n_ops + if staged { 2 } else { 0 };
+    reqs.resize(n_reqs, BufferReq::default())
         .map_err(|_| PlanError::TooLarge)?;
     let last_step = n_ops + 1;
-    let mut consts: Vec<Range<usize>, MAX_OPS> = Vec::new();
-    let mut broadcast: Vec<Broadcast, MAX_OPS> = Vec::new();
     let mut persistent = 0usize;
     let mut macs = 0u64;
+    // Shapes first (in the blob's order, which is topological), then the run order.
     for (i, op) in graph.ops.iter().enumerate() {
-        let mut p = plan_op(i, op, graph, &shapes)?;
-        shapes[op.output as usize] = p.out;
-        let step = i + 1;
+        shapes[op.output as usize] = plan_op(i, op, graph, shapes)?.out;
+    }
+    run_order(graph, shapes, &fused_into, defer, order)?;
+    consts
+        .resize(n_ops, 0..0)
+        .map_err(|_| PlanError::TooLarge)?;
+    broadcast
+        .resize(n_ops, Broadcast::None)
+        .map_err(|_| PlanError::TooLarge)?;
+    for (pos, &i) in order.iter().enumerate() {
+        let i = usize::from(i);
+        let op = &graph.ops[i];
+        let mut p = plan_op(i, op, graph, shapes)?;
+        let step = pos + 1;
         let conv = matches!(op.code, opcode::CONV2D | opcode::LINEAR);
         // Streamed: a conv's per-channel constants are computed per run at the head of its
         // scratch instead of being held in the persistent region.
@@ -729,6 +989,13 @@ fn plan_fused(
                 in_place
                     .push((c as u16, i as u16))
                     .map_err(|_| PlanError::TooLarge)?;
+                // Its int16 parts, requantised to int8 at the end of the conv's scratch.
+                let wide = wide_parts_bytes(graph, shapes, c)?;
+                if wide > 0 {
+                    p.scratch = round_up(p.scratch)?
+                        .checked_add(wide)
+                        .ok_or(PlanError::TooLarge)?;
+                }
                 // The parts are read while the conv runs.
                 for &id in &graph.ops[c].inputs {
                     reqs[id as usize].last = reqs[id as usize].last.max(step);
@@ -766,13 +1033,9 @@ fn plan_fused(
             }
         }
         let cb = round_up(p.consts)?;
-        consts
-            .push(persistent..persistent + p.consts)
-            .map_err(|_| PlanError::TooLarge)?;
+        consts[i] = persistent..persistent + p.consts;
         persistent = persistent.checked_add(cb).ok_or(PlanError::TooLarge)?;
-        broadcast
-            .push(p.broadcast)
-            .map_err(|_| PlanError::TooLarge)?;
+        broadcast[i] = p.broadcast;
         reqs[n_t + i] = BufferReq {
             bytes: round_up(p.scratch)?,
             first: step,
@@ -819,29 +1082,33 @@ fn plan_fused(
     if !output_in_arena {
         reqs[graph.output as usize].bytes = 0;
     }
-    let mut offsets: Vec<usize, MAX_BUFFERS> = Vec::new();
+    // Io::Arena: the staging areas live at step 0 only (converted into the int8 inputs there);
+    // an output outside the activations gets an area after them (`Plan::output_tail_bytes`).
+    if staged {
+        let pixels = h.checked_mul(w).ok_or(PlanError::TooLarge)?;
+        for (k, elem) in [3usize, 4].into_iter().enumerate() {
+            let bytes = pixels.checked_mul(elem).ok_or(PlanError::TooLarge)?;
+            reqs[n_t + n_ops + k] = BufferReq {
+                bytes: round_up(bytes)?,
+                first: 0,
+                last: 0,
+            };
+        }
+    }
     offsets
         .resize(reqs.len(), 0)
         .map_err(|_| PlanError::TooLarge)?;
-    let activation_bytes = place(&reqs, &mut offsets)?;
-    Ok(Plan {
-        height: h,
-        width: w,
-        n_tensors: n_t,
-        shapes,
-        reqs,
-        offsets,
-        consts,
-        broadcast,
-        fused,
-        output_in_arena,
-        fusion,
-        in_place,
-        per_run_consts,
-        persistent_bytes: persistent,
-        activation_bytes,
-        macs,
-    })
+    let activation_bytes = place(reqs, offsets)?;
+    plan.height = h;
+    plan.width = w;
+    plan.n_tensors = n_t;
+    plan.output_in_arena = output_in_arena;
+    plan.fusion = fusion;
+    plan.per_run_consts = per_run_consts;
+    plan.persistent_bytes = persistent;
+    plan.activation_bytes = activation_bytes;
+    plan.macs = macs;
+    Ok(())
 }
 
 #[cfg(test)]

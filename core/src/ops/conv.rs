@@ -8,13 +8,13 @@ use super::{bad_op, kerr, split, typed, typed_mut, ConstCtx, Eval, PlanCtx, Type
 use crate::blob::format::{activation, opcode, MAX_INPUTS};
 use crate::blob::parse::{bad, f32_at, i32_at, Attrs, DType, Geometry, Graph, Reader, NO_PARAM};
 use crate::blob::BlobError;
-use crate::engine::plan::{OpPlan, Plan, PlanError};
+use crate::engine::plan::{wide_parts_bytes, OpPlan, Plan, PlanError};
 use crate::engine::Error;
 use crate::kernels::conv::{
     conv2d_parts_with, conv2d_with, Activation, ChannelQuant, Conv2d, ConvGeometry, ConvQuant,
     OutRows,
 };
-use crate::kernels::elementwise::Rescale;
+use crate::kernels::elementwise::{self, Rescale};
 use crate::kernels::isa::Isa;
 use crate::kernels::pack::Parts;
 use crate::kernels::refine::Head;
@@ -275,11 +275,30 @@ pub(crate) fn eval_on_parts(
             *v = r.apply(code as u8 as i8);
         }
     }
+    // int16 parts: requantised to the concat's int8 codes at the end of the scratch (the
+    // concat's own kernel, so the bits it would have written), then read like the others.
+    let wide = wide_parts_bytes(g, plan.shapes(), c).map_err(|_| bad)?;
+    let keep = scr_b.len().checked_sub(wide).ok_or(bad)?;
+    let (scr_b, mut wide_b) = scr_b.split_at_mut(keep);
     for (k, &id) in concat.inputs.iter().enumerate() {
         let r = rescales.get(k).ok_or(bad)?;
+        let s = plan.shape(id).ok_or(bad)?;
+        if g.tensor(id)?.dtype == DType::I16 {
+            let len = s.len().ok_or(bad)?;
+            let taken = core::mem::take(&mut wide_b);
+            let (part, rest) = taken.split_at_mut(len.next_multiple_of(16).min(taken.len()));
+            wide_b = rest;
+            let part: &mut [i8] = typed_mut(part.get_mut(..len).ok_or(bad)?, i)?;
+            let codes = Codes::I16(typed(ins[k], i)?);
+            elementwise::concat_part(codes, s, r, CodesMut::I8(part), s, 0).map_err(kerr(i))?;
+            let part: &[i8] = part;
+            if !parts.push(part, s.c, None) {
+                return Err(bad);
+            }
+            continue;
+        }
         let table = (!r.is_identity()).then_some(&tables[k]);
-        let ch = plan.shape(id).ok_or(bad)?.c;
-        if !parts.push(typed(ins[k], i)?, ch, table) {
+        if !parts.push(typed(ins[k], i)?, s.c, table) {
             return Err(bad);
         }
     }

@@ -28,25 +28,17 @@ pub fn replay_image<const N: usize>(
     emit: impl FnMut(&FrameOutput),
 ) -> Result<u32, LoopError> {
     let (h, w) = image.size();
-    let pixels = usize::from(h) * usize::from(w);
     let mut arena = vec![0u8; ARENA_BUDGET_BYTES];
-    let mut engine = prepare(MCU_BLOB, &mut arena, h, w).map_err(LoopError::Engine)?;
-    let (mut rgb, mut sparse, mut depth) = (
-        vec![0u8; 3 * pixels],
-        vec![0f32; pixels],
-        vec![0f32; pixels],
-    );
+    let mut slot = Box::new(core::mem::MaybeUninit::uninit());
+    let engine = prepare(&mut slot, MCU_BLOB, &mut arena, h, w).map_err(LoopError::Engine)?;
     let mut bridge = [0f32; N];
     let mut zones = ZoneFrame::<N>::new();
     let mut ws = Workspace {
-        rgb: &mut rgb,
-        sparse_m: &mut sparse,
-        depth_m: &mut depth,
         bridge_mm: &mut bridge,
         zones: &mut zones,
     };
     let mut io = vec![0u8; VL53_IO_BYTES];
-    ReplayLoop::with_vl53l5cx(image, delay, &mut io, || 0).run_all(&mut engine, &mut ws, emit)
+    ReplayLoop::with_vl53l5cx(image, delay, &mut io, || 0).run_all(engine, &mut ws, emit)
 }
 
 /// The `frame …` lines the host build of the loop prints for the replay image `bytes` (what the
@@ -67,9 +59,25 @@ pub fn host_lines(bytes: &[u8]) -> Vec<String> {
 /// missing, and when the run exceeds `timeout` (a hung firmware). A test helper shared by the Rust
 /// and the C firmware tests.
 pub fn run_qemu_m4(elf: &std::path::Path, timeout: std::time::Duration) -> (i32, String) {
+    run_qemu(elf, "mps2-an386", "cortex-m4", timeout)
+}
+
+/// As [`run_qemu_m4`] on QEMU's `mps2-an500` board, a Cortex-M7 (the same ELF: its code and RAM
+/// sit where the AN386's do).
+pub fn run_qemu_m7(elf: &std::path::Path, timeout: std::time::Duration) -> (i32, String) {
+    run_qemu(elf, "mps2-an500", "cortex-m7", timeout)
+}
+
+/// Runs `elf` on QEMU's `machine` with `cpu` (see [`run_qemu_m4`]).
+fn run_qemu(
+    elf: &std::path::Path,
+    machine: &str,
+    cpu: &str,
+    timeout: std::time::Duration,
+) -> (i32, String) {
     use std::process::{Command, Stdio};
     let spawned = Command::new("qemu-system-arm")
-        .args(["-machine", "mps2-an386", "-cpu", "cortex-m4"])
+        .args(["-machine", machine, "-cpu", cpu])
         .args(["-icount", "shift=0"])
         .args(["-semihosting-config", "enable=on,target=native"])
         .args([

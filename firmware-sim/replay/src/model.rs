@@ -9,7 +9,8 @@
 //! start* (see `depthor_core::blob::format`), and [`MCU_BLOB`] is placed on a 16-byte boundary so
 //! that they are also 16-byte aligned in memory, should a kernel ever read them by words.
 
-use depthor_core::engine::{self, Engine, Memory};
+use core::mem::MaybeUninit;
+use depthor_core::engine::{self, Engine, Io, Memory};
 
 /// 16-byte alignment wrapper for embedded bytes.
 #[repr(C, align(16))]
@@ -21,14 +22,26 @@ static ALIGNED_BLOB: &Align16<[u8]> =
 /// The embedded int8 model blob (16-byte aligned; `mcu_lite` unless the build names another).
 pub static MCU_BLOB: &[u8] = &ALIGNED_BLOB.0;
 
-/// Arena bytes the firmware reserves: 384 KiB (the internal-SRAM goal, docs/design.md) unless
-/// the build sets `DEPTHOR_ARENA_KIB`; the default `mcu_lite` blob needs 366 015 B at 120×160,
-/// `mcu`'s smallest plan 384 175 B (`core/tests/arena_budget.rs`). [`Engine::with_memory`]
-/// reports `ArenaTooSmall` when a blob needs more.
+/// Arena bytes the default blob (`mcu_lite`) needs at 120×160 with the firmware's plan
+/// ([`prepare`]: [`Memory::Budget`], [`Io::Arena`], so the RGB, sparse and dense depth maps are
+/// inside), rounded up to 16; the tests fail if the need grows past it or shrinks well below it.
+pub const MCU_LITE_ARENA_BYTES: usize = 294_000;
+
+/// Arena bytes the firmware reserves: [`MCU_LITE_ARENA_BYTES`] for the default blob; for another,
+/// 384 KiB (the internal-SRAM goal, docs/design.md; `mcu`'s smallest plan needs 384 191 B,
+/// `core/tests/arena_budget.rs`) plus 75 KiB for the f32 output area at 120×160 (`mcu`'s
+/// refinement writes the output, which is then not a tensor of the plan:
+/// [`depthor_core::engine::Plan::output_tail_bytes`]); unless the build sets
+/// `DEPTHOR_ARENA_KIB`.
+/// [`Engine::init_in`] reports `ArenaTooSmall` when a blob needs more.
 pub const ARENA_BUDGET_BYTES: usize = match option_env!("DEPTHOR_ARENA_KIB") {
     Some(kib) => parse_kib(kib) * 1024,
-    None => 384 * 1024,
+    None if DEFAULT_BLOB => MCU_LITE_ARENA_BYTES,
+    None => (384 + 75) * 1024,
 };
+
+/// Whether the embedded blob is the default `mcu_lite` (`build.rs`).
+const DEFAULT_BLOB: bool = matches!(env!("DEPTHOR_DEFAULT_BLOB").as_bytes(), b"1");
 
 /// `DEPTHOR_ARENA_KIB` as a number (a build error if it is not one).
 const fn parse_kib(s: &str) -> usize {
@@ -47,16 +60,28 @@ const fn parse_kib(s: &str) -> usize {
     n
 }
 
-/// Prepares the engine once for the replay image's `height × width` with the fastest plan that
-/// fits [`ARENA_BUDGET_BYTES`] ([`Memory::Budget`]).
-pub fn prepare<'a>(
+/// Prepares the engine once, in `slot` (the firmware's `static`: the engine never sits on the
+/// stack, [`Engine::init_in`]), for the replay image's `height × width` with the fastest plan
+/// that fits [`ARENA_BUDGET_BYTES`] ([`Memory::Budget`]) and the frame buffers in the arena
+/// ([`Io::Arena`]: the loop captures and projects into [`Engine::staging`] and reads
+/// [`Engine::output_m`]).
+pub fn prepare<'s, 'a>(
+    slot: &'s mut MaybeUninit<Engine<'a>>,
     blob: &'a [u8],
     arena: &'a mut [u8],
     height: u16,
     width: u16,
-) -> Result<Engine<'a>, engine::Error> {
+) -> Result<&'s mut Engine<'a>, engine::Error> {
     let (h, w) = (usize::from(height), usize::from(width));
-    Engine::with_memory(blob, arena, h, w, Memory::Budget(ARENA_BUDGET_BYTES))
+    Engine::init_in(
+        slot,
+        blob,
+        arena,
+        h,
+        w,
+        Memory::Budget(ARENA_BUDGET_BYTES),
+        Io::Arena,
+    )
 }
 
 #[cfg(test)]
@@ -70,5 +95,28 @@ mod tests {
         assert!(MCU_BLOB.len() <= 512 * 1024, "{}", MCU_BLOB.len());
         let need = engine::required_arena_bytes(MCU_BLOB, 120, 160).unwrap();
         assert!(need <= ARENA_BUDGET_BYTES, "{need}");
+    }
+
+    /// The firmware's arena is what the default blob needs, no more: a plan that grows fails
+    /// here (and the firmware with `ArenaTooSmall`), one that shrinks asks for the constant to
+    /// follow.
+    #[test]
+    fn arena_reservation_fits_the_default_blob_tightly() {
+        if !DEFAULT_BLOB || option_env!("DEPTHOR_ARENA_KIB").is_some() {
+            return;
+        }
+        let budget = Memory::Budget(ARENA_BUDGET_BYTES);
+        let need = engine::required_arena_bytes_io(MCU_BLOB, 120, 160, budget, Io::Arena).unwrap();
+        assert!(
+            need <= MCU_LITE_ARENA_BYTES,
+            "mcu_lite arena grew: {need} B"
+        );
+        assert!(
+            MCU_LITE_ARENA_BYTES - need < 1024,
+            "mcu_lite arena shrank to {need} B: lower MCU_LITE_ARENA_BYTES"
+        );
+        // The staging areas cost nothing: the same bytes as with the caller's buffers.
+        let caller = engine::required_arena_bytes_with(MCU_BLOB, 120, 160, budget).unwrap();
+        assert_eq!(need, caller);
     }
 }

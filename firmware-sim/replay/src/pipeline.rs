@@ -31,7 +31,7 @@ use depthor_core::drivers::zone_bridge::{DeviceError, ZoneBridgeDevice, ZoneBrid
 use depthor_core::engine::{self, Engine, RunStats};
 use depthor_core::hal::Error as _;
 use depthor_core::hal::{ErrorKind, ZoneFrame};
-use depthor_core::pipeline::{depth_frame_probed, DepthOut, FrameBuffers, FrameError};
+use depthor_core::pipeline::{depth_frame_staged, FrameError};
 use depthor_core::projection::{ProjectionError, ProjectionStats};
 use embedded_hal::delay::DelayNs;
 use embedded_hal::i2c::{I2c, Operation};
@@ -39,17 +39,11 @@ use embedded_hal::i2c::{I2c, Operation};
 use crate::camera::ReplayCamera;
 use crate::format::Image;
 
-/// Caller-provided buffers of the loop (in the firmware: statics). Each may be larger than the
-/// image needs; the loop uses the leading part.
+/// Caller-provided buffers of the loop (in the firmware: statics). The frame-sized buffers (RGB,
+/// sparse and dense depth) are not here: they live in the engine's arena
+/// ([`depthor_core::engine::Io::Arena`], [`crate::model::prepare`]).
 #[derive(Debug)]
 pub struct Workspace<'b, const N: usize> {
-    /// RGB888 frame, at least `3 · H · W` bytes.
-    pub rgb: &'b mut [u8],
-    /// Sparse depth `S` in metres, at least `H · W` values; it holds the dense depth after a
-    /// frame (the engine runs in place on it).
-    pub sparse_m: &'b mut [f32],
-    /// Dense depth the model writes, in metres, at least `H · W` values.
-    pub depth_m: &'b mut [f32],
     /// Staging for the zone bridge device (the bridge MCU's memory in a real system).
     pub bridge_mm: &'b mut [f32; N],
     /// The zone frame the driver fills.
@@ -153,7 +147,7 @@ pub use depthor_core::pipeline::{Probe, Stage};
 pub struct Processed {
     /// Frame index in the image.
     pub index: u32,
-    /// Output pixels (`H · W`) at the start of [`Workspace::depth_m`].
+    /// Output pixels (`H · W`) of [`Engine::output_m`].
     pub pixels: usize,
     /// Projection counters.
     pub stats: ProjectionStats,
@@ -173,7 +167,8 @@ pub struct FrameOutput {
 }
 
 impl FrameOutput {
-    /// Hashes the depth output `processed` left in `depth_m` ([`Workspace::depth_m`]).
+    /// Hashes the depth output `processed` left in `depth_m` (the engine's
+    /// [`Engine::output_m`]).
     pub fn new(processed: &Processed, depth_m: &[f32]) -> Self {
         let out = depth_m.get(..processed.pixels).unwrap_or(depth_m);
         FrameOutput {
@@ -351,9 +346,10 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
         self.vl53
     }
 
-    /// Reads the next frame's sensors, projects its zones into `ws.sparse_m` and runs `engine`
-    /// (prepared for the image's size) into `ws.depth_m`; `Ok(None)` after the last frame. This
-    /// is the part of a frame the firmware times.
+    /// Reads the next frame's sensors into the engine's staging areas (RGB; zones projected
+    /// into the sparse map) and runs `engine` (prepared for the image's size with
+    /// [`crate::model::prepare`]); the dense depth is then [`Engine::output_m`]. `Ok(None)` after
+    /// the last frame. This is the part of a frame the firmware times.
     pub fn process<const N: usize>(
         &mut self,
         engine: &mut Engine<'_>,
@@ -375,21 +371,20 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
         };
         let cal = self.image.calibration();
         let pixels = cal.camera.width as usize * cal.camera.height as usize;
+        if engine.input_shape() != (cal.camera.height as usize, cal.camera.width as usize) {
+            return Err(LoopError::Engine(engine::Error::ShapeMismatch {
+                what: "engine input size",
+                expected: pixels,
+                found: engine.input_shape().0 * engine.input_shape().1,
+            }));
+        }
 
         let zones = frame.zones();
         let staged = ws
             .bridge_mm
             .get_mut(..zones)
             .ok_or(LoopError::ZoneCapacity { zones, capacity: N })?;
-        let depth = ws
-            .depth_m
-            .get_mut(..pixels)
-            .ok_or(LoopError::Workspace("depth buffer"))?;
-        let mut buffers = FrameBuffers {
-            rgb: &mut *ws.rgb,
-            sparse_m: &mut *ws.sparse_m,
-            zones: &mut *ws.zones,
-        };
+        let zone_frame = &mut *ws.zones;
         let report = match &mut self.dtof {
             Dtof::Bridge(delay) => {
                 // The frame's zones are latched into the simulated bridge, which the real
@@ -402,13 +397,12 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
                 let mut sensor = ZoneBridgeSensor::new(device, delay);
                 // Camera → driver → projection → engine (prepared once, outside the loop): the
                 // core's one-frame pipeline.
-                depth_frame_probed(
+                depth_frame_staged(
                     &mut self.camera,
                     &mut sensor,
                     &cal,
                     engine,
-                    &mut buffers,
-                    DepthOut::Metres(depth),
+                    zone_frame,
                     probe,
                 )
             }
@@ -446,15 +440,8 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
                 }
                 sensor.i2c_mut().dev.set_zones(&sim_zones);
                 sensor.i2c_mut().stats = BusStats::default();
-                let report = depth_frame_probed(
-                    &mut self.camera,
-                    sensor,
-                    &cal,
-                    engine,
-                    &mut buffers,
-                    DepthOut::Metres(depth),
-                    probe,
-                );
+                let report =
+                    depth_frame_staged(&mut self.camera, sensor, &cal, engine, zone_frame, probe);
                 self.vl53.frame = sensor.i2c().stats;
                 report
             }
@@ -478,7 +465,10 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
     ) -> Result<u32, LoopError> {
         let mut frames = 0;
         while let Some(p) = self.process(engine, ws)? {
-            emit(&FrameOutput::new(&p, ws.depth_m));
+            emit(&FrameOutput::new(
+                &p,
+                engine.output_m().map_err(LoopError::Engine)?,
+            ));
             frames += 1;
         }
         Ok(frames)
@@ -491,6 +481,8 @@ mod tests {
     use crate::model::{prepare, ARENA_BUDGET_BYTES, MCU_BLOB};
     use crate::synthetic::{mcu_calibration, mcu_frames};
     use crate::writer::image_bytes;
+    use core::mem::MaybeUninit;
+    use depthor_core::engine::Memory;
     use depthor_core::projection::project_to_sparse;
 
     struct NoDelay;
@@ -521,26 +513,23 @@ mod tests {
         let frames = mcu_frames(3);
         let bytes = image_bytes(&cal, &frames).unwrap();
         let image = Image::parse(&bytes).unwrap();
-        let (mut rgb, mut sparse) = (vec![0u8; 57_600], vec![0f32; 19_200]);
-        let mut depth = vec![0f32; 19_200];
         let (mut bridge, mut zones) = ([0f32; 64], ZoneFrame::<64>::new());
         let mut ws = Workspace {
-            rgb: &mut rgb,
-            sparse_m: &mut sparse,
-            depth_m: &mut depth,
             bridge_mm: &mut bridge,
             zones: &mut zones,
         };
         let mut arena = vec![0u8; ARENA_BUDGET_BYTES];
-        let mut engine = prepare(MCU_BLOB, &mut arena, 120, 160).unwrap();
+        let mut slot = MaybeUninit::uninit();
+        let engine = prepare(&mut slot, MCU_BLOB, &mut arena, 120, 160).unwrap();
         let mut arena2 = vec![0u8; ARENA_BUDGET_BYTES];
-        let mut direct_engine = prepare(MCU_BLOB, &mut arena2, 120, 160).unwrap();
+        let budget = Memory::Budget(ARENA_BUDGET_BYTES);
+        let mut direct_engine =
+            Engine::with_memory(MCU_BLOB, &mut arena2, 120, 160, budget).unwrap();
         let mut replay = ReplayLoop::new(image, NoDelay);
         for (i, f) in frames.iter().enumerate() {
-            let p = replay.process(&mut engine, &mut ws).unwrap().unwrap();
+            let p = replay.process(engine, &mut ws).unwrap().unwrap();
             assert_eq!(p.index as usize, i);
-            // The RGB went through the camera unchanged, the zones through the bridge.
-            assert_eq!(&ws.rgb[..], &f.rgb[..]);
+            // The zones went through the bridge.
             let want: Vec<f32> = f.distance_mm.iter().map(|&d| f32::from(d)).collect();
             assert_eq!(ws.zones.view().distance_mm, &want[..]);
             assert_eq!(ws.zones.view().status, &f.status[..]);
@@ -555,16 +544,12 @@ mod tests {
             let run = direct_engine.run(&f.rgb, &direct, &mut want_depth).unwrap();
             assert_eq!(p.run, run);
             assert!(run.macs > 0);
-            assert_eq!(fnv1a64_f32(ws.depth_m), fnv1a64_f32(&want_depth));
-            assert_eq!(
-                FrameOutput::new(&p, ws.depth_m).hash,
-                fnv1a64_f32(&want_depth)
-            );
-            // The engine ran in place on the sparse buffer: it ends holding the dense depth.
-            assert_eq!(fnv1a64_f32(ws.sparse_m), fnv1a64_f32(&want_depth));
-            assert_ne!(fnv1a64_f32(&direct), fnv1a64_f32(&want_depth));
+            // (The loop's engine took its RGB and sparse depth in its arena.)
+            let out = engine.output_m().unwrap();
+            assert_eq!(fnv1a64_f32(out), fnv1a64_f32(&want_depth));
+            assert_eq!(FrameOutput::new(&p, out).hash, fnv1a64_f32(&want_depth));
         }
-        assert_eq!(replay.process(&mut engine, &mut ws).unwrap(), None);
+        assert_eq!(replay.process(engine, &mut ws).unwrap(), None);
     }
 
     #[test]
@@ -573,22 +558,18 @@ mod tests {
         let frames = mcu_frames(3);
         let bytes = image_bytes(&cal, &frames).unwrap();
         let image = Image::parse(&bytes).unwrap();
-        let (mut rgb, mut sparse) = (vec![0u8; 57_600], vec![0f32; 19_200]);
-        let mut depth = vec![0f32; 19_200];
         let (mut bridge, mut zones) = ([0f32; 64], ZoneFrame::<64>::new());
         let mut ws = Workspace {
-            rgb: &mut rgb,
-            sparse_m: &mut sparse,
-            depth_m: &mut depth,
             bridge_mm: &mut bridge,
             zones: &mut zones,
         };
         let mut arena = vec![0u8; ARENA_BUDGET_BYTES];
-        let mut engine = prepare(MCU_BLOB, &mut arena, 120, 160).unwrap();
+        let mut slot = MaybeUninit::uninit();
+        let engine = prepare(&mut slot, MCU_BLOB, &mut arena, 120, 160).unwrap();
         let mut io = vec![0u8; VL53_IO_BYTES];
         let mut replay = ReplayLoop::with_vl53l5cx(image, NoDelay, &mut io, || 0);
         for f in &frames {
-            replay.process(&mut engine, &mut ws).unwrap().unwrap();
+            replay.process(engine, &mut ws).unwrap().unwrap();
             // Zones with a target come through (mm × 4 in an i16: 12 m saturates at 8191 mm);
             // "no target" reads distance 0.
             let want: Vec<f32> = f
@@ -612,7 +593,7 @@ mod tests {
             assert_eq!(s.frame.bytes_written, 4);
             assert!(s.init.bytes_written > 86_016, "{:?}", s.init);
         }
-        assert_eq!(replay.process(&mut engine, &mut ws).unwrap(), None);
+        assert_eq!(replay.process(engine, &mut ws).unwrap(), None);
     }
 
     #[test]
@@ -625,21 +606,17 @@ mod tests {
             .collect();
         let bytes = image_bytes(&cal, &frames).unwrap();
         let image = Image::parse(&bytes).unwrap();
-        let (mut rgb, mut sparse) = (vec![0u8; 57_600], vec![0f32; 19_200]);
-        let mut depth = vec![0f32; 19_200];
         let (mut bridge, mut zones) = ([0f32; 64], ZoneFrame::<64>::new());
         let mut ws = Workspace {
-            rgb: &mut rgb,
-            sparse_m: &mut sparse,
-            depth_m: &mut depth,
             bridge_mm: &mut bridge,
             zones: &mut zones,
         };
         let mut arena = vec![0u8; ARENA_BUDGET_BYTES];
-        let mut engine = prepare(MCU_BLOB, &mut arena, 120, 160).unwrap();
+        let mut slot = MaybeUninit::uninit();
+        let engine = prepare(&mut slot, MCU_BLOB, &mut arena, 120, 160).unwrap();
         let mut io = vec![0u8; VL53_IO_BYTES];
         let err = ReplayLoop::with_vl53l5cx(image, NoDelay, &mut io, || 0)
-            .process(&mut engine, &mut ws)
+            .process(engine, &mut ws)
             .unwrap_err();
         assert_eq!(err, LoopError::DtofGrid { rows: 6, cols: 6 });
         assert_eq!(err.exit_code(), 12);
@@ -649,20 +626,16 @@ mod tests {
     fn small_workspace_is_an_error() {
         let bytes = image_bytes(&mcu_calibration(), &mcu_frames(1)).unwrap();
         let image = Image::parse(&bytes).unwrap();
-        let (mut rgb, mut sparse) = (vec![0u8; 57_600], vec![0f32; 19_200]);
-        let mut depth = vec![0f32; 19_200];
         let (mut bridge, mut zones) = ([0f32; 16], ZoneFrame::<16>::new());
         let mut ws = Workspace {
-            rgb: &mut rgb,
-            sparse_m: &mut sparse,
-            depth_m: &mut depth,
             bridge_mm: &mut bridge,
             zones: &mut zones,
         };
         let mut arena = vec![0u8; ARENA_BUDGET_BYTES];
-        let mut engine = prepare(MCU_BLOB, &mut arena, 120, 160).unwrap();
+        let mut slot = MaybeUninit::uninit();
+        let engine = prepare(&mut slot, MCU_BLOB, &mut arena, 120, 160).unwrap();
         let err = ReplayLoop::new(image, NoDelay)
-            .process(&mut engine, &mut ws)
+            .process(engine, &mut ws)
             .unwrap_err();
         assert_eq!(
             err,
@@ -681,6 +654,7 @@ mod engine_size_tests {
     use crate::model::{prepare, ARENA_BUDGET_BYTES, MCU_BLOB};
     use crate::synthetic::{mcu_calibration, mcu_frames};
     use crate::writer::image_bytes;
+    use core::mem::MaybeUninit;
 
     struct NoDelay;
     impl DelayNs for NoDelay {
@@ -691,20 +665,16 @@ mod engine_size_tests {
     fn engine_prepared_for_another_size_is_an_error() {
         let bytes = image_bytes(&mcu_calibration(), &mcu_frames(1)).unwrap();
         let image = Image::parse(&bytes).unwrap();
-        let (mut rgb, mut sparse) = (vec![0u8; 57_600], vec![0f32; 19_200]);
-        let mut depth = vec![0f32; 19_200];
         let (mut bridge, mut zones) = ([0f32; 64], ZoneFrame::<64>::new());
         let mut ws = Workspace {
-            rgb: &mut rgb,
-            sparse_m: &mut sparse,
-            depth_m: &mut depth,
             bridge_mm: &mut bridge,
             zones: &mut zones,
         };
         let mut arena = vec![0u8; ARENA_BUDGET_BYTES];
-        let mut engine = prepare(MCU_BLOB, &mut arena, 64, 64).unwrap();
+        let mut slot = MaybeUninit::uninit();
+        let engine = prepare(&mut slot, MCU_BLOB, &mut arena, 64, 64).unwrap();
         let err = ReplayLoop::new(image, NoDelay)
-            .process(&mut engine, &mut ws)
+            .process(engine, &mut ws)
             .unwrap_err();
         assert!(matches!(err, LoopError::Engine(_)), "{err:?}");
         assert_eq!(err.exit_code(), 16);

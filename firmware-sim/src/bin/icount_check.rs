@@ -17,6 +17,7 @@ fn main() -> ! {
     let Some(peripherals) = cortex_m::Peripherals::take() else {
         console::exit(depthor_replay::EXIT_PANIC);
     };
+    depthor_firmware_sim::cpu::print(&peripherals.CPUID);
     cycles::start(peripherals.SYST);
     let overhead = {
         let t0 = cycles::ticks();

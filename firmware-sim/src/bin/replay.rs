@@ -5,11 +5,15 @@
 #![no_std]
 #![no_main]
 
+use core::mem::{size_of, MaybeUninit};
 use cortex_m_rt::entry;
+#[cfg(feature = "profile")]
 use depthor_core::blob::format::op_name;
+#[cfg(feature = "profile")]
 use depthor_core::calibration::Calibration;
 use depthor_core::engine::Engine;
 use depthor_core::hal::ZoneFrame;
+#[cfg(feature = "profile")]
 use depthor_core::projection::project_to_sparse;
 use depthor_firmware_sim::{console, cycles, memory, println};
 use depthor_replay::format::Image;
@@ -50,7 +54,8 @@ impl Probe for TickProbe {
     }
 }
 
-/// Image size this build holds: the `mcu` variant's 120×160 (docs/design.md).
+/// Image size the profiling build's buffers hold: the `mcu` variants' 120×160 (docs/design.md).
+#[cfg(feature = "profile")]
 const PIXELS: usize = 120 * 160;
 /// Zones this build holds: 8×8 (VL53L5CX class).
 const ZONES: usize = 64;
@@ -71,25 +76,35 @@ impl embedded_hal::delay::DelayNs for SpinDelay {
 }
 
 /// Most op kinds the per-kind summary holds.
+#[cfg(feature = "profile")]
 const KINDS: usize = 24;
 
 /// Runs the last frame's inputs once more through [`Engine::run_observed`], reading SysTick after
-/// every op, and prints the instructions of each op and of each op kind.
+/// every op, and prints the instructions of each op and of each op kind (feature `profile`: its
+/// output buffer is 4·H·W bytes the shipping build does not hold).
+#[cfg(feature = "profile")]
+#[inline(never)]
 fn profile_ops<const N: usize>(
     engine: &mut Engine<'_>,
     ws: &mut Workspace<'_, N>,
-    cal: &Calibration,
+    image: &Image<'_>,
+    last: u32,
 ) {
+    let cal: Calibration = image.calibration();
+    let Some(frame) = image.frame(last) else {
+        return;
+    };
     let ops = engine.graph().ops.len();
     let mut per_op = [0u64; depthor_core::blob::format::MAX_OPS];
-    // The frame ran in place on `sparse_m`: project its zones again for the sparse input.
-    if let Err(e) = project_to_sparse(cal, &ws.zones.view(), ws.sparse_m) {
+    // The frame's inputs are gone from the arena: project its zones again, take its RGB from
+    // the image, into buffers of the profiling build only.
+    let scratch = ProfileScratch::take();
+    if let Err(e) = project_to_sparse(&cal, &ws.zones.view(), scratch.sparse) {
         println!("op profile: projection error {e}");
         return;
     }
-    let scratch_depth = DepthScratch::take();
     let mut last = cycles::ticks();
-    let result = engine.run_observed(ws.rgb, ws.sparse_m, scratch_depth.0, &mut |i, _| {
+    let result = engine.run_observed(frame.rgb, scratch.sparse, scratch.depth, &mut |i, _| {
         let now = cycles::ticks();
         if let Some(t) = per_op.get_mut(i) {
             *t = now - last;
@@ -143,28 +158,100 @@ fn profile_ops<const N: usize>(
     }
 }
 
-/// The output buffer of the profiling run (the loop's own depth buffer is borrowed by `ws`).
-struct DepthScratch(&'static mut [f32]);
+/// The input and output buffers of the profiling run (the shipping build holds none: its frames
+/// live in the engine's arena).
+#[cfg(feature = "profile")]
+struct ProfileScratch {
+    sparse: &'static mut [f32],
+    depth: &'static mut [f32],
+}
 
-impl DepthScratch {
+#[cfg(feature = "profile")]
+impl ProfileScratch {
     fn take() -> Self {
-        static mut PROFILE_DEPTH: [f32; PIXELS] = [0.0; PIXELS];
+        static mut SPARSE: [f32; PIXELS] = [0.0; PIXELS];
+        static mut DEPTH: [f32; PIXELS] = [0.0; PIXELS];
         // SAFETY: called once, from `main` after the loop, single-threaded; nothing else
-        // refers to PROFILE_DEPTH.
-        DepthScratch(unsafe { &mut *core::ptr::addr_of_mut!(PROFILE_DEPTH) })
+        // refers to these statics.
+        unsafe {
+            ProfileScratch {
+                sparse: &mut *core::ptr::addr_of_mut!(SPARSE),
+                depth: &mut *core::ptr::addr_of_mut!(DEPTH),
+            }
+        }
     }
 }
 
+/// Prints `ERROR <code>: <e>` and exits with the code.
+fn fail(e: LoopError) -> ! {
+    println!("ERROR {}: {e}", e.exit_code());
+    console::exit(e.exit_code())
+}
+
+/// Prints the RAM figures: `ram: statics … + stack high-water … = total`, then one `ram buffer`
+/// line per named static (and the stack), largest first.
+fn print_ram(buffers: &[(&str, usize)], statics: usize, stack: usize, arena_used: usize) {
+    println!(
+        "ram: statics {statics} B + stack high-water {stack} B = {} B (arena reserved {} B, \
+         used {arena_used} B; {} B of RAM left for the stack)",
+        statics + stack,
+        ARENA_BUDGET_BYTES,
+        memory::stack_region_bytes()
+    );
+    let named: usize = buffers.iter().map(|b| b.1).sum();
+    let mut shown = [false; 16];
+    for _ in buffers {
+        let Some((i, (name, bytes))) = buffers
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| !shown.get(*i).copied().unwrap_or(true))
+            .max_by_key(|(i, b)| (b.1, usize::MAX - i))
+        else {
+            break;
+        };
+        if let Some(s) = shown.get_mut(i) {
+            *s = true;
+        }
+        println!("ram buffer {name}: {bytes} B");
+    }
+    println!(
+        "ram buffer other statics: {} B",
+        statics.saturating_sub(named)
+    );
+    println!("ram buffer stack (high-water): {stack} B");
+}
+
+/// Builds the replay loop (VL53L5CX driver over the simulated sensor) in `slot`; out of line so
+/// that the value under construction stays out of `main`'s frame.
+#[inline(never)]
+fn init_replay(
+    slot: &'static mut MaybeUninit<ReplayLoop<'static, SpinDelay>>,
+    image: Image<'static>,
+    io: &'static mut [u8],
+) -> &'static mut ReplayLoop<'static, SpinDelay> {
+    // dToF: the VL53L5CX driver over the simulated sensor (ST's ULD protocol); the clock lets
+    // the loop count the ticks spent inside the simulation, to tell the driver's share apart.
+    slot.write(ReplayLoop::with_vl53l5cx(
+        image,
+        SpinDelay,
+        io,
+        cycles::ticks,
+    ))
+}
+
+// cortex-m-rt passes each `static mut` below to the real `main` as an argument.
+#[allow(clippy::too_many_arguments)]
 #[entry]
 fn main() -> ! {
     // `static mut` inside `#[entry]`: cortex-m-rt turns each into a unique `&'static mut`.
-    static mut RGB: [u8; 3 * PIXELS] = [0; 3 * PIXELS];
-    static mut SPARSE: [f32; PIXELS] = [0.0; PIXELS];
-    static mut DEPTH: [f32; PIXELS] = [0.0; PIXELS];
     static mut ARENA: Arena = Arena([0; ARENA_BUDGET_BYTES]);
     static mut BRIDGE: [f32; ZONES] = [0.0; ZONES];
     static mut ZONE_FRAME: ZoneFrame<ZONES> = ZoneFrame::new();
     static mut VL53_IO: [u8; VL53_IO_BYTES] = [0; VL53_IO_BYTES];
+    // The engine (op, tensor and buffer tables, ≈ 32 KiB) and the loop (the simulated sensor
+    // inside it) in statics, not in `main`'s frame.
+    static mut ENGINE: MaybeUninit<Engine<'static>> = MaybeUninit::uninit();
+    static mut REPLAY: MaybeUninit<ReplayLoop<'static, SpinDelay>> = MaybeUninit::uninit();
 
     memory::paint_stack();
     let Some(peripherals) = cortex_m::Peripherals::take() else {
@@ -174,6 +261,7 @@ fn main() -> ! {
         );
         console::exit(depthor_replay::EXIT_PANIC);
     };
+    depthor_firmware_sim::cpu::print(&peripherals.CPUID);
     cycles::start(peripherals.SYST);
 
     let image = match Image::parse(IMAGE) {
@@ -192,7 +280,7 @@ fn main() -> ! {
     );
 
     let before = cycles::ticks();
-    let mut engine = match model::prepare(MCU_BLOB, &mut ARENA.0, h, w) {
+    let engine = match model::prepare(ENGINE, MCU_BLOB, &mut ARENA.0, h, w) {
         Ok(engine) => engine,
         Err(e) => {
             let e = LoopError::Engine(e);
@@ -213,27 +301,37 @@ fn main() -> ! {
     );
 
     let mut ws = Workspace {
-        rgb: RGB,
-        sparse_m: SPARSE,
-        depth_m: DEPTH,
         bridge_mm: BRIDGE,
         zones: ZONE_FRAME,
     };
-    // dToF: the VL53L5CX driver over the simulated sensor (ST's ULD protocol); the clock lets
-    // the loop count the ticks spent inside the simulation, to tell the driver's share apart.
-    let mut replay = ReplayLoop::with_vl53l5cx(image, SpinDelay, VL53_IO, cycles::ticks);
+    let replay = init_replay(REPLAY, image, VL53_IO);
     let (mut driver_total, mut device_total) = (0u64, 0u64);
 
     let (mut frames, mut min, mut max) = (0u64, u64::MAX, 0u64);
     let mut stage_totals = [0u64; STAGES.len()];
     loop {
         let mut probe = TickProbe::default();
-        let result = replay.process_probed(&mut engine, &mut ws, &mut probe);
+        let result = replay.process_probed(engine, &mut ws, &mut probe);
         match result {
             Ok(Some(processed)) => {
                 let per_stage = probe.ticks.map(cycles::instructions);
                 let instructions: u64 = per_stage.iter().sum();
-                println!("{}", FrameOutput::new(&processed, ws.depth_m));
+                // The dense depth in metres, in the arena: hashed as the host hashes it, then
+                // turned into millimetres in place (what the firmware passes on).
+                let depth_m = match engine.output_m() {
+                    Ok(d) => d,
+                    Err(e) => fail(LoopError::Engine(e)),
+                };
+                println!("{}", FrameOutput::new(&processed, depth_m));
+                match engine.output_mm() {
+                    Ok(mm) => println!(
+                        "depth_mm frame {} (u16, in place in the arena) centre={} first={}",
+                        processed.index,
+                        mm.get(mm.len() / 2 + 80).copied().unwrap_or(0),
+                        mm.first().copied().unwrap_or(0)
+                    ),
+                    Err(e) => fail(LoopError::Engine(e)),
+                }
                 println!(
                     "icount frame {} instructions={instructions} camera={} dtof={} projection={} \
                      model={}",
@@ -278,8 +376,9 @@ fn main() -> ! {
         }
     }
 
+    #[cfg(feature = "profile")]
     if frames > 0 {
-        profile_ops(&mut engine, &mut ws, &image.calibration());
+        profile_ops(engine, &mut ws, &image, (frames - 1) as u32);
     }
 
     let stack = memory::stack_high_water();
@@ -312,13 +411,22 @@ fn main() -> ! {
         centi_fps / 100,
         centi_fps % 100
     );
-    println!(
-        "ram: statics {statics} B (of which arena reserved {} B, used {arena_used} B) + stack \
-         high-water {stack} B = {} B (of {} B stack region)",
-        ARENA_BUDGET_BYTES,
-        statics + stack,
-        memory::stack_region_bytes()
-    );
+    // Every static of this build, by name (the rest: cortex-m-rt's, the console's, SysTick's).
+    let buffers: [(&str, usize); 6] = [
+        (
+            "arena (reserved; holds the RGB, sparse and dense depth maps too)",
+            size_of::<Arena>(),
+        ),
+        ("engine", size_of::<Engine>()),
+        (
+            "replay loop (driver + simulated sensor)",
+            size_of::<ReplayLoop<SpinDelay>>(),
+        ),
+        ("zone frame", size_of::<ZoneFrame<ZONES>>()),
+        ("zone bridge staging", size_of::<[f32; ZONES]>()),
+        ("vl53l5cx i/o", VL53_IO_BYTES),
+    ];
+    print_ram(&buffers, statics, stack, arena_used);
     println!(
         "flash: {flash} B = firmware {} B + model blob {} B + replay image {} B",
         flash.saturating_sub(IMAGE.len() + MCU_BLOB.len()),
