@@ -1,7 +1,8 @@
 //! Runs `N` frames of a blob through [`Engine`] with one kernel set and prints the output's
 //! hash: the workload that `scripts/count_instructions.sh` counts instructions of under QEMU
 //! (per frame = the count at 3 frames minus the count at 1 frame, halved), and a check that
-//! every set gives the same bits (the hash is the same for each).
+//! every set gives the same bits (the hash is the same for each). It also prints the MACs of
+//! one frame (the plan's count: convs, linears, bins head).
 //!
 //! `cargo run --release -p depthor-core --example frames -- <depthor.dblob> <set|best> <N>`
 
@@ -41,8 +42,9 @@ fn main() {
         .collect();
     let mut depth = vec![0f32; h * w];
     let mut hash = 0xcbf2_9ce4_8422_2325u64;
+    let mut macs = 0;
     for _ in 0..frames {
-        e.run(&rgb, &sparse, &mut depth).expect("run");
+        macs = e.run(&rgb, &sparse, &mut depth).expect("run").macs;
         for d in &depth {
             for b in d.to_bits().to_le_bytes() {
                 hash = (hash ^ u64::from(b)).wrapping_mul(0x100_0000_01b3);
@@ -50,7 +52,7 @@ fn main() {
         }
     }
     println!(
-        "{} {h}x{w} frames {frames} set {} output hash {hash:016x}",
+        "{} {h}x{w} frames {frames} set {} macs per frame {macs} output hash {hash:016x}",
         args[1],
         isa.name()
     );

@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{arg as s, depthor, entries, write_hand_made, GREY};
+use common::{arg as s, depthor, depthor_ok, entries, write_hand_made, GREY};
 use depthor_host::viz::turbo;
 use std::path::Path;
 
@@ -265,4 +265,50 @@ fn closed_stdout_ends_quietly_not_in_a_panic() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!err.contains("panicked"), "{err}");
     assert_ne!(out.status.code(), Some(101), "{err}");
+}
+
+#[test]
+fn bench_engine_runs_one_runtime_alone_and_refuses_an_unknown_one() {
+    let args = |runtime: &'static str| {
+        [
+            "bench",
+            "engine",
+            "--model",
+            "mcu_lite",
+            "--runs",
+            "1",
+            "--kernels",
+            "portable",
+            "--runtime",
+            runtime,
+        ]
+    };
+    // Each runtime alone prints its own figures and none of the other's (no ratio, no SQNR).
+    let core = depthor_ok(&args("core"));
+    assert!(core.contains("core int8 alone"), "{core}");
+    assert!(core.contains("core int8 portable"), "{core}");
+    assert!(core.contains("MACs per frame"), "{core}");
+    assert!(!core.contains("tract"), "{core}");
+    assert!(!core.contains("SQNR"), "{core}");
+    let tract = depthor_ok(&args("tract"));
+    assert!(tract.contains("tract f32 alone"), "{tract}");
+    assert!(tract.contains("tract f32  "), "{tract}");
+    assert!(tract.contains("MACs per frame"), "{tract}");
+    assert!(!tract.contains("core int8"), "{tract}");
+    assert!(!tract.contains("arena bytes"), "{tract}");
+    // Both (the default) prints both and their ratio.
+    let both = depthor_ok(&args("both"));
+    assert!(
+        both.contains("tract f32  ") && both.contains("tract / core"),
+        "{both}"
+    );
+    // A bad value is a usage error that names the allowed ones.
+    let o = depthor(&args("gpu"));
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("--runtime") && err.contains("both") && err.contains("tract"),
+        "{err}"
+    );
+    assert!(o.stdout.is_empty());
 }

@@ -4,13 +4,16 @@
 //!   dToF simulation at 240×320 and 480×640 (H×W), on all cores (rayon), and the split between
 //!   the renderer and the simulator on one core.
 //! - `depthor bench engine [--model M] [--height H --width W] [--runs N] [--per-op]
-//!   [--kernels best|all|SET]`: one thread, median time per frame of the core's int8 engine
-//!   (prepared once, as on a device) and of tract's f32 run of the exported NNEF on the same
-//!   model, size and simulated input; their ratio, MACs per frame, int8 weight bytes, blob
-//!   bytes, arena bytes, and the depth SQNR of int8 against float on that input; with
-//!   `--per-op`, ms, MACs and GMAC/s per op and per op kind, and the convs' share of the
-//!   assumed int8 peak. Without `--model` it measures every shipped variant at its native
-//!   size.
+//!   [--kernels best|all|SET] [--runtime both|core|tract]`: one thread, median time per frame
+//!   of the core's int8 engine (prepared once, as on a device) and of tract's f32 run of the
+//!   exported NNEF on the same model, size and simulated input; their ratio, MACs per frame,
+//!   int8 weight bytes, blob bytes, arena bytes, and the depth SQNR of int8 against float on
+//!   that input; with `--per-op`, ms, MACs and GMAC/s per op and per op kind, and the convs'
+//!   share of the assumed int8 peak. Without `--model` it measures every shipped variant at its
+//!   native size. `--runtime core` or `--runtime tract` runs one runtime alone (no ratio, no
+//!   SQNR), so that instruction counters see only that runtime: each runs its frame
+//!   `1 + --runs` times (one warm-up), so the difference between two `--runs` values is exact
+//!   whole frames.
 
 use anyhow::{Context, Result};
 use depthor_core::blob::format::op_name;
@@ -32,7 +35,8 @@ use std::time::Instant;
 #[command(after_help = "Examples:
   depthor bench sim --frames 64                      # scene + simulator throughput
   depthor bench engine --model mcu --per-op          # core int8 vs tract f32, per op
-  depthor bench engine --kernels all                 # every kernel set this CPU runs")]
+  depthor bench engine --kernels all                 # every kernel set this CPU runs
+  depthor bench engine --model mcu_lite --runtime tract --runs 1   # tract alone")]
 pub struct Args {
     #[command(subcommand)]
     what: What,
@@ -72,7 +76,31 @@ enum What {
         /// (aarch64).
         #[arg(long, default_value = "best")]
         kernels: String,
+        /// Which runtime runs: both (default, side by side, with their ratio and the int8
+        /// depth's SQNR against f32), or the core or tract alone.
+        #[arg(long, value_enum, default_value_t = Runtime::Both)]
+        runtime: Runtime,
     },
+}
+
+/// The runtimes `depthor bench engine --runtime` runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum Runtime {
+    /// The core's int8 engine and tract's f32 run, side by side.
+    Both,
+    /// The core's int8 engine alone.
+    Core,
+    /// tract's f32 run alone.
+    Tract,
+}
+
+impl Runtime {
+    fn core(self) -> bool {
+        self != Runtime::Tract
+    }
+    fn tract(self) -> bool {
+        self != Runtime::Core
+    }
 }
 
 /// Runs the chosen benchmark and prints its figures.
@@ -86,14 +114,20 @@ pub fn handle(args: Args) -> Result<()> {
             runs,
             per_op,
             kernels,
+            runtime,
         } => {
             let size = height.zip(width);
             let sets = kernel_sets(&kernels)?;
+            anyhow::ensure!(
+                runtime.core() || !per_op,
+                "--per-op profiles the core's ops: not with --runtime tract"
+            );
             let opts = EngineBench {
                 size,
                 runs,
                 per_op,
                 sets: &sets,
+                runtime,
             };
             match model {
                 Some(m) => bench_engine(&ModelFiles::resolve(&m)?, &opts),
@@ -198,6 +232,7 @@ struct EngineBench<'a> {
     runs: usize,
     per_op: bool,
     sets: &'a [Isa],
+    runtime: Runtime,
 }
 
 /// One timed op of the per-op profile.
@@ -239,51 +274,87 @@ fn bench_engine(files: &ModelFiles, o: &EngineBench) -> Result<()> {
     let runs = o.runs.max(1);
     let mut int8 = Int8Model::from_file(&files.blob(), o.size)?;
     let (h, w) = int8.input_shape();
-    let float = FloatReference::load(&files.nnef(), h as u32, w as u32)?;
-    let frame = simulated_frames(files.preset(), h, w, 1, 424_242)?
-        .pop()
-        .context("no simulated frame")?;
+    let what = match o.runtime {
+        Runtime::Both => "core int8 and tract f32",
+        Runtime::Core => "core int8 alone",
+        Runtime::Tract => "tract f32 alone",
+    };
     println!(
-        "engine bench: {} ({}) at {h}×{w}, one thread, median of {runs} runs on a simulated {} frame",
+        "engine bench: {} ({}) at {h}×{w}, {what}, one thread, median of {runs} runs (after one warm-up) on a simulated {} frame",
         files.variant,
         files.dir.display(),
         files.preset()
     );
-    let float_depth = float.run(&frame.rgb, &frame.sparse_m)?;
-    let tract_ms = float.time_per_frame(runs)?.as_secs_f64() * 1e3;
-    let mut int8_depth = vec![0f32; h * w];
-    let mut macs = 0u64;
-    let mut rows = Vec::new();
-    for &isa in o.sets {
-        let (core_ms, profile) = int8.with_engine(|e| -> Result<(f64, Vec<OpTime>)> {
-            e.set_kernels(isa)?;
-            let ms = median_ms(runs, || {
-                macs = e.run(&frame.rgb, &frame.sparse_m, &mut int8_depth)?.macs;
-                Ok(())
-            })?;
-            let profile = if o.per_op {
-                profile_ops(e, &frame.rgb, &frame.sparse_m, runs)?
-            } else {
-                Vec::new()
-            };
-            Ok((ms, profile))
-        })??;
-        rows.push((isa, core_ms, sqnr_db(&float_depth, &int8_depth), profile));
+    // The MACs of one run, from the plan (the same figure a run reports).
+    let macs = int8.with_engine(|e| e.plan().macs())?;
+    // The core's input; tract's timed frames use its own synthetic frame, and tract runs this
+    // one only when both run, for the SQNR.
+    let frame = if o.runtime.core() {
+        Some(
+            simulated_frames(files.preset(), h, w, 1, 424_242)?
+                .pop()
+                .context("no simulated frame")?,
+        )
+    } else {
+        None
+    };
+    let mut float_depth = None;
+    let mut tract_ms = None;
+    if o.runtime.tract() {
+        let float = FloatReference::load(&files.nnef(), h as u32, w as u32)?;
+        if let Some(f) = &frame {
+            float_depth = Some(float.run(&f.rgb, &f.sparse_m)?);
+        }
+        tract_ms = Some(float.time_per_frame(runs)?.as_secs_f64() * 1e3);
     }
-    println!("  MACs per frame          {:.3} G", macs as f64 / 1e9);
-    println!("  int8 weight bytes       {}", int8.int8_weight_bytes());
-    println!("  blob bytes              {}", int8.blob_bytes());
-    println!("  arena bytes (core)      {}", int8.arena_bytes());
+    let mut rows = Vec::new();
+    if let Some(frame) = &frame {
+        let mut int8_depth = vec![0f32; h * w];
+        for &isa in o.sets {
+            let (core_ms, profile) = int8.with_engine(|e| -> Result<(f64, Vec<OpTime>)> {
+                e.set_kernels(isa)?;
+                let ms = median_ms(runs, || {
+                    e.run(&frame.rgb, &frame.sparse_m, &mut int8_depth)?;
+                    Ok(())
+                })?;
+                let profile = if o.per_op {
+                    profile_ops(e, &frame.rgb, &frame.sparse_m, runs)?
+                } else {
+                    Vec::new()
+                };
+                Ok((ms, profile))
+            })??;
+            let sqnr = float_depth.as_ref().map(|f| sqnr_db(f, &int8_depth));
+            rows.push((isa, core_ms, sqnr, profile));
+        }
+    }
     println!(
-        "  tract f32               {tract_ms:.1} ms/frame  ({:.2} GMAC/s)",
-        macs as f64 / tract_ms / 1e6
+        "  MACs per frame          {:.3} G ({macs})",
+        macs as f64 / 1e9
     );
-    for (isa, core_ms, sqnr, _) in &rows {
+    if o.runtime.core() {
+        println!("  int8 weight bytes       {}", int8.int8_weight_bytes());
+        println!("  blob bytes              {}", int8.blob_bytes());
+        println!("  arena bytes (core)      {}", int8.arena_bytes());
+    }
+    if let Some(tract_ms) = tract_ms {
         println!(
-            "  core int8 {:<13} {core_ms:.1} ms/frame  ({:.2} GMAC/s), tract / core {:.2} (above 1: the core is faster), depth SQNR vs f32 {sqnr:.1} dB",
+            "  tract f32               {tract_ms:.1} ms/frame  ({:.2} GMAC/s)",
+            macs as f64 / tract_ms / 1e6
+        );
+    }
+    for (isa, core_ms, sqnr, _) in &rows {
+        let versus = match (&tract_ms, sqnr) {
+            (Some(tract_ms), Some(sqnr)) => format!(
+                ", tract / core {:.2} (above 1: the core is faster), depth SQNR vs f32 {sqnr:.1} dB",
+                tract_ms / core_ms
+            ),
+            _ => String::new(),
+        };
+        println!(
+            "  core int8 {:<13} {core_ms:.1} ms/frame  ({:.2} GMAC/s){versus}",
             isa.name(),
             macs as f64 / core_ms / 1e6,
-            tract_ms / core_ms,
         );
     }
     for (isa, _, _, profile) in rows.iter().filter(|r| !r.3.is_empty()) {
