@@ -368,12 +368,12 @@ fn round_up(n: usize) -> Result<usize, PlanError> {
 
 /// Most rounds of [`place`]'s search, per starting order.
 pub const PLACE_ROUNDS: usize = 64;
-/// Starting orders [`place`] tries (decreasing size; decreasing size × lifetime).
+/// Starting orders [`place`] tries (decreasing size × lifetime; decreasing size).
 pub const PLACE_STARTS: usize = 2;
 
 /// Places buffers: each in turn at the lowest offset that does not overlap a placed buffer
 /// alive at the same time (TFLite Micro's greedy planner), starting from the order largest
-/// first (then, unless that reached the bound below, from the order of bytes × lifetime); then,
+/// first by bytes × lifetime (then, unless that reached the bound below, by bytes); then,
 /// for up to [`PLACE_ROUNDS`] rounds or until the total equals the bytes live at the busiest
 /// step (no placement needs fewer), the buffer that reaches the top is moved to the
 /// front of the order and everything placed again. Keeps the order with the smallest total (the
@@ -391,30 +391,18 @@ pub fn place(reqs: &[BufferReq], offsets: &mut [usize]) -> Result<usize, PlanErr
         }
     }
     // No placement needs fewer bytes than are live at the busiest step: stop there.
-    let steps = reqs
-        .iter()
-        .map(|r| r.last.saturating_add(1))
-        .max()
-        .unwrap_or(0);
-    let bound = (0..steps)
-        .map(|t| {
-            reqs.iter()
-                .filter(|r| r.first <= t && t <= r.last)
-                .map(|r| r.bytes)
-                .sum::<usize>()
-        })
-        .max()
-        .unwrap_or(0);
+    let bound = live_bound(reqs);
     let life = |r: &BufferReq| r.last - r.first.min(r.last) + 1;
     let mut best = (usize::MAX, order.clone());
-    // Starting orders, each improved by the rounds below: decreasing size (then earlier first
-    // use, then index), then decreasing size × lifetime (bytes·steps).
+    // Starting orders, each improved by the rounds below: decreasing size × lifetime (bytes ·
+    // steps), then decreasing size; ties by size, earlier first use, index. The smallest total
+    // of both is kept, unless the first reaches the bound (no placement is smaller).
     for start in 0..PLACE_STARTS {
         order.sort_unstable_by(|&a, &b| {
             let (ra, rb) = (&reqs[a as usize], &reqs[b as usize]);
             let key = |r: &BufferReq| match start {
-                0 => r.bytes,
-                _ => r.bytes.saturating_mul(life(r)),
+                0 => r.bytes.saturating_mul(life(r)),
+                _ => r.bytes,
             };
             key(rb)
                 .cmp(&key(ra))
@@ -445,6 +433,24 @@ pub fn place(reqs: &[BufferReq], offsets: &mut [usize]) -> Result<usize, PlanErr
         }
     }
     place_in(reqs, offsets, &best.1)
+}
+
+/// The bytes live at the busiest step: no placement of `reqs` needs fewer.
+fn live_bound(reqs: &[BufferReq]) -> usize {
+    let steps = reqs
+        .iter()
+        .map(|r| r.last.saturating_add(1))
+        .max()
+        .unwrap_or(0);
+    (0..steps)
+        .map(|t| {
+            reqs.iter()
+                .filter(|r| r.first <= t && t <= r.last)
+                .map(|r| r.bytes)
+                .sum::<usize>()
+        })
+        .max()
+        .unwrap_or(0)
 }
 
 /// Places the buffers of `order` one by one at the lowest offset that does not overlap an
@@ -759,22 +765,38 @@ pub fn plan_with_into(
 ) -> Result<(), PlanError> {
     plan.io = io;
     let budget = match memory {
-        Memory::Whole => return plan_fused(plan, graph, (h, w), memory, Fusion::None, false),
+        Memory::Whole => {
+            let search = Placement::Search;
+            return plan_fused(plan, graph, (h, w), memory, Fusion::None, false, search);
+        }
         Memory::Streamed => 0,
         Memory::Budget(bytes) => bytes,
     };
     let mut best: Option<(usize, Fusion, bool)> = None;
+    let mut last = None;
     for fusion in [Fusion::All, Fusion::Affinities, Fusion::None] {
-        // Each level in the blob's op order and with ops deferred; the latter where smaller.
-        let mut level: Option<(usize, bool)> = None;
-        for defer in [false, true] {
-            plan_fused(plan, graph, (h, w), memory, fusion, defer)?;
-            let bytes = plan.arena_bytes();
-            if level.is_none_or(|(b, _)| bytes < b) {
-                level = Some((bytes, defer));
+        // Each level with ops deferred and in the blob's op order, the latter where smaller; it
+        // is placed only where its lower bound (the bytes live at its busiest step) is.
+        plan_fused(plan, graph, (h, w), memory, fusion, true, Placement::Search)?;
+        let mut level = (plan.arena_bytes(), true);
+        plan_fused(plan, graph, (h, w), memory, fusion, false, Placement::Bound)?;
+        last = None; // a bound only: not a usable plan
+        if plan.arena_bytes() < level.0 {
+            plan_fused(
+                plan,
+                graph,
+                (h, w),
+                memory,
+                fusion,
+                false,
+                Placement::Search,
+            )?;
+            last = Some((fusion, false));
+            if plan.arena_bytes() < level.0 {
+                level = (plan.arena_bytes(), false);
             }
         }
-        let (bytes, defer) = level.ok_or(PlanError::TooLarge)?;
+        let (bytes, defer) = level;
         let fits = bytes <= budget;
         // Smallest first; within the budget, the least fused (the last that fits).
         if best.is_none_or(|(b, ..)| bytes < b || (fits && b <= budget)) {
@@ -782,7 +804,17 @@ pub fn plan_with_into(
         }
     }
     let (_, fusion, defer) = best.ok_or(PlanError::TooLarge)?;
-    plan_fused(plan, graph, (h, w), memory, fusion, defer)?;
+    if last != Some((fusion, defer)) {
+        plan_fused(
+            plan,
+            graph,
+            (h, w),
+            memory,
+            fusion,
+            defer,
+            Placement::Search,
+        )?;
+    }
     Ok(())
 }
 
@@ -889,6 +921,16 @@ fn run_order(
     Ok(())
 }
 
+/// Whether [`plan_fused`] places the buffers or only bounds the activation bytes.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Placement {
+    /// [`place`]: offsets and the total.
+    Search,
+    /// The bytes live at the busiest step (a lower bound of the total; the offsets are unset
+    /// and the plan is not usable).
+    Bound,
+}
+
 /// [`plan_with`] at one [`Fusion`] level. Out of line: its tables (≈ 12 KiB on 32-bit Arm) live
 /// in its own frame only while it runs, not in every caller's.
 #[inline(never)]
@@ -899,6 +941,7 @@ fn plan_fused(
     memory: Memory,
     fusion: Fusion,
     defer: bool,
+    placement: Placement,
 ) -> Result<(), PlanError> {
     let Plan {
         shapes,
@@ -1098,7 +1141,10 @@ fn plan_fused(
     offsets
         .resize(reqs.len(), 0)
         .map_err(|_| PlanError::TooLarge)?;
-    let activation_bytes = place(reqs, offsets)?;
+    let activation_bytes = match placement {
+        Placement::Search => place(reqs, offsets)?,
+        Placement::Bound => live_bound(reqs),
+    };
     plan.height = h;
     plan.width = w;
     plan.n_tensors = n_t;
