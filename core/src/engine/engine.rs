@@ -679,6 +679,10 @@ fn exec(
     if kind == Kind::Refine && plan.fused_heads(i).is_some() {
         return ops::refine::eval_streamed((g, plan), (i, op), consts, act, ext, isa);
     }
+    if kind == Kind::Mul && plan.in_place_of(op.output).is_some() {
+        let op_consts = consts.get(plan.const_range(i).ok_or(bad)?).ok_or(bad)?;
+        return ops::mul::eval_in_place(plan, (i, op), op_consts, act);
+    }
     let out_r = plan.tensor_range(op.output).ok_or(bad)?;
     let scr_r = plan.scratch_range(i).ok_or(bad)?;
     let mut in_r: [Range<usize>; MAX_INPUTS] = Default::default();
