@@ -661,6 +661,7 @@ fn write_consts(
 /// Runs op `i` on the arena (run time; nothing is validated twice except cheap slice bounds);
 /// `ext` is the caller's f32 output ([`Plan::output_in_arena`]).
 #[allow(clippy::too_many_arguments)]
+#[inline(never)]
 fn exec(
     g: &Graph,
     plan: &Plan,
