@@ -222,9 +222,7 @@ pub fn depth_frame_staged<C: RgbCamera, S: DtofSensor, const N: usize>(
         })
         .map_err(|e| FrameError::Camera(e.kind()))?;
     probe.mark(Stage::Dtof);
-    sensor
-        .read_frame(zones)
-        .map_err(|e| FrameError::Sensor(e.kind()))?;
+    read_zones(sensor, zones)?;
     probe.mark(Stage::Projection);
     let staging = engine.staging()?;
     let projection =
@@ -238,6 +236,18 @@ pub fn depth_frame_staged<C: RgbCamera, S: DtofSensor, const N: usize>(
     let run = engine.run_staged()?;
     probe.mark(Stage::Done);
     Ok(FrameReport { projection, run })
+}
+
+/// `sensor.read_frame(zones)`, out of line: a driver's buffers stay out of the frame of
+/// [`depth_frame_staged`], under which the engine runs (a microcontroller's stack high-water).
+#[inline(never)]
+fn read_zones<S: DtofSensor, const N: usize>(
+    sensor: &mut S,
+    zones: &mut ZoneFrame<N>,
+) -> Result<(), FrameError> {
+    sensor
+        .read_frame(zones)
+        .map_err(|e| FrameError::Sensor(e.kind()))
 }
 
 /// Captures RGB, reads the zones, projects them and runs the model into `out` (`H×W`).

@@ -19,10 +19,19 @@ pub const DATA_ALIGN: usize = 16;
 pub const NONE: u32 = 0xFFFF_FFFF;
 /// Most inputs of one op.
 pub const MAX_INPUTS: usize = 8;
-/// Most tensors in a blob.
+/// Most tensors in a blob (120 with the `small-tables` feature).
+#[cfg(not(feature = "small-tables"))]
 pub const MAX_TENSORS: usize = 256;
-/// Most ops in a blob.
+/// Most ops in a blob (120 with the `small-tables` feature).
+#[cfg(not(feature = "small-tables"))]
 pub const MAX_OPS: usize = 192;
+/// Most tensors in a blob: the `small-tables` build (a microcontroller's engine tables sized for
+/// the shipped networks, at most 119 tensors and 117 ops; a larger blob is refused by the parser).
+#[cfg(feature = "small-tables")]
+pub const MAX_TENSORS: usize = 120;
+/// Most ops in a blob: the `small-tables` build (see [`MAX_TENSORS`]).
+#[cfg(feature = "small-tables")]
+pub const MAX_OPS: usize = 120;
 
 /// Tensor element type codes.
 pub mod dtype {

@@ -661,6 +661,7 @@ fn write_consts(
 /// Runs op `i` on the arena (run time; nothing is validated twice except cheap slice bounds);
 /// `ext` is the caller's f32 output ([`Plan::output_in_arena`]).
 #[allow(clippy::too_many_arguments)]
+#[inline(never)]
 fn exec(
     g: &Graph,
     plan: &Plan,
@@ -678,6 +679,10 @@ fn exec(
     let kind = Kind::of(op.code).ok_or(bad)?;
     if kind == Kind::Refine && plan.fused_heads(i).is_some() {
         return ops::refine::eval_streamed((g, plan), (i, op), consts, act, ext, isa);
+    }
+    if kind == Kind::Mul && plan.in_place_of(op.output).is_some() {
+        let op_consts = consts.get(plan.const_range(i).ok_or(bad)?).ok_or(bad)?;
+        return ops::mul::eval_in_place(plan, (i, op), op_consts, act);
     }
     let out_r = plan.tensor_range(op.output).ok_or(bad)?;
     let scr_r = plan.scratch_range(i).ok_or(bad)?;

@@ -44,6 +44,9 @@ const _: () = assert!(MAX_OPS <= 256);
 /// Most refinements per graph whose heads are fused ([`Memory::Streamed`]); others keep
 /// whole maps.
 pub const MAX_FUSED: usize = 2;
+/// Most `mul` ops per graph that write their output over their first operand
+/// ([`Plan::in_place_of`]); others get their own buffer.
+pub const MAX_ALIASES: usize = 8;
 /// Most concats per graph read in place by their conv ([`Memory::Streamed`]); others are
 /// copied.
 pub const MAX_IN_PLACE: usize = 32;
@@ -170,6 +173,8 @@ pub struct Plan {
     per_run_consts: bool,
     /// [`Io::Arena`]: the staging areas are the last two requests.
     io: Io,
+    /// Tensors written over another tensor's bytes: (output of a `mul`, its first operand).
+    aliases: Vec<(u16, u16), MAX_ALIASES>,
     /// The order the ops run in (op indices; a topological order of the graph: the blob's,
     /// with some ops deferred, see [`Plan::order`]).
     order: Vec<u8, MAX_OPS>,
@@ -197,6 +202,7 @@ impl Plan {
             per_run_consts: false,
             io: Io::Caller,
             order: Vec::new(),
+            aliases: Vec::new(),
             persistent_bytes: 0,
             activation_bytes: 0,
             macs: 0,
@@ -280,12 +286,28 @@ impl Plan {
     }
     /// Byte range of tensor `id` in the activation region.
     pub fn tensor_range(&self, id: u16) -> Option<Range<usize>> {
+        let mut id = id;
+        // An in-place output has its operand's bytes (chains end within MAX_ALIASES steps).
+        for _ in 0..MAX_ALIASES {
+            match self.in_place_of(id) {
+                Some(src) => id = src,
+                None => break,
+            }
+        }
         let i = id as usize;
         if i >= self.n_tensors {
             return None;
         }
         let (r, o) = (self.reqs.get(i)?, self.offsets.get(i)?);
         Some(*o..*o + r.bytes)
+    }
+    /// For a tensor that a `mul` writes over its first operand ([`Memory::Streamed`] and
+    /// [`Memory::Budget`], where that operand is read by nothing later): that operand.
+    pub fn in_place_of(&self, id: u16) -> Option<u16> {
+        self.aliases
+            .iter()
+            .find(|&&(out, _)| out == id)
+            .map(|&(_, src)| src)
     }
     /// Byte range of op `op`'s scratch in the activation region.
     pub fn scratch_range(&self, op: usize) -> Option<Range<usize>> {
@@ -368,53 +390,45 @@ fn round_up(n: usize) -> Result<usize, PlanError> {
 
 /// Most rounds of [`place`]'s search, per starting order.
 pub const PLACE_ROUNDS: usize = 64;
-/// Starting orders [`place`] tries (decreasing size; decreasing size × lifetime).
+/// Starting orders [`place`] tries (decreasing size × lifetime; earliest first use).
 pub const PLACE_STARTS: usize = 2;
 
 /// Places buffers: each in turn at the lowest offset that does not overlap a placed buffer
 /// alive at the same time (TFLite Micro's greedy planner), starting from the order largest
-/// first (then, unless that reached the bound below, from the order of bytes × lifetime); then,
+/// first by bytes × lifetime (then, unless that reached the bound below, by first use); then,
 /// for up to [`PLACE_ROUNDS`] rounds or until the total equals the bytes live at the busiest
 /// step (no placement needs fewer), the buffer that reaches the top is moved to the
 /// front of the order and everything placed again. Keeps the order with the smallest total (the
-/// first such). Writes one offset per request and returns the total bytes; deterministic.
-/// Offsets are multiples of [`ALIGN`] when the sizes are.
+/// first such). Buffers alive at step 0 alone (the staging areas of [`Io::Arena`]) are placed
+/// after all others, into the gaps at step 0. Writes one offset per request and returns the
+/// total bytes; deterministic. Offsets are multiples of [`ALIGN`] when the sizes are.
 pub fn place(reqs: &[BufferReq], offsets: &mut [usize]) -> Result<usize, PlanError> {
     if reqs.len() > MAX_BUFFERS || offsets.len() < reqs.len() {
         return Err(PlanError::TooLarge);
     }
     let mut order: Vec<u16, MAX_BUFFERS> = Vec::new();
+    // Buffers of step 0 alone (the staging areas of `Io::Arena`) are placed last, into the
+    // gaps at step 0, so that they never change where the others go.
+    let first_only = |r: &BufferReq| r.first == 0 && r.last == 0;
     for (i, r) in reqs.iter().enumerate() {
         offsets[i] = 0;
-        if r.bytes > 0 {
+        if r.bytes > 0 && !first_only(r) {
             order.push(i as u16).map_err(|_| PlanError::TooLarge)?;
         }
     }
     // No placement needs fewer bytes than are live at the busiest step: stop there.
-    let steps = reqs
-        .iter()
-        .map(|r| r.last.saturating_add(1))
-        .max()
-        .unwrap_or(0);
-    let bound = (0..steps)
-        .map(|t| {
-            reqs.iter()
-                .filter(|r| r.first <= t && t <= r.last)
-                .map(|r| r.bytes)
-                .sum::<usize>()
-        })
-        .max()
-        .unwrap_or(0);
+    let bound = live_bound(reqs);
     let life = |r: &BufferReq| r.last - r.first.min(r.last) + 1;
     let mut best = (usize::MAX, order.clone());
-    // Starting orders, each improved by the rounds below: decreasing size (then earlier first
-    // use, then index), then decreasing size × lifetime (bytes·steps).
+    // Starting orders, each improved by the rounds below: decreasing size × lifetime (bytes ·
+    // steps), then earliest first use; ties by size, earlier first use, index. The smallest
+    // total is kept; the search stops at the bound (nothing is smaller).
     for start in 0..PLACE_STARTS {
         order.sort_unstable_by(|&a, &b| {
             let (ra, rb) = (&reqs[a as usize], &reqs[b as usize]);
             let key = |r: &BufferReq| match start {
-                0 => r.bytes,
-                _ => r.bytes.saturating_mul(life(r)),
+                0 => r.bytes.saturating_mul(life(r)),
+                _ => usize::MAX - r.first,
             };
             key(rb)
                 .cmp(&key(ra))
@@ -444,7 +458,31 @@ pub fn place(reqs: &[BufferReq], offsets: &mut [usize]) -> Result<usize, PlanErr
             break;
         }
     }
-    place_in(reqs, offsets, &best.1)
+    let mut order = best.1;
+    for (i, r) in reqs.iter().enumerate() {
+        if r.bytes > 0 && first_only(r) {
+            order.push(i as u16).map_err(|_| PlanError::TooLarge)?;
+        }
+    }
+    place_in(reqs, offsets, &order)
+}
+
+/// The bytes live at the busiest step: no placement of `reqs` needs fewer.
+fn live_bound(reqs: &[BufferReq]) -> usize {
+    let steps = reqs
+        .iter()
+        .map(|r| r.last.saturating_add(1))
+        .max()
+        .unwrap_or(0);
+    (0..steps)
+        .map(|t| {
+            reqs.iter()
+                .filter(|r| r.first <= t && t <= r.last)
+                .map(|r| r.bytes)
+                .sum::<usize>()
+        })
+        .max()
+        .unwrap_or(0)
 }
 
 /// Places the buffers of `order` one by one at the lowest offset that does not overlap an
@@ -759,22 +797,38 @@ pub fn plan_with_into(
 ) -> Result<(), PlanError> {
     plan.io = io;
     let budget = match memory {
-        Memory::Whole => return plan_fused(plan, graph, (h, w), memory, Fusion::None, false),
+        Memory::Whole => {
+            let search = Placement::Search;
+            return plan_fused(plan, graph, (h, w), memory, Fusion::None, false, search);
+        }
         Memory::Streamed => 0,
         Memory::Budget(bytes) => bytes,
     };
     let mut best: Option<(usize, Fusion, bool)> = None;
+    let mut last = None;
     for fusion in [Fusion::All, Fusion::Affinities, Fusion::None] {
-        // Each level in the blob's op order and with ops deferred; the latter where smaller.
-        let mut level: Option<(usize, bool)> = None;
-        for defer in [false, true] {
-            plan_fused(plan, graph, (h, w), memory, fusion, defer)?;
-            let bytes = plan.arena_bytes();
-            if level.is_none_or(|(b, _)| bytes < b) {
-                level = Some((bytes, defer));
+        // Each level with ops deferred and in the blob's op order, the latter where smaller; it
+        // is placed only where its lower bound (the bytes live at its busiest step) is.
+        plan_fused(plan, graph, (h, w), memory, fusion, true, Placement::Search)?;
+        let mut level = (plan.arena_bytes(), true);
+        plan_fused(plan, graph, (h, w), memory, fusion, false, Placement::Bound)?;
+        last = None; // a bound only: not a usable plan
+        if plan.arena_bytes() < level.0 {
+            plan_fused(
+                plan,
+                graph,
+                (h, w),
+                memory,
+                fusion,
+                false,
+                Placement::Search,
+            )?;
+            last = Some((fusion, false));
+            if plan.arena_bytes() < level.0 {
+                level = (plan.arena_bytes(), false);
             }
         }
-        let (bytes, defer) = level.ok_or(PlanError::TooLarge)?;
+        let (bytes, defer) = level;
         let fits = bytes <= budget;
         // Smallest first; within the budget, the least fused (the last that fits).
         if best.is_none_or(|(b, ..)| bytes < b || (fits && b <= budget)) {
@@ -782,7 +836,17 @@ pub fn plan_with_into(
         }
     }
     let (_, fusion, defer) = best.ok_or(PlanError::TooLarge)?;
-    plan_fused(plan, graph, (h, w), memory, fusion, defer)?;
+    if last != Some((fusion, defer)) {
+        plan_fused(
+            plan,
+            graph,
+            (h, w),
+            memory,
+            fusion,
+            defer,
+            Placement::Search,
+        )?;
+    }
     Ok(())
 }
 
@@ -889,6 +953,16 @@ fn run_order(
     Ok(())
 }
 
+/// Whether [`plan_fused`] places the buffers or only bounds the activation bytes.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Placement {
+    /// [`place`]: offsets and the total.
+    Search,
+    /// The bytes live at the busiest step (a lower bound of the total; the offsets are unset
+    /// and the plan is not usable).
+    Bound,
+}
+
 /// [`plan_with`] at one [`Fusion`] level. Out of line: its tables (≈ 12 KiB on 32-bit Arm) live
 /// in its own frame only while it runs, not in every caller's.
 #[inline(never)]
@@ -899,6 +973,7 @@ fn plan_fused(
     memory: Memory,
     fusion: Fusion,
     defer: bool,
+    placement: Placement,
 ) -> Result<(), PlanError> {
     let Plan {
         shapes,
@@ -909,9 +984,11 @@ fn plan_fused(
         fused,
         in_place,
         order,
+        aliases,
         ..
     } = plan;
     order.clear();
+    aliases.clear();
     reqs.clear();
     offsets.clear();
     shapes.clear();
@@ -1082,6 +1159,44 @@ fn plan_fused(
     if !output_in_arena {
         reqs[graph.output as usize].bytes = 0;
     }
+    // A `mul` whose first operand nobody reads later writes over it (elementwise: each code is
+    // read before it is written; `ops::mul::eval_in_place`).
+    if memory != Memory::Whole {
+        for (pos, &i) in order.iter().enumerate() {
+            let op = &graph.ops[usize::from(i)];
+            if op.code != opcode::MUL
+                || fused_into[usize::from(i)].is_some()
+                || op.output == graph.output
+                || aliases.is_full()
+            {
+                continue;
+            }
+            let root = |mut t: u16| {
+                while let Some(&(_, src)) = aliases.iter().find(|&&(o, _)| o == t) {
+                    t = src;
+                }
+                t
+            };
+            let (a, b) = (op.inputs[0], op.inputs[1]);
+            let src = root(a);
+            let step = pos + 1;
+            if src == graph.rgb
+                || src == graph.sparse
+                || root(b) == src
+                || reqs[usize::from(src)].bytes == 0
+                || reqs[usize::from(src)].last != step
+                || reqs[usize::from(op.output)].bytes != reqs[usize::from(src)].bytes
+            {
+                continue;
+            }
+            let out = usize::from(op.output);
+            reqs[usize::from(src)].last = reqs[out].last;
+            reqs[out].bytes = 0;
+            aliases
+                .push((op.output, a))
+                .map_err(|_| PlanError::TooLarge)?;
+        }
+    }
     // Io::Arena: the staging areas live at step 0 only (converted into the int8 inputs there);
     // an output outside the activations gets an area after them (`Plan::output_tail_bytes`).
     if staged {
@@ -1098,7 +1213,10 @@ fn plan_fused(
     offsets
         .resize(reqs.len(), 0)
         .map_err(|_| PlanError::TooLarge)?;
-    let activation_bytes = place(reqs, offsets)?;
+    let activation_bytes = match placement {
+        Placement::Search => place(reqs, offsets)?,
+        Placement::Bound => live_bound(reqs),
+    };
     plan.height = h;
     plan.width = w;
     plan.n_tensors = n_t;

@@ -377,6 +377,61 @@ pub fn mul(
     Ok(())
 }
 
+/// [`mul`] writing the product over its first operand `a_out` (the same per-element functions in
+/// the same cases, each code read before it is written: the same bits).
+pub fn mul_in_place(
+    q: &MulQuant,
+    a_out: &mut [i8],
+    shape: Shape,
+    b: &[i8],
+    bc: Broadcast,
+) -> Result<(), KernelError> {
+    let n = need(a_out, shape)?;
+    if Some(b.len()) != broadcast_len(bc, shape) {
+        return Err(KernelError::Shape);
+    }
+    let p = shape.h * shape.w;
+    if p == 0 {
+        return Ok(());
+    }
+    if q.m.multiplier < 0 {
+        for i in 0..n {
+            a_out[i] = q.apply(a_out[i], b[broadcast_index(bc, shape, i)]);
+        }
+        return Ok(());
+    }
+    let f = q.product();
+    let high = f.right >= 33;
+    let planes = |oc: &mut [i8], bc: &[i8]| {
+        let pairs = oc.iter_mut().zip(bc);
+        if high {
+            pairs.for_each(|(o, &y)| *o = f.apply_high(*o, y));
+        } else {
+            pairs.for_each(|(o, &y)| *o = f.apply(*o, y));
+        }
+    };
+    for (c, oc) in a_out[..n].chunks_exact_mut(p).enumerate() {
+        match bc {
+            Broadcast::None => planes(oc, &b[c * p..(c + 1) * p]),
+            Broadcast::OverChannels => planes(oc, b),
+            Broadcast::OverSpace => {
+                let y = b[c];
+                if p > 256 {
+                    let t: [i8; 256] = core::array::from_fn(|x| q.apply(x as u8 as i8, y));
+                    for o in oc.iter_mut() {
+                        *o = t[*o as u8 as usize];
+                    }
+                } else {
+                    for o in oc.iter_mut() {
+                        *o = q.apply(*o, y);
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
 /// The channels `c_offset ..` of the concat output `out` (`out_shape`) that a part of
 /// `in_shape` fills (its H and W must be the output's).
 #[inline(always)]
@@ -680,6 +735,9 @@ mod tests {
             mul_ref(&mq, &a, shape, &b, c.bc, &mut y1).unwrap();
             mul(&mq, &a, shape, &b, c.bc, &mut y2).unwrap();
             prop_assert_eq!(&y1, &y2, "mul");
+            let mut y3 = a.clone();
+            mul_in_place(&mq, &mut y3, shape, &b, c.bc).unwrap();
+            prop_assert_eq!(&y1, &y3, "mul in place");
             let aq = AddQuant::new(c.qa, c.qb, c.qo);
             let b2: Vec<i8> = (0..n).map(|i| b[i % b.len()]).collect();
             add_ref(&aq, &a, &b2, &mut y1).unwrap();
@@ -791,6 +849,9 @@ mod tests {
             mul_ref(&mq, &c.a, c.shape, &c.b, c.bc, &mut y1).unwrap();
             mul(&mq, &c.a, c.shape, &c.b, c.bc, &mut y2).unwrap();
             assert_eq!(y1, y2);
+            let mut y3 = c.a.clone();
+            mul_in_place(&mq, &mut y3, c.shape, &c.b, c.bc).unwrap();
+            assert_eq!(y1, y3);
         }
     }
 

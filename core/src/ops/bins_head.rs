@@ -95,6 +95,10 @@ pub(crate) fn write_consts(c: &ConstCtx, region: &mut [u8]) -> Result<(), Error>
 }
 
 /// Depth in metres per pixel.
+///
+/// Out of line: its two 1 KiB tables stay out of `Kind::eval`'s frame, which the refinement's
+/// deep frames sit on (the firmware's stack high-water).
+#[inline(never)]
 pub(crate) fn eval(e: Eval) -> Result<(), Error> {
     let Attrs::Bins { attrs, weights, .. } = &e.op.attrs else {
         return Err(e.bad());

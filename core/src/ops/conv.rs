@@ -245,6 +245,9 @@ pub(crate) fn eval(e: Eval) -> Result<(), Error> {
 
 /// Conv op `i` reading the parts of concat op `c` in place, each mapped by a 256-entry table of
 /// the concat's rescale (the codes the concat would have written).
+// Out of line: its 2 KiB of rescaling tables stay out of `Engine::execute`'s frame, under
+// which every op runs (the firmware's stack high-water).
+#[inline(never)]
 pub(crate) fn eval_on_parts(
     g: &Graph,
     plan: &Plan,

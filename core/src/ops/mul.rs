@@ -2,9 +2,11 @@
 //! (broadcast over channels) or `[C, 1, 1]` (over space). Kernel:
 //! [`crate::kernels::elementwise::mul`].
 
-use super::{first, typed, typed_mut, write_first, ConstCtx, Eval, PlanCtx, Types};
+use super::{bad_op, first, split, typed, typed_mut, write_first, ConstCtx, Eval, PlanCtx, Types};
+use crate::blob::format::MAX_INPUTS;
+use crate::blob::parse::OpInfo;
 use crate::blob::BlobError;
-use crate::engine::plan::{OpPlan, PlanError};
+use crate::engine::plan::{OpPlan, Plan, PlanError};
 use crate::engine::Error;
 use crate::kernels::broadcast::Broadcast;
 use crate::kernels::elementwise::{self, MulQuant};
@@ -59,4 +61,29 @@ pub(crate) fn eval(e: Eval) -> Result<(), Error> {
     let (a, out) = (typed(e.ins[0], i)?, typed_mut(e.out, i)?);
     elementwise::mul(&q, a, e.x, b, e.plan.broadcast(i), out).map_err(kerr)?;
     Ok(())
+}
+
+/// [`eval`] writing the product over the first operand ([`Plan::in_place_of`]):
+/// [`elementwise::mul_in_place`], the same bits.
+pub(crate) fn eval_in_place(
+    plan: &Plan,
+    (i, op): (usize, &OpInfo),
+    consts: &[u8],
+    act: &mut [u8],
+) -> Result<(), Error> {
+    let bad = bad_op(i);
+    let q: MulQuant = first(consts, i)?;
+    let x = plan.shape(op.inputs[0]).ok_or(bad)?;
+    let y = plan.shape(op.inputs[1]).ok_or(bad)?;
+    let out_r = plan.tensor_range(op.output).ok_or(bad)?;
+    let b_r = plan.tensor_range(op.inputs[1]).ok_or(bad)?;
+    let scr_r = plan.scratch_range(i).ok_or(bad)?;
+    let mut ins: [&[u8]; MAX_INPUTS] = [&[]; MAX_INPUTS];
+    let (out_b, _) = split(act, out_r, scr_r.start..scr_r.start, &[b_r], &mut ins, i)?;
+    let b: &[i8] = typed(ins[0], i)?;
+    let b = b.get(..y.len().ok_or(bad)?).ok_or(bad)?;
+    let out: &mut [i8] = typed_mut(out_b, i)?;
+    let out = out.get_mut(..x.len().ok_or(bad)?).ok_or(bad)?;
+    elementwise::mul_in_place(&q, out, x, b, plan.broadcast(i))
+        .map_err(|error| Error::Kernel { op: i, error })
 }

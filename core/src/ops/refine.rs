@@ -129,6 +129,7 @@ pub(crate) fn eval(e: Eval) -> Result<(), Error> {
 /// affinity heads ([`ConvRows`]), kmix and tmix where fused ([`MixConvRows`]), `D_0`'s upsample
 /// where fused ([`UpsampledDepth`]); the output into the caller's `ext` where the plan keeps
 /// it out of the arena. Scratch as [`crate::engine::RefineScratch`] lays it out.
+#[inline(never)]
 pub(crate) fn eval_streamed<'a>(
     (g, plan): (&'a Graph, &Plan),
     (i, op): (usize, &OpInfo),

@@ -289,6 +289,49 @@ pub struct Vl53Stats {
     pub frame: BusStats,
 }
 
+/// One frame through the zone bridge: the simulated bridge device over the frame's zones, the
+/// bridge driver over it, then the core's one-frame pipeline (camera → driver → projection →
+/// engine). Out of line: the device and driver stay out of the frame loop's stack frame.
+#[inline(never)]
+fn bridge_frame<D: DelayNs, const N: usize>(
+    (camera, delay): (&mut ReplayCamera<'_>, &mut D),
+    (cal, staged, status): (&depthor_core::calibration::Calibration<'_>, &[f32], &[u8]),
+    engine: &mut Engine<'_>,
+    zone_frame: &mut ZoneFrame<N>,
+    probe: &mut impl Probe,
+) -> Result<Result<depthor_core::pipeline::FrameReport, FrameError>, LoopError> {
+    let device = ZoneBridgeDevice::new(&cal.dtof, staged, status).map_err(LoopError::Device)?;
+    let mut sensor = ZoneBridgeSensor::new(device, delay);
+    Ok(depth_frame_staged(
+        camera,
+        &mut sensor,
+        cal,
+        engine,
+        zone_frame,
+        probe,
+    ))
+}
+
+/// Initialises the VL53L5CX (firmware upload, configuration) and starts it ranging at 15 Hz.
+/// Out of line: the driver's initialisation buffers stay out of the frame loop's stack frame,
+/// under which the engine runs.
+#[inline(never)]
+fn start_vl53l5cx<D: DelayNs>(
+    sensor: &mut Vl53l5cx<'_, SimBus, D>,
+    resolution: Resolution,
+) -> Result<(), LoopError> {
+    let sensor_err =
+        |e: depthor_core::drivers::vl53l5cx::Vl53l5cxError<_>| LoopError::Sensor(e.kind());
+    sensor.init().map_err(sensor_err)?;
+    sensor.set_resolution(resolution).map_err(sensor_err)?;
+    sensor.set_ranging_frequency_hz(15).map_err(sensor_err)?;
+    sensor
+        .set_ranging_mode(RangingMode::Continuous)
+        .map_err(sensor_err)?;
+    sensor.start_ranging().map_err(sensor_err)?;
+    Ok(())
+}
+
 /// The replay loop over one image; `D` is the delay the dToF driver sleeps with between polls.
 #[derive(Debug)]
 pub struct ReplayLoop<'a, D> {
@@ -359,6 +402,7 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
     }
 
     /// [`ReplayLoop::process`], telling `probe` where each stage begins.
+    #[inline(never)]
     pub fn process_probed<const N: usize>(
         &mut self,
         engine: &mut Engine<'_>,
@@ -392,19 +436,13 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
                 for (d, mm) in staged.iter_mut().zip(frame.distance_mm()) {
                     *d = f32::from(mm);
                 }
-                let device = ZoneBridgeDevice::new(&cal.dtof, &*staged, frame.status)
-                    .map_err(LoopError::Device)?;
-                let mut sensor = ZoneBridgeSensor::new(device, delay);
-                // Camera → driver → projection → engine (prepared once, outside the loop): the
-                // core's one-frame pipeline.
-                depth_frame_staged(
-                    &mut self.camera,
-                    &mut sensor,
-                    &cal,
+                bridge_frame(
+                    (&mut self.camera, delay),
+                    (&cal, &*staged, frame.status),
                     engine,
                     zone_frame,
                     probe,
-                )
+                )?
             }
             Dtof::Vl53 { sensor, ready } => {
                 if !*ready {
@@ -414,16 +452,7 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
                         (rows, cols) => return Err(LoopError::DtofGrid { rows, cols }),
                     };
                     let t0 = (self.clock)();
-                    let sensor_err = |e: depthor_core::drivers::vl53l5cx::Vl53l5cxError<_>| {
-                        LoopError::Sensor(e.kind())
-                    };
-                    sensor.init().map_err(sensor_err)?;
-                    sensor.set_resolution(resolution).map_err(sensor_err)?;
-                    sensor.set_ranging_frequency_hz(15).map_err(sensor_err)?;
-                    sensor
-                        .set_ranging_mode(RangingMode::Continuous)
-                        .map_err(sensor_err)?;
-                    sensor.start_ranging().map_err(sensor_err)?;
+                    start_vl53l5cx(sensor, resolution)?;
                     self.vl53.init_ticks = (self.clock)().wrapping_sub(t0);
                     self.vl53.init = core::mem::take(&mut sensor.i2c_mut().stats);
                     *ready = true;

@@ -182,6 +182,103 @@ impl ProfileScratch {
     }
 }
 
+/// What the frame loop measured.
+struct Totals {
+    frames: u64,
+    min: u64,
+    max: u64,
+    stage_totals: [u64; STAGES.len()],
+    driver_total: u64,
+    device_total: u64,
+}
+
+/// Runs every frame of the image, printing each frame's lines; out of line so that `main`'s
+/// frame (preparation, report) is not under the engine's deep frames.
+#[inline(never)]
+fn run_frames<const N: usize>(
+    engine: &mut Engine<'_>,
+    replay: &mut ReplayLoop<'_, SpinDelay>,
+    ws: &mut Workspace<'_, N>,
+) -> Totals {
+    let (mut driver_total, mut device_total) = (0u64, 0u64);
+    let (mut frames, mut min, mut max) = (0u64, u64::MAX, 0u64);
+    let mut stage_totals = [0u64; STAGES.len()];
+    loop {
+        let mut probe = TickProbe::default();
+        let result = replay.process_probed(engine, ws, &mut probe);
+        match result {
+            Ok(Some(processed)) => {
+                let per_stage = probe.ticks.map(cycles::instructions);
+                let instructions: u64 = per_stage.iter().sum();
+                // The dense depth in metres, in the arena: hashed as the host hashes it, then
+                // turned into millimetres in place (what the firmware passes on).
+                let depth_m = match engine.output_m() {
+                    Ok(d) => d,
+                    Err(e) => fail(LoopError::Engine(e)),
+                };
+                println!("{}", FrameOutput::new(&processed, depth_m));
+                match engine.output_mm() {
+                    Ok(mm) => println!(
+                        "depth_mm frame {} (u16, in place in the arena) centre={} first={}",
+                        processed.index,
+                        mm.get(mm.len() / 2 + 80).copied().unwrap_or(0),
+                        mm.first().copied().unwrap_or(0)
+                    ),
+                    Err(e) => fail(LoopError::Engine(e)),
+                }
+                println!(
+                    "icount frame {} instructions={instructions} camera={} dtof={} projection={} \
+                     model={}",
+                    processed.index, per_stage[0], per_stage[1], per_stage[2], per_stage[3]
+                );
+                let vl53 = replay.vl53_stats();
+                if processed.index == 0 {
+                    println!(
+                        "vl53l5cx init (once, before frame 0): instructions={} (of which \
+                         simulated sensor {}) transactions={} bytes_written={} bytes_read={}",
+                        cycles::instructions(vl53.init_ticks),
+                        cycles::instructions(vl53.init.device_ticks),
+                        vl53.init.transactions,
+                        vl53.init.bytes_written,
+                        vl53.init.bytes_read
+                    );
+                }
+                let device = cycles::instructions(vl53.frame.device_ticks);
+                let driver = per_stage[1].saturating_sub(device);
+                driver_total += driver;
+                device_total += device;
+                println!(
+                    "vl53l5cx frame {} driver_instructions={driver} simulated_sensor={device} \
+                     transactions={} bytes_read={} bytes_written={}",
+                    processed.index,
+                    vl53.frame.transactions,
+                    vl53.frame.bytes_read,
+                    vl53.frame.bytes_written
+                );
+                frames += 1;
+                for (total, n) in stage_totals.iter_mut().zip(per_stage) {
+                    *total += n;
+                }
+                min = min.min(instructions);
+                max = max.max(instructions);
+            }
+            Ok(None) => break,
+            Err(e) => {
+                println!("ERROR {}: {e}", e.exit_code());
+                console::exit(e.exit_code());
+            }
+        }
+    }
+    Totals {
+        frames,
+        min,
+        max,
+        stage_totals,
+        driver_total,
+        device_total,
+    }
+}
+
 /// Prints `ERROR <code>: <e>` and exits with the code.
 fn fail(e: LoopError) -> ! {
     println!("ERROR {}: {e}", e.exit_code());
@@ -305,76 +402,14 @@ fn main() -> ! {
         zones: ZONE_FRAME,
     };
     let replay = init_replay(REPLAY, image, VL53_IO);
-    let (mut driver_total, mut device_total) = (0u64, 0u64);
-
-    let (mut frames, mut min, mut max) = (0u64, u64::MAX, 0u64);
-    let mut stage_totals = [0u64; STAGES.len()];
-    loop {
-        let mut probe = TickProbe::default();
-        let result = replay.process_probed(engine, &mut ws, &mut probe);
-        match result {
-            Ok(Some(processed)) => {
-                let per_stage = probe.ticks.map(cycles::instructions);
-                let instructions: u64 = per_stage.iter().sum();
-                // The dense depth in metres, in the arena: hashed as the host hashes it, then
-                // turned into millimetres in place (what the firmware passes on).
-                let depth_m = match engine.output_m() {
-                    Ok(d) => d,
-                    Err(e) => fail(LoopError::Engine(e)),
-                };
-                println!("{}", FrameOutput::new(&processed, depth_m));
-                match engine.output_mm() {
-                    Ok(mm) => println!(
-                        "depth_mm frame {} (u16, in place in the arena) centre={} first={}",
-                        processed.index,
-                        mm.get(mm.len() / 2 + 80).copied().unwrap_or(0),
-                        mm.first().copied().unwrap_or(0)
-                    ),
-                    Err(e) => fail(LoopError::Engine(e)),
-                }
-                println!(
-                    "icount frame {} instructions={instructions} camera={} dtof={} projection={} \
-                     model={}",
-                    processed.index, per_stage[0], per_stage[1], per_stage[2], per_stage[3]
-                );
-                let vl53 = replay.vl53_stats();
-                if processed.index == 0 {
-                    println!(
-                        "vl53l5cx init (once, before frame 0): instructions={} (of which \
-                         simulated sensor {}) transactions={} bytes_written={} bytes_read={}",
-                        cycles::instructions(vl53.init_ticks),
-                        cycles::instructions(vl53.init.device_ticks),
-                        vl53.init.transactions,
-                        vl53.init.bytes_written,
-                        vl53.init.bytes_read
-                    );
-                }
-                let device = cycles::instructions(vl53.frame.device_ticks);
-                let driver = per_stage[1].saturating_sub(device);
-                driver_total += driver;
-                device_total += device;
-                println!(
-                    "vl53l5cx frame {} driver_instructions={driver} simulated_sensor={device} \
-                     transactions={} bytes_read={} bytes_written={}",
-                    processed.index,
-                    vl53.frame.transactions,
-                    vl53.frame.bytes_read,
-                    vl53.frame.bytes_written
-                );
-                frames += 1;
-                for (total, n) in stage_totals.iter_mut().zip(per_stage) {
-                    *total += n;
-                }
-                min = min.min(instructions);
-                max = max.max(instructions);
-            }
-            Ok(None) => break,
-            Err(e) => {
-                println!("ERROR {}: {e}", e.exit_code());
-                console::exit(e.exit_code());
-            }
-        }
-    }
+    let Totals {
+        frames,
+        min,
+        max,
+        stage_totals,
+        driver_total,
+        device_total,
+    } = run_frames(engine, replay, &mut ws);
 
     #[cfg(feature = "profile")]
     if frames > 0 {

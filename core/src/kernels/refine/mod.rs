@@ -420,8 +420,24 @@ pub fn mix_ring_rows(h: usize, iterations: usize) -> usize {
 pub const WINDOW_ROWS: usize = 8;
 
 /// f32 scratch elements [`refine_with`] needs for an image `w` wide and `iterations` steps:
-/// a window per iteration `0..T` and the last iteration's row.
+/// a window per iteration `0..T` and the last iteration's row, then the two mixing maps'
+/// softmax tables ([`Mix`], 2 × 256; in the arena rather than on a microcontroller's stack).
 pub fn scratch_len(w: usize, iterations: usize) -> usize {
+    windows_len(w, iterations).saturating_add(MIX_TABLES)
+}
+
+/// f32 elements of the softmax tables at the end of [`refine_with`]'s scratch.
+const MIX_TABLES: usize = 2 * 256;
+
+/// The first 256 elements of `s` as one [`Mix`] table's storage.
+fn mix_store(s: &mut [f32]) -> Result<&mut [f32; 256], KernelError> {
+    s.get_mut(..256)
+        .and_then(|s| s.try_into().ok())
+        .ok_or(KernelError::Shape)
+}
+
+/// The windows' part of [`scratch_len`].
+fn windows_len(w: usize, iterations: usize) -> usize {
     iterations
         .max(1)
         .saturating_mul(WINDOW_ROWS)
@@ -455,17 +471,20 @@ pub fn ring_bytes(h: usize, w: usize, attrs: &RefineAttrs) -> usize {
 /// exponentials come from a table made once per run, `E[d] = exp(−d·scale)` for the code
 /// distance `d = max code − code` (0..=255): `e_c = E[max − q_c]`; on f32 maps
 /// `e_c = exp(v_c − max v)`. Then `s = (e_0 + e_1) + e_2` and `p_c = e_c / s`.
-#[derive(Clone, Debug)]
-pub struct Mix {
-    table: Option<[f32; 256]>,
+#[derive(Debug)]
+pub struct Mix<'t> {
+    table: Option<&'t [f32; 256]>,
 }
 
-impl Mix {
-    /// The mix of maps quantised as `map` (its table made here when it is int8).
-    pub fn new<B: Map>(map: &B) -> Self {
+impl<'t> Mix<'t> {
+    /// The mix of maps quantised as `map`; its table, when `map` is int8, made here in `store`.
+    pub fn new_in<B: Map>(map: &B, store: &'t mut [f32; 256]) -> Self {
         let table = map.as_i8().map(|m| {
             let scale = m.q().scale;
-            core::array::from_fn(|d| exp(-(d as f32) * scale))
+            for (d, v) in store.iter_mut().enumerate() {
+                *v = exp(-(d as f32) * scale);
+            }
+            &*store
         });
         Mix { table }
     }
@@ -474,7 +493,7 @@ impl Mix {
     /// the same bits, with one division instead of three.
     #[inline(always)]
     pub fn one<B: Map>(&self, map: &B, i: usize, c: usize) -> f32 {
-        let e = match (map.as_i8(), &self.table) {
+        let e = match (map.as_i8(), self.table) {
             (Some(m), Some(t)) => {
                 let (d, p) = (m.data(), m.plane());
                 let q0 = i32::from(d[i]);
@@ -496,7 +515,7 @@ impl Mix {
     /// The softmax of `map` at pixel `i`.
     #[inline]
     pub fn at<B: Map>(&self, map: &B, i: usize) -> [f32; 3] {
-        let e = match (map.as_i8(), &self.table) {
+        let e = match (map.as_i8(), self.table) {
             (Some(m), Some(t)) => {
                 let q = [0, 1, 2].map(|c| i32::from(m.data()[c * m.plane() + i]));
                 let mx = q[0].max(q[1]).max(q[2]);
@@ -514,11 +533,11 @@ impl Mix {
 }
 
 /// One mixing map's view with its [`Mix`].
-type MixAt<'a, B> = (&'a B, &'a Mix);
+type MixAt<'a, B> = (&'a B, &'a Mix<'a>);
 
 /// The int8 map and its table, where the map is int8 and the mix has a table.
 fn int8<'a, B: Map>((map, mix): MixAt<'a, B>) -> Option<(&'a I8Map<'a>, &'a [f32; 256])> {
-    Some((map.as_i8()?, mix.table.as_ref()?))
+    Some((map.as_i8()?, mix.table?))
 }
 
 /// Checks `T` and the σs.
@@ -618,10 +637,13 @@ pub fn refine_with<D: DepthRows, R: AffinityRows, M: MixRows>(
     }
     let Sources { depth, aff, mix } = src;
     let times = [0, t_max / 2, t_max];
+    let (scratch, tables) = scratch.split_at_mut(windows_len(w, t_max));
+    let (t_store, k_store) = tables.split_at_mut(256);
+    let (t_store, k_store) = (mix_store(t_store)?, mix_store(k_store)?);
     let mixes = {
         mix.compute(0)?;
         let (km, tm, _) = mix.view(0)?;
-        (Mix::new(&tm), Mix::new(&km))
+        (Mix::new_in(&tm, t_store), Mix::new_in(&km, k_store))
     };
     let out = &mut out[..p];
     out.fill(0.0);
@@ -924,7 +946,8 @@ mod tests {
         let t_max = attrs.iterations;
         let times = [0, t_max / 2, t_max];
         let mut out = std::vec![0f32; p];
-        let (tm, km) = (Mix::new(tmix), Mix::new(kmix));
+        let (mut ts, mut ks) = ([0f32; 256], [0f32; 256]);
+        let (tm, km) = (Mix::new_in(tmix, &mut ts), Mix::new_in(kmix, &mut ks));
         for (k, (&a, &s)) in aff.iter().zip(&KERNELS).enumerate() {
             let br = Branch::new(s, attrs.sigma[k], attrs.neighbourhood, w);
             let mut cur = d0.to_vec();
