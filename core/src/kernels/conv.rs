@@ -1924,8 +1924,13 @@ pub(crate) mod tests {
             let e = [e, 1, 2, e % 4][e_edge];
             let m = [m, 1 << 30, (1 << 30) + 1, i32::MAX][m_edge];
             let r = crate::kernels::requant::Requant { multiplier: m, shift: -e };
-            // A leaky ReLU's second slope (multiplier and shift below zero) on a quarter.
-            let (neg_m, neg_e) = if edge % 4 == 3 { (m / 10, (e + 3).min(31)) } else { (m, e) };
+            // A leaky ReLU's second slope (multiplier and shift below zero) on a quarter: with
+            // its own shift, or with the same shift (the NEON path's single-shift case).
+            let (neg_m, neg_e) = match edge {
+                3 => (m / 10, (e + 3).min(31)),
+                7 => (m / 10, e),
+                _ => (m, e),
+            };
             let rn = crate::kernels::requant::Requant { multiplier: neg_m, shift: -neg_e };
             let k = RowQuant {
                 simple: true,

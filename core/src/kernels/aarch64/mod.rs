@@ -6,6 +6,7 @@ pub mod depthwise;
 pub mod dotprod;
 pub mod neon;
 pub mod pack;
+pub mod pool;
 pub mod refine;
 pub mod requant;
 pub mod resize;
