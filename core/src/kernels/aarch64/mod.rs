@@ -4,6 +4,7 @@
 pub mod bins;
 pub mod depthwise;
 pub mod dotprod;
+pub mod elementwise;
 pub mod neon;
 pub mod pack;
 pub mod pool;
