@@ -577,8 +577,12 @@ fn write_sparse(
     match info.dtype {
         DType::I8 => {
             let t: &mut [i8] = typed_mut(t, 0)?;
+            // Most pixels have no depth: 0.0 (and −0.0, the same arithmetic) quantises to one
+            // code, computed once; the same bits.
+            let zero = info.q.quantize(0.0);
             for (i, v) in t.iter_mut().enumerate().take(n) {
-                *v = info.q.quantize(get(i));
+                let x = get(i);
+                *v = if x == 0.0 { zero } else { info.q.quantize(x) };
             }
         }
         DType::F32 => {

@@ -1782,6 +1782,75 @@ pub(crate) mod tests {
         }
     }
 
+    /// Stride-2 convs on rows wide enough for the vector packing of every other column (16
+    /// and more output columns per phase), with 1 to 9 input channels (a group of four with
+    /// padding lanes, whole groups, a group and a remainder), both column phases, paddings 0
+    /// to 2 and odd and even widths: every set equals the reference.
+    #[test]
+    fn wide_stride2_rows_match_reference_on_every_set() {
+        let mut seed = 0x5eed_u64;
+        let mut next = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 33) as u32
+        };
+        for in_c in 1..=9usize {
+            for (w, pad, k) in [
+                (33usize, 1usize, 3usize),
+                (70, 0, 3),
+                (97, 2, 5),
+                (64, 1, 1),
+            ] {
+                let geometry = ConvGeometry {
+                    kernel: [k, k],
+                    stride: [2, 2],
+                    padding: [pad, pad],
+                    ..ConvGeometry::POINTWISE
+                };
+                let in_shape = Shape::new(in_c, 7, w);
+                let out_c = 5;
+                let c = Case {
+                    name: "wide stride 2",
+                    geometry,
+                    in_shape,
+                    out_c,
+                    input: (0..in_shape.len().unwrap()).map(|_| next() as i8).collect(),
+                    in_q: QParams {
+                        scale: 0.02,
+                        zero_point: next() as i32 % 40 - 20,
+                    },
+                    weights: (0..geometry.weight_len(in_shape.c, out_c).unwrap())
+                        .map(|_| (next() % 255) as i32 as i8)
+                        .collect(),
+                    w_scales: std::vec![0.003; out_c],
+                    bias: (0..out_c).map(|_| (next() % 2001) as i32 - 1000).collect(),
+                    out_q: QParams {
+                        scale: 0.05,
+                        zero_point: 3,
+                    },
+                    act: Activation::LeakyRelu(0.1),
+                    expect: None,
+                };
+                let (_, yr) = run(&c, conv2d_ref);
+                for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                    let (_, y) = run(
+                        &c,
+                        match isa {
+                            Isa::Portable => portable,
+                            Isa::ArmDsp => arm_dsp,
+                            Isa::Avx2 => avx2,
+                            Isa::Avx512Vnni => avx512_vnni,
+                            Isa::Neon => neon,
+                            Isa::NeonDot => neon_dot,
+                        },
+                    );
+                    assert_eq!(y, yr, "{} in_c={in_c} w={w} pad={pad} k={k}", isa.name());
+                }
+            }
+        }
+    }
+
     /// Speed of every kernel set against the reference on a 3×3 conv, by default 16→16 at
     /// 60×80 (a typical `mcu` half-resolution layer; `CONV_SPEED_SHAPE=ic,oc,h,w` for another).
     /// `CONV_SPEED_DEPTHWISE=1` makes it depthwise, `CONV_SPEED_GEOMETRY=k,stride` sets the
@@ -1924,8 +1993,13 @@ pub(crate) mod tests {
             let e = [e, 1, 2, e % 4][e_edge];
             let m = [m, 1 << 30, (1 << 30) + 1, i32::MAX][m_edge];
             let r = crate::kernels::requant::Requant { multiplier: m, shift: -e };
-            // A leaky ReLU's second slope (multiplier and shift below zero) on a quarter.
-            let (neg_m, neg_e) = if edge % 4 == 3 { (m / 10, (e + 3).min(31)) } else { (m, e) };
+            // A leaky ReLU's second slope (multiplier and shift below zero) on a quarter: with
+            // its own shift, or with the same shift (the NEON path's single-shift case).
+            let (neg_m, neg_e) = match edge {
+                3 => (m / 10, (e + 3).min(31)),
+                7 => (m / 10, e),
+                _ => (m, e),
+            };
             let rn = crate::kernels::requant::Requant { multiplier: neg_m, shift: -neg_e };
             let k = RowQuant {
                 simple: true,

@@ -5,6 +5,7 @@
 //! per-input requantisation, pixel_shuffle and minmax_norm.
 
 use super::broadcast::{broadcast_index, broadcast_len, Broadcast};
+use super::isa::Isa;
 use super::requant::{clamp_i8, rounding_divide_by_pot, QParams, Requant};
 use super::wide::{Codes, CodesMut};
 use super::{need, KernelError, Shape};
@@ -296,6 +297,55 @@ impl Product {
     }
 }
 
+/// [`mul_with`]'s planes for `neon` and `neon-dot` (`out` holds the `n` outputs, planes of
+/// `p`): the high-word products 16 per pass and the 256-entry tables through `TBL`
+/// ([`super::aarch64::elementwise`]), the rest of each plane as the portable loops do it.
+#[cfg(target_arch = "aarch64")]
+fn mul_planes_neon(
+    q: &MulQuant,
+    f: &Product,
+    a: &[i8],
+    b: &[i8],
+    bc: Broadcast,
+    out: &mut [i8],
+    p: usize,
+) {
+    use super::aarch64::elementwise::{lookup, mul_high};
+    let high = f.right >= 33;
+    for (c, (oc, ac)) in out.chunks_exact_mut(p).zip(a.chunks_exact(p)).enumerate() {
+        let bp = match bc {
+            Broadcast::None => &b[c * p..(c + 1) * p],
+            Broadcast::OverChannels => b,
+            Broadcast::OverSpace => {
+                let y = b[c];
+                if p > 256 {
+                    let t: [i8; 256] = core::array::from_fn(|x| q.apply(x as u8 as i8, y));
+                    let done = lookup(&t, ac, oc);
+                    for (o, &x) in oc[done..].iter_mut().zip(&ac[done..]) {
+                        *o = t[x as u8 as usize];
+                    }
+                } else {
+                    for (o, &x) in oc.iter_mut().zip(ac) {
+                        *o = q.apply(x, y);
+                    }
+                }
+                continue;
+            }
+        };
+        let done = if high {
+            mul_high(ac, bp, oc, f.zp, f.m, f.right)
+        } else {
+            0
+        };
+        let rest = oc[done..].iter_mut().zip(&ac[done..]).zip(&bp[done..]);
+        if high {
+            rest.for_each(|((o, &x), &y)| *o = f.apply_high(x, y));
+        } else {
+            rest.for_each(|((o, &x), &y)| *o = f.apply(x, y));
+        }
+    }
+}
+
 /// Reference `mul` with `b` broadcast per [`Broadcast`] (docs/graph.md: `[1,1,H,W]` or `[1,C,1,1]`).
 pub fn mul_ref(
     q: &MulQuant,
@@ -316,8 +366,22 @@ pub fn mul_ref(
 }
 
 /// Fast `mul`: same bits as [`mul_ref`], looping per channel plane so no index arithmetic per
-/// element.
+/// element (the portable set's loops).
 pub fn mul(
+    q: &MulQuant,
+    a: &[i8],
+    shape: Shape,
+    b: &[i8],
+    bc: Broadcast,
+    out: &mut [i8],
+) -> Result<(), KernelError> {
+    mul_with(Isa::Portable, q, a, shape, b, bc, out)
+}
+
+/// [`mul`] with kernel set `isa`: `neon` and `neon-dot` take 16 products per pass and read a
+/// plane's 256-entry table with `TBL` ([`super::aarch64::elementwise`]); the same bits.
+pub fn mul_with(
+    isa: Isa,
     q: &MulQuant,
     a: &[i8],
     shape: Shape,
@@ -341,6 +405,13 @@ pub fn mul(
     let f = q.product();
     let high = f.right >= 33;
     // One loop per case (the high-word form where it applies), so none tests it per element.
+    if matches!(isa, Isa::Neon | Isa::NeonDot) {
+        #[cfg(target_arch = "aarch64")]
+        {
+            mul_planes_neon(q, &f, a, b, bc, &mut out[..n], p);
+            return Ok(());
+        }
+    }
     let planes = |oc: &mut [i8], ac: &[i8], bc: &[i8]| {
         let pairs = oc.iter_mut().zip(ac).zip(bc);
         if high {
@@ -706,6 +777,33 @@ mod tests {
 
     kernel_tests!(add_suite, ref: add_ref, fast: add, golden: golden_add,
         arb: arb_bin([Broadcast::None; 3]), check: check_add);
+    proptest! {
+        /// Every set's `mul` equals the reference on any codes and zero points, multipliers
+        /// and shifts (the high-word form and the other), planes of 1 to 70 pixels.
+        #[test]
+        fn mul_every_set_equals_the_reference(
+            c in 1usize..4, h in 1usize..3, w in 1usize..36, k in 0usize..3,
+            zp in proptest::array::uniform3(-128i32..=127), m in 0i32..=i32::MAX,
+            shift in -33i32..2, seed in any::<u64>(),
+        ) {
+            let shape = Shape::new(c, h, w);
+            let bc = [Broadcast::None, Broadcast::OverChannels, Broadcast::OverSpace][k];
+            let mut s = seed;
+            let mut next = move || { s = s.wrapping_mul(6364136223846793005).wrapping_add(1); (s >> 40) as i8 };
+            let extreme = seed % 4 == 0;
+            let a: Vec<i8> = (0..shape.len().unwrap()).map(|i| if extreme { [-128, 127][i % 2] } else { next() }).collect();
+            let b: Vec<i8> = (0..broadcast_len(bc, shape).unwrap()).map(|i| if extreme { [127, -128][i % 3 % 2] } else { next() }).collect();
+            let q = MulQuant { zp, m: Requant { multiplier: m, shift } };
+            let n = a.len();
+            let (mut want, mut got) = (std::vec![0i8; n], std::vec![0i8; n]);
+            mul_ref(&q, &a, shape, &b, bc, &mut want).unwrap();
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                mul_with(isa, &q, &a, shape, &b, bc, &mut got).unwrap();
+                prop_assert_eq!(&want, &got, "{}", isa.name());
+            }
+        }
+    }
+
     kernel_tests!(mul_suite, ref: mul_ref, fast: mul, golden: golden_mul,
         arb: arb_bin([Broadcast::None, Broadcast::OverChannels, Broadcast::OverSpace]), check: check_mul);
 
@@ -733,8 +831,10 @@ mod tests {
             let (mut y1, mut y2) = (std::vec![0i8; n], std::vec![0i8; n]);
             let mq = MulQuant::new(c.qa, c.qb, c.qo);
             mul_ref(&mq, &a, shape, &b, c.bc, &mut y1).unwrap();
-            mul(&mq, &a, shape, &b, c.bc, &mut y2).unwrap();
-            prop_assert_eq!(&y1, &y2, "mul");
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                mul_with(isa, &mq, &a, shape, &b, c.bc, &mut y2).unwrap();
+                prop_assert_eq!(&y1, &y2, "mul ({})", isa.name());
+            }
             let mut y3 = a.clone();
             mul_in_place(&mq, &mut y3, shape, &b, c.bc).unwrap();
             prop_assert_eq!(&y1, &y3, "mul in place");

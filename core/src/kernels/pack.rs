@@ -56,6 +56,21 @@ pub trait Layout {
     fn interleave4_fast(_src: [&[i8]; 4], _zp: i32, _out: &mut [Self::Elem]) -> usize {
         0
     }
+    /// Whether [`Layout::interleave4_stride2_fast`] has a vector path (else its caller's
+    /// branch compiles away).
+    const STRIDE2_FAST: bool = false;
+    /// `out[x·4 + l] = elem(src[l][2x])` for the first `rows` rows, padding in the other
+    /// lanes, over a leading part, vectorised where the layout and target have it; returns how
+    /// many pixels (0: none).
+    #[inline(always)]
+    fn interleave4_stride2_fast(
+        _src: [&[i8]; 4],
+        _rows: usize,
+        _zp: i32,
+        _out: &mut [Self::Elem],
+    ) -> usize {
+        0
+    }
 }
 
 /// 16-bit `x − zp`, two channels per word.
@@ -137,6 +152,13 @@ impl Layout for SignedQuads {
     #[inline(always)]
     fn interleave4_fast(src: [&[i8]; 4], _zp: i32, out: &mut [i8]) -> usize {
         super::aarch64::pack::interleave4(src, out)
+    }
+    #[cfg(target_arch = "aarch64")]
+    const STRIDE2_FAST: bool = true;
+    #[cfg(target_arch = "aarch64")]
+    #[inline(always)]
+    fn interleave4_stride2_fast(src: [&[i8]; 4], rows: usize, zp: i32, out: &mut [i8]) -> usize {
+        super::aarch64::pack::interleave4_stride2(src, rows, Self::pad(zp), out)
     }
 }
 
@@ -371,6 +393,37 @@ pub fn pack_row<F: Layout, S: Source>(
                             continue;
                         }
                     }
+                }
+            }
+            if F::STRIDE2_FAST && sw == 2 && l == 4 && len > 0 && cg * l < in_shape.c {
+                let rows = (in_shape.c - cg * l).min(l);
+                // Every other code of the group's channel rows (padding in the lanes past the
+                // last channel), without tables: the layout's vector path where it has one,
+                // then the rest word by word.
+                let mut src: [&[i8]; 4] = [&[]; 4];
+                let mut plain = true;
+                for (li, s) in src.iter_mut().enumerate().take(rows) {
+                    match input.run(c0 + cg * l + li, at, 2 * len - 1) {
+                        Some((r, None)) => *s = r,
+                        _ => plain = false,
+                    }
+                }
+                let out = &mut dst[lo * l..hi * l];
+                let done = if plain {
+                    F::interleave4_stride2_fast(src, rows, zp, out)
+                } else {
+                    0
+                };
+                if done > 0 {
+                    for (k, w) in out.chunks_exact_mut(4).enumerate().skip(done) {
+                        for (li, e) in w.iter_mut().enumerate() {
+                            *e = match src.get(li).filter(|_| li < rows) {
+                                Some(r) => F::elem(r[2 * k], zp),
+                                None => pad,
+                            };
+                        }
+                    }
+                    continue;
                 }
             }
             for li in 0..l {

@@ -4,6 +4,7 @@
 //! maxima take four bytes per word ([`super::arm::bytes`]), the same integers.
 
 use super::elementwise::Rescale;
+use super::isa::Isa;
 use super::requant::{clamp_i8, QParams, Requant};
 use super::{need, KernelError, Shape};
 
@@ -97,14 +98,38 @@ pub fn global_max_pool(
     Ok(())
 }
 
-/// Mean over channels; `q` built with `n = C`.
+/// Mean over channels; `q` built with `n = C` (the portable set's loops).
 pub fn channel_mean(
     q: &MeanQuant,
     input: &[i8],
     shape: Shape,
     out: &mut [i8],
 ) -> Result<(), KernelError> {
+    channel_mean_with(Isa::Portable, q, input, shape, out)
+}
+
+/// [`channel_mean`] with kernel set `isa`: `neon` and `neon-dot` sum 16 pixels per pass
+/// ([`super::aarch64::pool::sums`], up to 256 channels); the same integers, so the same bits.
+pub fn channel_mean_with(
+    isa: Isa,
+    q: &MeanQuant,
+    input: &[i8],
+    shape: Shape,
+    out: &mut [i8],
+) -> Result<(), KernelError> {
     let p = check(input, shape, out, shape.h.saturating_mul(shape.w))?;
+    #[cfg(target_arch = "aarch64")]
+    let first = if matches!(isa, Isa::Neon | Isa::NeonDot) {
+        let shift = shape.c as i32 * q.zp_in;
+        super::aarch64::pool::sums(input, shape.c, p, |i, s| {
+            for (o, &s) in out[i..i + 16].iter_mut().zip(s) {
+                *o = q.finish(i32::from(s) - shift);
+            }
+        })
+    } else {
+        0
+    };
+    let _ = isa;
     #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
     let first = if shape.c <= 256 {
         // Four pixels per word: channel c's bytes added to 16-bit lanes (≤ 256 per lane).
@@ -126,7 +151,7 @@ pub fn channel_mean(
     } else {
         0
     };
-    #[cfg(not(all(target_arch = "arm", feature = "arm-dsp")))]
+    #[cfg(not(any(target_arch = "aarch64", all(target_arch = "arm", feature = "arm-dsp"))))]
     let first = 0;
     for (i, o) in out[..p].iter_mut().enumerate().skip(first) {
         let mut sum = 0i32;
@@ -220,7 +245,7 @@ mod tests {
         /// codes), bit for bit: with `arm-dsp` these are the four-bytes-per-word paths, over
         /// widths that are not multiples of four and channel counts past the 16-bit lanes'.
         #[test]
-        fn pools_equal_scalar_integers(c in 1usize..300, h in 1usize..4, w in 1usize..11,
+        fn pools_equal_scalar_integers(c in 1usize..300, h in 1usize..4, w in 1usize..23,
                                        zi in -128i32..128, seed in any::<u32>()) {
             let s = Shape::new(c, h, w);
             let p = h * w;
@@ -246,10 +271,12 @@ mod tests {
                 prop_assert_eq!(got, r.apply(*plane(k).iter().max().unwrap()), "max {}", k);
             }
             let q = MeanQuant::new(qi, qo, c);
-            channel_mean(&q, &x, s, &mut y).unwrap();
-            for (i, &got) in y[..p].iter().enumerate() {
-                let sum: i32 = (0..c).map(|k| plane(k)[i] as i32 - zi).sum();
-                prop_assert_eq!(got, q.finish(sum), "channel mean {}", i);
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                channel_mean_with(isa, &q, &x, s, &mut y).unwrap();
+                for (i, &got) in y[..p].iter().enumerate() {
+                    let sum: i32 = (0..c).map(|k| plane(k)[i] as i32 - zi).sum();
+                    prop_assert_eq!(got, q.finish(sum), "channel mean {} ({})", i, isa.name());
+                }
             }
             channel_max(&r, &x, s, &mut y).unwrap();
             for (i, &got) in y[..p].iter().enumerate() {

@@ -59,7 +59,7 @@ pub(crate) fn eval(e: Eval) -> Result<(), Error> {
         .ok_or(e.bad())?;
     let kerr = e.kerr();
     let (a, out) = (typed(e.ins[0], i)?, typed_mut(e.out, i)?);
-    elementwise::mul(&q, a, e.x, b, e.plan.broadcast(i), out).map_err(kerr)?;
+    elementwise::mul_with(e.isa, &q, a, e.x, b, e.plan.broadcast(i), out).map_err(kerr)?;
     Ok(())
 }
 

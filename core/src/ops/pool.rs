@@ -64,7 +64,7 @@ pub(crate) fn eval(e: Eval) -> Result<(), Error> {
     match e.op.code {
         opcode::GLOBAL_AVG_POOL => pool::global_avg_pool(&first(cb, i)?, x, e.x, out),
         opcode::GLOBAL_MAX_POOL => pool::global_max_pool(&first(cb, i)?, x, e.x, out),
-        opcode::CHANNEL_MEAN => pool::channel_mean(&first(cb, i)?, x, e.x, out),
+        opcode::CHANNEL_MEAN => pool::channel_mean_with(e.isa, &first(cb, i)?, x, e.x, out),
         _ => pool::channel_max(&first(cb, i)?, x, e.x, out),
     }
     .map_err(kerr)?;

@@ -4,8 +4,10 @@
 pub mod bins;
 pub mod depthwise;
 pub mod dotprod;
+pub mod elementwise;
 pub mod neon;
 pub mod pack;
+pub mod pool;
 pub mod refine;
 pub mod requant;
 pub mod resize;

@@ -39,3 +39,47 @@ unsafe fn interleave4_neon(src: [&[i8]; 4], out: &mut [i8], n: usize) {
         x += 16;
     }
 }
+
+/// `out[4x + l] = src[l][2x]` (every other code: a stride-2 conv's column phase) for the
+/// first `rows` rows (`1..=4`), `pad` in the other lanes, for the leading multiple of 16 pixels
+/// whose 32 codes those rows hold and `out` has room for; returns how many pixels it packed (0
+/// without NEON). `LD2` splits even and odd codes, `ST4` interleaves the even ones.
+pub fn interleave4_stride2(src: [&[i8]; 4], rows: usize, pad: i8, out: &mut [i8]) -> usize {
+    let shortest = src.iter().take(rows).map(|s| s.len()).min().unwrap_or(0);
+    let n = (shortest / 2).min(out.len() / 4) / 16 * 16;
+    if !crate::kernels::isa::Isa::Neon.available() || !(1..=4).contains(&rows) {
+        return 0;
+    }
+    // SAFETY: NEON is available; `2n` codes lie inside each of the first `rows` rows and `4n`
+    // bytes inside `out`.
+    unsafe { interleave4_stride2_neon(src, rows, pad, out, n) };
+    n
+}
+
+/// # Safety
+/// The CPU must have NEON; each of the first `rows` rows holds `2n` codes and `out` `4n` bytes
+/// (the safe wrapper above, the only caller, checks it).
+#[target_feature(enable = "neon")]
+unsafe fn interleave4_stride2_neon(
+    src: [&[i8]; 4],
+    rows: usize,
+    pad: i8,
+    out: &mut [i8],
+    n: usize,
+) {
+    let fill = vdupq_n_s8(pad);
+    let lane = |l: usize, x: usize| {
+        if l < rows {
+            // SAFETY: row `l < rows` holds `2n ≥ 2x + 32` codes (the caller's contract).
+            unsafe { vld2q_s8(src[l].as_ptr().add(2 * x)).0 }
+        } else {
+            fill
+        }
+    };
+    let mut x = 0;
+    while x < n {
+        let v = int8x16x4_t(lane(0, x), lane(1, x), lane(2, x), lane(3, x));
+        vst4q_s8(out.as_mut_ptr().add(4 * x), v);
+        x += 16;
+    }
+}

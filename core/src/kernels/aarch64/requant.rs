@@ -83,33 +83,41 @@ unsafe fn block_neon(
 
 /// Requantises the leading multiple of 8 of `acc` (`k.base` added) into `out` (`acc.len() ≥
 /// out.len()`); returns how many it did. One multiplier and shift for both signs (no LeakyReLU
-/// slope) skips the per-lane selects.
+/// slope) skips the per-lane selects, one shift for both signs skips the shift's select, and a
+/// right shift on both sides makes the "−1 where `q < 0`" one `SSRA` (`q + (q >> 31)`, no
+/// overflow as `q > −2³¹`) instead of a compare, a mask and an add.
 ///
 /// # Safety
 /// The CPU must have NEON.
-#[target_feature(enable = "neon")]
-#[inline]
+#[inline(always)]
 unsafe fn row(k: &RowQuant, acc: &[i32], out: &mut [i8]) -> usize {
-    if k.pos_m == k.neg_m && k.pos_r == k.neg_r {
-        let (m, e) = (vdupq_n_s32(k.pos_m), vdupq_n_s32(-k.pos_r));
-        // All ones where there is a right shift: then negative q lose 1 before it.
-        let shifts = vdupq_n_u32(if k.pos_r > 0 { u32::MAX } else { 0 });
-        rows_with(k, acc, out, |x| {
+    let (pm, nm) = (vdupq_n_s32(k.pos_m), vdupq_n_s32(k.neg_m));
+    let (pe, ne) = (vdupq_n_s32(-k.pos_r), vdupq_n_s32(-k.neg_r));
+    let shifted = k.pos_r > 0 && k.neg_r > 0;
+    match (k.pos_m == k.neg_m, k.pos_r == k.neg_r) {
+        (true, true) if k.pos_r == 0 => rows_with(k, acc, out, |x| vqrdmulhq_s32(x, pm)),
+        (true, true) => rows_with(k, acc, out, |x| {
+            let q = vqrdmulhq_s32(x, pm);
+            vrshlq_s32(vsraq_n_s32::<31>(q, q), pe)
+        }),
+        (false, true) if shifted => rows_with(k, acc, out, |x| {
+            let q = vqrdmulhq_s32(x, vbslq_s32(vcltzq_s32(x), nm, pm));
+            vrshlq_s32(vsraq_n_s32::<31>(q, q), pe)
+        }),
+        _ if shifted => rows_with(k, acc, out, |x| {
+            let neg = vcltzq_s32(x);
+            let (m, e) = (vbslq_s32(neg, nm, pm), vbslq_s32(neg, ne, pe));
             let q = vqrdmulhq_s32(x, m);
-            let adj = vandq_u32(vcltzq_s32(q), shifts);
-            vrshlq_s32(vaddq_s32(q, vreinterpretq_s32_u32(adj)), e)
-        })
-    } else {
-        let (pm, nm) = (vdupq_n_s32(k.pos_m), vdupq_n_s32(k.neg_m));
-        let (pe, ne) = (vdupq_n_s32(-k.pos_r), vdupq_n_s32(-k.neg_r));
-        rows_with(k, acc, out, |x| {
+            vrshlq_s32(vsraq_n_s32::<31>(q, q), e)
+        }),
+        _ => rows_with(k, acc, out, |x| {
             let neg = vcltzq_s32(x);
             let (m, e) = (vbslq_s32(neg, nm, pm), vbslq_s32(neg, ne, pe));
             let q = vqrdmulhq_s32(x, m);
             // −1 where q < 0 and there is a shift (e < 0 here is a right shift).
             let adj = vandq_u32(vcltzq_s32(q), vcltzq_s32(e));
             vrshlq_s32(vaddq_s32(q, vreinterpretq_s32_u32(adj)), e)
-        })
+        }),
     }
 }
 

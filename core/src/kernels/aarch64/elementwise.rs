@@ -1,0 +1,120 @@
+//! NEON int8 `mul` (CBAM's attention products): the product form of
+//! [`crate::kernels::elementwise`]'s `Product::apply_high`, 16 codes per pass, and the 256-entry
+//! table of a plane scaled by one code read with `TBL`/`TBX`.
+//!
+//! `apply_high` rounds `|p|·M` (`p = (a − zp_a)(b − zp_b)`, `|p| ≤ 255² < 2¹⁶`, `M < 2³¹`)
+//! as `(⌊|p|·M / 2³²⌋ + 2^(s−1)) >> s` with `s = r − 32 ≥ 1`. `SQDMULH(|p|, M)` is
+//! `t = ⌊|p|·M / 2³¹⌋` (no saturation: `2·|p|·M < 2⁴⁸`), and `⌊t/2⌋ + 2^(s−1)` shifted right by
+//! `s` equals `(t + 2^s) >> (s + 1)`, one `SRSHL` by `−(s + 1)`. Then the sign of `p`
+//! (`(m ^ σ) − σ`), the output zero point and two saturating narrows (the clamp to int8): the
+//! same integers, so the same bits.
+
+use core::arch::aarch64::*;
+
+/// `out[i] = apply_high(a[i], b[i])` (module doc) for the leading multiple of 16 of
+/// `out.len()` (`a` and `b` at least as long); returns how many it did. `zp` are the zero
+/// points of a, b and out, `m` the multiplier, `right` its total right shift. Does nothing (0)
+/// where NEON is absent, `right` is outside `33..=62`, `m` is not below 2³¹, or a zero point of
+/// `a` or `b` lies outside the int8 range (then `|a − zp|` could pass 255).
+pub fn mul_high(a: &[i8], b: &[i8], out: &mut [i8], zp: [i32; 3], m: u64, right: u32) -> usize {
+    let n = out.len().min(a.len()).min(b.len()) / 16 * 16;
+    let codes = -128..=127;
+    let ok = (33..=62).contains(&right)
+        && m < 1 << 31
+        && codes.contains(&zp[0])
+        && codes.contains(&zp[1])
+        && (-(1 << 16)..=1 << 16).contains(&zp[2]);
+    if !crate::kernels::isa::Isa::Neon.available() || !ok || n == 0 {
+        return 0;
+    }
+    // SAFETY: NEON is available; `a`, `b` and `out` hold `n` codes each (all checked).
+    unsafe { mul_high_neon(&a[..n], &b[..n], &mut out[..n], zp, m as i32, right) };
+    n
+}
+
+/// [`mul_high`]'s loop over whole groups of 16.
+///
+/// # Safety
+/// The CPU must have NEON; `a`, `b` and `out` have the same length, a multiple of 16; the
+/// constants are in [`mul_high`]'s ranges.
+#[target_feature(enable = "neon")]
+unsafe fn mul_high_neon(a: &[i8], b: &[i8], out: &mut [i8], zp: [i32; 3], m: i32, right: u32) {
+    let (za, zb) = (vdupq_n_s16(zp[0] as i16), vdupq_n_s16(zp[1] as i16));
+    let mv = vdupq_n_s32(m);
+    let shift = vdupq_n_s32(-(right as i32 - 31));
+    let zo = vdupq_n_s32(zp[2]);
+    // One lane group of four products → four output codes (as i32, before narrowing).
+    let four = |p: int32x4_t| {
+        let t = vqdmulhq_s32(vabsq_s32(p), mv);
+        let mag = vrshlq_s32(t, shift);
+        let sign = vshrq_n_s32::<31>(p);
+        vaddq_s32(vsubq_s32(veorq_s32(mag, sign), sign), zo)
+    };
+    let mut i = 0;
+    while i + 16 <= out.len() {
+        // SAFETY: `i + 16 ≤ len` of all three slices.
+        let (va, vb) = unsafe { (vld1q_s8(a.as_ptr().add(i)), vld1q_s8(b.as_ptr().add(i))) };
+        // x − zp in 16 bits (|·| ≤ 255).
+        let a_lo = vsubq_s16(vmovl_s8(vget_low_s8(va)), za);
+        let a_hi = vsubq_s16(vmovl_high_s8(va), za);
+        let b_lo = vsubq_s16(vmovl_s8(vget_low_s8(vb)), zb);
+        let b_hi = vsubq_s16(vmovl_high_s8(vb), zb);
+        let p0 = vmull_s16(vget_low_s16(a_lo), vget_low_s16(b_lo));
+        let p1 = vmull_high_s16(a_lo, b_lo);
+        let p2 = vmull_s16(vget_low_s16(a_hi), vget_low_s16(b_hi));
+        let p3 = vmull_high_s16(a_hi, b_hi);
+        let h0 = vcombine_s16(vqmovn_s32(four(p0)), vqmovn_s32(four(p1)));
+        let h1 = vcombine_s16(vqmovn_s32(four(p2)), vqmovn_s32(four(p3)));
+        let r = vcombine_s8(vqmovn_s16(h0), vqmovn_s16(h1));
+        // SAFETY: as above.
+        unsafe { vst1q_s8(out.as_mut_ptr().add(i), r) };
+        i += 16;
+    }
+}
+
+/// `out[i] = table[x[i] as u8]` for the leading multiple of 16 of `out.len()` (`x` at least as
+/// long); returns how many it did (0 where NEON is absent).
+pub fn lookup(table: &[i8; 256], x: &[i8], out: &mut [i8]) -> usize {
+    let n = out.len().min(x.len()) / 16 * 16;
+    if !crate::kernels::isa::Isa::Neon.available() || n == 0 {
+        return 0;
+    }
+    // SAFETY: NEON is available; `x` and `out` hold `n` codes each.
+    unsafe { lookup_neon(table, &x[..n], &mut out[..n]) };
+    n
+}
+
+/// [`lookup`]'s loop: the table in 16 registers, four `TBL`/`TBX` of 64 entries per 16 codes
+/// (an index past 63 gives 0 in `TBL` and leaves the lane in `TBX`).
+///
+/// # Safety
+/// The CPU must have NEON; `x` and `out` have the same length, a multiple of 16.
+#[target_feature(enable = "neon")]
+unsafe fn lookup_neon(table: &[i8; 256], x: &[i8], out: &mut [i8]) {
+    let t = table.as_ptr();
+    // SAFETY: `table` holds 4 · 64 bytes.
+    let (t0, t1, t2, t3) = unsafe {
+        (
+            vld1q_s8_x4(t),
+            vld1q_s8_x4(t.add(64)),
+            vld1q_s8_x4(t.add(128)),
+            vld1q_s8_x4(t.add(192)),
+        )
+    };
+    let k64 = vdupq_n_u8(64);
+    let mut i = 0;
+    while i + 16 <= out.len() {
+        // SAFETY: `i + 16 ≤ len` of both slices.
+        let idx = unsafe { vreinterpretq_u8_s8(vld1q_s8(x.as_ptr().add(i))) };
+        let i1 = vsubq_u8(idx, k64);
+        let i2 = vsubq_u8(i1, k64);
+        let i3 = vsubq_u8(i2, k64);
+        let r = vqtbl4q_s8(t0, idx);
+        let r = vqtbx4q_s8(r, t1, i1);
+        let r = vqtbx4q_s8(r, t2, i2);
+        let r = vqtbx4q_s8(r, t3, i3);
+        // SAFETY: as above.
+        unsafe { vst1q_s8(out.as_mut_ptr().add(i), r) };
+        i += 16;
+    }
+}
