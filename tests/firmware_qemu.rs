@@ -131,7 +131,23 @@ fn check_replay_run(cpu: &str, (code, stdout): (i32, String), host: &[String]) {
         assert!(stdout.contains(needle), "missing {needle:?} in:\n{stdout}");
     }
     assert!(!stdout.contains("PANIC"), "{stdout}");
+    // Issue 41: the whole firmware (statics + stack high-water) in 320 KiB with mcu_lite.
+    let total: usize = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("ram: statics "))
+        .and_then(|l| l.split(" = ").nth(1))
+        .and_then(|l| l.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no RAM total on {cpu}:\n{stdout}"));
+    assert!(
+        total <= RAM_BUDGET_BYTES,
+        "firmware RAM {total} B on {cpu} grew past {RAM_BUDGET_BYTES} B"
+    );
 }
+
+/// The firmware's RAM budget with the default blob (`mcu_lite`): 320 KiB (issue 41; 327 188 B
+/// measured on 2026-12-06).
+const RAM_BUDGET_BYTES: usize = 320 * 1024;
 
 /// Runs the firmware on a defective image: it must report `ERROR <code>` and exit with it.
 fn assert_firmware_rejects(name: &str, bytes: &[u8], code: u8) {

@@ -20,7 +20,7 @@
 //!   | variant | H×W | `Memory::Streamed` | `Memory::Budget(1.5 ×)` | `Memory::Whole` |
 //!   |---|---|---|---|---|
 //!   | `mcu` | 120×160 | 384 127 B (goal 384 KiB) | 518 591 B (affinities only) | 1 922 703 B |
-//!   | `mcu_lite` | 120×160 | 291 615 B | 291 615 B | 504 767 B |
+//!   | `mcu_lite` | 120×160 | 289 199 B | 289 199 B | 504 767 B |
 //!   | `phone` | 320×240 | 1 672 239 B (goal 2 MiB) | 1 672 239 B | 7 431 615 B |
 //!
 //!   The `mcu` peaks are the last decoder stage (skips and a conv's scratch, 382 128 B) and the
@@ -31,7 +31,7 @@
 //!   op, tensor and buffer tables, no heap; 19 152 with the `small-tables` feature): keep it in
 //!   a `static` on a microcontroller, built there by [`Engine::init_in`], which fills the tables
 //!   in place ([`crate::blob::parse::parse_into`], [`plan_with_into`]): the firmware's whole
-//!   stack high-water is then ≈ 10.2 KiB. `Engine::new` returns the engine by value and uses
+//!   stack high-water is then ≈ 9.4 KiB. `Engine::new` returns the engine by value and uses
 //!   ≈ 25 KiB more stack once, for the planner's tables.
 //! - [`Io::Arena`]: the RGB frame and the sparse depth are written into staging areas of the
 //!   arena ([`Engine::staging`]) placed beside the inputs at step 0, and the dense depth is read

@@ -390,12 +390,14 @@ fn round_up(n: usize) -> Result<usize, PlanError> {
 
 /// Most rounds of [`place`]'s search, per starting order.
 pub const PLACE_ROUNDS: usize = 64;
-/// Starting orders [`place`] tries (decreasing size × lifetime; earliest first use).
-pub const PLACE_STARTS: usize = 2;
+/// Starting orders [`place`] tries (decreasing size × lifetime; earliest first use; earliest
+/// last use).
+pub const PLACE_STARTS: usize = 3;
 
 /// Places buffers: each in turn at the lowest offset that does not overlap a placed buffer
 /// alive at the same time (TFLite Micro's greedy planner), starting from the order largest
-/// first by bytes × lifetime (then, unless that reached the bound below, by first use); then,
+/// first by bytes × lifetime (then, unless that reached the bound below, by first use and by
+/// last use); then,
 /// for up to [`PLACE_ROUNDS`] rounds or until the total equals the bytes live at the busiest
 /// step (no placement needs fewer), the buffer that reaches the top is moved to the
 /// front of the order and everything placed again. Keeps the order with the smallest total (the
@@ -421,14 +423,15 @@ pub fn place(reqs: &[BufferReq], offsets: &mut [usize]) -> Result<usize, PlanErr
     let life = |r: &BufferReq| r.last - r.first.min(r.last) + 1;
     let mut best = (usize::MAX, order.clone());
     // Starting orders, each improved by the rounds below: decreasing size × lifetime (bytes ·
-    // steps), then earliest first use; ties by size, earlier first use, index. The smallest
-    // total is kept; the search stops at the bound (nothing is smaller).
+    // steps), earliest first use, earliest last use; ties by size, earlier first use, index. The
+    // smallest total is kept; the search stops at the bound (nothing is smaller).
     for start in 0..PLACE_STARTS {
         order.sort_unstable_by(|&a, &b| {
             let (ra, rb) = (&reqs[a as usize], &reqs[b as usize]);
             let key = |r: &BufferReq| match start {
                 0 => r.bytes.saturating_mul(life(r)),
-                _ => usize::MAX - r.first,
+                1 => usize::MAX - r.first,
+                _ => usize::MAX - r.last,
             };
             key(rb)
                 .cmp(&key(ra))
@@ -488,12 +491,12 @@ fn live_bound(reqs: &[BufferReq]) -> usize {
 /// Places the buffers of `order` one by one at the lowest offset that does not overlap an
 /// already-placed buffer alive at the same time; returns the total.
 fn place_in(reqs: &[BufferReq], offsets: &mut [usize], order: &[u16]) -> Result<usize, PlanError> {
-    let mut placed: Vec<u16, MAX_BUFFERS> = Vec::new();
     let mut total = 0usize;
-    for &i in order {
+    for (k, &i) in order.iter().enumerate() {
         let r = reqs[i as usize];
         let mut conflicts: Vec<(usize, usize), MAX_BUFFERS> = Vec::new();
-        for &j in &placed {
+        // The buffers placed so far are the order's first k.
+        for &j in &order[..k] {
             let q = reqs[j as usize];
             if q.first <= r.last && r.first <= q.last {
                 let o = offsets[j as usize];
@@ -512,7 +515,6 @@ fn place_in(reqs: &[BufferReq], offsets: &mut [usize], order: &[u16]) -> Result<
         }
         offsets[i as usize] = at;
         total = total.max(at.checked_add(r.bytes).ok_or(PlanError::TooLarge)?);
-        placed.push(i).map_err(|_| PlanError::TooLarge)?;
     }
     Ok(total)
 }

@@ -17,10 +17,21 @@ use super::isa::Isa;
 use super::scalar::softmax_exp;
 use super::{need, KernelError, Shape};
 
-/// Most bins supported (stack arrays of this size hold logits and centres).
+/// Most bins supported (stack arrays of this size hold logits and centres; 128 with the
+/// `small-tables` feature).
+#[cfg(not(feature = "small-tables"))]
 pub const MAX_BINS: usize = 256;
-/// Most feature channels supported by the int8 head.
+/// Most feature channels supported by the int8 head (64 with the `small-tables` feature).
+#[cfg(not(feature = "small-tables"))]
 pub const MAX_BIN_FEATURES: usize = 512;
+/// Most bins supported: the `small-tables` build (the shipped networks have 16 or 128; its
+/// stack arrays hold this many).
+#[cfg(feature = "small-tables")]
+pub const MAX_BINS: usize = 128;
+/// Most feature channels supported by the int8 head: the `small-tables` build (the shipped
+/// networks have 12 or 16).
+#[cfg(feature = "small-tables")]
+pub const MAX_BIN_FEATURES: usize = 64;
 
 /// Attributes of `bins_head`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -264,7 +275,8 @@ mod tests {
     /// weight pairs then do not fit its stack table and are made per chunk of pixels).
     #[test]
     fn wide_heads_agree_across_sets() {
-        let (c, n, h, w) = (40usize, 256usize, 2usize, 9usize);
+        // 256 bins (128 under `small-tables`, its limit).
+        let (c, n, h, w) = (40usize, MAX_BINS, 2usize, 9usize);
         let shape = Shape::new(c, h, w);
         let feats: Vec<i8> = (0..c * h * w).map(|i| ((i * 73 + 5) % 251) as i8).collect();
         let wq: Vec<i8> = (0..n * c).map(|i| ((i * 31 + 7) % 253) as i8).collect();
