@@ -93,9 +93,9 @@ pub const DEPTHOR_DISTANCE_Z: u32 = 0;
 pub const DEPTHOR_DISTANCE_RADIAL: u32 = 1;
 
 /// Bytes of `depthor_engine_storage` on 32-bit targets (Cortex-M: the engine object is
-/// 32 848 B on thumbv7em).
+/// 33 080 B on thumbv7em).
 pub const DEPTHOR_ENGINE_STORAGE_BYTES_32: usize = 36864;
-/// Bytes of `depthor_engine_storage` on 64-bit targets (49 176 B on x86-64).
+/// Bytes of `depthor_engine_storage` on 64-bit targets (49 416 B on x86-64).
 pub const DEPTHOR_ENGINE_STORAGE_BYTES_64: usize = 53248;
 /// Bytes of `depthor_engine_storage`, the header's statically sized engine memory, on this
 /// target: at least `depthor_engine_size()` (checked at compile time below).
