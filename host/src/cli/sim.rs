@@ -105,7 +105,7 @@ pub fn handle(args: Args) -> Result<()> {
                 .with_context(|| format!("{}: cannot read", path.display()))?;
             let mix = MeasurementMix::from_json(&cfg, &text)
                 .with_context(|| path.display().to_string())?;
-            Measurement::Mix(Box::new(mix))
+            Measurement::Mix(mix)
         }
     };
     if args.print_config {
@@ -149,7 +149,7 @@ enum Measurement {
     /// One configuration for every frame.
     Fixed(SimConfig),
     /// A condition of the mix drawn per frame.
-    Mix(Box<MeasurementMix>),
+    Mix(MeasurementMix),
 }
 
 impl Measurement {
