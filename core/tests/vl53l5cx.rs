@@ -791,3 +791,75 @@ mod never_panics {
         }
     }
 }
+
+/// The seeds of the `vl53l5cx_results` and `vl53l5cx_driver` fuzz targets
+/// (`core/fuzz/seeds/<target>/`; byte layouts at the top of `core/fuzz/fuzz_targets/<target>.rs`)
+/// are current: the results seeds are the wire bytes the simulated sensor sends for a 4×4 and an
+/// 8×8 frame (the driver's I/O buffer after `read_frame`) behind the target's zone-count byte,
+/// and they decode. Rewrite them with `DEPTHOR_WRITE_FUZZ_SEEDS=1 cargo test -p depthor-core
+/// --test vl53l5cx fuzz_seed`.
+#[test]
+fn fuzz_seeds_are_the_simulated_sensors_frames() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/seeds");
+    let mut seeds: Vec<(&str, &str, Vec<u8>)> = Vec::new();
+    for (name, eight, mode, seed) in [("sim_4x4", false, 0u8, 3u32), ("sim_8x8", true, 1, 7)] {
+        let mut device = SimVl53l5cx::new();
+        device.set_zones(&zones(seed));
+        let mut io = [0u8; 1452];
+        let mut tof = Vl53l5cx::new(
+            device,
+            NoDelay,
+            sim::stand_in_buffers(),
+            &mut io,
+            Config::default(),
+        );
+        tof.init().unwrap();
+        let resolution = if eight {
+            Resolution::R8x8
+        } else {
+            Resolution::R4x4
+        };
+        tof.set_resolution(resolution).unwrap();
+        tof.start_ranging().unwrap();
+        let mut frame = ZoneFrame::<64>::new();
+        tof.read_frame(&mut frame).unwrap();
+        let _ = tof.release(); // ends the borrow of `io`, which holds the last results
+        let len = results_len(resolution);
+        let buf = &io[..len];
+        let mut out = ResultsData::new();
+        depthor_core::drivers::vl53l5cx::decode_results(
+            buf,
+            usize::from(resolution.zones()),
+            &mut out,
+        )
+        .unwrap();
+        let mut seed = vec![mode];
+        seed.extend_from_slice(buf);
+        seeds.push(("vl53l5cx_results", name, seed));
+    }
+    // Driver seeds: `cfg, arg, skip, zone seed`, no control bytes (a clean bus): a warm 4×4
+    // session reading 2 frames; init through the bus, 8×8, settings at 10 Hz, 4 frames, stop.
+    seeds.push((
+        "vl53l5cx_driver",
+        "warm_4x4_2frames",
+        vec![0b0000_0100, 0, 0, 0, 3, 0, 0, 0],
+    ));
+    seeds.push((
+        "vl53l5cx_driver",
+        "init_8x8_settings_4frames_stop",
+        vec![0b0110_1111, 10, 0, 0, 7, 0, 0, 0],
+    ));
+    for (target, name, seed) in &seeds {
+        let path = dir.join(target).join(name);
+        if std::env::var_os("DEPTHOR_WRITE_FUZZ_SEEDS").is_some() {
+            std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+            std::fs::write(&path, seed).unwrap();
+        }
+        let on_disk = std::fs::read(&path).unwrap();
+        assert!(
+            &on_disk == seed,
+            "{} is stale: rewrite it (see the doc)",
+            path.display()
+        );
+    }
+}

@@ -13,9 +13,11 @@
 #[path = "common.rs"]
 mod common;
 
+use std::mem::MaybeUninit;
+
 use common::{NoDelay, TINY_BLOB};
 use depthor_core::blob::checksum::crc32;
-use depthor_core::engine::{required_arena_bytes, Engine};
+use depthor_core::engine::{required_arena_bytes_io, Engine, Io, Memory};
 use depthor_core::hal::{RgbCamera, RgbFrame, ZoneFrame};
 use depthor_replay::camera::ReplayCamera;
 use depthor_replay::format::{Image, CRC_LEN};
@@ -73,28 +75,37 @@ fuzz_target!(|input: &[u8]| {
     if h * w > 32 * 32 {
         return;
     }
-    let Ok(need) = required_arena_bytes(TINY_BLOB, h, w) else {
+    // As the firmware prepares it (`depthor_replay::model::prepare`): the frame buffers in the
+    // arena (`Io::Arena`), the loop captures and projects into `Engine::staging`.
+    let Ok(need) = required_arena_bytes_io(TINY_BLOB, h, w, Memory::Streamed, Io::Arena) else {
         return;
     };
     let mut arena = vec![0u8; need];
-    let Ok(mut engine) = Engine::with_size(TINY_BLOB, &mut arena, h, w) else {
+    let mut slot = Box::new(MaybeUninit::<Engine<'_>>::uninit());
+    let Ok(engine) = Engine::init_in(
+        &mut slot,
+        TINY_BLOB,
+        &mut arena,
+        h,
+        w,
+        Memory::Streamed,
+        Io::Arena,
+    ) else {
         return;
     };
-    let mut sparse = vec![0f32; h * w];
-    let mut depth = vec![0f32; h * w];
     let mut bridge = [0f32; ZONES];
     let mut zone_frame = Box::new(ZoneFrame::<ZONES>::new());
     let mut ws = Workspace {
-        rgb: &mut rgb,
-        sparse_m: &mut sparse,
-        depth_m: &mut depth,
         bridge_mm: &mut bridge,
         zones: &mut zone_frame,
     };
     let mut replay = ReplayLoop::new(image, NoDelay);
     for _ in 0..4 {
-        match replay.process(&mut engine, &mut ws) {
-            Ok(Some(p)) => assert!(ws.depth_m[..p.pixels].iter().all(|v| v.is_finite())),
+        match replay.process(engine, &mut ws) {
+            Ok(Some(p)) => {
+                let depth = engine.output_m().expect("output after a completed frame");
+                assert!(depth[..p.pixels].iter().all(|v| v.is_finite()));
+            }
             Ok(None) | Err(_) => break,
         }
     }
