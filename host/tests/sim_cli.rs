@@ -1,6 +1,9 @@
 //! `depthor sim` end to end: determinism of whole recordings, `--from`, `--preview`, config errors.
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use common::tree;
+use std::path::Path;
 use std::process::Command;
 
 fn depthor(args: &[&str]) -> (i32, String) {
@@ -12,27 +15,6 @@ fn depthor(args: &[&str]) -> (i32, String) {
         out.status.code().unwrap_or(-1),
         String::from_utf8_lossy(&out.stderr).into_owned(),
     )
-}
-
-/// Every file below `dir` (relative path, bytes), sorted.
-fn tree(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
-    let mut out = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                out.push((
-                    p.strip_prefix(dir).unwrap().to_path_buf(),
-                    std::fs::read(&p).unwrap(),
-                ));
-            }
-        }
-    }
-    out.sort();
-    out
 }
 
 fn sim(out: &Path, seed: &str) {

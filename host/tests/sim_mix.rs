@@ -2,41 +2,19 @@
 //! gives the same bytes, the frames spread over the conditions by weight, bad mixes name the
 //! condition and the field, and the shipped training mixes parse.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
+
+use common::tree;
+use std::path::Path;
 
 /// Runs `depthor` with `args`: (exit code, stdout, stderr).
 fn depthor(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_depthor"))
-        .args(args)
-        .output()
-        .expect("run depthor");
+    let out = common::depthor(args);
     (
         out.status.code().unwrap_or(-1),
         String::from_utf8_lossy(&out.stdout).into_owned(),
         String::from_utf8_lossy(&out.stderr).into_owned(),
     )
-}
-
-/// Every file below `dir` (relative path, bytes), sorted.
-fn tree(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
-    let mut out = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                out.push((
-                    p.strip_prefix(dir).unwrap().to_path_buf(),
-                    std::fs::read(&p).unwrap(),
-                ));
-            }
-        }
-    }
-    out.sort();
-    out
 }
 
 /// `depthor sim --preset mcu --scenes n --seed 5` with `extra` arguments into `out`; stdout.

@@ -2,6 +2,9 @@
 //! the unsharded run (scenes and `--from`), and merge refuses shards given out of order or from
 //! different runs.
 
+mod common;
+
+use common::tree;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -19,27 +22,6 @@ fn depthor(args: &[&str]) -> (i32, String) {
 fn ok(args: &[&str]) {
     let (code, err) = depthor(args);
     assert_eq!(code, 0, "{args:?}: {err}");
-}
-
-/// Every file below `dir` (relative path, bytes), sorted.
-fn tree(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
-    let mut out = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                out.push((
-                    p.strip_prefix(dir).unwrap().to_path_buf(),
-                    std::fs::read(&p).unwrap(),
-                ));
-            }
-        }
-    }
-    out.sort();
-    out
 }
 
 fn s(p: &Path) -> &str {
