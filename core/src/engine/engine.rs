@@ -329,20 +329,10 @@ impl<'a> Engine<'a> {
         let (rgb_r, sparse_r) = self.plan.staging().ok_or(Error::NotStaged)?;
         let (h, w) = self.plan.size();
         let n = h * w;
-        let (graph, plan, lut) = (&self.graph, &self.plan, &self.rgb_lut);
-        let act = self
-            .arena
-            .get_mut(plan.persistent_bytes()..)
-            .unwrap_or(&mut []);
-        let t = |id: u16| {
-            plan.tensor_range(id).ok_or(Error::Kernel {
-                op: 0,
-                error: KernelError::Shape,
-            })
-        };
+        let (graph, lut) = (&self.graph, &self.rgb_lut);
         let mut ins: [&[u8]; MAX_INPUTS] = [&[]; MAX_INPUTS];
         let srcs = [rgb_r, sparse_r];
-        let (rgb_t, sparse_t) = split(act, t(graph.rgb)?, t(graph.sparse)?, &srcs, &mut ins, 0)?;
+        let (rgb_t, sparse_t) = input_tensors(graph, &self.plan, self.arena, &srcs, &mut ins)?;
         let bad = Error::Kernel {
             op: 0,
             error: KernelError::Shape,
@@ -435,19 +425,9 @@ impl<'a> Engine<'a> {
         }
         check_len("out_depth_m", n, out.len())?;
         check_len("rgb", 3 * n, rgb.len())?;
-        let (graph, plan, lut) = (&self.graph, &self.plan, &self.rgb_lut);
-        let act = self
-            .arena
-            .get_mut(plan.persistent_bytes()..)
-            .unwrap_or(&mut []);
-        let t = |id: u16| {
-            plan.tensor_range(id).ok_or(Error::Kernel {
-                op: 0,
-                error: KernelError::Shape,
-            })
-        };
+        let (graph, lut) = (&self.graph, &self.rgb_lut);
         let mut none: [&[u8]; MAX_INPUTS] = [&[]; MAX_INPUTS];
-        let (rgb_t, sparse_t) = split(act, t(graph.rgb)?, t(graph.sparse)?, &[], &mut none, 0)?;
+        let (rgb_t, sparse_t) = input_tensors(graph, &self.plan, self.arena, &[], &mut none)?;
         write_rgb(graph, n, lut, rgb, rgb_t)?;
         match sparse {
             Some(s) => write_sparse(graph, n, |i| s[i], sparse_t)?,
@@ -564,6 +544,25 @@ fn write_rgb(g: &Graph, n: usize, lut: &[i8; 256], rgb: &[u8], t: &mut [u8]) -> 
         }
     }
     Ok(())
+}
+
+/// The arena bytes of the network's two inputs (RGB, sparse), and in `ins` the arena ranges
+/// `srcs` read alongside them (the staging areas of [`Io::Arena`]).
+fn input_tensors<'b>(
+    g: &Graph,
+    plan: &Plan,
+    arena: &'b mut [u8],
+    srcs: &[Range<usize>],
+    ins: &mut [&'b [u8]; MAX_INPUTS],
+) -> Result<(&'b mut [u8], &'b mut [u8]), Error> {
+    let act = arena.get_mut(plan.persistent_bytes()..).unwrap_or(&mut []);
+    let t = |id: u16| {
+        plan.tensor_range(id).ok_or(Error::Kernel {
+            op: 0,
+            error: KernelError::Shape,
+        })
+    };
+    split(act, t(g.rgb)?, t(g.sparse)?, srcs, ins, 0)
 }
 
 /// Writes the sparse depth `get(i)` (metres, `i < n`) into the graph's sparse input tensor `t`.
