@@ -1064,6 +1064,18 @@ pub(crate) mod tests {
             .collect()
     }
 
+    /// The test wrapper of kernel set `isa`.
+    fn impl_of(isa: Isa) -> Impl {
+        match isa {
+            Isa::Portable => portable,
+            Isa::ArmDsp => arm_dsp,
+            Isa::Avx2 => avx2,
+            Isa::Avx512Vnni => avx512_vnni,
+            Isa::Neon => neon,
+            Isa::NeonDot => neon_dot,
+        }
+    }
+
     fn run(c: &Case, f: Impl) -> (Shape, Vec<i8>) {
         with_op(c, |op, y, scratch| {
             f(op, &c.input, c.in_shape, y, scratch).unwrap()
@@ -1504,14 +1516,7 @@ pub(crate) mod tests {
             };
             let (_, yr) = run(&case, conv2d_ref);
             for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
-                let f: Impl = match isa {
-                    Isa::Portable => portable,
-                    Isa::ArmDsp => arm_dsp,
-                    Isa::Avx2 => avx2,
-                    Isa::Avx512Vnni => avx512_vnni,
-                    Isa::Neon => neon,
-                    Isa::NeonDot => neon_dot,
-                };
+                let f = impl_of(isa);
                 let (_, y) = run(&case, f);
                 assert_eq!(y, yr, "{} k{k} s{s} d{d} p{p} {h}x{w}", isa.name());
             }
@@ -1766,17 +1771,7 @@ pub(crate) mod tests {
             };
             let (_, yr) = run(&c, conv2d_ref);
             for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
-                let (_, y) = run(
-                    &c,
-                    match isa {
-                        Isa::Portable => portable,
-                        Isa::ArmDsp => arm_dsp,
-                        Isa::Avx2 => avx2,
-                        Isa::Avx512Vnni => avx512_vnni,
-                        Isa::Neon => neon,
-                        Isa::NeonDot => neon_dot,
-                    },
-                );
+                let (_, y) = run(&c, impl_of(isa));
                 assert_eq!(y, yr, "{} x={x} zp={zp} w={wv}", isa.name());
             }
         }
@@ -1834,17 +1829,7 @@ pub(crate) mod tests {
                 };
                 let (_, yr) = run(&c, conv2d_ref);
                 for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
-                    let (_, y) = run(
-                        &c,
-                        match isa {
-                            Isa::Portable => portable,
-                            Isa::ArmDsp => arm_dsp,
-                            Isa::Avx2 => avx2,
-                            Isa::Avx512Vnni => avx512_vnni,
-                            Isa::Neon => neon,
-                            Isa::NeonDot => neon_dot,
-                        },
-                    );
+                    let (_, y) = run(&c, impl_of(isa));
                     assert_eq!(y, yr, "{} in_c={in_c} w={w} pad={pad} k={k}", isa.name());
                 }
             }
