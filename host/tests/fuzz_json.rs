@@ -1,5 +1,6 @@
 //! Random and mutated bytes as `recording.json` / `dtof.json` never panic the reader; mutated
-//! scene and simulator configurations are one error naming the field, or they render/simulate.
+//! scene and simulator configurations and measurement mixes are one error naming the field, or
+//! they render/simulate.
 
 mod common;
 
@@ -199,6 +200,32 @@ proptest! {
                     "{} = {}: {}", path, x, msg
                 );
             }
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(128))]
+
+    /// Mutated bytes of the shipped training mix: one error line (the file's condition and
+    /// field, or JSON), or a mix whose every frame draw is a configuration that simulates.
+    #[test]
+    fn mutated_measurement_mix_bytes(pos in 0usize..100_000, len in 1usize..4, fill in any::<u8>(), seed in 0u64..1000) {
+        use depthor_host::sim::{preset, MeasurementMix};
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../models/mixes/mcu_train.json");
+        let mut bytes = std::fs::read(path).unwrap();
+        let at = pos % bytes.len();
+        let end = (at + len).min(bytes.len());
+        bytes[at..end].fill(fill);
+        let text = String::from_utf8_lossy(&bytes);
+        match MeasurementMix::from_json(&preset("mcu").unwrap(), &text) {
+            Ok(mix) => {
+                for i in 0..4 {
+                    let (_, cfg) = mix.draw(seed, i).map_err(|e| TestCaseError::fail(e.to_string()))?;
+                    simulate_small(&cfg);
+                }
+            }
+            Err(e) => prop_assert!(!e.to_string().contains('\n'), "{}", e),
         }
     }
 }
