@@ -272,14 +272,8 @@ fn synthetic(
                 synth_frame(&scene_cfg, &cfg, args.seed, i, w, h).map(|f| (k, f))
             })
             .collect::<Result<_, SimError>>()?;
-        let frames: Vec<SynthFrame> = frames
-            .into_iter()
-            .map(|(k, f)| {
-                drawn.push(k);
-                f
-            })
-            .collect();
-        for (&i, f) in chunk.iter().zip(&frames) {
+        for (&i, (k, f)) in chunk.iter().zip(&frames) {
+            drawn.push(*k);
             let (mut fm, frame) = to_recording_frame(&format!("{i:06}"), f);
             fm.t_s = i as f64;
             writer.add_frame(fm, &frame)?;
