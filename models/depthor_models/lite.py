@@ -143,6 +143,10 @@ class DepthorLite(nn.Module):
 
     def forward(self, rgb: Tensor, sparse: Tensor) -> Tensor:
         h, w = int(rgb.shape[2]), int(rgb.shape[3])
+        if self.cfg.sparse_input == "fill":
+            from .zone_fill import nearest_fill
+
+            sparse = nearest_fill(sparse)
         d_inv, f_mde = self.prior(rgb)
         rgbf = list(self.prior.features) + [self.rgb_top(self.prior.features[3])]
         n = ops.minmax_norm(d_inv, 1e-6)

@@ -48,6 +48,9 @@ class NetConfig:
     arch: str = "dense"
     refine_scale: int = 1  # 1: guidance, affinities and refine at full resolution; 2: at 1/2
     depth_kernel: int = 5  # depthwise kernel of the depth encoder's separable stages
+    # the depth input: "points" (one pixel per zone, the graph contract's `sparse`) or "fill"
+    # (zone_fill.nearest_fill applied in PyTorch first; the issue-39 ablation, float only)
+    sparse_input: str = "points"
 
     def __post_init__(self):
         for name in ("rgb_widths", "rgb_blocks", "depth_widths", "dec_widths"):
@@ -58,6 +61,8 @@ class NetConfig:
             raise ValueError("rgb_blocks[1:] must be >= 1 (the strided block)")
         if any(b < 0 for b in self.rgb_blocks):
             raise ValueError("rgb_blocks must be >= 0")
+        if self.sparse_input not in ("points", "fill"):
+            raise ValueError("sparse_input must be 'points' or 'fill'")
         if self.refine_neighbourhood not in ("window", "dilated"):
             raise ValueError("refine_neighbourhood must be 'window' or 'dilated'")
         if self.height % 2 or self.width % 2:
