@@ -456,24 +456,24 @@ pub fn requant_row(
     true
 }
 
-/// One sign's constants of [`requant_row_signed`]: multiplier, right shift, `2^(shift − 1)`
-/// plus `zp·2^shift` (the zero point folded in, as in `requant_tail!`).
+/// The constants of [`requant_row_signed`], each as a `[sum ≥ 0, sum < 0]` pair so that the
+/// sum's sign bit indexes them: multipliers, right shifts, `2^(shift − 1)` plus `zp·2^shift`
+/// (the zero point folded in, as in `requant_tail!`).
 #[repr(C)]
 struct SignQuant {
-    m: i32,
-    e: i32,
-    half: i32,
+    m: [i32; 2],
+    e: [i32; 2],
+    half: [i32; 2],
 }
 
-/// The sign of the sum `{x}` picks the constants (`{k}`: `pos`, or `neg` 12 bytes on) and
-/// loads the multiplier `{m}`.
+/// The sign bit of the sum `{x}` picks the constants (`{k}` = `{kp}` + 4·sign: the pair
+/// element of each field) and loads the multiplier `{m}`: two instructions to pick, no branch
+/// or `IT` block.
 macro_rules! pick_sign {
     () => {
         concat!(
-            "mov {k}, {kp}\n",
-            "cmp {x}, #0\n",
-            "it lt\n",
-            "addlt {k}, {kp}, #12\n",
+            "lsr {k}, {x}, #31\n",
+            "add {k}, {kp}, {k}, lsl #2\n",
             "ldr {m}, [{k}]\n",
         )
     };
@@ -483,10 +483,10 @@ macro_rules! pick_sign {
 macro_rules! signed_tail {
     ($tail:tt) => {
         concat!(
-            "ldr {hi}, [{k}, #8]\n",
+            "ldr {hi}, [{k}, #16]\n",
             "add {lo}, {x}, {hi}\n",
             "sub {lo}, {lo}, {x}, lsr #31\n",
-            "ldr {hi}, [{k}, #4]\n",
+            "ldr {hi}, [{k}, #8]\n",
             "asr {lo}, {lo}, {hi}\n",
             "ssat {lo}, #8, {lo}\n",
             requant_floor!($tail),
@@ -522,9 +522,9 @@ macro_rules! signed_wide_step {
 }
 
 /// [`requant_row`] with a multiplier and shift per sign of `base + acc[i]` (`pos` for ≥ 0,
-/// `neg` below: the leaky ReLU's two slopes): with `narrow` the doubled sum's `SMMULR`, 18.5
-/// instructions per element (15.5 without a floor), otherwise `SMLAL` and the pre-clamp, 23.5
-/// (20.5). `false` (nothing written) unless both shifts are `1 ..= 22`, both multipliers ≥ 0
+/// `neg` below: the leaky ReLU's two slopes): with `narrow` the doubled sum's `SMMULR`, 16.5
+/// instructions per element (13.5 without a floor), otherwise `SMLAL` and the pre-clamp, 21.5
+/// (18.5). `false` (nothing written) unless both shifts are `1 ..= 22`, both multipliers ≥ 0
 /// and `max` is 127.
 #[allow(clippy::too_many_arguments)]
 pub fn requant_row_signed(
@@ -543,21 +543,21 @@ pub fn requant_row_signed(
     if !ok(pos) || !ok(neg) || max != 127 || !(-128..=127).contains(&min) || n == 0 {
         return n == 0;
     }
-    let k = |(m, e): (i32, i32)| SignQuant {
-        m,
-        e,
-        half: (1 << (e - 1)) + (zp << e),
+    let half = |(_, e): (i32, i32)| (1 << (e - 1)) + (zp << e);
+    let table = SignQuant {
+        m: [pos.0, neg.0],
+        e: [pos.1, neg.1],
+        half: [half(pos), half(neg)],
     };
-    let table = [k(pos), k(neg)];
     macro_rules! run {
         ($step:ident, $tail:tt, $b:expr; $($extra:tt)*) => {
             // SAFETY: `n` ≥ 1 words of `acc` and `n` bytes of `dst` exist (n ≤ both lengths);
-            // `table` holds the 12-byte constants of both signs (`neg` at byte 12). With
+            // `table` holds the three constant pairs (sign bit 1 picks the second of each). With
             // `narrow` every |base + acc| < 2^30, so doubling it keeps its sign and `SMMULR` is
             // the doubling high multiply (as in `requant_row`).
             unsafe {
                 requant_asm!(acc, dst, n, $b, $step!($tail);
-                    kp = in(reg) table.as_ptr(), hi = out(reg) _, k = out(reg) _,
+                    kp = in(reg) core::ptr::addr_of!(table), hi = out(reg) _, k = out(reg) _,
                     m = out(reg) _, $($extra)*)
             }
         };
