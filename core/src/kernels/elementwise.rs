@@ -285,6 +285,21 @@ impl Product {
         ((magnitude as i32 ^ sign) - sign + self.zp[2]).clamp(-128, 127) as i8
     }
 
+    /// [`Product::apply_high`] over `out` and `b` side by side with the Cortex-M loop
+    /// ([`super::arm::mul::high_row`]); `false` (nothing written) where it does not serve.
+    #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+    fn arm_high_row(&self, out: &mut [i8], b: &[i8]) -> bool {
+        let Ok(m) = u32::try_from(self.m) else {
+            return false;
+        };
+        let q = super::arm::mul::HighProduct {
+            zp: self.zp,
+            m,
+            right: self.right,
+        };
+        super::arm::mul::high_row(&q, out, b)
+    }
+
     /// The sign of `p` on the rounded magnitude, the output zero point and int8 saturation.
     #[inline(always)]
     fn finish(&self, p: i32, magnitude: u32) -> i8 {
@@ -474,6 +489,10 @@ pub fn mul_in_place(
     let f = q.product();
     let high = f.right >= 33;
     let planes = |oc: &mut [i8], bc: &[i8]| {
+        #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+        if high && f.arm_high_row(oc, bc) {
+            return;
+        }
         let pairs = oc.iter_mut().zip(bc);
         if high {
             pairs.for_each(|(o, &y)| *o = f.apply_high(*o, y));
@@ -990,6 +1009,18 @@ mod tests {
                             "high: {a}·{b} zp {zp:?} m {ratio}"
                         );
                         high += 1;
+                    }
+                }
+            }
+            // The Cortex-M loop of the high-word product, every code pair (a row per `a`).
+            #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+            if f.right >= 33 {
+                let bs: std::vec::Vec<i8> = (i8::MIN..=i8::MAX).collect();
+                for a in i8::MIN..=i8::MAX {
+                    let mut row = std::vec![a; bs.len()];
+                    assert!(f.arm_high_row(&mut row, &bs), "zp {zp:?} m {ratio}");
+                    for (&b, &y) in bs.iter().zip(&row) {
+                        assert_eq!(y, mq.apply(a, b), "arm: {a}·{b} zp {zp:?} m {ratio}");
                     }
                 }
             }

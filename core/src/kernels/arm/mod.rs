@@ -2,5 +2,6 @@
 
 pub mod bytes;
 pub mod dsp;
+pub mod mul;
 pub mod pack;
 pub mod refine;
