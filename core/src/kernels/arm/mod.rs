@@ -5,3 +5,4 @@ pub mod dsp;
 pub mod mul;
 pub mod pack;
 pub mod refine;
+pub mod resize;
