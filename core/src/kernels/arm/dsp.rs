@@ -285,6 +285,24 @@ pub fn dot_rows(weights: &[i8], c: usize, x: &[u32], sums: &mut [i32]) -> bool {
     true
 }
 
+/// [`pack_pixel`] of `x_k = src[k·stride] − zp` for `k < 2·out.len()` (one pixel's channels
+/// of a planar map), four codes per pass; `false` (nothing written) if `src` is too short or
+/// `out` is not whole pairs of words.
+pub fn pack_strided(src: &[i8], stride: usize, zp: i32, out: &mut [u32]) -> bool {
+    let k = 2 * out.len();
+    if !out.len().is_multiple_of(2) || k > 0 && (k - 1).saturating_mul(stride) >= src.len() {
+        return false;
+    }
+    let mut x = src.iter().step_by(stride.max(1));
+    let mut half = || x.next().map_or(0, |&v| (i32::from(v) - zp) as u32 & 0xFFFF);
+    for o in out.chunks_exact_mut(2) {
+        let (x0, x1, x2, x3) = (half(), half(), half(), half());
+        o[0] = x0 | x2 << 16;
+        o[1] = x1 | x3 << 16;
+    }
+    true
+}
+
 /// Packs `x_k` (`k < 4·⌊len/4⌋`, 16-bit) as `[x0|x2], [x1|x3], [x4|x6], …` for [`dot_rows`].
 pub fn pack_pixel(x: impl Iterator<Item = i32>, out: &mut [u32]) {
     let mut quad = [0u32; 4];
