@@ -658,8 +658,14 @@ pub fn minmax_norm(
     if out.len() < input.len() || input.is_empty() {
         return Err(KernelError::Shape);
     }
-    let lo = input.iter().copied().min().unwrap_or(0) as i32;
-    let hi = input.iter().copied().max().unwrap_or(0) as i32;
+    #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+    let (lo, hi) = super::arm::bytes::min_max_i8(input);
+    #[cfg(not(all(target_arch = "arm", feature = "arm-dsp")))]
+    let (lo, hi) = (
+        input.iter().copied().min().unwrap_or(0),
+        input.iter().copied().max().unwrap_or(0),
+    );
+    let (lo, hi) = (i32::from(lo), i32::from(hi));
     let denom = (hi - lo) as f32 * in_q.scale + eps;
     let mut t = [0i8; 256];
     for q in lo..=hi {
@@ -1026,6 +1032,27 @@ mod tests {
             }
         }
         assert!(high >= 4 * 65_536, "too few high-word cases: {high}");
+    }
+
+    /// The Cortex-M one-pass range equals the iterators' minimum and maximum (lengths around
+    /// the word size, codes at both ends).
+    #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+    #[test]
+    fn arm_min_max_equals_the_iterators() {
+        for len in [1usize, 3, 4, 5, 8, 33, 100] {
+            for seed in 0..24u32 {
+                let x: Vec<i8> = (0..len as u32)
+                    .map(|i| match seed {
+                        0 => -128,
+                        1 => 127,
+                        2 => [127, -128][i as usize % 2],
+                        _ => (i.wrapping_mul(2_654_435_761).wrapping_add(seed * 7919) >> 11) as i8,
+                    })
+                    .collect();
+                let want = (*x.iter().min().unwrap(), *x.iter().max().unwrap());
+                assert_eq!(super::super::arm::bytes::min_max_i8(&x), want, "{x:?}");
+            }
+        }
     }
 
     #[test]
