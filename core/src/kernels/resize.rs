@@ -363,13 +363,14 @@ fn rescaled_arm(
             let (a, b) = ((dy - fy) as i32, fy as i32);
             // |v| ≤ 128·dy ≤ 32 640: a 16-bit half. The last pair repeats its value (the
             // clamped right neighbour).
-            let v = |x: usize| (i32::from(r0[x]) * a + i32::from(r1[x]) * b) as u16 as u32;
-            let mut prev = v(0);
-            for (x, p) in pairs[..iw].iter_mut().enumerate() {
-                let next = if x + 1 < iw { v(x + 1) } else { prev };
+            let v = |x0: i8, x1: i8| (i32::from(x0) * a + i32::from(x1) * b) as u16 as u32;
+            let mut prev = v(r0[0], r1[0]);
+            for ((p, &x0), &x1) in pairs[..iw - 1].iter_mut().zip(&r0[1..]).zip(&r1[1..]) {
+                let next = v(x0, x1);
                 *p = prev | next << 16;
                 prev = next;
             }
+            pairs[iw - 1] = prev | prev << 16;
             // SAFETY: `taps` holds 2·ow words whose offsets 4·x0 (x0 < iw) index `pairs`
             // (4-aligned, iw words written above); `sh` is 1 ..= 23 (checked).
             unsafe { rescaled_row(&pairs[..iw], &taps[..2 * ow], &row, orow) };
