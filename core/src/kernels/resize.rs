@@ -304,12 +304,18 @@ pub fn upsample_bilinear_to_with(
 #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
 const ARM_COLS: usize = 256;
 
+/// The 16-bit column blends of [`rescaled_arm`], one past the widest row, word-aligned.
+#[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+#[repr(align(4))]
+struct Blends([i16; ARM_COLS + 2]);
+
 /// The rescaled resize with the Cortex-M row ([`super::arm::resize::rescaled_row`]): per output
-/// row the two input rows blended into packed 16-bit pairs `[v_x | v_x+1]`, then one `SMLAD`
-/// per output column against its packed weights `[den − f | f]` (the reference's integer sum),
-/// the rescale folded into one `SMMLA`. `false` (nothing written) outside its ranges: rows up to
-/// [`ARM_COLS`], `shift` 33 ..= 55, blends in 16 bits (`dy ≤ 255`), `d ≤ 2^22`, an int8 output
-/// zero point. Out of line, so its tables and [`resize_rows`]' never share a stack frame.
+/// row the two input rows blended into 16-bit values `v_x` (`v_iw = v_iw−1`, the clamped right
+/// neighbour), then one `SMLAD` per output column of the word `[v_x0 | v_x0+1]` against its
+/// packed weights `[den − f | f]` (the reference's integer sum), the rescale folded into one
+/// `SMMLA`. `false` (nothing written) outside its ranges: rows up to [`ARM_COLS`], `shift`
+/// 33 ..= 55, blends in 16 bits (`dy ≤ 255`), `d ≤ 2^22`, an int8 output zero point. Out of
+/// line, so its tables and [`resize_rows`]' never share a stack frame.
 #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
 #[inline(never)]
 fn rescaled_arm(
@@ -341,16 +347,17 @@ fn rescaled_arm(
         add: add as i32,
         sh,
     };
-    // Per output column: the byte offset of its pair, its packed weights.
+    // Per output column: the byte offset of its blend pair, its packed weights.
     let mut taps = [0u32; 2 * ARM_COLS];
     let mut cols = Coords::new(iw, ow);
     for t in taps[..2 * ow].chunks_exact_mut(2) {
         let (x0, f, _) = cols.next();
         // x0 < iw ≤ 256 and f < den < 2^15: both halves fit.
-        t[0] = 4 * x0 as u32;
+        t[0] = 2 * x0 as u32;
         t[1] = (den - f) as u32 | (f as u32) << 16;
     }
-    let mut pairs = [0u32; ARM_COLS];
+    let mut blend = Blends([0; ARM_COLS + 2]);
+    let v = &mut blend.0[..iw + 1];
     for c in 0..out_shape.c {
         let chan = &input[c * ih * iw..(c + 1) * ih * iw];
         for (oy, orow) in out[c * out_shape.h * ow..(c + 1) * out_shape.h * ow]
@@ -361,19 +368,15 @@ fn rescaled_arm(
             let y1 = (y0 + 1).min(ih - 1);
             let (r0, r1) = (&chan[y0 * iw..(y0 + 1) * iw], &chan[y1 * iw..(y1 + 1) * iw]);
             let (a, b) = ((dy - fy) as i32, fy as i32);
-            // |v| ≤ 128·dy ≤ 32 640: a 16-bit half. The last pair repeats its value (the
-            // clamped right neighbour).
-            let v = |x0: i8, x1: i8| (i32::from(x0) * a + i32::from(x1) * b) as u16 as u32;
-            let mut prev = v(r0[0], r1[0]);
-            for ((p, &x0), &x1) in pairs[..iw - 1].iter_mut().zip(&r0[1..]).zip(&r1[1..]) {
-                let next = v(x0, x1);
-                *p = prev | next << 16;
-                prev = next;
+            // |v| ≤ 128·dy ≤ 32 640: 16 bits.
+            for ((v, &x0), &x1) in v.iter_mut().zip(r0).zip(r1) {
+                *v = (i32::from(x0) * a + i32::from(x1) * b) as i16;
             }
-            pairs[iw - 1] = prev | prev << 16;
-            // SAFETY: `taps` holds 2·ow words whose offsets 4·x0 (x0 < iw) index `pairs`
-            // (4-aligned, iw words written above); `sh` is 1 ..= 23 (checked).
-            unsafe { rescaled_row(&pairs[..iw], &taps[..2 * ow], &row, orow) };
+            v[iw] = v[iw - 1];
+            // SAFETY: `taps` holds 2·ow words whose offsets 2·x0 (x0 < iw) leave 4 bytes of
+            // `v` (iw + 1 halfwords) readable; `sh` is 1 ..= 23 (checked); Cortex-M4/M7 read
+            // the odd-`x0` words unaligned.
+            unsafe { rescaled_row(v, &taps[..2 * ow], &row, orow) };
         }
     }
     true

@@ -1,6 +1,6 @@
 //! Cortex-M4/M7 row of the int8 bilinear resize into other quantisation parameters
 //! ([`crate::kernels::resize`]'s rescaled path): the column blend of the two blended input
-//! values as one `SMLAD` of packed 16-bit pairs (accumulating the input zero-point offset), the
+//! values as one `SMLAD` of a word of neighbouring 16-bit blends (accumulating the input zero-point offset), the
 //! rescale as one `SMMLA` (the rounding half and the output zero point in its accumulate word),
 //! one shift and the int8 saturation: 9 instructions per output element (the compiled loop
 //! took 19). Exact integer steps: the same bits as the portable path.
@@ -19,14 +19,15 @@ pub struct RowRescale {
 }
 
 /// `out[o] = sat8((((n_o − zp_in·d)·k + 2^(shift−1)) >> shift) + zp_out)` (the output zero
-/// point added inside the shift, which is exact) with `n_o = Σ` of the packed pair `pairs[taps[2o] / 4]`
-/// (`[v_x0 | v_x0+1]`, 16-bit halves) times the packed weights `taps[2o + 1]`
-/// (`[den − f | f]`), for every `o < out.len()`.
+/// point added inside the shift, which is exact) with `n_o` the `SMLAD` of the word at byte
+/// offset `taps[2o]` of `blend` (`[v_x0 | v_x0+1]`: two neighbouring 16-bit blends, read as one
+/// word, unaligned where `x0` is odd, which Cortex-M4/M7 `LDR` allows) and the packed weights
+/// `taps[2o + 1]` (`[den − f | f]`), for every `o < out.len()`.
 ///
 /// # Safety
-/// `taps` holds `2·out.len()` words; every `taps[2o]` is a multiple of 4 that indexes (as a byte
-/// offset) a word of `pairs`; `pairs` is 4-aligned; `r.sh` is `1 ..= 31`.
-pub unsafe fn rescaled_row(pairs: &[u32], taps: &[u32], r: &RowRescale, out: &mut [i8]) {
+/// `taps` holds `2·out.len()` words; every `taps[2o]` is even and `taps[2o] + 4` bytes of
+/// `blend` are readable; `r.sh` is `1 ..= 31`; the core reads unaligned words with `LDR`.
+pub unsafe fn rescaled_row(blend: &[i16], taps: &[u32], r: &RowRescale, out: &mut [i8]) {
     if out.is_empty() {
         return;
     }
@@ -42,7 +43,7 @@ pub unsafe fn rescaled_row(pairs: &[u32], taps: &[u32], r: &RowRescale, out: &mu
         "cmp {o}, {end}",
         "bne 2b",
         t = inout(reg) taps.as_ptr() => _,
-        p = in(reg) pairs.as_ptr(),
+        p = in(reg) blend.as_ptr(),
         o = inout(reg) out.as_mut_ptr() => _,
         end = in(reg) out.as_mut_ptr().add(out.len()),
         neg = in(reg) r.neg_offset,
