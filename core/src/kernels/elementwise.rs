@@ -34,6 +34,21 @@ pub fn lut(input: &[i8], table: &Lut, output: &mut [i8]) -> Result<(), KernelErr
     Ok(())
 }
 
+/// `x = table[x]` for every code of `data`, four codes per word read and written (one load,
+/// four lookups, one store).
+fn lut_in_place(table: &[i8; 256], data: &mut [i8]) {
+    let mut words = data.chunks_exact_mut(4);
+    for w in &mut words {
+        let v = u32::from_le_bytes([w[0] as u8, w[1] as u8, w[2] as u8, w[3] as u8]);
+        let t = |s: u32| u32::from(table[(v >> s) as u8 as usize] as u8) << s;
+        let r = t(0) | t(8) | t(16) | t(24);
+        w.copy_from_slice(&r.to_le_bytes().map(|b| b as i8));
+    }
+    for x in words.into_remainder() {
+        *x = table[*x as u8 as usize];
+    }
+}
+
 /// Requantisation of one int8 code from one tensor's parameters to another's.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 #[repr(C)]
@@ -508,9 +523,7 @@ pub fn mul_in_place(
                 let y = b[c];
                 if p > 256 {
                     let t: [i8; 256] = core::array::from_fn(|x| q.apply(x as u8 as i8, y));
-                    for o in oc.iter_mut() {
-                        *o = t[*o as u8 as usize];
-                    }
+                    lut_in_place(&t, oc);
                 } else {
                     for o in oc.iter_mut() {
                         *o = q.apply(*o, y);
