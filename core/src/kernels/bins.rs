@@ -158,8 +158,12 @@ pub fn bins_head_i8(
         let mut sums = [0i32; MAX_BINS];
         let mut done = lanes;
         for (i, o) in out[..p].iter_mut().enumerate().skip(lanes) {
-            let x = (0..c).map(|k| features[k * p + i] as i32 - zp);
-            dsp::pack_pixel(x, &mut words[..c / 2]);
+            let packed = c.is_multiple_of(4)
+                && dsp::pack_strided(&features[i..], p, zp, &mut words[..c / 2]);
+            if !packed {
+                let x = (0..c).map(|k| features[k * p + i] as i32 - zp);
+                dsp::pack_pixel(x, &mut words[..c / 2]);
+            }
             for (s, ch) in sums[..n].iter_mut().zip(channels) {
                 *s = ch.bias;
             }

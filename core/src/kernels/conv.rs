@@ -8,7 +8,7 @@
 //! activation range (`[zp_out, 127]` for ReLU). Weights are `[O, I/groups, kh, kw]` row-major.
 
 use super::depthwise::{self, Depthwise};
-use super::dot::{self, Acc, Task};
+use super::dot::{self, Acc, Steps, Task};
 use super::isa::Isa;
 use super::pack::{self, Dense, Layout, Pairs, Parts, Quads, SignedQuads, Source, NB, PB};
 use super::requant::{clamp_i8, Requant};
@@ -999,6 +999,8 @@ fn run_pack<F: Micro, S: Source, O: Sink + ?Sized>(
                 }
             }
         }
+        // The row's steps with their bounds, once for all its tasks.
+        let steps = Steps::new(&*steps);
         // Blocks outermost: a block's requantisation constants once per row.
         for b in 0..pack.channels.div_ceil(NB) {
             let o0 = pack.first + b * NB;

@@ -11,6 +11,44 @@ use super::pack::{NB, PB};
 /// Accumulators of one call.
 pub type Acc = [i32; NB * PB];
 
+/// The reduction steps of a [`Task`] (element offsets, see [`Task::steps`]) with what the
+/// kernels check before reading: the largest offset and the OR of all (their low bits tell
+/// alignment). Made once per output row and shared by the row's tasks, so no kernel folds the
+/// offsets per call; the fields are private, so the bounds always describe the offsets.
+#[derive(Clone, Copy, Debug)]
+pub struct Steps<'a> {
+    offsets: &'a [u32],
+    max: u32,
+    bits: u32,
+}
+
+impl<'a> Steps<'a> {
+    /// The steps `offsets` with their bounds.
+    pub fn new(offsets: &'a [u32]) -> Steps<'a> {
+        let (bits, max) = offsets
+            .iter()
+            .fold((0u32, 0u32), |(b, m), &s| (b | s, m.max(s)));
+        Steps { offsets, max, bits }
+    }
+
+    /// The largest offset, `None` when there are no steps.
+    pub fn max(&self) -> Option<u32> {
+        (!self.offsets.is_empty()).then_some(self.max)
+    }
+
+    /// The bitwise OR of every offset (0 when there are none).
+    pub fn bits(&self) -> u32 {
+        self.bits
+    }
+}
+
+impl core::ops::Deref for Steps<'_> {
+    type Target = [u32];
+    fn deref(&self) -> &[u32] {
+        self.offsets
+    }
+}
+
 /// One micro-kernel call.
 #[derive(Clone, Copy, Debug)]
 pub struct Task<'a, E, W> {
@@ -20,7 +58,7 @@ pub struct Task<'a, E, W> {
     pub weights: &'a [W],
     /// Element offset in `rows` of each reduction step `(tap, channel group)`, in the weights'
     /// order (tap-major).
-    pub steps: &'a [u32],
+    pub steps: Steps<'a>,
     /// First output column.
     pub ox0: usize,
     /// Output columns of the block that are used (`1..=PB`; a kernel may leave the
@@ -31,7 +69,7 @@ pub struct Task<'a, E, W> {
 impl<E, W> Task<'_, E, W> {
     /// Whether every read of the call lies inside `rows` and `weights` for `L` lanes.
     pub fn in_bounds(&self, l: usize) -> bool {
-        let Some(&max) = self.steps.iter().max() else {
+        let Some(max) = self.steps.max() else {
             return false;
         };
         max as usize + (self.ox0 + PB) * l <= self.rows.len()

@@ -34,6 +34,21 @@ pub fn lut(input: &[i8], table: &Lut, output: &mut [i8]) -> Result<(), KernelErr
     Ok(())
 }
 
+/// `x = table[x]` for every code of `data`, four codes per word read and written (one load,
+/// four lookups, one store).
+fn lut_in_place(table: &[i8; 256], data: &mut [i8]) {
+    let mut words = data.chunks_exact_mut(4);
+    for w in &mut words {
+        let v = u32::from_le_bytes([w[0] as u8, w[1] as u8, w[2] as u8, w[3] as u8]);
+        let t = |s: u32| u32::from(table[(v >> s) as u8 as usize] as u8) << s;
+        let r = t(0) | t(8) | t(16) | t(24);
+        w.copy_from_slice(&r.to_le_bytes().map(|b| b as i8));
+    }
+    for x in words.into_remainder() {
+        *x = table[*x as u8 as usize];
+    }
+}
+
 /// Requantisation of one int8 code from one tensor's parameters to another's.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 #[repr(C)]
@@ -285,6 +300,21 @@ impl Product {
         ((magnitude as i32 ^ sign) - sign + self.zp[2]).clamp(-128, 127) as i8
     }
 
+    /// [`Product::apply_high`] over `out` and `b` side by side with the Cortex-M loop
+    /// ([`super::arm::mul::high_row`]); `false` (nothing written) where it does not serve.
+    #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+    fn arm_high_row(&self, out: &mut [i8], b: &[i8]) -> bool {
+        let Ok(m) = u32::try_from(self.m) else {
+            return false;
+        };
+        let q = super::arm::mul::HighProduct {
+            zp: self.zp,
+            m,
+            right: self.right,
+        };
+        super::arm::mul::high_row(&q, out, b)
+    }
+
     /// The sign of `p` on the rounded magnitude, the output zero point and int8 saturation.
     #[inline(always)]
     fn finish(&self, p: i32, magnitude: u32) -> i8 {
@@ -474,6 +504,10 @@ pub fn mul_in_place(
     let f = q.product();
     let high = f.right >= 33;
     let planes = |oc: &mut [i8], bc: &[i8]| {
+        #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+        if high && f.arm_high_row(oc, bc) {
+            return;
+        }
         let pairs = oc.iter_mut().zip(bc);
         if high {
             pairs.for_each(|(o, &y)| *o = f.apply_high(*o, y));
@@ -489,9 +523,7 @@ pub fn mul_in_place(
                 let y = b[c];
                 if p > 256 {
                     let t: [i8; 256] = core::array::from_fn(|x| q.apply(x as u8 as i8, y));
-                    for o in oc.iter_mut() {
-                        *o = t[*o as u8 as usize];
-                    }
+                    lut_in_place(&t, oc);
                 } else {
                     for o in oc.iter_mut() {
                         *o = q.apply(*o, y);
@@ -639,8 +671,14 @@ pub fn minmax_norm(
     if out.len() < input.len() || input.is_empty() {
         return Err(KernelError::Shape);
     }
-    let lo = input.iter().copied().min().unwrap_or(0) as i32;
-    let hi = input.iter().copied().max().unwrap_or(0) as i32;
+    #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+    let (lo, hi) = super::arm::bytes::min_max_i8(input);
+    #[cfg(not(all(target_arch = "arm", feature = "arm-dsp")))]
+    let (lo, hi) = (
+        input.iter().copied().min().unwrap_or(0),
+        input.iter().copied().max().unwrap_or(0),
+    );
+    let (lo, hi) = (i32::from(lo), i32::from(hi));
     let denom = (hi - lo) as f32 * in_q.scale + eps;
     let mut t = [0i8; 256];
     for q in lo..=hi {
@@ -993,8 +1031,41 @@ mod tests {
                     }
                 }
             }
+            // The Cortex-M loop of the high-word product, every code pair (a row per `a`).
+            #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+            if f.right >= 33 {
+                let bs: std::vec::Vec<i8> = (i8::MIN..=i8::MAX).collect();
+                for a in i8::MIN..=i8::MAX {
+                    let mut row = std::vec![a; bs.len()];
+                    assert!(f.arm_high_row(&mut row, &bs), "zp {zp:?} m {ratio}");
+                    for (&b, &y) in bs.iter().zip(&row) {
+                        assert_eq!(y, mq.apply(a, b), "arm: {a}·{b} zp {zp:?} m {ratio}");
+                    }
+                }
+            }
         }
         assert!(high >= 4 * 65_536, "too few high-word cases: {high}");
+    }
+
+    /// The Cortex-M one-pass range equals the iterators' minimum and maximum (lengths around
+    /// the word size, codes at both ends).
+    #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+    #[test]
+    fn arm_min_max_equals_the_iterators() {
+        for len in [1usize, 3, 4, 5, 8, 33, 100] {
+            for seed in 0..24u32 {
+                let x: Vec<i8> = (0..len as u32)
+                    .map(|i| match seed {
+                        0 => -128,
+                        1 => 127,
+                        2 => [127, -128][i as usize % 2],
+                        _ => (i.wrapping_mul(2_654_435_761).wrapping_add(seed * 7919) >> 11) as i8,
+                    })
+                    .collect();
+                let want = (*x.iter().min().unwrap(), *x.iter().max().unwrap());
+                assert_eq!(super::super::arm::bytes::min_max_i8(&x), want, "{x:?}");
+            }
+        }
     }
 
     #[test]

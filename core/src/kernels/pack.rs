@@ -557,6 +557,24 @@ pub fn pack_weights<F: Layout>(
     let taps = icg * kh * kw;
     let l = F::L;
     out[..ocg.div_ceil(NB) * dims.block_len].fill(F::W::default());
+    if kh * kw == 1 {
+        // One tap (1×1): output `o`'s weights go `l` by `l` (a channel group) into lanes
+        // `j·l ..` of each `NB·l`-element step of its block, the same places as below without
+        // the per-channel index arithmetic.
+        for (o, (row, sum)) in weights.chunks_exact(taps).zip(sums).take(ocg).enumerate() {
+            let (b, j) = (o / NB, o % NB);
+            let dst = &mut out[b * dims.block_len + j * l..];
+            let mut s = 0i32;
+            for (ws, d) in row.chunks(l).zip(dst.chunks_mut(NB * l)) {
+                for (d, &w) in d.iter_mut().zip(ws) {
+                    s += w as i32;
+                    *d = F::weight(w);
+                }
+            }
+            *sum = s;
+        }
+        return;
+    }
     // Consecutive taps of one input channel are `n_cg · NB · l` elements apart.
     let stride = dims.n_cg * NB * l;
     for o in 0..ocg {

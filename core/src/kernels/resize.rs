@@ -292,6 +292,106 @@ pub fn upsample_bilinear_to_with(
     rescale: Option<&ResizeRescale>,
 ) -> Result<(), KernelError> {
     check(input, in_shape, out, out_shape)?;
+    #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+    if rescale.is_some_and(|r| rescaled_arm(input, in_shape, out, out_shape, r)) {
+        return Ok(());
+    }
+    resize_rows(isa, input, in_shape, out, out_shape, rescale);
+    Ok(())
+}
+
+/// Widest input and output rows of [`rescaled_arm`] (its tables live on the stack).
+#[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+const ARM_COLS: usize = 256;
+
+/// The 16-bit column blends of [`rescaled_arm`], one past the widest row, word-aligned.
+#[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+#[repr(align(4))]
+struct Blends([i16; ARM_COLS + 2]);
+
+/// The rescaled resize with the Cortex-M row ([`super::arm::resize::rescaled_row`]): per output
+/// row the two input rows blended into 16-bit values `v_x` (`v_iw = v_iw−1`, the clamped right
+/// neighbour), then one `SMLAD` per output column of the word `[v_x0 | v_x0+1]` against its
+/// packed weights `[den − f | f]` (the reference's integer sum), the rescale folded into one
+/// `SMMLA`. `false` (nothing written) outside its ranges: rows up to [`ARM_COLS`], `shift`
+/// 33 ..= 55, blends in 16 bits (`dy ≤ 255`), `d ≤ 2^22`, an int8 output zero point. Out of
+/// line, so its tables and [`resize_rows`]' never share a stack frame.
+#[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+#[inline(never)]
+fn rescaled_arm(
+    input: &[i8],
+    in_shape: Shape,
+    out: &mut [i8],
+    out_shape: Shape,
+    r: &ResizeRescale,
+) -> bool {
+    use super::arm::resize::{rescaled_row, RowRescale};
+    let (ih, iw, ow) = (in_shape.h, in_shape.w, out_shape.w);
+    let (dy, den) = (src(1, ih, out_shape.h).2, Coords::new(iw, ow).den);
+    let sh = r.shift.wrapping_sub(32);
+    let add = (1i64 << (r.shift.clamp(33, 62) - 33)) + i64::from(r.zp_out) * (1i64 << sh.min(31));
+    let fits = iw <= ARM_COLS
+        && (1..=ARM_COLS).contains(&ow)
+        && (1..=23).contains(&sh)
+        && dy <= 255
+        && den * dy <= 1 << 22
+        && r.offset.unsigned_abs() <= 1 << 29
+        && (-128..=127).contains(&r.zp_out)
+        && add.unsigned_abs() <= 1 << 30;
+    if !fits {
+        return false;
+    }
+    let row = RowRescale {
+        neg_offset: -(r.offset as i32),
+        k: r.k,
+        add: add as i32,
+        sh,
+    };
+    // Per output column: the byte offset of its blend pair, its packed weights.
+    let mut taps = [0u32; 2 * ARM_COLS];
+    let mut cols = Coords::new(iw, ow);
+    for t in taps[..2 * ow].chunks_exact_mut(2) {
+        let (x0, f, _) = cols.next();
+        // x0 < iw ≤ 256 and f < den < 2^15: both halves fit.
+        t[0] = 2 * x0 as u32;
+        t[1] = (den - f) as u32 | (f as u32) << 16;
+    }
+    let mut blend = Blends([0; ARM_COLS + 2]);
+    let v = &mut blend.0[..iw + 1];
+    for c in 0..out_shape.c {
+        let chan = &input[c * ih * iw..(c + 1) * ih * iw];
+        for (oy, orow) in out[c * out_shape.h * ow..(c + 1) * out_shape.h * ow]
+            .chunks_exact_mut(ow)
+            .enumerate()
+        {
+            let (y0, fy, dy) = src(oy, ih, out_shape.h);
+            let y1 = (y0 + 1).min(ih - 1);
+            let (r0, r1) = (&chan[y0 * iw..(y0 + 1) * iw], &chan[y1 * iw..(y1 + 1) * iw]);
+            let (a, b) = ((dy - fy) as i32, fy as i32);
+            // |v| ≤ 128·dy ≤ 32 640: 16 bits.
+            for ((v, &x0), &x1) in v.iter_mut().zip(r0).zip(r1) {
+                *v = (i32::from(x0) * a + i32::from(x1) * b) as i16;
+            }
+            v[iw] = v[iw - 1];
+            // SAFETY: `taps` holds 2·ow words whose offsets 2·x0 (x0 < iw) leave 4 bytes of
+            // `v` (iw + 1 halfwords) readable; `sh` is 1 ..= 23 (checked); Cortex-M4/M7 read
+            // the odd-`x0` words unaligned.
+            unsafe { rescaled_row(v, &taps[..2 * ow], &row, orow) };
+        }
+    }
+    true
+}
+
+/// The portable rows of [`upsample_bilinear_to_with`] (out of line: see [`rescaled_arm`]).
+#[inline(never)]
+fn resize_rows(
+    isa: Isa,
+    input: &[i8],
+    in_shape: Shape,
+    out: &mut [i8],
+    out_shape: Shape,
+    rescale: Option<&ResizeRescale>,
+) {
     let (ih, iw) = (in_shape.h, in_shape.w);
     // The column blend of `narrow_row`, one past the row, and its output columns' taps (made
     // once per call).
@@ -361,7 +461,6 @@ pub fn upsample_bilinear_to_with(
             }
         }
     }
-    Ok(())
 }
 
 /// Widest input row of [`narrow_row`] (its column blend lives on the stack).
@@ -659,6 +758,52 @@ mod tests {
                     for n in (-128 * d..=127 * d).step_by(997) {
                         assert_eq!(nr.apply(n), r.apply(n.into()), "{r:?} at {n}");
                     }
+                }
+            }
+        }
+    }
+
+    /// The Cortex-M rescaled rows serve the decoder's upsamples (every zero point end, scale
+    /// ratios around one, codes at both ends) with the reference's bits.
+    #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+    #[test]
+    fn arm_rescaled_rows_serve_the_decoder_shapes() {
+        let shapes = [
+            (Shape::new(2, 30, 40), Shape::new(2, 60, 80)),
+            (Shape::new(2, 15, 20), Shape::new(2, 30, 40)),
+            (Shape::new(3, 4, 5), Shape::new(3, 8, 10)),
+            (Shape::new(1, 30, 40), Shape::new(1, 120, 160)),
+        ];
+        for (s, o) in shapes {
+            for (zi, zo, ratio) in [(-128, 127, 0.3f32), (5, -7, 1.0), (127, -128, 7.0)] {
+                let from = QParams {
+                    scale: 0.02,
+                    zero_point: zi,
+                };
+                let to = QParams {
+                    scale: 0.02 * ratio,
+                    zero_point: zo,
+                };
+                let r = ResizeRescale::new(from, to, s, o);
+                for pattern in 0..3u32 {
+                    let x: Vec<i8> = (0..s.len().unwrap() as u32)
+                        .map(|i| match pattern {
+                            0 => (i.wrapping_mul(2654435761) >> 13) as i8,
+                            1 => {
+                                if i % 3 == 0 {
+                                    127
+                                } else {
+                                    -128
+                                }
+                            }
+                            _ => -128,
+                        })
+                        .collect();
+                    let mut slow = std::vec![0i8; o.len().unwrap()];
+                    let mut fast = std::vec![1i8; slow.len()];
+                    upsample_bilinear_to_ref(&x, s, &mut slow, o, Some(&r)).unwrap();
+                    assert!(rescaled_arm(&x, s, &mut fast, o, &r), "{s:?} → {o:?} {r:?}");
+                    assert_eq!(fast, slow, "{s:?} → {o:?} {r:?} pattern {pattern}");
                 }
             }
         }

@@ -139,7 +139,16 @@ fn profile_ops<const N: usize>(
         let n = cycles::instructions(per_op[i]);
         let macs = macs_of(i);
         total += n;
-        println!("op {i} {name} macs={macs} instructions={n}");
+        let sh = |t: u16| plan.shape(t).unwrap_or_default();
+        let (o, x) = (sh(op.output), sh(op.inputs.first().copied().unwrap_or(op.output)));
+        let geo = match op.attrs {
+            depthor_core::blob::parse::Attrs::Conv { geometry, .. } => geometry.0,
+            _ => [0; 9],
+        };
+        println!(
+            "op {i} {name} macs={macs} instructions={n} in={}x{}x{} out={}x{}x{} k={}x{} s={} g={}",
+            x.c, x.h, x.w, o.c, o.h, o.w, geo[0], geo[1], geo[2], geo[8]
+        );
         if let Some(k) = kinds.iter_mut().find(|k| k.0 == name || k.0.is_empty()) {
             k.0 = name;
             k.1 += n;

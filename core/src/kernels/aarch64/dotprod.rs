@@ -47,7 +47,7 @@ unsafe fn quads_dot(t: &Task<i8, i8>, acc: &mut Acc) {
         let mut c = [vdupq_n_s32(0); 16];
         let mut wq = t.weights.as_ptr();
         let row = t.rows.as_ptr().add(4 * (t.ox0 + 16 * half));
-        for &step in t.steps {
+        for &step in t.steps.iter() {
             let pr = row.add(step as usize);
             let w = vld1q_s8(wq);
             for q in 0..4 {

@@ -50,7 +50,7 @@ unsafe fn pairs_neon(t: &Task<i16, i16>, acc: &mut Acc) {
         let mut c = [vdupq_n_s32(0); 16];
         let mut wq = t.weights.as_ptr();
         let row = t.rows.as_ptr().add(2 * (t.ox0 + 16 * half));
-        for &step in t.steps {
+        for &step in t.steps.iter() {
             let pr = row.add(step as usize);
             let x0 = vld2q_s16(pr);
             let x1 = vld2q_s16(pr.add(16));

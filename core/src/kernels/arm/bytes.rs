@@ -20,6 +20,27 @@ pub fn max4(a: u32, b: u32) -> u32 {
     r
 }
 
+/// Per byte lane, the larger and the smaller signed byte of `a` and `b`: one `SSUB8` sets the
+/// GE flags both `SEL`s read.
+#[inline(always)]
+pub fn max_min4(a: u32, b: u32) -> (u32, u32) {
+    let (hi, lo): (u32, u32);
+    // SAFETY: register-only DSP instructions; `SSUB8` sets the GE flags the `SEL`s read.
+    unsafe {
+        core::arch::asm!(
+            "ssub8 {hi}, {a}, {b}",
+            "sel {hi}, {a}, {b}",
+            "sel {lo}, {b}, {a}",
+            a = in(reg) a,
+            b = in(reg) b,
+            hi = out(reg) hi,
+            lo = out(reg) lo,
+            options(pure, nomem, nostack),
+        );
+    }
+    (hi, lo)
+}
+
 /// Bytes 0 and 2 of `x`, sign-extended, added to the 16-bit halves of `even`; bytes 1 and 3 to
 /// those of `odd` (each half wraps at 16 bits: callers add at most 256 bytes per half).
 #[inline(always)]
@@ -70,6 +91,25 @@ pub fn max_i8(x: &[i8]) -> i8 {
         best = best.max(v);
     }
     best
+}
+
+/// The smallest and the largest of `x` in one pass (`(i8::MAX, i8::MIN)` when empty).
+pub fn min_max_i8(x: &[i8]) -> (i8, i8) {
+    let (mut hi, mut lo) = (0x8080_8080u32, 0x7F7F_7F7Fu32);
+    let mut words = x.chunks_exact(4);
+    for w in &mut words {
+        let v = word(w);
+        hi = max_min4(hi, v).0;
+        lo = max_min4(lo, v).1;
+    }
+    let lanes = |m: u32| m.to_le_bytes().map(|b| b as i8);
+    let mut big = lanes(hi).into_iter().max().unwrap_or(i8::MIN);
+    let mut small = lanes(lo).into_iter().min().unwrap_or(i8::MAX);
+    for &v in words.remainder() {
+        big = big.max(v);
+        small = small.min(v);
+    }
+    (small, big)
 }
 
 /// The sum of `x`, exact.

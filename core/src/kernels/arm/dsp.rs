@@ -128,6 +128,38 @@ unsafe fn pair_at(pb: usize, stream: *const u32, n: usize, acc: *mut i32, first:
     }
 }
 
+/// Writes the stream of [`block`] for one channel pair: per step `k`, the pixel address
+/// `base + 2·steps[k]` and the pair's two weight words `w[k·NB]`, `w[k·NB + 1]` (one `LDRD`,
+/// one `STM` of the three: 6 instructions per step).
+///
+/// # Safety
+/// `steps` is not empty; `stream` has room for `3·steps.len()` words; `w` is 4-aligned and
+/// `w[k·NB ..= k·NB + 1]` is readable for every step `k`.
+#[inline(always)]
+unsafe fn fill_stream(stream: *mut u32, steps: &[u32], base: usize, w: *const u32) {
+    // `STM` stores its registers in number order, so the three are named: r0 the address, r1 /
+    // r2 the weight words.
+    core::arch::asm!(
+        "2:",
+        "ldr r0, [{s}], #4",
+        "ldrd r1, r2, [{w}], #{stride}",
+        "add r0, {base}, r0, lsl #1",
+        "stmia {st}!, {{r0, r1, r2}}",
+        "cmp {s}, {end}",
+        "bne 2b",
+        stride = const 4 * NB,
+        s = inout(reg) steps.as_ptr() => _,
+        end = in(reg) steps.as_ptr().add(steps.len()),
+        w = inout(reg) w => _,
+        base = in(reg) base,
+        st = inout(reg) stream => _,
+        out("r0") _,
+        out("r1") _,
+        out("r2") _,
+        options(nostack),
+    );
+}
+
 /// Same contract as [`crate::kernels::dot::portable`] for pairs; `false` if a read would
 /// leave the slices or they are not 4-aligned.
 pub fn pairs(t: &Task<i16, i16>, acc: &mut Acc) -> bool {
@@ -147,12 +179,9 @@ pub fn pairs(t: &Task<i16, i16>, acc: &mut Acc) -> bool {
         return false;
     };
     // An odd offset (an unaligned word) or one past `limit` refuses the call before anything
-    // is read.
-    let (bad, top) = t
-        .steps
-        .iter()
-        .fold((0u32, 0u32), |(b, m), &s| (b | s, m.max(s)));
-    if !bad.is_multiple_of(2) || top as usize > limit {
+    // is read (the bounds come with the steps, made once per output row).
+    let top = t.steps.max().unwrap_or(u32::MAX);
+    if !t.steps.bits().is_multiple_of(2) || top as usize > limit {
         return false;
     }
     let base = t.rows.as_ptr() as usize + 4 * t.ox0;
@@ -164,16 +193,17 @@ pub fn pairs(t: &Task<i16, i16>, acc: &mut Acc) -> bool {
     let mut stream = [MaybeUninit::<u32>::uninit(); 3 * CHUNK];
     for (c, steps) in t.steps.chunks(CHUNK).enumerate() {
         for jb in (0..NB).step_by(2) {
-            let w = &words[c * CHUNK * NB..];
-            for ((e, &s), wk) in stream
-                .chunks_exact_mut(3)
-                .zip(steps)
-                .zip(w.chunks_exact(NB))
-            {
-                e[0].write((base + 2 * s as usize) as u32);
-                e[1].write(wk[jb]);
-                e[2].write(wk[jb + 1]);
-            }
+            // SAFETY: `stream` holds 3·CHUNK ≥ 3·steps.len() words; the chunk's NB·steps.len()
+            // weight words from `c·CHUNK·NB` lie in `words` (n·NB words), so the pair's words
+            // at `+ jb` are readable and 4-aligned; `steps` is not empty.
+            unsafe {
+                fill_stream(
+                    stream.as_mut_ptr().cast(),
+                    steps,
+                    base,
+                    words.as_ptr().add(c * CHUNK * NB + jb),
+                )
+            };
             let rows = acc[jb * PB..].as_mut_ptr();
             for pb in (0..pixels).step_by(2) {
                 // SAFETY: the first 3·steps.len() words of `stream` were written just above;
@@ -281,6 +311,24 @@ pub fn dot_rows(weights: &[i8], c: usize, x: &[u32], sums: &mut [i32]) -> bool {
             };
             sums[r] = sums[r].wrapping_add(i32::from(wk) * i32::from(xk));
         }
+    }
+    true
+}
+
+/// [`pack_pixel`] of `x_k = src[k·stride] − zp` for `k < 2·out.len()` (one pixel's channels
+/// of a planar map), four codes per pass; `false` (nothing written) if `src` is too short or
+/// `out` is not whole pairs of words.
+pub fn pack_strided(src: &[i8], stride: usize, zp: i32, out: &mut [u32]) -> bool {
+    let k = 2 * out.len();
+    if !out.len().is_multiple_of(2) || k > 0 && (k - 1).saturating_mul(stride) >= src.len() {
+        return false;
+    }
+    let mut x = src.iter().step_by(stride.max(1));
+    let mut half = || x.next().map_or(0, |&v| (i32::from(v) - zp) as u32 & 0xFFFF);
+    for o in out.chunks_exact_mut(2) {
+        let (x0, x1, x2, x3) = (half(), half(), half(), half());
+        o[0] = x0 | x2 << 16;
+        o[1] = x1 | x3 << 16;
     }
     true
 }
@@ -456,24 +504,24 @@ pub fn requant_row(
     true
 }
 
-/// One sign's constants of [`requant_row_signed`]: multiplier, right shift, `2^(shift − 1)`
-/// plus `zp·2^shift` (the zero point folded in, as in `requant_tail!`).
+/// The constants of [`requant_row_signed`], each as a `[sum ≥ 0, sum < 0]` pair so that the
+/// sum's sign bit indexes them: multipliers, right shifts, `2^(shift − 1)` plus `zp·2^shift`
+/// (the zero point folded in, as in `requant_tail!`).
 #[repr(C)]
 struct SignQuant {
-    m: i32,
-    e: i32,
-    half: i32,
+    m: [i32; 2],
+    e: [i32; 2],
+    half: [i32; 2],
 }
 
-/// The sign of the sum `{x}` picks the constants (`{k}`: `pos`, or `neg` 12 bytes on) and
-/// loads the multiplier `{m}`.
+/// The sign bit of the sum `{x}` picks the constants (`{k}` = `{kp}` + 4·sign: the pair
+/// element of each field) and loads the multiplier `{m}`: two instructions to pick, no branch
+/// or `IT` block.
 macro_rules! pick_sign {
     () => {
         concat!(
-            "mov {k}, {kp}\n",
-            "cmp {x}, #0\n",
-            "it lt\n",
-            "addlt {k}, {kp}, #12\n",
+            "lsr {k}, {x}, #31\n",
+            "add {k}, {kp}, {k}, lsl #2\n",
             "ldr {m}, [{k}]\n",
         )
     };
@@ -483,10 +531,10 @@ macro_rules! pick_sign {
 macro_rules! signed_tail {
     ($tail:tt) => {
         concat!(
-            "ldr {hi}, [{k}, #8]\n",
+            "ldr {hi}, [{k}, #16]\n",
             "add {lo}, {x}, {hi}\n",
             "sub {lo}, {lo}, {x}, lsr #31\n",
-            "ldr {hi}, [{k}, #4]\n",
+            "ldr {hi}, [{k}, #8]\n",
             "asr {lo}, {lo}, {hi}\n",
             "ssat {lo}, #8, {lo}\n",
             requant_floor!($tail),
@@ -522,9 +570,9 @@ macro_rules! signed_wide_step {
 }
 
 /// [`requant_row`] with a multiplier and shift per sign of `base + acc[i]` (`pos` for ≥ 0,
-/// `neg` below: the leaky ReLU's two slopes): with `narrow` the doubled sum's `SMMULR`, 18.5
-/// instructions per element (15.5 without a floor), otherwise `SMLAL` and the pre-clamp, 23.5
-/// (20.5). `false` (nothing written) unless both shifts are `1 ..= 22`, both multipliers ≥ 0
+/// `neg` below: the leaky ReLU's two slopes): with `narrow` the doubled sum's `SMMULR`, 16.5
+/// instructions per element (13.5 without a floor), otherwise `SMLAL` and the pre-clamp, 21.5
+/// (18.5). `false` (nothing written) unless both shifts are `1 ..= 22`, both multipliers ≥ 0
 /// and `max` is 127.
 #[allow(clippy::too_many_arguments)]
 pub fn requant_row_signed(
@@ -543,21 +591,21 @@ pub fn requant_row_signed(
     if !ok(pos) || !ok(neg) || max != 127 || !(-128..=127).contains(&min) || n == 0 {
         return n == 0;
     }
-    let k = |(m, e): (i32, i32)| SignQuant {
-        m,
-        e,
-        half: (1 << (e - 1)) + (zp << e),
+    let half = |(_, e): (i32, i32)| (1 << (e - 1)) + (zp << e);
+    let table = SignQuant {
+        m: [pos.0, neg.0],
+        e: [pos.1, neg.1],
+        half: [half(pos), half(neg)],
     };
-    let table = [k(pos), k(neg)];
     macro_rules! run {
         ($step:ident, $tail:tt, $b:expr; $($extra:tt)*) => {
             // SAFETY: `n` ≥ 1 words of `acc` and `n` bytes of `dst` exist (n ≤ both lengths);
-            // `table` holds the 12-byte constants of both signs (`neg` at byte 12). With
+            // `table` holds the three constant pairs (sign bit 1 picks the second of each). With
             // `narrow` every |base + acc| < 2^30, so doubling it keeps its sign and `SMMULR` is
             // the doubling high multiply (as in `requant_row`).
             unsafe {
                 requant_asm!(acc, dst, n, $b, $step!($tail);
-                    kp = in(reg) table.as_ptr(), hi = out(reg) _, k = out(reg) _,
+                    kp = in(reg) core::ptr::addr_of!(table), hi = out(reg) _, k = out(reg) _,
                     m = out(reg) _, $($extra)*)
             }
         };

@@ -2,5 +2,7 @@
 
 pub mod bytes;
 pub mod dsp;
+pub mod mul;
 pub mod pack;
 pub mod refine;
+pub mod resize;

@@ -742,23 +742,65 @@ fn accumulate_i8(
     if ti >= 3 || k >= 3 {
         return false;
     }
-    // The softmax component of codes `q0..q2` with numerator code `qc` through table `e`
-    // (Mix::one; scalars, as array adapters stay loops at opt-level "s").
+    // The softmax component `c` of codes `q0..q2` through table `e` (Mix::one; scalars, as
+    // array adapters stay loops at opt-level "s"): the numerator is one of the three terms of
+    // the sum, so it is picked, not looked up again (the same value, so the same bits).
     #[inline(always)]
-    fn one(q0: i8, q1: i8, q2: i8, qc: i8, e: &[f32; 256]) -> f32 {
-        let (q0, q1, q2, qc) = (i32::from(q0), i32::from(q1), i32::from(q2), i32::from(qc));
+    fn one<const C: usize>(q0: i8, q1: i8, q2: i8, e: &[f32; 256]) -> f32 {
+        let (q0, q1, q2) = (i32::from(q0), i32::from(q1), i32::from(q2));
         let mx = q0.max(q1).max(q2);
-        let at = |q: i32| e[(mx - q) as usize & 255];
-        at(qc) / (at(q0) + at(q1) + at(q2))
+        let at = |q: i32| e[(mx - q) as u8 as usize];
+        let (a0, a1, a2) = (at(q0), at(q1), at(q2));
+        let num = match C {
+            0 => a0,
+            1 => a1,
+            _ => a2,
+        };
+        num / (a0 + a1 + a2)
     }
-    // Every slice exactly `p` long here, so the loop below has no bounds test.
-    let (t0, t1, t2, tc) = (&t[0][..p], &t[1][..p], &t[2][..p], &t[ti][..p]);
-    let (k0, k1, k2, kc) = (&m[0][..p], &m[1][..p], &m[2][..p], &m[k][..p]);
-    let (out, cur) = (&mut out[..p], &cur[..p]);
-    for i in 0..p {
-        let ct = one(t0[i], t1[i], t2[i], tc[i], tt);
-        let ck = one(k0[i], k1[i], k2[i], kc[i], kt);
-        out[i] += (ct * ck) * cur[i];
+    // One loop per pair of components (constants, so each loop picks without a test), in two
+    // passes over chunks of `CH` pixels (the first writes `ct`, the second reads it), so each
+    // loop's pointers stay in registers; every slice exactly as long as the chunk, so the loops
+    // have no bounds test.
+    #[inline(always)]
+    fn run<const TI: usize, const K: usize>(
+        out: &mut [f32],
+        cur: &[f32],
+        t: [&[i8]; 3],
+        m: [&[i8]; 3],
+        (tt, kt): (&[f32; 256], &[f32; 256]),
+    ) {
+        const CH: usize = 32;
+        let p = out.len().min(cur.len());
+        let mut cts = [0f32; CH];
+        let mut x = 0;
+        while x < p {
+            let n = (p - x).min(CH);
+            let r = x..x + n;
+            let (t0, t1, t2) = (&t[0][r.clone()], &t[1][r.clone()], &t[2][r.clone()]);
+            for (((c, &a), &b), &d) in cts[..n].iter_mut().zip(t0).zip(t1).zip(t2) {
+                *c = one::<TI>(a, b, d, tt);
+            }
+            let (k0, k1, k2) = (&m[0][r.clone()], &m[1][r.clone()], &m[2][r.clone()]);
+            let (o, cu) = (&mut out[r.clone()], &cur[r]);
+            for i in 0..n {
+                let ck = one::<K>(k0[i], k1[i], k2[i], kt);
+                o[i] += (cts[i] * ck) * cu[i];
+            }
+            x += n;
+        }
+    }
+    let (out, cur, e) = (&mut out[..p], &cur[..p], (tt, kt));
+    match (ti, k) {
+        (0, 0) => run::<0, 0>(out, cur, t, m, e),
+        (0, 1) => run::<0, 1>(out, cur, t, m, e),
+        (0, _) => run::<0, 2>(out, cur, t, m, e),
+        (1, 0) => run::<1, 0>(out, cur, t, m, e),
+        (1, 1) => run::<1, 1>(out, cur, t, m, e),
+        (1, _) => run::<1, 2>(out, cur, t, m, e),
+        (_, 0) => run::<2, 0>(out, cur, t, m, e),
+        (_, 1) => run::<2, 1>(out, cur, t, m, e),
+        (_, _) => run::<2, 2>(out, cur, t, m, e),
     }
     true
 }

@@ -27,7 +27,7 @@ unsafe fn pairs_avx2(t: &Task<i16, i16>, acc: &mut Acc) {
         let mut c = [_mm256_setzero_si256(); 8];
         let mut wq = t.weights.as_ptr() as *const i32;
         let row = t.rows.as_ptr().add(2 * (t.ox0 + 16 * half));
-        for &step in t.steps {
+        for &step in t.steps.iter() {
             {
                 let pr = row.add(step as usize);
                 let x0 = _mm256_loadu_si256(pr as *const __m256i);

@@ -27,7 +27,7 @@ unsafe fn quads_vnni(t: &Task<u8, i8>, acc: &mut Acc) {
     let mut c = [_mm512_setzero_si512(); 8];
     let mut wq = t.weights.as_ptr() as *const i32;
     let row = t.rows.as_ptr().add(4 * t.ox0);
-    for &step in t.steps {
+    for &step in t.steps.iter() {
         {
             let pr = row.add(step as usize);
             let x0 = _mm512_loadu_si512(pr as *const __m512i);
