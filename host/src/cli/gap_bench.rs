@@ -8,7 +8,7 @@ use depthor_host::gap::bench::{
     SceneSet,
 };
 use depthor_host::gap::shapes::{
-    self, run_shape_case, shape_cases, shape_table, shape_unit, SHAPES,
+    self, calibrated_shapes, run_shape_case, shape_cases, shape_table, shape_unit,
 };
 use depthor_host::gap::units::{calibrate, CalibrateOptions, UnitTable};
 use depthor_host::gap::{effects, GapOptions};
@@ -116,7 +116,7 @@ pub struct Args {
     #[arg(long, default_value_t = 1)]
     repeats: usize,
     /// Run the leave-one-out benchmark instead (docs/gap.md): each of range_dropout,
-    /// dark_dropout, border_dropout, range_bias and radial_distance hidden at `--loo-size` ×
+    /// dark_dropout, border_dropout, range_bias, radial_distance and range_noise hidden at `--loo-size` ×
     /// its unit on rendered scenes and removed from the tool's candidates.
     #[arg(long)]
     leave_one_out: bool,
@@ -242,7 +242,10 @@ fn calibrate_units(args: &Args) -> anyhow::Result<()> {
     let k = sets.len() as u64;
     let keep = |n: &str| args.only.as_ref().is_none_or(|o| n.contains(o.as_str()));
     let names: Vec<String> = if args.shapes {
-        SHAPES.iter().map(shapes::key).filter(|n| keep(n)).collect()
+        calibrated_shapes()
+            .map(|s| shapes::key(&s))
+            .filter(|n| keep(n))
+            .collect()
     } else {
         effects::ALL
             .iter()
@@ -265,11 +268,8 @@ fn calibrate_units(args: &Args) -> anyhow::Result<()> {
     for name in names {
         bar.set_message(name.clone());
         let log = |m: &str| bar.suspend(|| eprintln!("{m}"));
-        if let Some(sh) = SHAPES
-            .iter()
-            .find(|s| args.shapes && shapes::key(s) == name)
-        {
-            units.extend(shapes::calibrate(&base, &sets, &[*sh], &opts, log)?);
+        if let Some(sh) = calibrated_shapes().find(|s| args.shapes && shapes::key(s) == name) {
+            units.extend(shapes::calibrate(&base, &sets, &[sh], &opts, log)?);
         } else if let Some(c) = effects::ALL.iter().find(|c| c.name == name) {
             units.extend(calibrate(&base, &sets, &[c.name], &opts, log)?);
         }

@@ -266,33 +266,47 @@ pub fn term<'m>(model: &'m SimConfig, family: &str) -> Option<&'m Term> {
 /// Name of a finding fitted from the residual alone (physics outside the library).
 pub const LEARNED: &str = "learned";
 
-/// The forms a residual curve may take: a loss or a bias curve over range, brightness or grid
-/// radius (unconstrained in direction).
-pub fn residual_forms() -> Vec<Form> {
+/// The kinds of a residual curve: a loss, a bias or a noise curve.
+pub const RESIDUAL_KINDS: [TermKind; 3] = [TermKind::Dropout, TermKind::Bias, TermKind::Noise];
+
+/// The covariates a residual curve may run over.
+pub const RESIDUAL_COVARIATES: [TermCovariate; 3] = [
+    TermCovariate::Range,
+    TermCovariate::Brightness,
+    TermCovariate::Radius,
+];
+
+/// The forms a residual curve may take (issue 44 item 3): every kind ([`RESIDUAL_KINDS`]) over
+/// every covariate ([`RESIDUAL_COVARIATES`]), in either direction. Where a library family
+/// that `offered` says is a candidate has the same kind and covariate, the family covers its
+/// own direction (it is fitted there, under its name): the residual curve then takes only the
+/// other one (a loss falling with range beside `range_dropout`'s rising one, noise falling with
+/// range beside `range_noise`), and none where the family's curve is direction-free
+/// (`range_bias`). Elsewhere the curve is direction-free, so no direction is favoured.
+pub fn residual_forms(offered: impl Fn(&str) -> bool) -> Vec<Form> {
     let mut v = Vec::new();
-    for kind in [TermKind::Dropout, TermKind::Bias] {
-        for on in [
-            TermCovariate::Range,
-            TermCovariate::Brightness,
-            TermCovariate::Radius,
-        ] {
-            v.push(Form {
+    for kind in RESIDUAL_KINDS {
+        for on in RESIDUAL_COVARIATES {
+            let free = Form {
                 family: LEARNED,
                 kind,
                 on,
                 monotone: None,
-            });
+            };
+            let family = FORMS
+                .iter()
+                .find(|f| f.kind == kind && f.on == on && offered(f.family));
+            match family.map(|f| f.monotone) {
+                None => v.push(free),
+                Some(Some(up)) => v.push(Form {
+                    monotone: Some(!up),
+                    ..free
+                }),
+                Some(None) => {}
+            }
         }
     }
     v
-}
-
-/// The library family whose flexible form has `form`'s kind and covariate, if any.
-pub fn family_of(form: &Form) -> Option<&'static str> {
-    FORMS
-        .iter()
-        .find(|f| f.kind == form.kind && f.on == form.on)
-        .map(|f| f.family)
 }
 
 /// The residual term in words: what it changes, which way, along which covariate.

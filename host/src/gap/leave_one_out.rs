@@ -1,23 +1,26 @@
 //! The leave-one-out benchmark of physics outside the library (`depthor gap-bench
 //! --leave-one-out`, docs/gap.md): each effect in turn is hidden in a "real" recording (at a
 //! multiple of its unit) and removed from the tool's candidates (`SelectOptions::exclude`), so
-//! the library lacks the physics. The tool should then fit a `learned` curve over the effect's
-//! covariate ([`super::flexible::learn_residual`]) and improve the held-out NLL with it.
+//! the library lacks the physics. The tool should then fit a `learned` curve of the effect's kind
+//! (loss, bias or noise) over its covariate ([`super::select::Ctx::fit_learned`]) and improve the
+//! held-out NLL with it.
 
 use super::bench::{at_size, run_case, Case, SceneSet};
 use super::flexible::LEARNED;
 use super::{GapError, GapOptions};
 use crate::scene::SceneFrame;
-use crate::sim::learned::TermCovariate;
+use crate::sim::learned::{TermCovariate, TermKind};
 use crate::sim::SimConfig;
 
-/// The effects left out in turn, with the covariate their residual lies along.
-pub const LEFT_OUT: [(&str, TermCovariate); 5] = [
-    ("range_dropout", TermCovariate::Range),
-    ("dark_dropout", TermCovariate::Brightness),
-    ("border_dropout", TermCovariate::Radius),
-    ("range_bias", TermCovariate::Range),
-    ("radial_distance", TermCovariate::Radius),
+/// The effects left out in turn, with what their residual changes and the covariate it lies
+/// along.
+pub const LEFT_OUT: [(&str, TermKind, TermCovariate); 6] = [
+    ("range_dropout", TermKind::Dropout, TermCovariate::Range),
+    ("dark_dropout", TermKind::Dropout, TermCovariate::Brightness),
+    ("border_dropout", TermKind::Dropout, TermCovariate::Radius),
+    ("range_bias", TermKind::Bias, TermCovariate::Range),
+    ("radial_distance", TermKind::Bias, TermCovariate::Radius),
+    ("range_noise", TermKind::Noise, TermCovariate::Range),
 ];
 
 /// The outcome of one left-out case.
@@ -27,10 +30,12 @@ pub struct LooResult {
     pub label: String,
     /// The effect hidden and left out.
     pub effect: &'static str,
+    /// What its residual changes.
+    pub kind: TermKind,
     /// Its covariate.
     pub expected: TermCovariate,
-    /// The learned curve's covariate, when one was accepted.
-    pub learned_on: Option<TermCovariate>,
+    /// The learned curve's kind and covariate, when one was accepted.
+    pub learned_on: Option<(TermKind, TermCovariate)>,
     /// The learned finding's held-out gain, nats per zone.
     pub learned_gain: Option<f64>,
     /// Every effect named.
@@ -38,9 +43,11 @@ pub struct LooResult {
 }
 
 impl LooResult {
-    /// A learned curve over the right covariate that improves the held-out NLL.
+    /// A learned curve of the right kind over the right covariate that improves the held-out
+    /// NLL.
     pub fn right(&self) -> bool {
-        self.learned_on == Some(self.expected) && self.learned_gain.is_some_and(|g| g > 0.0)
+        self.learned_on == Some((self.kind, self.expected))
+            && self.learned_gain.is_some_and(|g| g > 0.0)
     }
 }
 
@@ -55,7 +62,7 @@ pub fn run(
 ) -> Result<Vec<LooResult>, GapError> {
     let mut out = Vec::new();
     for r in 0..repeats {
-        for (effect, expected) in LEFT_OUT {
+        for (effect, kind, expected) in LEFT_OUT {
             let label = format!("loo:{effect}@{size}x#{r}");
             let case = Case {
                 label: label.clone(),
@@ -78,8 +85,11 @@ pub fn run(
             out.push(LooResult {
                 label,
                 effect,
+                kind,
                 expected,
-                learned_on: learned.and_then(|f| f.curve.as_ref()).map(|t| t.on),
+                learned_on: learned
+                    .and_then(|f| f.curve.as_ref())
+                    .map(|t| (t.kind, t.on)),
                 learned_gain: learned.map(|f| f.heldout_gain),
                 named: res.named,
             });
@@ -92,27 +102,28 @@ pub fn run(
 /// covariate that improves the held-out NLL.
 pub fn table(results: &[LooResult]) -> String {
     let mut s = String::from(
-        "| case | left out | its covariate | named | learned over | learned gain (nats/zone) | right |\n|---|---|---|---|---|---|---|\n",
+        "| case | left out | its kind and covariate | named | learned | learned gain (nats/zone) | right |\n|---|---|---|---|---|---|---|\n",
     );
     for r in results {
         s.push_str(&format!(
             "| {} | {} | {} | {} | {} | {} | {} |\n",
             r.label,
             r.effect,
-            r.expected.name(),
+            format!("{:?} / {}", r.kind, r.expected.name()),
             if r.named.is_empty() {
                 "—".into()
             } else {
                 r.named.join(", ")
             },
-            r.learned_on.map_or("—", |c| c.name()),
+            r.learned_on
+                .map_or("—".into(), |(k, c)| format!("{k:?} / {}", c.name())),
             r.learned_gain.map_or("—".into(), |g| format!("{g:.4}")),
             if r.right() { "yes" } else { "no" },
         ));
     }
     let right = results.iter().filter(|r| r.right()).count();
     s.push_str(&format!(
-        "\nLearned curve over the right covariate with a positive held-out gain: {right} of {} ({:.0} %).\n",
+        "\nLearned curve of the right kind over the right covariate with a positive held-out gain: {right} of {} ({:.0} %).\n",
         results.len(),
         100.0 * right as f64 / results.len().max(1) as f64
     ));

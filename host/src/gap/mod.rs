@@ -20,6 +20,7 @@ pub mod leave_one_out;
 pub mod likelihood;
 pub mod localise;
 pub mod model;
+pub mod periodic;
 pub mod power;
 pub mod report;
 pub mod select;

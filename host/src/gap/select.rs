@@ -13,6 +13,7 @@ use super::flexible::{self, Form};
 use super::likelihood::Density;
 use super::model::{eval_frame, frame_nlls, Prepared};
 use super::stats::{fixed_sequence, grid_golden_min, holm, sign_flip_p};
+use crate::sim::effects::BinWiggle;
 use crate::sim::learned::{Term, TermCovariate, TermKind};
 use crate::sim::SimConfig;
 
@@ -260,11 +261,12 @@ impl Ctx<'_> {
         }
     }
 
-    /// Physics outside the library: under `model` (its residual curve removed), a loss curve and
-    /// a bias curve over each of range, brightness and grid radius that vary in these frames
-    /// ([`flexible::residual_forms`]; not those that are the flexible form of a family among
-    /// the candidates) are estimated on the fitting frames and the one with the lowest training
-    /// NLL is kept: its covariate is the one that explains the residual. The held-out gate
+    /// Physics outside the library: under `model` (its residual curve removed), a loss, a bias
+    /// and a noise curve over each of range, brightness and grid radius that vary in these
+    /// frames ([`flexible::residual_forms`]: direction-free, or only the direction a candidate
+    /// family of the same kind and covariate cannot take) are estimated on the fitting frames
+    /// and the one with the lowest training NLL is kept: its kind and covariate are the ones
+    /// that explain the residual. The held-out gate
     /// decides, as for every candidate. A `model` that already holds a learned curve (a refit)
     /// keeps that curve's kind and covariate. `None`: no curve could be estimated.
     pub fn fit_learned(&self, model: &SimConfig, opts: &SelectOptions) -> Option<SimConfig> {
@@ -281,13 +283,10 @@ impl Ctx<'_> {
                 && !opts.exclude.iter().any(|e| e == name)
                 && super::localise::varies(self.frames, c.stratum)
         };
-        flexible::residual_forms()
+        flexible::residual_forms(offered)
             .iter()
             .filter(|f| super::localise::varies(self.frames, f.on.covariate()))
-            .filter(|f| match pinned {
-                Some(p) => (f.kind, f.on) == p,
-                None => flexible::family_of(f).is_none_or(|n| !offered(n)),
-            })
+            .filter(|f| pinned.is_none_or(|p| (f.kind, f.on) == p))
             .filter_map(|f| flexible::estimate(f, &m, self.base, self.frames, &self.train, k))
             .map(|t| flexible::with_term(&m, t))
             .map(|c| (self.train_nll(&c), c))
@@ -299,10 +298,17 @@ impl Ctx<'_> {
     /// ([`Ctx::fit_parametric`]) and, where the family has one, its flexible form (a curve over
     /// its covariate, [`super::flexible`]); keeps the one with the lower training NLL plus one
     /// nat per fitted parameter (Akaike), so the parametric form wins when it fits as well.
+    ///
+    /// The periodic range error's period is not a fitted parameter of its form: it is searched
+    /// ([`Ctx::fit_periodic`]).
     pub fn fit_one(&self, model: &SimConfig, c: &EffectFit, opts: &SelectOptions) -> SimConfig {
         let mut plain = model.clone();
         flexible::remove(&mut plain, c.name);
-        let par = self.fit_parametric(&plain, c, opts);
+        let par = if c.name == BinWiggle::NAME {
+            self.fit_periodic(&plain, c, opts)
+        } else {
+            self.fit_parametric(&plain, c, opts)
+        };
         let Some(form) = flexible::form(c.name) else {
             return par;
         };
@@ -326,6 +332,38 @@ impl Ctx<'_> {
         } else {
             par
         }
+    }
+
+    /// Fits the periodic range error `c` in `model`: its amplitudes ([`Ctx::fit_parametric`])
+    /// at each of the periodogram's best periods of the residual without it
+    /// ([`super::periodic::best_periods`]), keeping the fit with the lowest training NLL (the
+    /// model's own period when the periodogram has none).
+    pub fn fit_periodic(
+        &self,
+        model: &SimConfig,
+        c: &EffectFit,
+        opts: &SelectOptions,
+    ) -> SimConfig {
+        use super::periodic::{best_periods, residuals, PEAKS};
+        let mut off = model.clone();
+        c.set(&mut off, None);
+        let points = residuals(
+            &off,
+            self.base,
+            self.frames,
+            &self.train,
+            self.density.kernel_m,
+        );
+        best_periods(&points, PEAKS)
+            .into_iter()
+            .map(|p| {
+                let mut m = model.clone();
+                m.bin_wiggle.period_m = p as f32;
+                let m = self.fit_parametric(&m, c, opts);
+                (self.train_nll(&m), m)
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .map_or_else(|| self.fit_parametric(model, c, opts), |(_, m)| m)
     }
 
     /// Fits effect `c` in `model` (switched on if off), other effects fixed: per continuous
@@ -1032,7 +1070,7 @@ fn fit_trials(
             .sum();
         let after = folds.nlls(&fitted);
         let (gain, p, fold_gain) = folds.gain(cur, &after, opts.permutations, seed);
-        let dims = names.iter().map(|n| dims_of(n)).sum();
+        let dims = names.iter().map(|n| dims_of(n, folds.ctx[0].frames)).sum();
         Trial {
             names,
             models: fitted,
@@ -1305,6 +1343,13 @@ fn finding(
         };
         ci.insert(s.field.to_string(), [bound(s.lo), bound(s.hi)]);
     }
+    if c.name == BinWiggle::NAME {
+        // Searched, not fitted by the likelihood (no interval).
+        params.insert(
+            "period_m".to_string(),
+            f64::from(estimate.bin_wiggle.period_m),
+        );
+    }
     Finding {
         effect: c.name.to_string(),
         params,
@@ -1326,10 +1371,13 @@ fn finding(
     }
 }
 
-/// Fitted parameters of effect `name` (a curve's bins for [`flexible::LEARNED`]).
-fn dims_of(name: &str) -> usize {
+/// Fitted parameters of effect `name` on `frames` (a curve's bins for [`flexible::LEARNED`]; the
+/// periodic error's period search counts as [`super::periodic::search_dims`] more).
+fn dims_of(name: &str, frames: &[Prepared]) -> usize {
     if name == flexible::LEARNED {
         flexible::BINS
+    } else if name == BinWiggle::NAME {
+        library(name).params.len() + super::periodic::search_dims(frames)
     } else {
         library(name).params.len()
     }

@@ -29,10 +29,11 @@ use super::{analyze, GapError, GapOptions};
 use crate::rng::Rng;
 use crate::scene::SceneFrame;
 use crate::sim::covariates::zone_covariates;
+use crate::sim::learned::TermKind;
 use crate::sim::SimConfig;
 
 /// One injected shape.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Shape {
     /// The library family the tool should name.
     pub family: &'static str,
@@ -44,7 +45,16 @@ pub struct Shape {
     /// when the first finding is attributed to it (alone, or inseparable from a correlated one),
     /// whatever its name. `None`: right when the first finding is `family`.
     pub covariate: Option<&'static str>,
+    /// With `covariate`: what the first finding must also change (a loss, bias or noise curve
+    /// along the covariate, [`ANY_SHAPE`]); `None`: any kind.
+    pub kind: Option<TermKind>,
+    /// A periodic error's period, metres: the first finding's searched period must lie within
+    /// [`PERIOD_TOLERANCE`] of it.
+    pub period_m: Option<f32>,
 }
+
+/// Relative error of the searched period within which a periodic shape counts as named.
+pub const PERIOD_TOLERANCE: f64 = 0.1;
 
 const fn s(family: &'static str, name: &'static str, what: &'static str) -> Shape {
     Shape {
@@ -52,6 +62,32 @@ const fn s(family: &'static str, name: &'static str, what: &'static str) -> Shap
         name,
         what,
         covariate: None,
+        kind: None,
+        period_m: None,
+    }
+}
+
+/// A periodic shape of period `period_m` (named `bin_wiggle` with that period).
+const fn periodic(name: &'static str, what: &'static str, period_m: f32) -> Shape {
+    Shape {
+        period_m: Some(period_m),
+        ..s("bin_wiggle", name, what)
+    }
+}
+
+/// A shape of `kind` along `covariate` sized like `family` (equal mean effect): right when the
+/// first finding is attributed to `covariate` and changes `kind`, whatever its name.
+const fn along(
+    family: &'static str,
+    name: &'static str,
+    what: &'static str,
+    kind: TermKind,
+    covariate: &'static str,
+) -> Shape {
+    Shape {
+        covariate: Some(covariate),
+        kind: Some(kind),
+        ..s(family, name, what)
     }
 }
 
@@ -61,20 +97,94 @@ const fn s(family: &'static str, name: &'static str, what: &'static str) -> Shap
 /// `border_dropout` alone. Sized like `range_dropout` (the library's range loss) at equal mean
 /// loss.
 pub const CONFOUNDED: [Shape; 2] = [
-    Shape {
-        family: "range_dropout",
-        name: "near",
-        what:
-            "p = a·(1 − d/d50)₊: loss of close returns, falling with range to 0 at the median range",
-        covariate: Some("range_m"),
-    },
-    Shape {
-        family: "range_dropout",
-        name: "near_step",
-        what: "p = a below the 30th range percentile of the valid zones, 0 beyond",
-        covariate: Some("range_m"),
-    },
+    along(
+        "range_dropout",
+        "near",
+        "p = a·(1 − d/d50)₊: loss of close returns, falling with range to 0 at the median range",
+        TermKind::Dropout,
+        "range_m",
+    ),
+    along(
+        "range_dropout",
+        "near_step",
+        "p = a below the 30th range percentile of the valid zones, 0 beyond",
+        TermKind::Dropout,
+        "range_m",
+    ),
 ];
+
+/// Shapes of any kind, covariate and direction (issue 44 items 3–4), chosen before any run
+/// (never tuned on results): periodic errors of periods off the library's 0.3 m (the tool must
+/// search the period), noise growing with scene brightness (ambient light) or with darkness,
+/// noise at the grid border and noise falling with range, a loss rising with brightness (the
+/// opposite of `dark_dropout`) and a bias on dark surfaces. Each is sized like the library
+/// family of its kind (equal mean effect); a non-periodic one is right when the first finding
+/// is attributed to its covariate and changes its kind, whatever its name (`learned` where the
+/// library has no such family).
+pub const ANY_SHAPE: [Shape; 9] = [
+    periodic(
+        "period_0.19",
+        "bias = a·sin(2πd/0.19 m + 1) of the measured d: a short off-library period",
+        0.19,
+    ),
+    periodic(
+        "period_0.47",
+        "bias = a·sin(2πd/0.47 m + 1) of the measured d: an off-library period",
+        0.47,
+    ),
+    periodic(
+        "period_1.3",
+        "bias = a·sin(2πd/1.3 m + 1) of the measured d: a long off-library period",
+        1.3,
+    ),
+    along(
+        "range_noise",
+        "bright_noise",
+        "σ = a·V: noise growing with scene brightness (ambient light), not range",
+        TermKind::Noise,
+        "brightness",
+    ),
+    along(
+        "range_noise",
+        "dark_noise",
+        "σ = a·(1 − V)²: noise growing on dark surfaces (weak signal)",
+        TermKind::Noise,
+        "brightness",
+    ),
+    along(
+        "range_noise",
+        "border_noise",
+        "σ = a·r²: noise growing towards the grid border",
+        TermKind::Noise,
+        "grid_radius",
+    ),
+    along(
+        "range_noise",
+        "near_noise",
+        "σ = a·exp(−d/1 m): noise falling with range",
+        TermKind::Noise,
+        "range_m",
+    ),
+    along(
+        "dark_dropout",
+        "bright_loss",
+        "p = a·V²: loss rising with brightness (saturation), the opposite of dark_dropout",
+        TermKind::Dropout,
+        "brightness",
+    ),
+    along(
+        "range_bias",
+        "dark_bias",
+        "bias = a·(1 − V)²: a distance bias on dark surfaces",
+        TermKind::Bias,
+        "brightness",
+    ),
+];
+
+/// The shapes with a measured detection limit ([`calibrate`]): [`SHAPES`] and [`ANY_SHAPE`].
+pub fn calibrated_shapes() -> impl Iterator<Item = Shape> {
+    SHAPES.into_iter().chain(ANY_SHAPE)
+}
 
 /// Every shape, by family.
 pub const SHAPES: [Shape; 13] = [
@@ -121,15 +231,15 @@ pub const SHAPES: [Shape; 13] = [
         "far_ramp",
         "bias = a·(d − d50)₊: growing beyond the median range",
     ),
-    s(
-        "bin_wiggle",
+    periodic(
         "quadrature",
         "bias = a·cos(2πd/0.3 m) of the measured d: the library's period, a quarter period off its phase",
+        0.3,
     ),
-    s(
-        "bin_wiggle",
+    periodic(
         "sawtooth",
         "bias = a·(2·frac(d/0.3 m) − 1) of the measured d: a sawtooth over each 0.3 m bin",
+        0.3,
     ),
 ];
 
@@ -254,8 +364,15 @@ impl Thresholds {
 /// loss probability factor, a σ in metres per unit, or a signed bias in metres per unit).
 pub fn unit_value(shape: &Shape, t: &Thresholds, z: &ZoneFacts, measured_m: f32) -> f32 {
     let d = z.range_m;
-    let bin = measured_m / 0.3;
+    let bin = measured_m / shape.period_m.unwrap_or(0.3);
     match (shape.family, shape.name) {
+        ("range_noise", "bright_noise") => z.v,
+        ("range_noise", "dark_noise") => (1.0 - z.v).powi(2),
+        ("range_noise", "border_noise") => z.radius * z.radius,
+        ("range_noise", "near_noise") => (-d).exp(),
+        ("dark_dropout", "bright_loss") => z.v * z.v,
+        ("range_bias", "dark_bias") => (1.0 - z.v).powi(2),
+        ("bin_wiggle", "sawtooth") => 2.0 * (bin - bin.floor()) - 1.0,
         ("range_dropout", "logistic") => 1.0 / (1.0 + (-(d - t.d70) / 0.15).exp()),
         ("range_dropout", "near") => (1.0 - d / t.near).max(0.0),
         ("range_dropout", "near_step") => f32::from(u8::from(d < t.d30)),
@@ -270,7 +387,7 @@ pub fn unit_value(shape: &Shape, t: &Thresholds, z: &ZoneFacts, measured_m: f32)
         ("range_bias", "far_step") => f32::from(u8::from(d > t.d50)),
         ("range_bias", _) => (d - t.d50).max(0.0),
         ("bin_wiggle", "quadrature") => (core::f32::consts::TAU * bin).cos(),
-        ("bin_wiggle", _) => 2.0 * (bin - bin.floor()) - 1.0,
+        ("bin_wiggle", _) => (core::f32::consts::TAU * bin + 1.0).sin(),
         _ => 0.0,
     }
 }
@@ -390,6 +507,11 @@ pub struct ShapeResult {
     /// The covariates the first finding is attributed to (both of an inseparable pair); empty
     /// without a finding.
     pub first_covariates: Vec<String>,
+    /// What the first finding changes (a loss, bias or noise curve; `None` for an effect
+    /// without one kind and covariate, or without a finding).
+    pub first_kind: Option<TermKind>,
+    /// The first finding's searched period (a periodic error), metres.
+    pub first_period_m: Option<f64>,
     /// Whether report.json would say the held-out frames can reach significance.
     pub conclusive: bool,
     /// Held-out gain of each accepted finding, nats per zone.
@@ -397,12 +519,23 @@ pub struct ShapeResult {
 }
 
 impl ShapeResult {
-    /// The first finding is the family's name; for a confounded shape, the first finding is
-    /// attributed to the shape's covariate (alone or inseparable from another).
+    /// The first finding is the family's name (a periodic shape: with its period within
+    /// [`PERIOD_TOLERANCE`]); for a shape along a covariate, the first finding is attributed to
+    /// the shape's covariate (alone or inseparable from another) and changes the shape's kind.
     pub fn top1(&self) -> bool {
         self.case.shape.is_some_and(|s| match s.covariate {
-            Some(c) => self.first_covariates.iter().any(|x| x == c),
-            None => self.named.first().is_some_and(|n| n == s.family),
+            Some(c) => {
+                self.first_covariates.iter().any(|x| x == c)
+                    && s.kind.is_none_or(|k| self.first_kind == Some(k))
+            }
+            None => {
+                self.named.first().is_some_and(|n| n == s.family)
+                    && s.period_m.is_none_or(|p| {
+                        self.first_period_m.is_some_and(|q| {
+                            (q - f64::from(p)).abs() <= PERIOD_TOLERANCE * f64::from(p)
+                        })
+                    })
+            }
         })
     }
 }
@@ -461,6 +594,14 @@ pub fn run_shape_case(
                 .map(String::from)
                 .collect()
         }),
+        first_kind: an.selection.findings.first().and_then(|f| {
+            super::select::kind_and_covariate(&f.effect, &an.selection.estimate).map(|k| k.0)
+        }),
+        first_period_m: an
+            .selection
+            .findings
+            .first()
+            .and_then(|f| f.params.get("period_m").copied()),
         conclusive: an.power.conclusive,
         finding_gains: an
             .selection
@@ -489,7 +630,7 @@ pub fn shape_cases(
             format!("{set}:")
         };
         for r in 0..repeats {
-            for sh in SHAPES.into_iter().chain(CONFOUNDED) {
+            for sh in SHAPES.into_iter().chain(CONFOUNDED).chain(ANY_SHAPE) {
                 v.push(ShapeCase {
                     label: format!("{pre}{}/{}@{size}x#{r}", sh.family, sh.name),
                     shape: Some(sh),
@@ -646,7 +787,7 @@ pub fn shape_table(results: &[ShapeResult]) -> String {
     for set in &sets {
         let mut fams: Vec<&str> = SHAPES.iter().map(|x| x.family).collect();
         fams.dedup();
-        fams.extend(["confounded", "all"]);
+        fams.extend(["confounded", "any shape", "all"]);
         for fam in fams {
             let rs: Vec<&ShapeResult> = results
                 .iter()
@@ -654,8 +795,9 @@ pub fn shape_table(results: &[ShapeResult]) -> String {
                 .filter(|r| {
                     r.case.shape.is_some_and(|x| match fam {
                         "all" => true,
-                        "confounded" => x.covariate.is_some(),
-                        _ => x.family == fam && x.covariate.is_none(),
+                        "confounded" => CONFOUNDED.contains(&x),
+                        "any shape" => ANY_SHAPE.contains(&x),
+                        _ => x.family == fam && SHAPES.contains(&x),
                     })
                 })
                 .collect();
@@ -821,7 +963,10 @@ mod tests {
                 1.0
             }
         });
-        assert_eq!(cases.len(), 2 * (2 * (SHAPES.len() + CONFOUNDED.len()) + 3));
+        assert_eq!(
+            cases.len(),
+            2 * (2 * (SHAPES.len() + CONFOUNDED.len() + ANY_SHAPE.len()) + 3)
+        );
         assert!(cases
             .iter()
             .filter(|c| c.shape.is_some_and(|s| s.family == "range_noise"))

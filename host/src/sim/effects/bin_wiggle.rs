@@ -1,8 +1,10 @@
 //! `bin_wiggle` (gap-tool library, docs/design.md): the histogram's time bins leave a periodic range
 //! error. Forward model: `d' = d + amplitude_m · sin(2π d / period_m) + quadrature_m · cos(2π d /
-//! period_m)`: the period is the sensor's bin width (known), the phase is not, so the error is
-//! fitted as two signed amplitudes, in phase and in quadrature (one amplitude bounded at 0 with a
-//! fixed phase fitted a wiggle of the opposite sign, or a quarter period off, to exactly zero).
+//! period_m)`: the phase is unknown, so the error is fitted as two signed amplitudes, in phase and
+//! in quadrature (one amplitude bounded at 0 with a fixed phase fitted a wiggle of the opposite
+//! sign, or a quarter period off, to exactly zero). The period defaults to our bin width (0.3 m);
+//! the gap tool searches it (`gap::periodic`, issue 44: a real error may repeat with another
+//! period) before fitting the amplitudes.
 use serde::{Deserialize, Serialize};
 
 use super::{param, Covariate, EffectFit};
@@ -38,6 +40,9 @@ impl Default for BinWiggle {
 }
 
 impl BinWiggle {
+    /// The effect's name (its [`FIT`] and configuration field).
+    pub const NAME: &'static str = "bin_wiggle";
+
     /// The reported distance of a return at `d` metres.
     pub fn distance(&self, d: f32) -> f32 {
         let (s, c) = (core::f32::consts::TAU * d / self.period_m).sin_cos();
@@ -47,7 +52,7 @@ impl BinWiggle {
 
 impl ZoneEffect for BinWiggle {
     fn name(&self) -> &'static str {
-        "bin_wiggle"
+        Self::NAME
     }
     fn enabled(&self) -> bool {
         self.enabled
@@ -80,8 +85,9 @@ impl ZoneEffect for BinWiggle {
 
 /// Fit description for the gap tool ([`super::ALL`]).
 pub const FIT: EffectFit = EffectFit {
-    name: "bin_wiggle",
-    physics: "periodic range error from histogram binning: d + A·sin(2πd/0.3 m) + B·cos(2πd/0.3 m)",
+    name: BinWiggle::NAME,
+    physics:
+        "periodic range error: d + A·sin(2πd/P) + B·cos(2πd/P), period P searched over 0.1–2 m",
     params: &[
         param("amplitude_m", -0.1, 0.1),
         param("quadrature_m", -0.1, 0.1),
