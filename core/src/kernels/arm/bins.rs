@@ -55,7 +55,7 @@ pub fn sums(logits: &[f32], m: f32, centres: &[f32]) -> (f32, f32) {
             "vmla.f32 s26, s25, s19",
             "vmov.f32 s27, s21",
             "vmla.f32 s27, s25, s26",
-            "vmov.f32 s26, s23",
+            "vmov.f32 s26, s21",
             "vmla.f32 s26, s25, s27",
             // (T[n & 31] · p) · 2^(n >> 5): the power's bits are ((n >> 5) + 127) << 23,
             // i.e. (n << 18) & 0xFF800000 plus 127 << 23.
