@@ -80,7 +80,8 @@ impl embedded_hal::delay::DelayNs for SpinDelay {
 const KINDS: usize = 24;
 
 /// Runs the last frame's inputs once more through [`Engine::run_observed`], reading SysTick after
-/// every op, and prints the instructions of each op and of each op kind (feature `profile`: its
+/// every op, and prints the instructions of each op (with its first input's and its output's
+/// shapes, and a conv's kernel, stride and groups) and of each op kind (feature `profile`: its
 /// output buffer is 4·H·W bytes the shipping build does not hold).
 #[cfg(feature = "profile")]
 #[inline(never)]
