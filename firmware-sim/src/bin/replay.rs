@@ -141,7 +141,10 @@ fn profile_ops<const N: usize>(
         let macs = macs_of(i);
         total += n;
         let sh = |t: u16| plan.shape(t).unwrap_or_default();
-        let (o, x) = (sh(op.output), sh(op.inputs.first().copied().unwrap_or(op.output)));
+        let (o, x) = (
+            sh(op.output),
+            sh(op.inputs.first().copied().unwrap_or(op.output)),
+        );
         let geo = match op.attrs {
             depthor_core::blob::parse::Attrs::Conv { geometry, .. } => geometry.0,
             _ => [0; 9],
