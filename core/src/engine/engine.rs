@@ -521,10 +521,17 @@ fn write_rgb(g: &Graph, n: usize, lut: &[i8; 256], rgb: &[u8], t: &mut [u8]) -> 
     match info.dtype {
         DType::I8 => {
             let t: &mut [i8] = typed_mut(t, 0)?;
-            for (i, px) in rgb.chunks_exact(3).enumerate().take(n) {
-                for c in 0..3 {
-                    t[c * n + i] = lut[px[c] as usize];
-                }
+            // The three planes side by side: one pass, no index arithmetic per code.
+            let short = Error::Kernel {
+                op: 0,
+                error: KernelError::Shape,
+            };
+            let (r, rest) = t.get_mut(..3 * n).ok_or(short)?.split_at_mut(n);
+            let (gr, b) = rest.split_at_mut(n);
+            for (((px, r), gr), b) in rgb.chunks_exact(3).zip(r).zip(gr).zip(b) {
+                *r = lut[px[0] as usize];
+                *gr = lut[px[1] as usize];
+                *b = lut[px[2] as usize];
             }
         }
         DType::F32 => {

@@ -14,7 +14,6 @@
 //! output map is f32 metres.
 
 use super::isa::Isa;
-use super::scalar::softmax_exp;
 use super::{need, KernelError, Shape};
 
 /// Most bins supported (stack arrays of this size hold logits and centres; 128 with the
@@ -89,16 +88,30 @@ pub fn expected_depth(logits: &[f32], centres: &[f32]) -> f32 {
     expectation(logits, m, centres)
 }
 
-/// [`expected_depth`] given the logits' maximum `m` (as its fold finds it).
+/// The softmax sums of [`expectation`]: `(Σ e_i, Σ e_i·c_i)` with `e_i = softmax_exp(l_i − m)`,
+/// accumulated in bin order (with `arm-dsp` on Cortex-M, the spec its FPU loop is tested
+/// against).
+#[cfg(any(test, not(all(target_arch = "arm", feature = "arm-dsp"))))]
 #[inline(always)]
-fn expectation(logits: &[f32], m: f32, centres: &[f32]) -> f32 {
+fn softmax_sums(logits: &[f32], m: f32, centres: &[f32]) -> (f32, f32) {
     let (mut s, mut d) = (0.0f32, 0.0f32);
     for (&l, &c) in logits.iter().zip(centres) {
         // `l − m ≤ 0` (or NaN).
-        let e = softmax_exp(l - m);
+        let e = super::scalar::softmax_exp(l - m);
         s += e;
         d += e * c;
     }
+    (s, d)
+}
+
+/// [`expected_depth`] given the logits' maximum `m` (as its fold finds it); the sums by the
+/// Cortex-M FPU loop with `arm-dsp` (the same operations, the same bits).
+#[inline(always)]
+fn expectation(logits: &[f32], m: f32, centres: &[f32]) -> f32 {
+    #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+    let (s, d) = super::arm::bins::sums(logits, m, centres);
+    #[cfg(not(all(target_arch = "arm", feature = "arm-dsp")))]
+    let (s, d) = softmax_sums(logits, m, centres);
     if s > 0.0 {
         d / s
     } else {
@@ -273,6 +286,37 @@ mod tests {
         assert!((expected_depth(&[40.0, 0.0], &[2.0, 4.0]) - 2.0).abs() < 1e-5);
         // ln 3 difference → weights 3/4, 1/4.
         assert!((expected_depth(&[1.0986123, 0.0], &[2.0, 4.0]) - 2.5).abs() < 1e-3);
+    }
+
+    /// The Cortex-M FPU loop of the softmax sums gives the Rust loop's bits: logits spread over
+    /// ±100 around the maximum (so some fall below the −80 floor), a NaN, an infinity.
+    #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+    #[test]
+    fn arm_softmax_sums_equal_the_loop() {
+        for seed in 0..200u32 {
+            let n = 1 + (seed as usize % 40);
+            let logits: Vec<f32> = (0..n as u32)
+                .map(|i| {
+                    let h = (i ^ seed.wrapping_mul(2_654_435_761)).wrapping_mul(2_246_822_519);
+                    match (seed % 50, i) {
+                        (7, 3) => f32::NAN,
+                        (9, 1) => f32::NEG_INFINITY,
+                        _ => (h >> 8) as f32 / (1u32 << 24) as f32 * 200.0 - 100.0,
+                    }
+                })
+                .collect();
+            let centres: Vec<f32> = (0..n).map(|i| 0.2 + 0.37 * i as f32).collect();
+            let m = logits
+                .iter()
+                .fold(f32::NEG_INFINITY, |a, &b| if b > a { b } else { a });
+            let (s0, d0) = softmax_sums(&logits, m, &centres);
+            let (s1, d1) = super::super::arm::bins::sums(&logits, m, &centres);
+            assert_eq!(
+                (s0.to_bits(), d0.to_bits()),
+                (s1.to_bits(), d1.to_bits()),
+                "{logits:?}"
+            );
+        }
     }
 
     /// Every kernel set gives the portable bits with many bins and features (the AVX2 head's

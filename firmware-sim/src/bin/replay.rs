@@ -80,7 +80,8 @@ impl embedded_hal::delay::DelayNs for SpinDelay {
 const KINDS: usize = 24;
 
 /// Runs the last frame's inputs once more through [`Engine::run_observed`], reading SysTick after
-/// every op, and prints the instructions of each op and of each op kind (feature `profile`: its
+/// every op, and prints the instructions of each op (with its first input's and its output's
+/// shapes, and a conv's kernel, stride and groups) and of each op kind (feature `profile`: its
 /// output buffer is 4·H·W bytes the shipping build does not hold).
 #[cfg(feature = "profile")]
 #[inline(never)]
@@ -140,7 +141,10 @@ fn profile_ops<const N: usize>(
         let macs = macs_of(i);
         total += n;
         let sh = |t: u16| plan.shape(t).unwrap_or_default();
-        let (o, x) = (sh(op.output), sh(op.inputs.first().copied().unwrap_or(op.output)));
+        let (o, x) = (
+            sh(op.output),
+            sh(op.inputs.first().copied().unwrap_or(op.output)),
+        );
         let geo = match op.attrs {
             depthor_core::blob::parse::Attrs::Conv { geometry, .. } => geometry.0,
             _ => [0; 9],

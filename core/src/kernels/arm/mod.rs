@@ -1,5 +1,6 @@
 //! Cortex-M micro-kernels (stable `asm!`, built with core's `arm-dsp` feature).
 
+pub mod bins;
 pub mod bytes;
 pub mod dsp;
 pub mod mul;
