@@ -63,44 +63,65 @@ unsafe fn taps_neon(x: &[i16], offs: &[usize], w: &[i16], out: &mut [i32]) {
     }
 }
 
-/// `dst[k] = src[k·sx] − zp` (16-bit) for the leading multiple of 16 of `dst` whose reads of
-/// 16·`sx` codes lie in `src`, at column stride `sx` 1 or 2 (`LD2` keeps the even codes);
-/// returns how many it did (0 without NEON, for other strides or a zero point outside int8).
+/// `dst[k] = src[k·sx] − zp` (16-bit) for the leading `m = min(dst.len(), src.len() / sx)`
+/// codes when `m ≥ 8`, at column stride `sx` 1 or 2 (`LD2` keeps the even codes): 16 (or 8) at
+/// a time, the last part as an overlapping 16 (or 8) that rewrites the same values; returns
+/// how many it did (0 without NEON, for other strides, `m < 8` or a zero point outside int8).
 pub fn widen(src: &[i8], sx: usize, zp: i32, dst: &mut [i16]) -> usize {
-    let n = if (1..=2).contains(&sx) {
-        dst.len().min(src.len() / sx) / 16 * 16
+    let m = if (1..=2).contains(&sx) {
+        dst.len().min(src.len() / sx)
     } else {
         0
     };
     let Ok(zp) = i8::try_from(zp) else {
         return 0;
     };
-    if !crate::kernels::isa::Isa::Neon.available() || n == 0 {
+    if !crate::kernels::isa::Isa::Neon.available() || m < 8 {
         return 0;
     }
-    // SAFETY: NEON is available; the reads end at `n·sx ≤ src.len()`, the writes at `n ≤
+    // SAFETY: NEON is available; the reads end at `m·sx ≤ src.len()`, the writes at `m ≤
     // dst.len()`.
-    unsafe { widen_neon(src, sx, zp, &mut dst[..n]) };
-    n
+    unsafe { widen_neon(src, sx, zp, &mut dst[..m]) };
+    m
 }
 
 /// # Safety
-/// The CPU must have NEON, and the slices must be as long as the safe wrapper above checks
-/// (it is the only caller).
+/// The CPU must have NEON, `dst` must hold at least 8 codes and `src` `dst.len()·sx` (the safe
+/// wrapper above checks; it is the only caller).
 #[target_feature(enable = "neon")]
 unsafe fn widen_neon(src: &[i8], sx: usize, zp: i8, dst: &mut [i16]) {
-    let zpv = vdup_n_s8(zp);
+    let (zpv, zpq) = (vdup_n_s8(zp), vdupq_n_s8(zp));
     let (sp, dp) = (src.as_ptr(), dst.as_mut_ptr());
-    let mut k = 0;
-    while k + 16 <= dst.len() {
+    let m = dst.len();
+    // x − zp exactly in 16 bits: SSUBL widens both before subtracting.
+    let sixteen = |k: usize| {
         let x = if sx == 2 {
             vld2q_s8(sp.add(2 * k)).0
         } else {
             vld1q_s8(sp.add(k))
         };
-        // x − zp exactly in 16 bits: SSUBL widens both before subtracting.
         vst1q_s16(dp.add(k), vsubl_s8(vget_low_s8(x), zpv));
-        vst1q_s16(dp.add(k + 8), vsubl_high_s8(x, vdupq_n_s8(zp)));
-        k += 16;
+        vst1q_s16(dp.add(k + 8), vsubl_high_s8(x, zpq));
+    };
+    let eight = |k: usize| {
+        let x = if sx == 2 {
+            vld2_s8(sp.add(2 * k)).0
+        } else {
+            vld1_s8(sp.add(k))
+        };
+        vst1q_s16(dp.add(k), vsubl_s8(x, zpv));
+    };
+    if m >= 16 {
+        let mut k = 0;
+        while k + 16 <= m {
+            sixteen(k);
+            k += 16;
+        }
+        if k < m {
+            sixteen(m - 16);
+        }
+    } else {
+        eight(0);
+        eight(m - 8);
     }
 }
