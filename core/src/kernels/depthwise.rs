@@ -231,6 +231,10 @@ pub(super) fn bands(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) ->
     let (sums, rest) = scratch.split_at_mut(band * pitch);
     let (x16, _) = take::<i16>(rest, rows_for(band) * row_w);
     let (ph, pw) = (g.padding[0] as isize, g.padding[1] as isize);
+    // The columns of a phase outside the image are the same for every row inside it, and
+    // nothing writes them: zeroed once here, not per row (rows outside the image are zeroed
+    // whole, below).
+    x16.fill(0);
     for c in 0..out.c {
         let chan = &input[c * ih * iw..(c + 1) * ih * iw];
         let w = &op.weights[c * kh * kw..(c + 1) * kh * kw];
@@ -253,8 +257,9 @@ pub(super) fn bands(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) ->
                         (Some(_), Some((lo, hi))) => (lo, hi + 1),
                         _ => (0, 0),
                     };
-                    dst_phase[..p_lo].fill(0);
-                    dst_phase[p_hi..].fill(0);
+                    if src.is_none() {
+                        dst_phase.fill(0);
+                    }
                     if let Some(src) = src.filter(|_| p_lo < p_hi) {
                         let first = (p_lo as isize * sx as isize + off) as usize;
                         let d = &mut dst_phase[p_lo..p_hi];
