@@ -261,6 +261,15 @@ pub(super) fn bands<T: Code>(call: &Depthwise<T>, output: &mut [i8], scratch: &m
     // nothing writes them: zeroed once here, not per row (rows outside the image are zeroed
     // whole, below).
     x16.fill(0);
+    // Each tap's start in the converted rows (row `ky·dy`, phase `kx·dx mod sx`, column
+    // `kx·dx / sx`): the same for every channel and band, so computed once.
+    let mut tap_offs = [0usize; MAX_DEPTHWISE_TAPS];
+    let n_offs = (kh * kw).min(MAX_DEPTHWISE_TAPS);
+    for (t, o) in tap_offs[..n_offs].iter_mut().enumerate() {
+        let (ky, kx) = (t / kw, t % kw);
+        *o = ky * dy * row_w + (kx * dx) % sx * phase_w + kx * dx / sx;
+    }
+    let tap_offs = &tap_offs[..n_offs];
     for c in 0..out.c {
         let chan = &input[c * ih * iw..(c + 1) * ih * iw];
         let w = &op.weights[c * kh * kw..(c + 1) * kh * kw];
@@ -306,7 +315,7 @@ pub(super) fn bands<T: Code>(call: &Depthwise<T>, output: &mut [i8], scratch: &m
             // Row j's sums at `j·pitch`; `span` covers the last row's `ow`.
             let span = (n - 1) * pitch + ow;
             let sums = &mut sums[..span];
-            let vector_done = neon_taps(call, c, x16, (pitch, row_w, phase_w), sums);
+            let vector_done = neon_taps(call, c, x16, (pitch, row_w, tap_offs), sums);
             if !vector_done {
                 sums.fill(0);
             }
@@ -366,14 +375,15 @@ fn widen_fast(isa: Isa, src: &[i8], sx: usize, zp: i32, d: &mut [i16]) -> usize 
 
 /// [`bands`]' taps with the NEON kernel ([`super::aarch64::depthwise::taps`]) where the set is
 /// `neon` or `neon-dot`: each output row of the band (or, at stride 1, the whole band at once)
-/// is one call over the tap offsets of channel `c`. `geo` is `(pitch, row_w, phase_w)`.
-/// `false` (nothing written) elsewhere or for kernels over [`MAX_DEPTHWISE_TAPS`] taps.
+/// is one call over the tap offsets `offs` (one per tap, [`bands`] computes them) with channel
+/// `c`'s weights. `geo` is `(pitch, row_w, offs)`. `false` (nothing written) elsewhere or for
+/// kernels over [`MAX_DEPTHWISE_TAPS`] taps.
 #[inline(always)]
 fn neon_taps<T>(
     call: &Depthwise<T>,
     c: usize,
     x16: &[i16],
-    (pitch, row_w, phase_w): (usize, usize, usize),
+    (pitch, row_w, offs): (usize, usize, &[usize]),
     sums: &mut [i32],
 ) -> bool {
     #[cfg(target_arch = "aarch64")]
@@ -381,22 +391,19 @@ fn neon_taps<T>(
         let g = &call.op.geometry;
         let (kh, kw) = (g.kernel[0], g.kernel[1]);
         let (sx, sy) = (g.stride[1], g.stride[0]);
-        let (dx, dy) = (g.dilation[1], g.dilation[0]);
         let ow = call.out.w;
         let n_taps = kh * kw;
         let Some(wc) = call.op.weights.get(c * n_taps..(c + 1) * n_taps) else {
             return false;
         };
-        if n_taps > MAX_DEPTHWISE_TAPS || sx == 0 {
+        if n_taps > MAX_DEPTHWISE_TAPS || sx == 0 || offs.len() != n_taps {
             return false;
         }
-        let (mut offs, mut ws) = ([0usize; MAX_DEPTHWISE_TAPS], [0i16; MAX_DEPTHWISE_TAPS]);
-        for (t, (o, wv)) in offs.iter_mut().zip(&mut ws).take(n_taps).enumerate() {
-            let (ky, kx) = (t / kw, t % kw);
-            *o = ky * dy * row_w + (kx * dx) % sx * phase_w + kx * dx / sx;
-            *wv = i16::from(wc[t]);
+        let mut ws = [0i16; MAX_DEPTHWISE_TAPS];
+        for (wv, &w) in ws.iter_mut().zip(wc) {
+            *wv = i16::from(w);
         }
-        let (offs, ws) = (&offs[..n_taps], &ws[..n_taps]);
+        let ws = &ws[..n_taps];
         if sx == 1 && sy == 1 {
             return super::aarch64::depthwise::taps(x16, offs, ws, sums);
         }
@@ -415,7 +422,7 @@ fn neon_taps<T>(
         }
         return true;
     }
-    let _ = (call, c, x16, pitch, row_w, phase_w, sums);
+    let _ = (call, c, x16, pitch, row_w, offs, sums);
     false
 }
 
