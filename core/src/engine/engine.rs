@@ -692,7 +692,7 @@ fn exec(
     }
     if kind == Kind::Mul && plan.in_place_of(op.output).is_some() {
         let op_consts = consts.get(plan.const_range(i).ok_or(bad)?).ok_or(bad)?;
-        return ops::mul::eval_in_place(plan, (i, op), op_consts, act);
+        return ops::mul::eval_in_place(plan, (i, op), op_consts, act, isa);
     }
     let out_r = plan.tensor_range(op.output).ok_or(bad)?;
     let scr_r = plan.scratch_range(i).ok_or(bad)?;

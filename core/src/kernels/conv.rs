@@ -923,12 +923,20 @@ impl Sink for [i16] {
     fn block(
         &mut self,
         op: &Conv2d,
-        _isa: Isa,
+        isa: Isa,
         (rq, o0): (&[RowQuant], usize),
         (acc, n): (&Acc, usize),
         at: usize,
         plane: usize,
     ) {
+        #[cfg(target_arch = "aarch64")]
+        if matches!(isa, Isa::Neon | Isa::NeonDot) {
+            let bounds = (op.quant.act_min, op.quant.act_max);
+            if super::aarch64::requant::block_i16(rq, bounds, acc, PB, n, self, at, plane) {
+                return;
+            }
+        }
+        let _ = isa;
         for (j, (r, a)) in rq.iter().zip(acc.chunks_exact(PB)).enumerate() {
             let f = Finish::of(op, o0 + j);
             if let Some(dst) = self.get_mut(at + j * plane..at + j * plane + n) {

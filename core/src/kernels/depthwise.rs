@@ -2,8 +2,8 @@
 //! per kernel set, the sums of each channel's taps in 32 bits (16-bit products, exact), then the
 //! conv's requantisation; every path gives the reference's bits.
 //!
-//! - [`bands`] (vector cores: x86 AVX2 and the portable set): bands of output rows, each tap one
-//!   vectorised loop over the band;
+//! - [`bands`] (vector cores: x86 AVX2, aarch64 NEON, where int16 codes also take it, and the
+//!   portable set): bands of output rows, each tap one vectorised loop over the band;
 //! - [`ring3`] (Cortex-M `SMLAD`, 3×3): a strip of interleaved 16-bit rows, six `SMLAD` per pixel;
 //! - [`ring_rows`] (Cortex-M `SMLAD`, other kernels up to 7 wide): a ring of 16-bit rows, each
 //!   kernel row's taps as pairs of adjacent columns;
@@ -44,6 +44,32 @@ impl<'a, 'w, T> Depthwise<'a, 'w, T> {
             self.out,
             self.dst,
         )
+    }
+}
+
+/// Input codes [`bands`] reads: int8, or int16 with zero point 0 ([`super::wide`]).
+pub(super) trait Code: Copy + Into<i32> {
+    /// Whether every tap product `w · (x − zp)` fits in 16 bits (int8: |w·(x − zp)| ≤ 128·255),
+    /// so that the portable tap may multiply in 16 bits.
+    const NARROW: bool;
+    /// The part of `d[k] = src[k·sx] − zp` that the kernel set converts with vectors; returns
+    /// how many (0 where it has none).
+    fn widen_fast(isa: Isa, src: &[Self], sx: usize, zp: i32, d: &mut [i16]) -> usize;
+}
+
+impl Code for i8 {
+    const NARROW: bool = true;
+    #[inline(always)]
+    fn widen_fast(isa: Isa, src: &[i8], sx: usize, zp: i32, d: &mut [i16]) -> usize {
+        widen_fast(isa, src, sx, zp, d)
+    }
+}
+
+impl Code for i16 {
+    const NARROW: bool = false;
+    #[inline(always)]
+    fn widen_fast(_: Isa, _: &[i16], _: usize, _: i32, _: &mut [i16]) -> usize {
+        0
     }
 }
 
@@ -197,7 +223,7 @@ pub(super) fn pixels(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) {
 /// of i32 sums, a loop the compiler vectorises over the whole row. Same sums, same bits. The
 /// band is as tall as the scratch allows; `false` (nothing written) if not one row fits.
 #[inline(always)]
-pub(super) fn bands(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) -> bool {
+pub(super) fn bands<T: Code>(call: &Depthwise<T>, output: &mut [i8], scratch: &mut [i32]) -> bool {
     let (isa, op, input, in_shape, out, dst) = call.parts();
     let g = &op.geometry;
     let (kh, kw) = (g.kernel[0], g.kernel[1]);
@@ -231,6 +257,19 @@ pub(super) fn bands(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) ->
     let (sums, rest) = scratch.split_at_mut(band * pitch);
     let (x16, _) = take::<i16>(rest, rows_for(band) * row_w);
     let (ph, pw) = (g.padding[0] as isize, g.padding[1] as isize);
+    // The columns of a phase outside the image are the same for every row inside it, and
+    // nothing writes them: zeroed once here, not per row (rows outside the image are zeroed
+    // whole, below).
+    x16.fill(0);
+    // Each tap's start in the converted rows (row `ky·dy`, phase `kx·dx mod sx`, column
+    // `kx·dx / sx`): the same for every channel and band, so computed once.
+    let mut tap_offs = [0usize; MAX_DEPTHWISE_TAPS];
+    let n_offs = (kh * kw).min(MAX_DEPTHWISE_TAPS);
+    for (t, o) in tap_offs[..n_offs].iter_mut().enumerate() {
+        let (ky, kx) = (t / kw, t % kw);
+        *o = ky * dy * row_w + (kx * dx) % sx * phase_w + kx * dx / sx;
+    }
+    let tap_offs = &tap_offs[..n_offs];
     for c in 0..out.c {
         let chan = &input[c * ih * iw..(c + 1) * ih * iw];
         let w = &op.weights[c * kh * kw..(c + 1) * kh * kw];
@@ -253,20 +292,21 @@ pub(super) fn bands(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) ->
                         (Some(_), Some((lo, hi))) => (lo, hi + 1),
                         _ => (0, 0),
                     };
-                    dst_phase[..p_lo].fill(0);
-                    dst_phase[p_hi..].fill(0);
+                    if src.is_none() {
+                        dst_phase.fill(0);
+                    }
                     if let Some(src) = src.filter(|_| p_lo < p_hi) {
                         let first = (p_lo as isize * sx as isize + off) as usize;
                         let d = &mut dst_phase[p_lo..p_hi];
-                        let done = widen_fast(isa, &src[first..], sx, zp, d);
+                        let done = T::widen_fast(isa, &src[first..], sx, zp, d);
                         let (d, first) = (&mut d[done..], first + done * sx);
                         if sx == 1 {
                             for (d, &x) in d.iter_mut().zip(&src[first..]) {
-                                *d = (i32::from(x) - zp) as i16;
+                                *d = (x.into() - zp) as i16;
                             }
                         } else {
                             for (d, &x) in d.iter_mut().zip(src[first..].iter().step_by(sx)) {
-                                *d = (i32::from(x) - zp) as i16;
+                                *d = (x.into() - zp) as i16;
                             }
                         }
                     }
@@ -275,7 +315,7 @@ pub(super) fn bands(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) ->
             // Row j's sums at `j·pitch`; `span` covers the last row's `ow`.
             let span = (n - 1) * pitch + ow;
             let sums = &mut sums[..span];
-            let vector_done = neon_taps(call, c, x16, (pitch, row_w, phase_w), sums);
+            let vector_done = neon_taps(call, c, x16, (pitch, row_w, tap_offs), sums);
             if !vector_done {
                 sums.fill(0);
             }
@@ -285,10 +325,16 @@ pub(super) fn bands(call: &Depthwise, output: &mut [i8], scratch: &mut [i32]) ->
                 for kx in 0..kw {
                     let wv = i16::from(w[ky * kw + kx]);
                     let col = (kx * dx) % sx * phase_w + kx * dx / sx;
-                    // |w| ≤ 128 and |x − zp| ≤ 255: the product fits i16 exactly.
+                    // int8: |w| ≤ 128 and |x − zp| ≤ 255, the product fits i16 exactly;
+                    // int16 codes multiply in 32 bits (|w·x| ≤ 2²², exact).
                     let tap = |acc: &mut [i32], x: &[i16]| {
                         for (a, &x) in acc.iter_mut().zip(x) {
-                            *a = a.wrapping_add(i32::from(wv.wrapping_mul(x)));
+                            let p = if T::NARROW {
+                                i32::from(wv.wrapping_mul(x))
+                            } else {
+                                i32::from(wv) * i32::from(x)
+                            };
+                            *a = a.wrapping_add(p);
                         }
                     };
                     if merged {
@@ -329,14 +375,15 @@ fn widen_fast(isa: Isa, src: &[i8], sx: usize, zp: i32, d: &mut [i16]) -> usize 
 
 /// [`bands`]' taps with the NEON kernel ([`super::aarch64::depthwise::taps`]) where the set is
 /// `neon` or `neon-dot`: each output row of the band (or, at stride 1, the whole band at once)
-/// is one call over the tap offsets of channel `c`. `geo` is `(pitch, row_w, phase_w)`.
-/// `false` (nothing written) elsewhere or for kernels over [`MAX_DEPTHWISE_TAPS`] taps.
+/// is one call over the tap offsets `offs` (one per tap, [`bands`] computes them) with channel
+/// `c`'s weights. `geo` is `(pitch, row_w, offs)`. `false` (nothing written) elsewhere or for
+/// kernels over [`MAX_DEPTHWISE_TAPS`] taps.
 #[inline(always)]
-fn neon_taps(
-    call: &Depthwise,
+fn neon_taps<T>(
+    call: &Depthwise<T>,
     c: usize,
     x16: &[i16],
-    (pitch, row_w, phase_w): (usize, usize, usize),
+    (pitch, row_w, offs): (usize, usize, &[usize]),
     sums: &mut [i32],
 ) -> bool {
     #[cfg(target_arch = "aarch64")]
@@ -344,22 +391,19 @@ fn neon_taps(
         let g = &call.op.geometry;
         let (kh, kw) = (g.kernel[0], g.kernel[1]);
         let (sx, sy) = (g.stride[1], g.stride[0]);
-        let (dx, dy) = (g.dilation[1], g.dilation[0]);
         let ow = call.out.w;
         let n_taps = kh * kw;
         let Some(wc) = call.op.weights.get(c * n_taps..(c + 1) * n_taps) else {
             return false;
         };
-        if n_taps > MAX_DEPTHWISE_TAPS || sx == 0 {
+        if n_taps > MAX_DEPTHWISE_TAPS || sx == 0 || offs.len() != n_taps {
             return false;
         }
-        let (mut offs, mut ws) = ([0usize; MAX_DEPTHWISE_TAPS], [0i16; MAX_DEPTHWISE_TAPS]);
-        for (t, (o, wv)) in offs.iter_mut().zip(&mut ws).take(n_taps).enumerate() {
-            let (ky, kx) = (t / kw, t % kw);
-            *o = ky * dy * row_w + (kx * dx) % sx * phase_w + kx * dx / sx;
-            *wv = i16::from(wc[t]);
+        let mut ws = [0i16; MAX_DEPTHWISE_TAPS];
+        for (wv, &w) in ws.iter_mut().zip(wc) {
+            *wv = i16::from(w);
         }
-        let (offs, ws) = (&offs[..n_taps], &ws[..n_taps]);
+        let ws = &ws[..n_taps];
         if sx == 1 && sy == 1 {
             return super::aarch64::depthwise::taps(x16, offs, ws, sums);
         }
@@ -378,7 +422,7 @@ fn neon_taps(
         }
         return true;
     }
-    let _ = (call, c, x16, pitch, row_w, phase_w, sums);
+    let _ = (call, c, x16, pitch, row_w, offs, sums);
     false
 }
 

@@ -478,9 +478,11 @@ pub fn mul_with(
     Ok(())
 }
 
-/// [`mul`] writing the product over its first operand `a_out` (the same per-element functions in
-/// the same cases, each code read before it is written: the same bits).
+/// [`mul_with`] writing the product over its first operand `a_out` (the same per-element
+/// functions in the same cases, each code read before it is written: the same bits; on `neon`
+/// and `neon-dot` the high-word products and the per-channel tables 16 codes per pass).
 pub fn mul_in_place(
+    isa: Isa,
     q: &MulQuant,
     a_out: &mut [i8],
     shape: Shape,
@@ -503,11 +505,22 @@ pub fn mul_in_place(
     }
     let f = q.product();
     let high = f.right >= 33;
+    #[cfg(target_arch = "aarch64")]
+    let neon = matches!(isa, Isa::Neon | Isa::NeonDot);
+    #[cfg(not(target_arch = "aarch64"))]
+    let _ = isa;
     let planes = |oc: &mut [i8], bc: &[i8]| {
         #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
         if high && f.arm_high_row(oc, bc) {
             return;
         }
+        #[cfg(target_arch = "aarch64")]
+        let (oc, bc) = if high && neon {
+            let done = super::aarch64::elementwise::mul_high_in_place(oc, bc, f.zp, f.m, f.right);
+            (&mut oc[done..], &bc[done.min(bc.len())..])
+        } else {
+            (oc, bc)
+        };
         let pairs = oc.iter_mut().zip(bc);
         if high {
             pairs.for_each(|(o, &y)| *o = f.apply_high(*o, y));
@@ -523,6 +536,13 @@ pub fn mul_in_place(
                 let y = b[c];
                 if p > 256 {
                     let t: [i8; 256] = core::array::from_fn(|x| q.apply(x as u8 as i8, y));
+                    #[cfg(target_arch = "aarch64")]
+                    let oc = if neon {
+                        let done = super::aarch64::elementwise::lookup_in_place(&t, oc);
+                        &mut oc[done..]
+                    } else {
+                        oc
+                    };
                     lut_in_place(&t, oc);
                 } else {
                     for o in oc.iter_mut() {
@@ -873,9 +893,11 @@ mod tests {
                 mul_with(isa, &mq, &a, shape, &b, c.bc, &mut y2).unwrap();
                 prop_assert_eq!(&y1, &y2, "mul ({})", isa.name());
             }
-            let mut y3 = a.clone();
-            mul_in_place(&mq, &mut y3, shape, &b, c.bc).unwrap();
-            prop_assert_eq!(&y1, &y3, "mul in place");
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                let mut y3 = a.clone();
+                mul_in_place(isa, &mq, &mut y3, shape, &b, c.bc).unwrap();
+                prop_assert_eq!(&y1, &y3, "mul in place ({})", isa.name());
+            }
             let aq = AddQuant::new(c.qa, c.qb, c.qo);
             let b2: Vec<i8> = (0..n).map(|i| b[i % b.len()]).collect();
             add_ref(&aq, &a, &b2, &mut y1).unwrap();
@@ -987,9 +1009,11 @@ mod tests {
             mul_ref(&mq, &c.a, c.shape, &c.b, c.bc, &mut y1).unwrap();
             mul(&mq, &c.a, c.shape, &c.b, c.bc, &mut y2).unwrap();
             assert_eq!(y1, y2);
-            let mut y3 = c.a.clone();
-            mul_in_place(&mq, &mut y3, c.shape, &c.b, c.bc).unwrap();
-            assert_eq!(y1, y3);
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                let mut y3 = c.a.clone();
+                mul_in_place(isa, &mq, &mut y3, c.shape, &c.b, c.bc).unwrap();
+                assert_eq!(y1, y3, "mul in place ({})", isa.name());
+            }
         }
     }
 

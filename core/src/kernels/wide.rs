@@ -45,7 +45,7 @@ pub enum CodesMut<'a> {
 /// most [`MAX_TAPS_WIDE`] taps per output. Where `scratch` (i32, as [`Conv2d::scratch_len`]
 /// sizes it) holds their buffers, an int8 → int16 conv runs the fast int8 kernels' sums
 /// ([`conv::conv2d_i16_with`]) and a depthwise int16 → int8 conv the int8 depthwise kernel's
-/// 16-bit rows (`SMLAD` on Cortex-M); the rest, one scalar loop. Same bits either way.
+/// 16-bit rows (`SMLAD` on Cortex-M, the NEON bands on aarch64); the rest, one scalar loop. Same bits either way.
 pub fn conv2d_wide(
     isa: Isa,
     op: &Conv2d,
@@ -76,7 +76,11 @@ pub fn conv2d_wide(
                 out,
                 dst: &dst,
             };
-            if depthwise::rings_of(&call, o, scratch) {
+            // NEON: the int8 kernel's bands on the 16-bit rows (SMLAL, exact products).
+            let neon = matches!(isa, Isa::Neon | Isa::NeonDot);
+            if (neon && depthwise::bands(&call, o, scratch))
+                || depthwise::rings_of(&call, o, scratch)
+            {
                 return Ok(out);
             }
             CodesMut::I8(o)

@@ -10,6 +10,7 @@ use crate::engine::plan::{OpPlan, Plan, PlanError};
 use crate::engine::Error;
 use crate::kernels::broadcast::Broadcast;
 use crate::kernels::elementwise::{self, MulQuant};
+use crate::kernels::isa::Isa;
 use crate::kernels::Shape;
 use core::mem::size_of;
 
@@ -70,6 +71,7 @@ pub(crate) fn eval_in_place(
     (i, op): (usize, &OpInfo),
     consts: &[u8],
     act: &mut [u8],
+    isa: Isa,
 ) -> Result<(), Error> {
     let bad = bad_op(i);
     let q: MulQuant = first(consts, i)?;
@@ -84,6 +86,6 @@ pub(crate) fn eval_in_place(
     let b = b.get(..y.len().ok_or(bad)?).ok_or(bad)?;
     let out: &mut [i8] = typed_mut(out_b, i)?;
     let out = out.get_mut(..x.len().ok_or(bad)?).ok_or(bad)?;
-    elementwise::mul_in_place(&q, out, x, b, plan.broadcast(i))
+    elementwise::mul_in_place(isa, &q, out, x, b, plan.broadcast(i))
         .map_err(|error| Error::Kernel { op: i, error })
 }

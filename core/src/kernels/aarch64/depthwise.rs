@@ -10,9 +10,9 @@ use core::arch::aarch64::*;
 /// in length, or where a run would leave `x`.
 pub fn taps(x: &[i16], offs: &[usize], w: &[i16], out: &mut [i32]) -> bool {
     let n = out.len();
-    let inside = offs
-        .iter()
-        .all(|&o| o.checked_add(n).is_some_and(|e| e <= x.len()));
+    // Every run lies inside `x` when the farthest one does.
+    let far = offs.iter().copied().max().unwrap_or(0);
+    let inside = far.checked_add(n).is_some_and(|e| e <= x.len());
     if !crate::kernels::isa::Isa::Neon.available() || offs.len() != w.len() || !inside {
         return false;
     }
@@ -29,21 +29,27 @@ pub fn taps(x: &[i16], offs: &[usize], w: &[i16], out: &mut [i32]) -> bool {
 unsafe fn taps_neon(x: &[i16], offs: &[usize], w: &[i16], out: &mut [i32]) {
     let n = out.len();
     let (xp, op) = (x.as_ptr(), out.as_mut_ptr());
-    let mut i = 0;
-    while i + 16 <= n {
+    // Sums `i .. i + 16`.
+    let sixteen = |i: usize| {
         let mut a = [vdupq_n_s32(0); 4];
         for (&o, &wv) in offs.iter().zip(w) {
             let p = xp.add(o + i);
             let (x0, x1) = (vld1q_s16(p), vld1q_s16(p.add(8)));
-            a[0] = vmlal_n_s16(a[0], vget_low_s16(x0), wv);
-            a[1] = vmlal_high_n_s16(a[1], x0, wv);
-            a[2] = vmlal_n_s16(a[2], vget_low_s16(x1), wv);
-            a[3] = vmlal_high_n_s16(a[3], x1, wv);
+            mla16(&mut a, x0, x1, vdupq_n_s16(wv));
         }
         for (q, v) in a.into_iter().enumerate() {
             vst1q_s32(op.add(i + 4 * q), v);
         }
+    };
+    let mut i = 0;
+    while i + 16 <= n {
+        sixteen(i);
         i += 16;
+    }
+    if i < n && n >= 16 {
+        // The last sums again, overlapping: the same values rewritten.
+        sixteen(n - 16);
+        return;
     }
     while i + 4 <= n {
         let mut a = vdupq_n_s32(0);
@@ -63,44 +69,90 @@ unsafe fn taps_neon(x: &[i16], offs: &[usize], w: &[i16], out: &mut [i32]) {
     }
 }
 
-/// `dst[k] = src[k·sx] − zp` (16-bit) for the leading multiple of 16 of `dst` whose reads of
-/// 16·`sx` codes lie in `src`, at column stride `sx` 1 or 2 (`LD2` keeps the even codes);
-/// returns how many it did (0 without NEON, for other strides or a zero point outside int8).
+/// `a[q] += x[4q .. 4q + 4] · w[0]` for the 16 halfwords of `x0`, `x1`: `SMLAL`/`SMLAL2` by
+/// element, written with `asm!` because LLVM turns the intrinsics' high halves of a broadcast
+/// weight into a lane move and a low-half `SMLAL` each.
+///
+/// # Safety
+/// The CPU must have NEON.
+#[inline(always)]
+unsafe fn mla16(a: &mut [int32x4_t; 4], x0: int16x8_t, x1: int16x8_t, w: int16x8_t) {
+    // SAFETY (caller): the CPU has NEON; registers only, no memory, flags untouched.
+    core::arch::asm!(
+        "smlal {a0:v}.4s, {x0:v}.4h, {w:v}.h[0]",
+        "smlal2 {a1:v}.4s, {x0:v}.8h, {w:v}.h[0]",
+        "smlal {a2:v}.4s, {x1:v}.4h, {w:v}.h[0]",
+        "smlal2 {a3:v}.4s, {x1:v}.8h, {w:v}.h[0]",
+        a0 = inout(vreg) a[0],
+        a1 = inout(vreg) a[1],
+        a2 = inout(vreg) a[2],
+        a3 = inout(vreg) a[3],
+        x0 = in(vreg) x0,
+        x1 = in(vreg) x1,
+        w = in(vreg_low16) w,
+        options(pure, nomem, nostack, preserves_flags)
+    );
+}
+
+/// `dst[k] = src[k·sx] − zp` (16-bit) for the leading `m = min(dst.len(), src.len() / sx)`
+/// codes when `m ≥ 8`, at column stride `sx` 1 or 2 (`LD2` keeps the even codes): 16 (or 8) at
+/// a time, the last part as an overlapping 16 (or 8) that rewrites the same values; returns
+/// how many it did (0 without NEON, for other strides, `m < 8` or a zero point outside int8).
 pub fn widen(src: &[i8], sx: usize, zp: i32, dst: &mut [i16]) -> usize {
-    let n = if (1..=2).contains(&sx) {
-        dst.len().min(src.len() / sx) / 16 * 16
+    let m = if (1..=2).contains(&sx) {
+        dst.len().min(src.len() / sx)
     } else {
         0
     };
     let Ok(zp) = i8::try_from(zp) else {
         return 0;
     };
-    if !crate::kernels::isa::Isa::Neon.available() || n == 0 {
+    if !crate::kernels::isa::Isa::Neon.available() || m < 8 {
         return 0;
     }
-    // SAFETY: NEON is available; the reads end at `n·sx ≤ src.len()`, the writes at `n ≤
+    // SAFETY: NEON is available; the reads end at `m·sx ≤ src.len()`, the writes at `m ≤
     // dst.len()`.
-    unsafe { widen_neon(src, sx, zp, &mut dst[..n]) };
-    n
+    unsafe { widen_neon(src, sx, zp, &mut dst[..m]) };
+    m
 }
 
 /// # Safety
-/// The CPU must have NEON, and the slices must be as long as the safe wrapper above checks
-/// (it is the only caller).
+/// The CPU must have NEON, `dst` must hold at least 8 codes and `src` `dst.len()·sx` (the safe
+/// wrapper above checks; it is the only caller).
 #[target_feature(enable = "neon")]
 unsafe fn widen_neon(src: &[i8], sx: usize, zp: i8, dst: &mut [i16]) {
-    let zpv = vdup_n_s8(zp);
+    let (zpv, zpq) = (vdup_n_s8(zp), vdupq_n_s8(zp));
     let (sp, dp) = (src.as_ptr(), dst.as_mut_ptr());
-    let mut k = 0;
-    while k + 16 <= dst.len() {
+    let m = dst.len();
+    // x − zp exactly in 16 bits: SSUBL widens both before subtracting.
+    let sixteen = |k: usize| {
         let x = if sx == 2 {
             vld2q_s8(sp.add(2 * k)).0
         } else {
             vld1q_s8(sp.add(k))
         };
-        // x − zp exactly in 16 bits: SSUBL widens both before subtracting.
         vst1q_s16(dp.add(k), vsubl_s8(vget_low_s8(x), zpv));
-        vst1q_s16(dp.add(k + 8), vsubl_high_s8(x, vdupq_n_s8(zp)));
-        k += 16;
+        vst1q_s16(dp.add(k + 8), vsubl_high_s8(x, zpq));
+    };
+    let eight = |k: usize| {
+        let x = if sx == 2 {
+            vld2_s8(sp.add(2 * k)).0
+        } else {
+            vld1_s8(sp.add(k))
+        };
+        vst1q_s16(dp.add(k), vsubl_s8(x, zpv));
+    };
+    if m >= 16 {
+        let mut k = 0;
+        while k + 16 <= m {
+            sixteen(k);
+            k += 16;
+        }
+        if k < m {
+            sixteen(m - 16);
+        }
+    } else {
+        eight(0);
+        eight(m - 8);
     }
 }

@@ -18,27 +18,56 @@ use core::arch::aarch64::*;
 /// `a` or `b` lies outside the int8 range (then `|a − zp|` could pass 255).
 pub fn mul_high(a: &[i8], b: &[i8], out: &mut [i8], zp: [i32; 3], m: u64, right: u32) -> usize {
     let n = out.len().min(a.len()).min(b.len()) / 16 * 16;
-    let codes = -128..=127;
-    let ok = (33..=62).contains(&right)
-        && m < 1 << 31
-        && codes.contains(&zp[0])
-        && codes.contains(&zp[1])
-        && (-(1 << 16)..=1 << 16).contains(&zp[2]);
-    if !crate::kernels::isa::Isa::Neon.available() || !ok || n == 0 {
+    if !mul_high_ok(zp, m, right) || n == 0 {
         return 0;
     }
-    // SAFETY: NEON is available; `a`, `b` and `out` hold `n` codes each (all checked).
-    unsafe { mul_high_neon(&a[..n], &b[..n], &mut out[..n], zp, m as i32, right) };
+    // SAFETY: NEON is available (checked by `mul_high_ok`); `a`, `b` and `out` hold `n` codes
+    // each, and `out` does not overlap `a` (a `&mut`).
+    unsafe { mul_high_neon(a.as_ptr(), b, out.as_mut_ptr(), n, zp, m as i32, right) };
     n
 }
 
-/// [`mul_high`]'s loop over whole groups of 16.
+/// [`mul_high`] writing over its first operand: `a_out[i] = apply_high(a_out[i], b[i])` for the
+/// leading multiple of 16 (each group read before it is written); returns how many it did.
+pub fn mul_high_in_place(a_out: &mut [i8], b: &[i8], zp: [i32; 3], m: u64, right: u32) -> usize {
+    let n = a_out.len().min(b.len()) / 16 * 16;
+    if !mul_high_ok(zp, m, right) || n == 0 {
+        return 0;
+    }
+    let p = a_out.as_mut_ptr();
+    // SAFETY: NEON is available (checked); `a_out` and `b` hold `n` codes each; reading and
+    // writing through the same pointer is what `mul_high_neon` allows.
+    unsafe { mul_high_neon(p, b, p, n, zp, m as i32, right) };
+    n
+}
+
+/// Whether NEON is present and the constants are in [`mul_high`]'s ranges.
+fn mul_high_ok(zp: [i32; 3], m: u64, right: u32) -> bool {
+    let codes = -128..=127;
+    crate::kernels::isa::Isa::Neon.available()
+        && (33..=62).contains(&right)
+        && m < 1 << 31
+        && codes.contains(&zp[0])
+        && codes.contains(&zp[1])
+        && (-(1 << 16)..=1 << 16).contains(&zp[2])
+}
+
+/// [`mul_high`]'s loop over `n` codes (a multiple of 16) from `a` into `out`; `out` may be `a`
+/// itself (each group of 16 is loaded before its result is stored).
 ///
 /// # Safety
-/// The CPU must have NEON; `a`, `b` and `out` have the same length, a multiple of 16; the
-/// constants are in [`mul_high`]'s ranges.
+/// The CPU must have NEON; `a` and `out` point at `n` codes and `b` holds `n`; `out` is `a` or
+/// does not overlap it; the constants are in [`mul_high`]'s ranges.
 #[target_feature(enable = "neon")]
-unsafe fn mul_high_neon(a: &[i8], b: &[i8], out: &mut [i8], zp: [i32; 3], m: i32, right: u32) {
+unsafe fn mul_high_neon(
+    a: *const i8,
+    b: &[i8],
+    out: *mut i8,
+    n: usize,
+    zp: [i32; 3],
+    m: i32,
+    right: u32,
+) {
     let (za, zb) = (vdupq_n_s16(zp[0] as i16), vdupq_n_s16(zp[1] as i16));
     let mv = vdupq_n_s32(m);
     let shift = vdupq_n_s32(-(right as i32 - 31));
@@ -51,9 +80,9 @@ unsafe fn mul_high_neon(a: &[i8], b: &[i8], out: &mut [i8], zp: [i32; 3], m: i32
         vaddq_s32(vsubq_s32(veorq_s32(mag, sign), sign), zo)
     };
     let mut i = 0;
-    while i + 16 <= out.len() {
-        // SAFETY: `i + 16 ≤ len` of all three slices.
-        let (va, vb) = unsafe { (vld1q_s8(a.as_ptr().add(i)), vld1q_s8(b.as_ptr().add(i))) };
+    while i + 16 <= n {
+        // SAFETY: `i + 16 ≤ n`, inside all three.
+        let (va, vb) = unsafe { (vld1q_s8(a.add(i)), vld1q_s8(b.as_ptr().add(i))) };
         // x − zp in 16 bits (|·| ≤ 255).
         let a_lo = vsubq_s16(vmovl_s8(vget_low_s8(va)), za);
         let a_hi = vsubq_s16(vmovl_high_s8(va), za);
@@ -67,7 +96,7 @@ unsafe fn mul_high_neon(a: &[i8], b: &[i8], out: &mut [i8], zp: [i32; 3], m: i32
         let h1 = vcombine_s16(vqmovn_s32(four(p2)), vqmovn_s32(four(p3)));
         let r = vcombine_s8(vqmovn_s16(h0), vqmovn_s16(h1));
         // SAFETY: as above.
-        unsafe { vst1q_s8(out.as_mut_ptr().add(i), r) };
+        unsafe { vst1q_s8(out.add(i), r) };
         i += 16;
     }
 }
@@ -79,18 +108,33 @@ pub fn lookup(table: &[i8; 256], x: &[i8], out: &mut [i8]) -> usize {
     if !crate::kernels::isa::Isa::Neon.available() || n == 0 {
         return 0;
     }
-    // SAFETY: NEON is available; `x` and `out` hold `n` codes each.
-    unsafe { lookup_neon(table, &x[..n], &mut out[..n]) };
+    // SAFETY: NEON is available; `x` and `out` hold `n` codes each and do not overlap.
+    unsafe { lookup_neon(table, x.as_ptr(), out.as_mut_ptr(), n) };
     n
 }
 
-/// [`lookup`]'s loop: the table in 16 registers, four `TBL`/`TBX` of 64 entries per 16 codes
-/// (an index past 63 gives 0 in `TBL` and leaves the lane in `TBX`).
+/// [`lookup`] over `data` in place (`data[i] = table[data[i] as u8]`) for the leading multiple
+/// of 16; returns how many it did (0 where NEON is absent).
+pub fn lookup_in_place(table: &[i8; 256], data: &mut [i8]) -> usize {
+    let n = data.len() / 16 * 16;
+    if !crate::kernels::isa::Isa::Neon.available() || n == 0 {
+        return 0;
+    }
+    let p = data.as_mut_ptr();
+    // SAFETY: NEON is available; `data` holds `n` codes; `lookup_neon` allows `out == x`.
+    unsafe { lookup_neon(table, p, p, n) };
+    n
+}
+
+/// [`lookup`]'s loop over `n` codes (a multiple of 16): the table in 16 registers, four
+/// `TBL`/`TBX` of 64 entries per 16 codes (an index past 63 gives 0 in `TBL` and leaves the lane
+/// in `TBX`). `out` may be `x` itself (each group is loaded before it is stored).
 ///
 /// # Safety
-/// The CPU must have NEON; `x` and `out` have the same length, a multiple of 16.
+/// The CPU must have NEON; `x` and `out` point at `n` codes, and `out` is `x` or does not
+/// overlap it.
 #[target_feature(enable = "neon")]
-unsafe fn lookup_neon(table: &[i8; 256], x: &[i8], out: &mut [i8]) {
+unsafe fn lookup_neon(table: &[i8; 256], x: *const i8, out: *mut i8, n: usize) {
     let t = table.as_ptr();
     // SAFETY: `table` holds 4 · 64 bytes.
     let (t0, t1, t2, t3) = unsafe {
@@ -103,9 +147,9 @@ unsafe fn lookup_neon(table: &[i8; 256], x: &[i8], out: &mut [i8]) {
     };
     let k64 = vdupq_n_u8(64);
     let mut i = 0;
-    while i + 16 <= out.len() {
-        // SAFETY: `i + 16 ≤ len` of both slices.
-        let idx = unsafe { vreinterpretq_u8_s8(vld1q_s8(x.as_ptr().add(i))) };
+    while i + 16 <= n {
+        // SAFETY: `i + 16 ≤ n`.
+        let idx = unsafe { vreinterpretq_u8_s8(vld1q_s8(x.add(i))) };
         let i1 = vsubq_u8(idx, k64);
         let i2 = vsubq_u8(i1, k64);
         let i3 = vsubq_u8(i2, k64);
@@ -114,7 +158,7 @@ unsafe fn lookup_neon(table: &[i8; 256], x: &[i8], out: &mut [i8]) {
         let r = vqtbx4q_s8(r, t2, i2);
         let r = vqtbx4q_s8(r, t3, i3);
         // SAFETY: as above.
-        unsafe { vst1q_s8(out.as_mut_ptr().add(i), r) };
+        unsafe { vst1q_s8(out.add(i), r) };
         i += 16;
     }
 }

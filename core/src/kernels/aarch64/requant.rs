@@ -37,7 +37,8 @@ pub fn block(
     true
 }
 
-/// [`block`]'s loop, compiled with NEON so that [`row`] inlines into it.
+/// [`block`]'s loop, compiled with NEON so that [`row`] inlines into it; rows are addressed
+/// through pointers (the slice bounds are checked once, by [`block`]).
 ///
 /// # Safety
 /// The CPU must have NEON; the slice conditions [`block`] checks hold.
@@ -53,64 +54,61 @@ unsafe fn block_neon(
     out_stride: usize,
     tail: impl Fn(&RowQuant, i32) -> i8,
 ) {
+    let (ap, op) = (acc.as_ptr(), out.as_mut_ptr().add(at));
     for (j, k) in consts.iter().enumerate() {
-        let a = &acc[j * acc_stride..j * acc_stride + n];
-        let o = &mut out[at + j * out_stride..at + j * out_stride + n];
-        // SAFETY (all three calls): NEON is available (the caller's contract); `row` reads and
-        // writes whole groups of 8 inside the slices it is given.
-        let mut done = unsafe { row(k, a, o) };
-        if done < n && n >= 8 {
-            // The last 8 again, overlapping: the same values rewritten.
-            // SAFETY: as above; `n >= 8`, so both tails hold 8 elements.
-            unsafe { row(k, &a[n - 8..], &mut o[n - 8..]) };
-            done = n;
-        } else if let Some(wide) = acc
-            .get(j * acc_stride..j * acc_stride + 8)
-            .filter(|_| done < n)
-        {
+        let (a, o) = (ap.add(j * acc_stride), op.add(j * out_stride));
+        if n >= 8 {
+            // SAFETY: NEON is available; row `j`'s `n` sums and `n` outputs lie inside the
+            // slices ([`block`] checked the last row's ends).
+            unsafe { row(k, a, o, n, (k.min, k.max)) };
+        } else if j * acc_stride + 8 <= acc.len() {
             // A short row with 8 sums readable (the rest of a block's row): into a buffer.
             let mut t = [0i8; 8];
-            // SAFETY: as above; `wide` and `t` hold 8 elements each.
-            unsafe { row(k, wide, &mut t) };
-            o.copy_from_slice(&t[..n]);
-            done = n;
-        }
-        for (d, &v) in o[done..].iter_mut().zip(&a[done..]) {
-            *d = tail(k, v);
+            // SAFETY: NEON is available; 8 sums from `a` are inside `acc` (checked), and `t`
+            // holds 8.
+            unsafe { row(k, a, t.as_mut_ptr(), 8, (k.min, k.max)) };
+            // SAFETY: row `j`'s `n < 8` outputs lie inside `out` (checked by [`block`]).
+            unsafe { core::ptr::copy_nonoverlapping(t.as_ptr(), o, n) };
+        } else {
+            let start = at + j * out_stride;
+            let row_acc = &acc[j * acc_stride..j * acc_stride + n];
+            for (d, &v) in out[start..start + n].iter_mut().zip(row_acc) {
+                *d = tail(k, v);
+            }
         }
     }
 }
 
-/// Requantises the leading multiple of 8 of `acc` (`k.base` added) into `out` (`acc.len() ≥
-/// out.len()`); returns how many it did. One multiplier and shift for both signs (no LeakyReLU
+/// Requantises the `n ≥ 8` sums at `acc` (`k.base` added) into `out`. One multiplier and shift for both signs (no LeakyReLU
 /// slope) skips the per-lane selects, one shift for both signs skips the shift's select, and a
 /// right shift on both sides makes the "−1 where `q < 0`" one `SSRA` (`q + (q >> 31)`, no
 /// overflow as `q > −2³¹`) instead of a compare, a mask and an add.
 ///
 /// # Safety
-/// The CPU must have NEON.
+/// The CPU must have NEON; `acc` must point at `n ≥ 8` readable sums and `out` at `n`
+/// writable codes.
 #[inline(always)]
-unsafe fn row(k: &RowQuant, acc: &[i32], out: &mut [i8]) -> usize {
+unsafe fn row<O: Narrow>(k: &RowQuant, acc: *const i32, out: *mut O, n: usize, bounds: (i32, i32)) {
     let (pm, nm) = (vdupq_n_s32(k.pos_m), vdupq_n_s32(k.neg_m));
     let (pe, ne) = (vdupq_n_s32(-k.pos_r), vdupq_n_s32(-k.neg_r));
     let shifted = k.pos_r > 0 && k.neg_r > 0;
     match (k.pos_m == k.neg_m, k.pos_r == k.neg_r) {
-        (true, true) if k.pos_r == 0 => rows_with(k, acc, out, |x| vqrdmulhq_s32(x, pm)),
-        (true, true) => rows_with(k, acc, out, |x| {
+        (true, true) if k.pos_r == 0 => rows_with(k, acc, out, n, bounds, |x| vqrdmulhq_s32(x, pm)),
+        (true, true) => rows_with(k, acc, out, n, bounds, |x| {
             let q = vqrdmulhq_s32(x, pm);
             vrshlq_s32(vsraq_n_s32::<31>(q, q), pe)
         }),
-        (false, true) if shifted => rows_with(k, acc, out, |x| {
+        (false, true) if shifted => rows_with(k, acc, out, n, bounds, |x| {
             let q = vqrdmulhq_s32(x, vbslq_s32(vcltzq_s32(x), nm, pm));
             vrshlq_s32(vsraq_n_s32::<31>(q, q), pe)
         }),
-        _ if shifted => rows_with(k, acc, out, |x| {
+        _ if shifted => rows_with(k, acc, out, n, bounds, |x| {
             let neg = vcltzq_s32(x);
             let (m, e) = (vbslq_s32(neg, nm, pm), vbslq_s32(neg, ne, pe));
             let q = vqrdmulhq_s32(x, m);
             vrshlq_s32(vsraq_n_s32::<31>(q, q), e)
         }),
-        _ => rows_with(k, acc, out, |x| {
+        _ => rows_with(k, acc, out, n, bounds, |x| {
             let neg = vcltzq_s32(x);
             let (m, e) = (vbslq_s32(neg, nm, pm), vbslq_s32(neg, ne, pe));
             let q = vqrdmulhq_s32(x, m);
@@ -121,45 +119,158 @@ unsafe fn row(k: &RowQuant, acc: &[i32], out: &mut [i8]) -> usize {
     }
 }
 
-/// The loops of [`row`] around `scaled` (the rounded, shifted product of `base + acc`): the
-/// zero point added with saturation, then saturating narrowing to 16 and 8 bits and the clamp
-/// to `min ..= max` (inside the int8 range, so the same as the scalar saturating add and
-/// clamp): 16 sums per pass, then 8; returns how many it did.
+/// Output codes [`rows_with`] stores: int8 (the conv's) or int16 ([`block_i16`]).
+trait Narrow: Copy {
+    /// Narrows 16 requantised values (zero point added) with saturation, clamps them to
+    /// `lo ..= hi` (inside the type's range) and stores them at `p`.
+    ///
+    /// # Safety
+    /// The CPU must have NEON; `p` points at 16 writable codes.
+    unsafe fn put16(p: *mut Self, v: [int32x4_t; 4], lo: i32, hi: i32);
+    /// [`Narrow::put16`] for 8 values.
+    ///
+    /// # Safety
+    /// The CPU must have NEON; `p` points at 8 writable codes.
+    unsafe fn put8(p: *mut Self, v: [int32x4_t; 2], lo: i32, hi: i32);
+}
+
+impl Narrow for i8 {
+    /// # Safety
+    /// The CPU must have NEON; `p` points at 16 writable codes.
+    #[inline(always)]
+    unsafe fn put16(p: *mut i8, v: [int32x4_t; 4], lo: i32, hi: i32) {
+        let (lo, hi) = (lo.clamp(-128, 127) as i8, hi.clamp(-128, 127) as i8);
+        let h0 = vcombine_s16(vqmovn_s32(v[0]), vqmovn_s32(v[1]));
+        let h1 = vcombine_s16(vqmovn_s32(v[2]), vqmovn_s32(v[3]));
+        let b = vcombine_s8(vqmovn_s16(h0), vqmovn_s16(h1));
+        // SAFETY (caller): 16 codes at `p`.
+        vst1q_s8(p, vminq_s8(vmaxq_s8(b, vdupq_n_s8(lo)), vdupq_n_s8(hi)));
+    }
+    /// # Safety
+    /// The CPU must have NEON; `p` points at 8 writable codes.
+    #[inline(always)]
+    unsafe fn put8(p: *mut i8, v: [int32x4_t; 2], lo: i32, hi: i32) {
+        let (lo, hi) = (lo.clamp(-128, 127) as i8, hi.clamp(-128, 127) as i8);
+        let b = vqmovn_s16(vcombine_s16(vqmovn_s32(v[0]), vqmovn_s32(v[1])));
+        // SAFETY (caller): 8 codes at `p`.
+        vst1_s8(p, vmin_s8(vmax_s8(b, vdup_n_s8(lo)), vdup_n_s8(hi)));
+    }
+}
+
+impl Narrow for i16 {
+    /// # Safety
+    /// The CPU must have NEON; `p` points at 16 writable codes.
+    #[inline(always)]
+    unsafe fn put16(p: *mut i16, v: [int32x4_t; 4], lo: i32, hi: i32) {
+        // SAFETY (caller): 16 codes at `p`, the first 8 and the next.
+        Self::put8(p, [v[0], v[1]], lo, hi);
+        Self::put8(p.add(8), [v[2], v[3]], lo, hi);
+    }
+    /// # Safety
+    /// The CPU must have NEON; `p` points at 8 writable codes.
+    #[inline(always)]
+    unsafe fn put8(p: *mut i16, v: [int32x4_t; 2], lo: i32, hi: i32) {
+        let (lo, hi) = (vdupq_n_s32(lo), vdupq_n_s32(hi));
+        let c = |x: int32x4_t| vqmovn_s32(vminq_s32(vmaxq_s32(x, lo), hi));
+        // SAFETY (caller): 8 codes at `p`.
+        vst1q_s16(p, vcombine_s16(c(v[0]), c(v[1])));
+    }
+}
+
+/// Requantises each of the `consts.len()` rows of `acc` (row `j` at `j·acc_stride`, `n ≥ 8`
+/// sums) into int16 codes of `out` at `at + j·out_stride`, clamped to `lo ..= hi` (inside the
+/// int16 range): `clamp(zp + MultiplyByQuantizedMultiplier(base + acc), lo, hi)`, the scalar
+/// int16 finish of the int8 → int16 conv for `simple` rows. Returns `false` (and does nothing)
+/// without NEON, where a row is not `simple`, `n < 8`, a bound leaves int16 or a slice is short.
+#[allow(clippy::too_many_arguments)]
+pub fn block_i16(
+    consts: &[RowQuant],
+    (lo, hi): (i32, i32),
+    acc: &[i32],
+    acc_stride: usize,
+    n: usize,
+    out: &mut [i16],
+    at: usize,
+    out_stride: usize,
+) -> bool {
+    let rows = consts.len();
+    let fits = rows == 0
+        || ((rows - 1) * acc_stride + n <= acc.len()
+            && at + (rows - 1) * out_stride + n <= out.len());
+    let bounded = -32768 <= lo && lo <= hi && hi <= 32767;
+    if !crate::kernels::isa::Isa::Neon.available()
+        || !fits
+        || n < 8
+        || !bounded
+        || !consts.iter().all(|k| k.simple)
+    {
+        return false;
+    }
+    // SAFETY: NEON is available; every row's `n ≥ 8` sums and outputs lie inside the slices
+    // (checked above).
+    unsafe { block_i16_neon(consts, (lo, hi), acc, acc_stride, n, out, at, out_stride) };
+    true
+}
+
+/// [`block_i16`]'s loop, compiled with NEON so that [`row`] inlines into it.
 ///
 /// # Safety
-/// The CPU must have NEON, and `acc` and `out` must hold the groups of 8 the loops touch;
-/// [`row`], its only caller, checks the lengths.
-#[inline(always)]
-unsafe fn rows_with(
-    k: &RowQuant,
+/// The CPU must have NEON; the conditions [`block_i16`] checks hold.
+#[target_feature(enable = "neon")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn block_i16_neon(
+    consts: &[RowQuant],
+    bounds: (i32, i32),
     acc: &[i32],
-    out: &mut [i8],
+    acc_stride: usize,
+    n: usize,
+    out: &mut [i16],
+    at: usize,
+    out_stride: usize,
+) {
+    let (ap, op) = (acc.as_ptr(), out.as_mut_ptr().add(at));
+    for (j, k) in consts.iter().enumerate() {
+        // SAFETY: NEON is available; row `j`'s `n ≥ 8` sums and outputs lie inside the slices.
+        unsafe { row(k, ap.add(j * acc_stride), op.add(j * out_stride), n, bounds) };
+    }
+}
+
+/// The loops of [`row`] around `scaled` (the rounded, shifted product of `base + acc`): the
+/// zero point added with saturation, then the output type's narrowing and clamp to `lo ..= hi`
+/// ([`Narrow`]; inside the type's range, so the same as the scalar saturating add and clamp): 16 sums per pass, then 8, then the last `n mod 8` as an overlapping 8 (the same
+/// values rewritten).
+///
+/// # Safety
+/// The CPU must have NEON, `n ≥ 8`, and `acc` and `out` must hold `n` each; [`row`], its only
+/// caller, passes its contract on.
+#[inline(always)]
+unsafe fn rows_with<O: Narrow>(
+    k: &RowQuant,
+    ap: *const i32,
+    op: *mut O,
+    n: usize,
+    (lo, hi): (i32, i32),
     scaled: impl Fn(int32x4_t) -> int32x4_t,
-) -> usize {
-    let n = out.len().min(acc.len());
+) {
     let base = vdupq_n_s32(k.base);
     let zp = vdupq_n_s32(k.zp);
-    let (lo, hi) = (k.min.clamp(-128, 127) as i8, k.max.clamp(-128, 127) as i8);
     let one = |p: *const i32| vqaddq_s32(scaled(vaddq_s32(base, vld1q_s32(p))), zp);
-    let (ap, op) = (acc.as_ptr(), out.as_mut_ptr());
+    let eight = |i: usize| {
+        let p = ap.add(i);
+        O::put8(op.add(i), [one(p), one(p.add(4))], lo, hi);
+    };
     let mut i = 0;
     while i + 16 <= n {
         let p = ap.add(i);
-        let h0 = vcombine_s16(vqmovn_s32(one(p)), vqmovn_s32(one(p.add(4))));
-        let h1 = vcombine_s16(vqmovn_s32(one(p.add(8))), vqmovn_s32(one(p.add(12))));
-        let b = vcombine_s8(vqmovn_s16(h0), vqmovn_s16(h1));
-        vst1q_s8(
-            op.add(i),
-            vminq_s8(vmaxq_s8(b, vdupq_n_s8(lo)), vdupq_n_s8(hi)),
-        );
+        let v = [one(p), one(p.add(4)), one(p.add(8)), one(p.add(12))];
+        O::put16(op.add(i), v, lo, hi);
         i += 16;
     }
-    while i + 8 <= n {
-        let p = ap.add(i);
-        let h = vcombine_s16(vqmovn_s32(one(p)), vqmovn_s32(one(p.add(4))));
-        let b = vqmovn_s16(h);
-        vst1_s8(op.add(i), vmin_s8(vmax_s8(b, vdup_n_s8(lo)), vdup_n_s8(hi)));
+    if i + 8 <= n {
+        eight(i);
         i += 8;
     }
-    i
+    if i < n {
+        eight(n - 8);
+    }
 }
