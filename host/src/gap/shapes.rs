@@ -670,7 +670,12 @@ pub fn calibrated() -> &'static UnitTable {
 /// The shape's unit (its measured detection limit) as a multiple of the library form's unit;
 /// 1 when the committed table lacks it.
 pub fn shape_unit(shape: &Shape) -> f64 {
-    calibrated()
+    shape_unit_in(calibrated(), shape)
+}
+
+/// The shape's unit in `table` (a `--calibrate-units --shapes` table); 1 when it lacks it.
+pub fn shape_unit_in(table: &UnitTable, shape: &Shape) -> f64 {
+    table
         .units
         .get(&key(shape))
         .and_then(|u| u.params.first().copied())
