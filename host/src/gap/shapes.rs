@@ -875,6 +875,15 @@ mod tests {
     }
 
     #[test]
+    fn every_calibrated_shape_has_a_committed_unit() {
+        for sh in calibrated_shapes() {
+            let u = calibrated().units.get(&key(&sh));
+            assert!(u.is_some_and(|u| u.bracketed), "{}", key(&sh));
+            assert!((shape_unit(&sh) - u.unwrap().multiple).abs() < 1e-12);
+        }
+    }
+
+    #[test]
     fn confounded_shapes_lose_close_returns() {
         let t = Thresholds {
             d30: 1.5,
