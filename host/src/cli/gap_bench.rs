@@ -8,7 +8,7 @@ use depthor_host::gap::bench::{
     SceneSet,
 };
 use depthor_host::gap::shapes::{
-    self, calibrated_shapes, run_shape_case, shape_cases, shape_table, shape_unit,
+    self, calibrated_shapes, run_shape_case, shape_cases, shape_table, shape_unit, shape_unit_in,
 };
 use depthor_host::gap::units::{calibrate, CalibrateOptions, UnitTable};
 use depthor_host::gap::{effects, GapOptions};
@@ -108,6 +108,10 @@ pub struct Args {
     /// detection limit (the same mean effect as the library's case at that size).
     #[arg(long)]
     library_units: bool,
+    /// Size the shape benchmark by the shape units of this table (written by `--calibrate-units
+    /// --shapes`) instead of the committed `host/data/gap_shape_units.json`.
+    #[arg(long)]
+    shape_units: Option<PathBuf>,
     /// Size multiple of the shape benchmark.
     #[arg(long, default_value_t = 2.0)]
     shape_size: f64,
@@ -116,8 +120,8 @@ pub struct Args {
     #[arg(long, default_value_t = 1)]
     repeats: usize,
     /// Run the leave-one-out benchmark instead (docs/gap.md): each of range_dropout,
-    /// dark_dropout, border_dropout, range_bias, radial_distance and range_noise hidden at `--loo-size` ×
-    /// its unit on rendered scenes and removed from the tool's candidates.
+    /// dark_dropout, border_dropout, range_bias, radial_distance and range_noise hidden at
+    /// `--loo-size` × its unit on rendered scenes and removed from the tool's candidates.
     #[arg(long)]
     leave_one_out: bool,
     /// Size multiple of the leave-one-out benchmark.
@@ -398,11 +402,24 @@ fn shape_bench(args: &Args) -> anyhow::Result<()> {
     let base = preset("mcu")?;
     let scenes = render_scenes(args.frames, args.width, args.height, args.seed);
     let real = load_real(args);
+    let table: Option<UnitTable> = match &args.shape_units {
+        Some(p) => {
+            let text = std::fs::read_to_string(p)
+                .map_err(|e| anyhow::anyhow!("--shape-units {}: {e}", p.display()))?;
+            Some(
+                serde_json::from_str(&text)
+                    .map_err(|e| anyhow::anyhow!("--shape-units {}: {e}", p.display()))?,
+            )
+        }
+        None => None,
+    };
     let unit = |s: &shapes::Shape| {
         if args.library_units {
             1.0
         } else {
-            shape_unit(s)
+            table
+                .as_ref()
+                .map_or_else(|| shape_unit(s), |t| shape_unit_in(t, s))
         }
     };
     let mut cases = shape_cases(&["sim"], args.shape_size, args.repeats, args.nulls, unit);
@@ -456,9 +473,15 @@ fn shape_bench(args: &Args) -> anyhow::Result<()> {
         results.len(),
         args.shape_size,
         if args.library_units {
-            "library form's unit"
+            "library form's unit".to_string()
         } else {
-            "shape's measured detection limit (host/data/gap_shape_units.json)"
+            format!(
+                "shape's measured detection limit ({})",
+                args.shape_units.as_ref().map_or_else(
+                    || "host/data/gap_shape_units.json".to_string(),
+                    |p| p.display().to_string()
+                )
+            )
         },
         scenes.len(),
         args.width,

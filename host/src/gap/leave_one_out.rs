@@ -106,10 +106,11 @@ pub fn table(results: &[LooResult]) -> String {
     );
     for r in results {
         s.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {} | {} |\n",
+            "| {} | {} | {:?} / {} | {} | {} | {} | {} |\n",
             r.label,
             r.effect,
-            format!("{:?} / {}", r.kind, r.expected.name()),
+            r.kind,
+            r.expected.name(),
             if r.named.is_empty() {
                 "—".into()
             } else {

@@ -670,7 +670,12 @@ pub fn calibrated() -> &'static UnitTable {
 /// The shape's unit (its measured detection limit) as a multiple of the library form's unit;
 /// 1 when the committed table lacks it.
 pub fn shape_unit(shape: &Shape) -> f64 {
-    calibrated()
+    shape_unit_in(calibrated(), shape)
+}
+
+/// The shape's unit in `table` (a `--calibrate-units --shapes` table); 1 when it lacks it.
+pub fn shape_unit_in(table: &UnitTable, shape: &Shape) -> f64 {
+    table
         .units
         .get(&key(shape))
         .and_then(|u| u.params.first().copied())
@@ -867,6 +872,15 @@ mod tests {
             .iter()
             .all(|z| (z.range_m - 2.5).abs() < 1e-6 && (z.v - 0.4).abs() < 1e-6));
         assert!(z.iter().all(|z| (z.radius - 1.0).abs() < 1e-6), "{z:?}");
+    }
+
+    #[test]
+    fn every_calibrated_shape_has_a_committed_unit() {
+        for sh in calibrated_shapes() {
+            let u = calibrated().units.get(&key(&sh));
+            assert!(u.is_some_and(|u| u.bracketed), "{}", key(&sh));
+            assert!((shape_unit(&sh) - u.unwrap().multiple).abs() < 1e-12);
+        }
     }
 
     #[test]
