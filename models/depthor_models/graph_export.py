@@ -37,6 +37,9 @@ def trace(net: Depthor, rgb: Tensor, sparse: Tensor) -> Traced:
     """Runs `net` once on (rgb, sparse) recording docs/graph.md nodes; the output value is `depth`."""
     if net.training:
         raise RuntimeError("trace needs the network in eval mode")
+    if getattr(net.cfg, "sparse_input", "points") != "points":
+        # the nearest-zone fill runs in PyTorch, outside the graph contract's ops
+        raise ValueError("only sparse_input = 'points' exports (the fill is not a graph op)")
     with ops.recording(net) as rec:
         rec.add_input("rgb", rgb)
         rec.add_input("sparse", sparse)

@@ -128,6 +128,8 @@ def make_net(cfg: NetConfig) -> nn.Module:
         return DepthorLite(cfg)
     if cfg.arch != "dense":
         raise ValueError(f"unknown arch {cfg.arch!r}")
+    if cfg.sparse_input != "points":
+        raise ValueError("sparse_input 'fill' is built into the lite architecture only")
     return Depthor(cfg)
 
 

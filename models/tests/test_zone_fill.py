@@ -1,8 +1,11 @@
 """zone_fill.nearest_fill: each pixel near a zone point takes its depth, pixels beyond the fill
 radius stay 0, frames are independent."""
 
+import pytest
 import torch
 
+from depthor_models.graph_export import trace
+from depthor_models.net import build, random_inputs
 from depthor_models.zone_fill import RADIUS_PITCH, nearest_fill
 
 
@@ -22,3 +25,12 @@ def test_fill_regular_grid_and_radius():
     far_col = int(35 + RADIUS_PITCH * pitch) + 1
     assert torch.all(f[0, 0, :, far_col:] == 0)
     assert torch.all(f[0, 0, 5, 35:int(35 + RADIUS_PITCH * pitch)] == s[0, 0, 5, 35])
+
+
+def test_fill_is_refused_where_it_would_be_ignored_or_lost():
+    # the dense architecture does not apply the fill; the graph contract has no fill op
+    with pytest.raises(ValueError, match="lite architecture only"):
+        build("mcu", calibrate_bn=False, sparse_input="fill")
+    net = build("mcu_lite", calibrate_bn=False, sparse_input="fill")
+    with pytest.raises(ValueError, match="not a graph op"):
+        trace(net, *random_inputs(net.cfg))
