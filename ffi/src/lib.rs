@@ -1,7 +1,8 @@
 //! # depthor-ffi
 //!
-//! The C ABI of depthor-core: the functions declared in `ffi/include/depthor.h` (written by
-//! hand; `ffi/tests/header.rs` checks it against this file), built as `libdepthor_ffi.a` and
+//! The C ABI of depthor-core: the functions declared in `ffi/include/depthor.h` (generated
+//! from this crate by cbindgen: `build.rs`, `cbindgen.toml`; `ffi/tests/header.rs` holds the
+//! committed copy equal to the generated one), built as `libdepthor_ffi.a` and
 //! `libdepthor_ffi.so`. The contract (memory, lifetimes, threads, error codes) is
 //! `docs/ffi.md`.
 //!
@@ -25,7 +26,7 @@
 #[cfg(any(test, feature = "std"))]
 extern crate std;
 
-use core::ffi::c_char;
+use core::ffi::{c_char, c_uchar, c_void};
 use core::mem::{align_of, size_of, MaybeUninit};
 use core::ptr::{addr_of, addr_of_mut};
 use core::slice;
@@ -105,13 +106,19 @@ pub const DEPTHOR_ENGINE_STORAGE_BYTES: usize = if cfg!(target_pointer_width = "
     DEPTHOR_ENGINE_STORAGE_BYTES_64
 };
 
-/// Written into [`depthor_engine::magic`] by a successful init ("DPTE").
+/// Written into [`EngineState::magic`] by a successful init ("DPTE").
 const MAGIC: u32 = 0x4450_5445;
 
-/// The engine object: opaque to C (`typedef struct depthor_engine depthor_engine;`), in caller
-/// memory of `depthor_engine_size()` bytes aligned to `depthor_engine_align()`.
+/// The engine object: opaque, in caller memory of `depthor_engine_size()` bytes aligned to
+/// `depthor_engine_align()` (or a `depthor_engine_storage`). C sees only its name.
+// Not `repr(C)`: cbindgen then declares it opaquely (`typedef struct depthor_engine
+// depthor_engine;`). Its one field is the `repr(C)` state; C reads the size and alignment from
+// `depthor_engine_size()` / `depthor_engine_align()`, never from a layout of its own.
+pub struct depthor_engine(EngineState);
+
+/// What a `depthor_engine` holds.
 #[repr(C)]
-pub struct depthor_engine {
+struct EngineState {
     /// [`MAGIC`] once `depthor_engine_init` succeeded, anything else before.
     magic: u32,
     /// The blob the engine borrows (for the overlap checks of `depthor_engine_run`).
@@ -124,7 +131,30 @@ pub struct depthor_engine {
     engine: MaybeUninit<Engine<'static>>,
 }
 
+/// Statically sized, suitably aligned engine memory (e.g. a static in firmware):
+///
+/// ```c
+/// static depthor_engine_storage mem;
+/// depthor_engine *engine = (depthor_engine *)&mem;
+/// ```
+///
+/// At least `depthor_engine_size()` bytes aligned to `depthor_engine_align()` on every target
+/// of its pointer width (checked at compile time on each target the library is built for).
+#[repr(C)]
+pub union depthor_engine_storage {
+    /// The engine's bytes.
+    pub bytes: [c_uchar; DEPTHOR_ENGINE_STORAGE_BYTES],
+    /// Aligns the storage for a `uint64_t`.
+    pub align_u64: u64,
+    /// Aligns the storage for a `double`.
+    pub align_double: f64,
+    /// Aligns the storage for a pointer.
+    pub align_ptr: *mut c_void,
+}
+
 const _: () = assert!(size_of::<depthor_engine>() <= DEPTHOR_ENGINE_STORAGE_BYTES);
+const _: () = assert!(size_of::<depthor_engine>() <= size_of::<depthor_engine_storage>());
+const _: () = assert!(align_of::<depthor_engine>() <= align_of::<depthor_engine_storage>());
 // The header's storage union aligns to uint64_t / double / void *: 8 bytes on every target.
 const _: () = assert!(align_of::<depthor_engine>() <= 8);
 
@@ -149,7 +179,7 @@ pub struct depthor_calibration {
     pub zone_rows: u16,
     /// dToF zone columns.
     pub zone_cols: u16,
-    /// [`DEPTHOR_DISTANCE_Z`] or [`DEPTHOR_DISTANCE_RADIAL`].
+    /// `DEPTHOR_DISTANCE_Z` or `DEPTHOR_DISTANCE_RADIAL`.
     pub distance_kind: u32,
     /// Full horizontal field of view of the zone grid, degrees.
     pub fov_h_deg: f32,
@@ -334,7 +364,9 @@ pub unsafe extern "C" fn depthor_arena_bytes(
 /// plan is the fastest that fits `arena_len` (`Memory::Budget`): at the
 /// `depthor_arena_bytes()` minimum the smallest, with more arena possibly a less fused one;
 /// the output bits are the same.
-/// The engine borrows `blob` and `arena` until it is no longer used. Stack: the planner's
+/// The engine borrows `blob` and `arena` until it is no longer used; the engine memory, arena
+/// and blob must not overlap. Calling it again on the same memory re-initialises it (nothing to
+/// release first). A failed call leaves the memory marked uninitialised. Stack: the planner's
 /// tables plus a temporary engine object, ≈ 148 KB on a Cortex-M4F for `mcu_lite`.
 ///
 /// # Safety
@@ -371,7 +403,7 @@ pub unsafe extern "C" fn depthor_engine_init(
         // SAFETY: `engine` is non-NULL and aligned; the caller provides
         // `depthor_engine_size()` writable bytes. Clearing the magic first means a failed
         // init leaves an engine that `depthor_engine_run` refuses.
-        unsafe { addr_of_mut!((*engine).magic).write(0) };
+        unsafe { addr_of_mut!((*engine).0.magic).write(0) };
         // SAFETY: non-NULL, valid slice lengths (`span`); the caller keeps `blob` alive and
         // unmodified for as long as the engine is used ('static stands for that promise).
         let blob_s: &'static [u8] = unsafe { slice::from_raw_parts(blob, blob_len) };
@@ -396,12 +428,12 @@ pub unsafe extern "C" fn depthor_engine_init(
                 // SAFETY: `engine` is valid for writes of a whole `depthor_engine` (caller's
                 // contract), aligned, and overlaps neither borrowed buffer (checked).
                 unsafe {
-                    addr_of_mut!((*engine).blob).write(blob);
-                    addr_of_mut!((*engine).blob_len).write(blob_len);
-                    addr_of_mut!((*engine).arena).write(arena);
-                    addr_of_mut!((*engine).arena_len).write(arena_len);
-                    addr_of_mut!((*engine).engine).write(MaybeUninit::new(prepared));
-                    addr_of_mut!((*engine).magic).write(MAGIC);
+                    addr_of_mut!((*engine).0.blob).write(blob);
+                    addr_of_mut!((*engine).0.blob_len).write(blob_len);
+                    addr_of_mut!((*engine).0.arena).write(arena);
+                    addr_of_mut!((*engine).0.arena_len).write(arena_len);
+                    addr_of_mut!((*engine).0.engine).write(MaybeUninit::new(prepared));
+                    addr_of_mut!((*engine).0.magic).write(MAGIC);
                 }
                 DEPTHOR_OK
             }
@@ -416,17 +448,17 @@ pub unsafe extern "C" fn depthor_engine_init(
 /// `engine` must be non-NULL, aligned and point to `depthor_engine_size()` readable bytes.
 unsafe fn initialised(engine: *const depthor_engine) -> Option<((usize, usize), (usize, usize))> {
     // SAFETY: the caller's contract; the magic is a plain u32 in caller memory.
-    let magic = unsafe { addr_of!((*engine).magic).read() };
+    let magic = unsafe { addr_of!((*engine).0.magic).read() };
     if magic != MAGIC {
         return None;
     }
     // SAFETY: written by the successful init that wrote MAGIC.
     let (b, bl, a, al) = unsafe {
         (
-            addr_of!((*engine).blob).read(),
-            addr_of!((*engine).blob_len).read(),
-            addr_of!((*engine).arena).read(),
-            addr_of!((*engine).arena_len).read(),
+            addr_of!((*engine).0.blob).read(),
+            addr_of!((*engine).0.blob_len).read(),
+            addr_of!((*engine).0.arena).read(),
+            addr_of!((*engine).0.arena_len).read(),
         )
     };
     Some((span(b, bl)?, span(a.cast_const(), al)?))
@@ -455,7 +487,7 @@ pub unsafe extern "C" fn depthor_engine_input_size(
             return DEPTHOR_E_NOT_INIT;
         }
         // SAFETY: the magic says a successful init wrote the engine; only shared access here.
-        let eng = unsafe { (*addr_of!((*engine).engine)).assume_init_ref() };
+        let eng = unsafe { (*addr_of!((*engine).0.engine)).assume_init_ref() };
         let (h, w) = eng.input_shape();
         let (Ok(h), Ok(w)) = (u32::try_from(h), u32::try_from(w)) else {
             return DEPTHOR_E_INTERNAL;
@@ -499,7 +531,7 @@ pub unsafe extern "C" fn depthor_engine_run(
             return DEPTHOR_E_NOT_INIT;
         };
         // SAFETY: the magic says a successful init wrote the engine; shared access only.
-        let (h, w) = unsafe { (*addr_of!((*engine).engine)).assume_init_ref() }.input_shape();
+        let (h, w) = unsafe { (*addr_of!((*engine).0.engine)).assume_init_ref() }.input_shape();
         let n = h * w;
         if Some(rgb_len) != n.checked_mul(3) || sparse_len != n || depth_len != n {
             return DEPTHOR_E_LENGTH;
@@ -524,7 +556,7 @@ pub unsafe extern "C" fn depthor_engine_run(
         }
         // SAFETY: initialised (magic), and no argument overlaps the engine memory, so this is
         // the only reference to it during the call (one thread per engine: the contract).
-        let eng = unsafe { (*addr_of_mut!((*engine).engine)).assume_init_mut() };
+        let eng = unsafe { (*addr_of_mut!((*engine).0.engine)).assume_init_mut() };
         // SAFETY: non-NULL, aligned, lengths checked against the engine and by `span`; the
         // output overlaps no input, nor the engine, arena or blob (checked).
         let out = unsafe { slice::from_raw_parts_mut(depth_m, depth_len) };
@@ -547,7 +579,8 @@ pub unsafe extern "C" fn depthor_engine_run(
 
 /// Rasterises one dToF frame's zones into the sparse depth map `sparse_m` (`width·height`
 /// floats, metres, 0 = no point; zero-filled first, the nearer point kept on a collision):
-/// `distance_mm` and `status` hold `zones = zone_rows·zone_cols` values each, row-major.
+/// `distance_mm` (millimetres) and `status` (ST `target_status`; 5 and 9 are valid) hold
+/// `zones = zone_rows·zone_cols` values each, row-major.
 /// `stats` (may be NULL) receives the counters. A frame with `projected == 0` has no metric
 /// depth: do not run the engine on it.
 ///
@@ -676,6 +709,7 @@ pub extern "C" fn depthor_status_message(status: i32) -> *const c_char {
     s.as_ptr()
 }
 
+// Test only; `cbindgen.toml` keeps it out of depthor.h.
 #[cfg(feature = "panic-probe")]
 pub mod probe;
 
