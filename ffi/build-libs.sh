@@ -23,7 +23,7 @@ build() {
   nice cargo rustc -q -p depthor-ffi --profile "$profile" --target "$target" --crate-type staticlib \
     "${flags[@]}"
   mkdir -p "$out/$name"
-  cp "target/$target/$profile/libdepthor_ffi.a" "$out/$name/libdepthor_ffi.a"
+  cp "${CARGO_TARGET_DIR:-target}/$target/$profile/libdepthor_ffi.a" "$out/$name/libdepthor_ffi.a"
 }
 
 # text+data of every member (GNU size reads any little-endian ELF through elf32/64-little).
