@@ -370,9 +370,10 @@ pub unsafe extern "C" fn depthor_arena_bytes(
 /// tables plus a temporary engine object, ≈ 148 KB on a Cortex-M4F for `mcu_lite`.
 ///
 /// # Safety
-/// `engine` must point to `depthor_engine_size()` writable bytes, `blob` to `blob_len`
-/// readable bytes and `arena` to `arena_len` writable bytes; `blob` and `arena` must stay
-/// valid, and `arena` untouched by the caller, while the engine is used.
+/// `engine` must point to `depthor_engine_size()` writable bytes aligned to
+/// `depthor_engine_align()` (misalignment is checked), `blob` to `blob_len` readable bytes and
+/// `arena` to `arena_len` writable bytes; `blob` and `arena` must stay valid, and `arena`
+/// untouched by the caller, while the engine is used.
 #[no_mangle]
 pub unsafe extern "C" fn depthor_engine_init(
     engine: *mut depthor_engine,
@@ -504,7 +505,8 @@ pub unsafe extern "C" fn depthor_engine_input_size(
 /// Runs one frame: `rgb888` is `3·H·W` bytes (interleaved, row-major), `sparse_m` the sparse
 /// depth (`H·W` floats, metres, 0 = no point), `depth_m` receives the dense depth (`H·W`
 /// floats, metres). `sparse_m` may equal `depth_m` (same pointer and length): the frame then
-/// runs in place, the least memory. Other overlaps are refused.
+/// runs in place, the least memory. Other overlaps are refused. Lengths count elements (bytes
+/// for RGB, floats for the depth maps).
 ///
 /// # Safety
 /// `engine` must point to engine memory; the buffers to their stated lengths of readable
