@@ -20,7 +20,7 @@ if [[ ! -x "$venv/bin/python" || ! -f "$stamp" || "$(cat "$stamp")" != "$want" ]
   echo "$want" > "$stamp"
 fi
 # The depthor package: `pip install ffi/python` runs `cargo build -p depthor-ffi --release`
-# (≈ 1 min warm on 2 cores, several cold) and ships the library inside the package. Skipped when
+# (≈ 10 s after an ffi/ change, ≈ 1 min when core/ rebuilds too, several cold) and ships the library inside the package. Skipped when
 # the sources it is built from are unchanged since the last install (stamp: their hash).
 export DEPTHOR_REQUIRE_FFI="${DEPTHOR_REQUIRE_FFI:-1}"
 if [[ "$DEPTHOR_REQUIRE_FFI" == 1 ]]; then
