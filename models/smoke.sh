@@ -20,14 +20,15 @@ if [[ ! -x "$venv/bin/python" || ! -f "$stamp" || "$(cat "$stamp")" != "$want" ]
   echo "$want" > "$stamp"
 fi
 # The depthor package: `pip install ffi/python` runs `cargo build -p depthor-ffi --release`
-# (≈ 10 s after an ffi/ change, ≈ 1 min when core/ rebuilds too, several cold) and ships the library inside the package. Skipped when
-# the sources it is built from are unchanged since the last install (stamp: their hash).
+# (≈ 10 s after an ffi/ change, ≈ 1 min when core/ rebuilds too, several cold) and ships the
+# library inside the package. Skipped when the sources it is built from are unchanged since the
+# last install (stamp: their hash).
 export DEPTHOR_REQUIRE_FFI="${DEPTHOR_REQUIRE_FFI:-1}"
 if [[ "$DEPTHOR_REQUIRE_FFI" == 1 ]]; then
   root="$(cd "$here/.." && pwd)"
   ffi_stamp="$venv/.depthor-ffi.sha256"
-  ffi_want="$(cd "$root" && find Cargo.toml Cargo.lock rust-toolchain.toml core/Cargo.toml core/src \
-    ffi/Cargo.toml ffi/build.rs ffi/cbindgen.toml ffi/src ffi/python/setup.py \
+  ffi_want="$(cd "$root" && find Cargo.toml Cargo.lock rust-toolchain.toml core/Cargo.toml \
+    core/src ffi/Cargo.toml ffi/build.rs ffi/cbindgen.toml ffi/src ffi/python/setup.py \
     ffi/python/pyproject.toml ffi/python/depthor -type f ! -name '*.pyc' -print0 | sort -z \
     | xargs -0 sha256sum | sha256sum | cut -d' ' -f1)"
   if [[ ! -f "$ffi_stamp" || "$(cat "$ffi_stamp")" != "$ffi_want" ]] \
