@@ -23,7 +23,11 @@ fn main() {
         .generate()
         .unwrap_or_else(|e| panic!("cbindgen could not generate depthor.h: {e}"));
     let out = PathBuf::from(env::var("OUT_DIR").expect("OUT_DIR")).join("depthor.h");
-    bindings.write_to_file(&out);
+    let mut text = Vec::new();
+    bindings.write(&mut text);
+    let text = String::from_utf8(text).expect("cbindgen writes UTF-8");
+    std::fs::write(&out, parenthesise_negative_defines(&text))
+        .unwrap_or_else(|e| panic!("writing {}: {e}", out.display()));
 
     if env::var_os("DEPTHOR_WRITE_HEADER").is_some_and(|v| v == "1") {
         let committed = dir.join("include/depthor.h");
@@ -34,4 +38,25 @@ fn main() {
             committed.display()
         );
     }
+}
+
+/// `#define NAME -N` becomes `#define NAME (-N)`: cbindgen writes negative constants bare, and a
+/// bare `-N` in a macro can merge with the tokens around it (`x-DEPTHOR_E_NULL` would read
+/// `x--1`).
+fn parenthesise_negative_defines(text: &str) -> String {
+    let mut out = String::with_capacity(text.len() + 64);
+    for line in text.split_inclusive('\n') {
+        let body = line.trim_end_matches('\n');
+        let mut parts = body.splitn(3, ' ');
+        match (parts.next(), parts.next(), parts.next()) {
+            (Some("#define"), Some(name), Some(value))
+                if value.starts_with('-') && value[1..].bytes().all(|b| b.is_ascii_digit()) =>
+            {
+                out.push_str(&format!("#define {name} ({value})"));
+                out.push_str(&line[body.len()..]);
+            }
+            _ => out.push_str(line),
+        }
+    }
+    out
 }

@@ -51,67 +51,67 @@
 /**
  * A required pointer argument is NULL.
  */
-#define DEPTHOR_E_NULL -1
+#define DEPTHOR_E_NULL (-1)
 
 /**
  * A pointer is not aligned for its type: the engine memory to `depthor_engine_align()`, a
  * `float` buffer or a struct to its alignment.
  */
-#define DEPTHOR_E_ALIGN -2
+#define DEPTHOR_E_ALIGN (-2)
 
 /**
  * The blob is malformed (bad magic, truncated, a field or op out of range).
  */
-#define DEPTHOR_E_BLOB -3
+#define DEPTHOR_E_BLOB (-3)
 
 /**
  * The blob's payload CRC-32 does not match its header (corrupted in storage or transfer).
  */
-#define DEPTHOR_E_BLOB_CHECKSUM -4
+#define DEPTHOR_E_BLOB_CHECKSUM (-4)
 
 /**
  * The blob's format version is not one this library reads.
  */
-#define DEPTHOR_E_BLOB_VERSION -5
+#define DEPTHOR_E_BLOB_VERSION (-5)
 
 /**
  * The network cannot run at the requested height × width (one side 0, too large, or shapes
  * that do not fit together at that size).
  */
-#define DEPTHOR_E_SIZE -6
+#define DEPTHOR_E_SIZE (-6)
 
 /**
  * The arena is smaller than `depthor_arena_bytes()` reports.
  */
-#define DEPTHOR_E_ARENA -7
+#define DEPTHOR_E_ARENA (-7)
 
 /**
  * A buffer's length is wrong (RGB must be `3·H·W` bytes, depth maps `H·W` floats, the zone
  * arrays `rows·cols`), or pointer + length overflows the address space.
  */
-#define DEPTHOR_E_LENGTH -8
+#define DEPTHOR_E_LENGTH (-8)
 
 /**
  * Buffers overlap where one call writes one and reads or owns another (engine memory, arena,
  * blob, inputs, output).
  */
-#define DEPTHOR_E_OVERLAP -9
+#define DEPTHOR_E_OVERLAP (-9)
 
 /**
  * The engine memory was not initialised by a successful `depthor_engine_init`.
  */
-#define DEPTHOR_E_NOT_INIT -10
+#define DEPTHOR_E_NOT_INIT (-10)
 
 /**
  * The calibration is unusable (focal length, field of view, range, rotation, distance kind).
  */
-#define DEPTHOR_E_CALIBRATION -11
+#define DEPTHOR_E_CALIBRATION (-11)
 
 /**
  * An internal error: a kernel refused its operands, or (std build) a panic was caught. A bug;
  * please report it with the blob.
  */
-#define DEPTHOR_E_INTERNAL -12
+#define DEPTHOR_E_INTERNAL (-12)
 
 /**
  * `depthor_calibration.distance_kind`: distances along the sensor's optical axis (VL53L5CX).

@@ -341,8 +341,8 @@ fn the_parsers_see_a_difference() {
     );
     assert_ne!(header_protos(&edited), header_protos(&h));
     let edited = edit(
-        "#define DEPTHOR_E_ARENA -7\n",
-        "#define DEPTHOR_E_ARENA -70\n",
+        "#define DEPTHOR_E_ARENA (-7)\n",
+        "#define DEPTHOR_E_ARENA (-70)\n",
     );
     assert_ne!(header_defines(&edited), header_defines(&h));
     let edited = edit(
@@ -407,4 +407,21 @@ fn the_generated_header_is_c99_with_cpp_guards() {
         "the test-only probe leaked"
     );
     assert!(g.trim_end().ends_with("#endif  /* DEPTHOR_H */"));
+}
+
+#[test]
+fn negative_constants_are_parenthesised() {
+    // `#define X -1` can merge with the tokens around it (`a-X` reads `a--1`).
+    let h = read("include/depthor.h");
+    let bare: Vec<&str> = h
+        .lines()
+        .filter(|l| {
+            l.starts_with("#define ")
+                && l.split_whitespace()
+                    .nth(2)
+                    .is_some_and(|v| v.starts_with('-'))
+        })
+        .collect();
+    assert!(bare.is_empty(), "bare negative #defines: {bare:?}");
+    assert!(h.contains("#define DEPTHOR_E_NULL (-1)"));
 }
