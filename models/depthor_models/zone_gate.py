@@ -53,14 +53,18 @@ def joint_bilateral(rgb: np.ndarray, sparse: np.ndarray) -> np.ndarray:
         return np.ones((h, w), np.float32)
     z = sparse[ys, xs].astype(np.float64)
     spacing = math.sqrt(h * w / len(ys))
-    yy, xx = np.mgrid[0:h, 0:w]
-    d2 = (yy.reshape(-1, 1) - ys[None]) ** 2 + (xx.reshape(-1, 1) - xs[None]) ** 2
+    point_colour = rgb[ys, xs].astype(np.float64)
     colour = rgb.reshape(-1, 3).astype(np.float64)
-    r2 = ((colour[:, None, :] - rgb[ys, xs].astype(np.float64)[None]) ** 2).sum(-1)
-    wt = np.exp(-d2 / (2 * spacing**2) - r2 / (2 * SIGMA_RGB**2)) * (d2 <= 4 * spacing**2)
-    num, den = wt @ z, wt.sum(1)
-    nearest = z[d2.argmin(1)]
-    out = np.where(den > 1e-12, num / np.maximum(den, 1e-300), nearest)
+    yy, xx = np.divmod(np.arange(h * w), w)
+    out = np.empty(h * w)
+    chunk = max(1, 4_000_000 // len(ys))  # pixels per block: ≈ 32 MB per pixel × point array
+    for a in range(0, h * w, chunk):
+        b = min(a + chunk, h * w)
+        d2 = (yy[a:b, None] - ys[None]) ** 2 + (xx[a:b, None] - xs[None]) ** 2
+        r2 = ((colour[a:b, None, :] - point_colour[None]) ** 2).sum(-1)
+        wt = np.exp(-d2 / (2 * spacing**2) - r2 / (2 * SIGMA_RGB**2)) * (d2 <= 4 * spacing**2)
+        num, den = wt @ z, wt.sum(1)
+        out[a:b] = np.where(den > 1e-12, num / np.maximum(den, 1e-300), z[d2.argmin(1)])
     return out.reshape(h, w).astype(np.float32)
 
 
