@@ -585,6 +585,30 @@ pub fn concat_part(
     out_shape: Shape,
     c_offset: usize,
 ) -> Result<(), KernelError> {
+    concat_part_with(
+        Isa::Portable,
+        input,
+        in_shape,
+        rescale,
+        out,
+        out_shape,
+        c_offset,
+    )
+}
+
+/// [`concat_part`] with kernel set `isa`: `neon` and `neon-dot` read an int8 → int8 part's
+/// 256-entry table with `TBL` ([`super::aarch64::elementwise::lookup`]); the same bits.
+pub fn concat_part_with(
+    isa: Isa,
+    input: Codes,
+    in_shape: Shape,
+    rescale: &Rescale,
+    out: CodesMut,
+    out_shape: Shape,
+    c_offset: usize,
+) -> Result<(), KernelError> {
+    #[cfg(not(target_arch = "aarch64"))]
+    let _ = isa;
     let out = match out {
         CodesMut::I8(out) => out,
         CodesMut::I16(out) => {
@@ -634,6 +658,13 @@ pub fn concat_part(
     } else if n > 256 {
         // A table of the 256 codes (the same function, so the same bits).
         let t: [i8; 256] = core::array::from_fn(|x| rescale.apply(x as u8 as i8));
+        #[cfg(target_arch = "aarch64")]
+        let (dst, input) = if matches!(isa, Isa::Neon | Isa::NeonDot) {
+            let done = super::aarch64::elementwise::lookup(&t, input, dst);
+            (&mut dst[done..], &input[done..])
+        } else {
+            (dst, input)
+        };
         for (o, &x) in dst.iter_mut().zip(input) {
             *o = t[x as u8 as usize];
         }
