@@ -59,6 +59,21 @@ pub trait Layout {
     /// Whether [`Layout::interleave4_stride2_fast`] has a vector path (else its caller's
     /// branch compiles away).
     const STRIDE2_FAST: bool = false;
+    /// `out[x·4 + l] = elem(t_l[src[l][sw·x]])` (`t_l` row `l`'s table, the codes as they are
+    /// where it has none) for the first `rows` rows, padding in the other lanes, `sw` 1 or 2,
+    /// over a leading part, vectorised where the layout and target have it; returns how many
+    /// pixels (0: none).
+    #[inline(always)]
+    fn interleave4_tables_fast(
+        _src: [&[i8]; 4],
+        _tables: [Option<&[i8; 256]>; 4],
+        _rows: usize,
+        _sw: usize,
+        _zp: i32,
+        _out: &mut [Self::Elem],
+    ) -> usize {
+        0
+    }
     /// `out[x·4 + l] = elem(src[l][2x])` for the first `rows` rows, padding in the other
     /// lanes, over a leading part, vectorised where the layout and target have it; returns how
     /// many pixels (0: none).
@@ -159,6 +174,18 @@ impl Layout for SignedQuads {
     #[inline(always)]
     fn interleave4_stride2_fast(src: [&[i8]; 4], rows: usize, zp: i32, out: &mut [i8]) -> usize {
         super::aarch64::pack::interleave4_stride2(src, rows, Self::pad(zp), out)
+    }
+    #[cfg(target_arch = "aarch64")]
+    #[inline(always)]
+    fn interleave4_tables_fast(
+        src: [&[i8]; 4],
+        tables: [Option<&[i8; 256]>; 4],
+        rows: usize,
+        sw: usize,
+        zp: i32,
+        out: &mut [i8],
+    ) -> usize {
+        super::aarch64::pack::interleave4_tables(src, tables, rows, sw, Self::pad(zp), out)
     }
 }
 
@@ -401,24 +428,30 @@ pub fn pack_row<F: Layout, S: Source>(
                 // last channel), without tables: the layout's vector path where it has one,
                 // then the rest word by word.
                 let mut src: [&[i8]; 4] = [&[]; 4];
-                let mut plain = true;
-                for (li, s) in src.iter_mut().enumerate().take(rows) {
+                let mut tables: [Option<&[i8; 256]>; 4] = [None; 4];
+                let mut found = true;
+                for (li, (s, t)) in src.iter_mut().zip(&mut tables).enumerate().take(rows) {
                     match input.run(c0 + cg * l + li, at, 2 * len - 1) {
-                        Some((r, None)) => *s = r,
-                        _ => plain = false,
+                        Some((r, table)) => (*s, *t) = (r, table),
+                        None => found = false,
                     }
                 }
                 let out = &mut dst[lo * l..hi * l];
-                let done = if plain {
+                let done = if !found {
+                    0
+                } else if tables.iter().all(Option::is_none) {
                     F::interleave4_stride2_fast(src, rows, zp, out)
                 } else {
-                    0
+                    F::interleave4_tables_fast(src, tables, rows, 2, zp, out)
                 };
                 if done > 0 {
                     for (k, w) in out.chunks_exact_mut(4).enumerate().skip(done) {
                         for (li, e) in w.iter_mut().enumerate() {
                             *e = match src.get(li).filter(|_| li < rows) {
-                                Some(r) => F::elem(r[2 * k], zp),
+                                Some(r) => {
+                                    let t = tables[li].unwrap_or(&IDENTITY);
+                                    F::elem(t[r[2 * k] as u8 as usize], zp)
+                                }
                                 None => pad,
                             };
                         }
@@ -499,8 +532,11 @@ fn interleave4<F: Layout>(src: [Run; 4], zp: i32, out: &mut [F::Elem]) {
         }
         return;
     }
+    let done = F::interleave4_tables_fast(src.map(|s| s.0), src.map(|s| s.1), 4, 1, zp, out);
     let t = src.map(|s| s.1.unwrap_or(&IDENTITY));
-    let it = src[0].0.iter().zip(src[1].0).zip(src[2].0).zip(src[3].0);
+    let rest = src.map(|s| s.0.get(done..).unwrap_or_default());
+    let out = out.get_mut(done * 4..).unwrap_or_default();
+    let it = rest[0].iter().zip(rest[1]).zip(rest[2]).zip(rest[3]);
     for (d, (((&a, &b), &c), &e)) in out.chunks_exact_mut(4).zip(it) {
         d[0] = F::elem(t[0][a as u8 as usize], zp);
         d[1] = F::elem(t[1][b as u8 as usize], zp);

@@ -83,3 +83,109 @@ unsafe fn interleave4_stride2_neon(
         x += 16;
     }
 }
+
+/// `out[4x + l] = t_l[src[l][sw·x]]` (`t_l` row `l`'s table, or the codes as they are where it
+/// has none) for the first `rows` rows (`1..=4`), `pad` in the other lanes, `sw` 1 or 2, for
+/// the leading multiple of 16 pixels that those rows (`sw·x + sw − 1 < len`, as
+/// [`interleave4_stride2`] reads them) and `out` hold; returns how many pixels it packed (0
+/// without NEON). A table is read 64 entries at a time with `TBL` and three `TBX` (an index
+/// past 63 gives 0 in `TBL` and leaves the lane in `TBX`), the same bytes as the scalar look-up.
+pub fn interleave4_tables(
+    src: [&[i8]; 4],
+    tables: [Option<&[i8; 256]>; 4],
+    rows: usize,
+    sw: usize,
+    pad: i8,
+    out: &mut [i8],
+) -> usize {
+    let shortest = src.iter().take(rows).map(|s| s.len()).min().unwrap_or(0);
+    if !crate::kernels::isa::Isa::Neon.available() || !(1..=4).contains(&rows) || sw == 0 {
+        return 0;
+    }
+    let n = match sw {
+        1 => shortest,
+        2 => shortest / 2,
+        _ => return 0,
+    };
+    let n = n.min(out.len() / 4) / 16 * 16;
+    if n == 0 {
+        return 0;
+    }
+    let src = src.map(|s| s.as_ptr());
+    // SAFETY: NEON is available; each of the first `rows` rows holds `sw·n` codes and `out`
+    // `4n` bytes (checked above).
+    unsafe {
+        if sw == 1 {
+            interleave4_tables_neon::<1>(src, tables, rows, pad, out.as_mut_ptr(), n);
+        } else {
+            interleave4_tables_neon::<2>(src, tables, rows, pad, out.as_mut_ptr(), n);
+        }
+    }
+    n
+}
+
+/// `t[idx]` for 16 indices, the table in four 64-byte registers groups.
+///
+/// # Safety
+/// The CPU must have NEON.
+#[target_feature(enable = "neon")]
+#[inline]
+unsafe fn lookup16(t: &[i8; 256], idx: int8x16_t) -> int8x16_t {
+    let p = t.as_ptr();
+    let k64 = vdupq_n_u8(64);
+    let i0 = vreinterpretq_u8_s8(idx);
+    let (i1, i2, i3) = {
+        let i1 = vsubq_u8(i0, k64);
+        let i2 = vsubq_u8(i1, k64);
+        (i1, i2, vsubq_u8(i2, k64))
+    };
+    // SAFETY: `t` holds 4 · 64 bytes.
+    unsafe {
+        let r = vqtbl4q_s8(vld1q_s8_x4(p), i0);
+        let r = vqtbx4q_s8(r, vld1q_s8_x4(p.add(64)), i1);
+        let r = vqtbx4q_s8(r, vld1q_s8_x4(p.add(128)), i2);
+        vqtbx4q_s8(r, vld1q_s8_x4(p.add(192)), i3)
+    }
+}
+
+/// [`interleave4_tables`]'s loop over `n` pixels (a multiple of 16), `SW` the column step.
+///
+/// # Safety
+/// The CPU must have NEON; each of the first `rows` rows points at `SW·n` codes and `out` at
+/// `4n` bytes.
+#[target_feature(enable = "neon")]
+unsafe fn interleave4_tables_neon<const SW: usize>(
+    src: [*const i8; 4],
+    tables: [Option<&[i8; 256]>; 4],
+    rows: usize,
+    pad: i8,
+    out: *mut i8,
+    n: usize,
+) {
+    let fill = vdupq_n_s8(pad);
+    let lane = |l: usize, x: usize| {
+        if l >= rows {
+            return fill;
+        }
+        // SAFETY: row `l < rows` holds `SW·n ≥ SW·(x + 16)` codes (the caller's contract).
+        let v = unsafe {
+            if SW == 1 {
+                vld1q_s8(src[l].add(x))
+            } else {
+                vld2q_s8(src[l].add(2 * x)).0
+            }
+        };
+        match tables[l] {
+            // SAFETY: NEON is available (the caller's contract).
+            Some(t) => unsafe { lookup16(t, v) },
+            None => v,
+        }
+    };
+    let mut x = 0;
+    while x < n {
+        let v = int8x16x4_t(lane(0, x), lane(1, x), lane(2, x), lane(3, x));
+        // SAFETY: `x + 16 ≤ n`: `4x + 64 ≤ 4n` bytes of `out`.
+        unsafe { vst4q_s8(out.add(4 * x), v) };
+        x += 16;
+    }
+}
