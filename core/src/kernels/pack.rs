@@ -273,6 +273,16 @@ pub trait Source {
     /// Codes `start .. start + len` of channel `c`'s plane and the table mapping them to the
     /// conv's input codes (`None`: as they are); `None` past the end.
     fn run(&self, c: usize, start: usize, len: usize) -> Option<(&[i8], Option<&[i8; 256]>)>;
+    /// [`Source::run`] of channels `c .. c + 4`, all or `None`.
+    #[inline(always)]
+    fn run4(&self, c: usize, start: usize, len: usize) -> Option<[Run<'_>; 4]> {
+        Some([
+            self.run(c, start, len)?,
+            self.run(c + 1, start, len)?,
+            self.run(c + 2, start, len)?,
+            self.run(c + 3, start, len)?,
+        ])
+    }
 }
 
 /// One CHW tensor of `plane` pixels per channel.
@@ -290,6 +300,25 @@ impl Source for Dense<'_> {
         let at = c.checked_mul(self.plane)?.checked_add(start)?;
         Some((self.data.get(at..at.checked_add(len)?)?, None))
     }
+    #[inline(always)]
+    fn run4(&self, c: usize, start: usize, len: usize) -> Option<[Run<'_>; 4]> {
+        dense_run4(self.data, self.plane, c, start, len)
+    }
+}
+
+/// [`Source::run4`] of a CHW tensor `data` of `p` pixels per channel (no tables).
+#[inline(always)]
+fn dense_run4(data: &[i8], p: usize, c: usize, start: usize, len: usize) -> Option<[Run<'_>; 4]> {
+    // One check, on the farthest end: channel `c + 3`'s run.
+    let end = c.checked_add(3)?.checked_mul(p)?.checked_add(start)?;
+    let data = data.get(..end.checked_add(len)?)?;
+    let at = c * p + start;
+    Some([0, 1, 2, 3].map(|k| {
+        let a = at + k * p;
+        // SAFETY: `a + len ≤ at + 3p + len = end + len ≤ data.len()` (checked above, and
+        // without overflow since the largest sum did not overflow).
+        (unsafe { data.get_unchecked(a..a + len) }, None)
+    }))
 }
 
 /// Most parts of a [`Parts`] input.
@@ -347,6 +376,26 @@ impl Source for Parts<'_> {
         }
         None
     }
+    #[inline]
+    fn run4(&self, c: usize, start: usize, len: usize) -> Option<[Run<'_>; 4]> {
+        let mut k = c;
+        for &(data, channels, table) in &self.parts[..self.n] {
+            if k < channels {
+                if k.checked_add(4)? > channels {
+                    break;
+                }
+                let runs = dense_run4(data, self.plane, k, start, len)?;
+                return Some(runs.map(|(r, _)| (r, table)));
+            }
+            k -= channels;
+        }
+        Some([
+            self.run(c, start, len)?,
+            self.run(c + 1, start, len)?,
+            self.run(c + 2, start, len)?,
+            self.run(c + 3, start, len)?,
+        ])
+    }
 }
 
 /// Slot of the packed rows that holds input row `iy` of a conv with kernel height `kh` and
@@ -389,28 +438,31 @@ pub fn pack_row<F: Layout, S: Source>(
         (lo.min(hi), hi)
     };
     let row_ok = iy >= 0 && (iy as usize) < ih;
-    for cg in 0..dims.n_cg {
-        for phase in 0..sw {
+    // Per phase (outside the channel-group loop): the in-image column span, where its codes
+    // start and how many (an out-of-image row: all padding).
+    for phase in 0..sw {
+        let (lo, hi, at, len) = if row_ok {
+            let (lo, hi) = span(phase);
+            let at = iy as usize * iw + (lo * sw + phase).saturating_sub(pw);
+            (lo, hi, at, hi.saturating_sub(lo))
+        } else {
+            (rw, rw, 0, 0)
+        };
+        for cg in 0..dims.n_cg {
             let base = cg * dims.cg_stride + (slot * sw + phase) * rw * l;
             let dst = &mut rows[base..base + rw * l];
-            if !row_ok {
-                dst.fill(pad);
-                continue;
-            }
-            let (lo, hi) = span(phase);
             dst[..lo * l].fill(pad);
             dst[hi.max(lo) * l..].fill(pad);
-            let at = iy as usize * iw + (lo * sw + phase).saturating_sub(pw);
-            let len = hi.saturating_sub(lo);
+            if !row_ok {
+                continue;
+            }
             if sw == 1 && (cg + 1) * l <= in_shape.c {
                 let src = |li: usize| input.run(c0 + cg * l + li, at, len);
                 let out = &mut dst[lo * l..hi * l];
                 match l {
                     4 => {
-                        if let (Some(a), Some(b), Some(c), Some(d)) =
-                            (src(0), src(1), src(2), src(3))
-                        {
-                            interleave4::<F>([a, b, c, d], zp, out);
+                        if let Some(runs) = input.run4(c0 + cg * l, at, len) {
+                            interleave4::<F>(runs, zp, out);
                             continue;
                         }
                     }
