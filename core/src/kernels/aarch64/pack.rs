@@ -3,40 +3,62 @@
 
 use core::arch::aarch64::*;
 
-/// `out[4x + l] = src[l][x]` for the leading multiple of 16 pixels that all four rows and
-/// `out` hold; returns how many pixels it packed (0 without NEON).
+/// `out[4x + l] = src[l][x]` for all the pixels that all four rows and `out` hold where they
+/// are 16 or more (the last 16 overlapping the ones before: the same bytes again), else for
+/// the leading 8 where there are 8 or more; returns how many pixels it packed (0 without NEON).
 pub fn interleave4(src: [&[i8]; 4], out: &mut [i8]) -> usize {
     let n = src
         .iter()
         .map(|s| s.len())
         .min()
         .unwrap_or(0)
-        .min(out.len() / 4)
-        / 16
-        * 16;
-    if !crate::kernels::isa::Isa::Neon.available() {
+        .min(out.len() / 4);
+    if !crate::kernels::isa::Isa::Neon.available() || n < 8 {
         return 0;
     }
-    // SAFETY: NEON is available; `n` pixels lie inside every row and `4n` bytes inside `out`.
-    unsafe { interleave4_neon(src, out, n) };
-    n
+    // SAFETY: NEON is available; `n ≥ 8` pixels lie inside every row and `4n` bytes inside
+    // `out`.
+    unsafe { interleave4_neon(src.map(|s| s.as_ptr()), out.as_mut_ptr(), n) }
 }
 
+/// Packs 16 pixels per `ST4` over `⌊n/16⌋·16`, then the last 16 again (overlapping) where
+/// `n ≥ 16`, or the first 8 with one 8-lane `ST4` where `n < 16`; returns how many it packed.
+///
 /// # Safety
-/// The CPU must have NEON, and the slices must be as long as the safe wrapper above checks
-/// (it is the only caller).
+/// The CPU must have NEON, `n ≥ 8`, every row must hold `n` codes and `out` `4n` bytes.
 #[target_feature(enable = "neon")]
-unsafe fn interleave4_neon(src: [&[i8]; 4], out: &mut [i8], n: usize) {
-    let mut x = 0;
-    while x < n {
-        let v = int8x16x4_t(
-            vld1q_s8(src[0].as_ptr().add(x)),
-            vld1q_s8(src[1].as_ptr().add(x)),
-            vld1q_s8(src[2].as_ptr().add(x)),
-            vld1q_s8(src[3].as_ptr().add(x)),
-        );
-        vst4q_s8(out.as_mut_ptr().add(4 * x), v);
-        x += 16;
+unsafe fn interleave4_neon(src: [*const i8; 4], out: *mut i8, n: usize) -> usize {
+    // SAFETY: every `x` below has `x + 16 ≤ n` (or `x + 8 ≤ n` for the 8-lane store): inside
+    // the rows and `out` (the caller's contract).
+    unsafe {
+        let at16 = |x: usize| {
+            let v = int8x16x4_t(
+                vld1q_s8(src[0].add(x)),
+                vld1q_s8(src[1].add(x)),
+                vld1q_s8(src[2].add(x)),
+                vld1q_s8(src[3].add(x)),
+            );
+            vst4q_s8(out.add(4 * x), v);
+        };
+        if n < 16 {
+            let v = int8x8x4_t(
+                vld1_s8(src[0]),
+                vld1_s8(src[1]),
+                vld1_s8(src[2]),
+                vld1_s8(src[3]),
+            );
+            vst4_s8(out, v);
+            return 8;
+        }
+        let mut x = 0;
+        while x + 16 <= n {
+            at16(x);
+            x += 16;
+        }
+        if x < n {
+            at16(n - 16);
+        }
+        n
     }
 }
 
