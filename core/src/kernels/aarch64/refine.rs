@@ -3,17 +3,19 @@
 //! of the scalar loop in the same order (separate `FMUL` and `FADD`, never fused), so the bits
 //! are those of every other path.
 
+use crate::kernels::requant::QParams;
 use core::arch::aarch64::*;
 
 /// For `i < n`: `r_j = lut[q_j[i]] · g_j`, `s[i] = (((s[i] + r0) + r1) + r2) + r3`,
 /// `acc[i] = (((acc[i] + r0·d0[i]) + r1·d1[i]) + r2·d2[i]) + r3·d3[i]`, where `n` is the
-/// shortest of the ten slices. Returns `false` (and does nothing) without NEON or where the
-/// slices differ in length.
+/// shortest of the ten slices and `lut[q] = relu(scale·(q − zp))` (`q`'s parameters: the
+/// branch's table, `Branch::set_quant`). Returns `false` (and does nothing) without NEON or
+/// where the slices differ in length.
 pub fn four(
     q: [&[i8]; 4],
     d: [&[f32]; 4],
     g: [f32; 4],
-    lut: &[f32; 256],
+    (lut, qp): (&[f32; 256], QParams),
     s: &mut [f32],
     acc: &mut [f32],
 ) -> bool {
@@ -22,21 +24,46 @@ pub fn four(
     if !crate::kernels::isa::Isa::Neon.available() || !same {
         return false;
     }
+    // The table's values computed 8 at a time where the zero point is an int8 code (then
+    // `q − zp` is exact in 16 bits and in f32), else read from the table.
+    let qp = (-128..=127).contains(&qp.zero_point).then_some(qp);
     // SAFETY: NEON is available; every read and write has an index below `n`, the length of
     // all ten slices (checked).
-    unsafe { four_neon(q, d, g, lut, s, acc, n) };
+    unsafe { four_neon(q, d, g, lut, qp, s, acc, n) };
     true
+}
+
+/// `relu(scale·(q − zp))` of 8 codes at `p`, as `Branch::set_quant` computes the table: the
+/// difference exact in 16 bits and in f32, one `FMUL` (commutative, so `scale · x` is `x ·
+/// scale`), then `x` where `x > 0` and `+0` elsewhere (`FCMGT` and `AND`: NaN and `−0` give
+/// `+0`, as `scalar::relu` does).
+///
+/// # Safety
+/// The CPU must have NEON; `p` points at 8 readable codes.
+#[target_feature(enable = "neon")]
+#[inline]
+unsafe fn relu_dequant8(p: *const i8, zp: int16x8_t, scale: float32x4_t) -> [float32x4_t; 2] {
+    // SAFETY: 8 codes at `p` (the caller's contract).
+    let x = vsubq_s16(vmovl_s8(unsafe { vld1_s8(p) }), zp);
+    let f = |x: int32x4_t| {
+        let v = vmulq_f32(scale, vcvtq_f32_s32(x));
+        vreinterpretq_f32_u32(vandq_u32(vcgtzq_f32(v), vreinterpretq_u32_f32(v)))
+    };
+    [f(vmovl_s16(vget_low_s16(x))), f(vmovl_high_s16(x))]
 }
 
 /// # Safety
 /// The CPU must have NEON, and the slices must be as long as the safe wrapper above checks
-/// (it is the only caller).
+/// (it is the only caller); `qp`, where given, is the table's parameters with an int8 zero
+/// point.
 #[target_feature(enable = "neon")]
+#[allow(clippy::too_many_arguments)]
 unsafe fn four_neon(
     q: [&[i8]; 4],
     d: [&[f32]; 4],
     g: [f32; 4],
     lut: &[f32; 256],
+    qp: Option<QParams>,
     s: &mut [f32],
     acc: &mut [f32],
     n: usize,
@@ -44,6 +71,28 @@ unsafe fn four_neon(
     let lp = lut.as_ptr();
     let (sp, ap) = (s.as_mut_ptr(), acc.as_mut_ptr());
     let mut i = 0;
+    if let Some(qp) = qp {
+        let zp = vdupq_n_s16(qp.zero_point as i16);
+        let scale = vdupq_n_f32(qp.scale);
+        while i + 8 <= n {
+            let mut sv = [vld1q_f32(sp.add(i)), vld1q_f32(sp.add(i + 4))];
+            let mut av = [vld1q_f32(ap.add(i)), vld1q_f32(ap.add(i + 4))];
+            for j in 0..4 {
+                let t = relu_dequant8(q[j].as_ptr().add(i), zp, scale);
+                for h in 0..2 {
+                    let r = vmulq_n_f32(t[h], g[j]);
+                    sv[h] = vaddq_f32(sv[h], r);
+                    let dj = vld1q_f32(d[j].as_ptr().add(i + 4 * h));
+                    av[h] = vaddq_f32(av[h], vmulq_f32(r, dj));
+                }
+            }
+            for h in 0..2 {
+                vst1q_f32(sp.add(i + 4 * h), sv[h]);
+                vst1q_f32(ap.add(i + 4 * h), av[h]);
+            }
+            i += 8;
+        }
+    }
     while i + 4 <= n {
         let mut sv = vld1q_f32(sp.add(i));
         let mut av = vld1q_f32(ap.add(i));

@@ -229,7 +229,7 @@ fn row_i8_chunks(
             if matches!(isa, Isa::Neon | Isa::NeonDot) {
                 use crate::kernels::aarch64::refine as neon;
                 let (q, d) = ([q0, q1, q2, q3], [d0, d1, d2, d3]);
-                if neon::four(q, d, [g0, g1, g2, g3], lut, s, acc) {
+                if neon::four(q, d, [g0, g1, g2, g3], (lut, a.q()), s, acc) {
                     j += 4;
                     continue;
                 }
