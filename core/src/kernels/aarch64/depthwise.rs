@@ -203,6 +203,75 @@ unsafe fn mla16(a: &mut [int32x4_t; 4], x0: int16x8_t, x1: int16x8_t, w: int16x8
     );
 }
 
+/// The converted rows of a depthwise band in one call (`depthwise::bands`): for `r <
+/// x16.len() / row_w`, input row `iy = first_iy + r` of `chan` (`iw` codes per row, `ih`
+/// rows) into `x16[r·row_w ..]`, phase `φ < spans.len()` at `φ·phase_w`, its columns `lo ..
+/// hi` from codes `first + k·sx` (`spans[φ] = (lo, hi, first)`) as 16-bit `x − zp`; rows
+/// outside the image all zeros; the other columns are left as they are (the caller zeroed
+/// them). Returns `false` (and does nothing) without NEON, for a stride other than 1 or 2 or
+/// a zero point outside int8, or where a span is shorter than 8 columns, lies outside its
+/// phase or reads past its row.
+#[allow(clippy::too_many_arguments)]
+pub fn widen_band(
+    chan: &[i8],
+    (ih, iw): (usize, usize),
+    first_iy: isize,
+    (row_w, phase_w): (usize, usize),
+    sx: usize,
+    spans: &[(usize, usize, usize)],
+    zp: i32,
+    x16: &mut [i16],
+) -> bool {
+    let Ok(zp) = i8::try_from(zp) else {
+        return false;
+    };
+    let ok_span = |&(lo, hi, first): &(usize, usize, usize)| {
+        hi >= lo + 8
+            && hi <= phase_w
+            && (hi - lo - 1)
+                .checked_mul(sx)
+                .and_then(|e| e.checked_add(first))
+                .is_some_and(|e| e < iw)
+    };
+    if !crate::kernels::isa::Isa::Neon.available()
+        || !(1..=2).contains(&sx)
+        || spans.len() != sx
+        || sx.checked_mul(phase_w) != Some(row_w)
+        || ih.checked_mul(iw).is_none_or(|n| chan.len() < n)
+        || !spans.iter().all(ok_span)
+    {
+        return false;
+    }
+    for (r, row) in x16.chunks_exact_mut(row_w).enumerate() {
+        let iy = first_iy + r as isize;
+        if iy < 0 || iy >= ih as isize {
+            row.fill(0);
+            continue;
+        }
+        let src = &chan[iy as usize * iw..][..iw];
+        for (phase, &(lo, hi, first)) in spans.iter().enumerate() {
+            let d = &mut row[phase * phase_w + lo..phase * phase_w + hi];
+            let src = &src[first..];
+            // Whole `sx`-code steps inside the row, at least 7 (`(hi − lo − 1)·sx < iw − first`
+            // checked above), then the last code alone where `sx = 2` leaves it half a step.
+            let m = d.len().min(src.len() / sx);
+            if m >= 8 {
+                // SAFETY: NEON is available; the reads end at `m·sx ≤ src.len()`, the writes
+                // at `m ≤ d.len()`.
+                unsafe { widen_neon(src, sx, zp, &mut d[..m]) };
+            } else {
+                for (k, v) in d[..m].iter_mut().enumerate() {
+                    *v = i16::from(src[k * sx]) - i16::from(zp);
+                }
+            }
+            for (k, v) in d.iter_mut().enumerate().skip(m) {
+                *v = i16::from(src[k * sx]) - i16::from(zp);
+            }
+        }
+    }
+    true
+}
+
 /// `dst[k] = src[k·sx] − zp` (16-bit) for the leading `m = min(dst.len(), src.len() / sx)`
 /// codes when `m ≥ 8`, at column stride `sx` 1 or 2 (`LD2` keeps the even codes): 16 (or 8) at
 /// a time, the last part as an overlapping 16 (or 8) that rewrites the same values; returns
