@@ -59,10 +59,10 @@ pub trait Layout {
     /// Whether [`Layout::interleave4_stride2_fast`] has a vector path (else its caller's
     /// branch compiles away).
     const STRIDE2_FAST: bool = false;
-    /// `out[x·4 + l] = elem(t_l[src[l][sw·x]])` (`t_l` row `l`'s table, the codes as they are
-    /// where it has none) for the first `rows` rows, padding in the other lanes, `sw` 1 or 2,
-    /// over a leading part, vectorised where the layout and target have it; returns how many
-    /// pixels (0: none).
+    /// `out[x·L + l] = elem(t_l[src[l][sw·x]])` (`t_l` row `l`'s table, the codes as they are
+    /// where it has none) for the first `rows` rows (`≤ L`; the rows past `L` unused), padding
+    /// in the other lanes, `sw` 1 or 2, over a leading part, vectorised where the layout and
+    /// target have it; returns how many pixels (0: none).
     #[inline(always)]
     fn interleave4_tables_fast(
         _src: [&[i8]; 4],
@@ -114,6 +114,26 @@ impl Layout for Pairs {
     #[inline(always)]
     fn interleave2_fast(a: &[i8], b: &[i8], zp: i32, out: &mut [i16]) -> usize {
         super::arm::pack::interleave_pairs(a, b, zp, out)
+    }
+    #[cfg(target_arch = "aarch64")]
+    #[inline(always)]
+    fn interleave2_fast(a: &[i8], b: &[i8], zp: i32, out: &mut [i16]) -> usize {
+        super::aarch64::pack::pairs([a, b], [None; 2], 2, 1, zp, out)
+    }
+    #[cfg(target_arch = "aarch64")]
+    const STRIDE2_FAST: bool = true;
+    #[cfg(target_arch = "aarch64")]
+    #[inline(always)]
+    fn interleave4_tables_fast(
+        src: [&[i8]; 4],
+        tables: [Option<&[i8; 256]>; 4],
+        rows: usize,
+        sw: usize,
+        zp: i32,
+        out: &mut [i16],
+    ) -> usize {
+        let (src, tables) = ([src[0], src[1]], [tables[0], tables[1]]);
+        super::aarch64::pack::pairs(src, tables, rows.min(2), sw, zp, out)
     }
 }
 
@@ -474,11 +494,11 @@ pub fn pack_row<F: Layout, S: Source>(
                     }
                 }
             }
-            if F::STRIDE2_FAST && sw == 2 && l == 4 && len > 0 && cg * l < in_shape.c {
+            if F::STRIDE2_FAST && sw == 2 && l <= 4 && len > 0 && cg * l < in_shape.c {
                 let rows = (in_shape.c - cg * l).min(l);
                 // Every other code of the group's channel rows (padding in the lanes past the
-                // last channel), without tables: the layout's vector path where it has one,
-                // then the rest word by word.
+                // last channel), through their tables where they have one: the layout's vector
+                // path where it has one, then the rest word by word.
                 let mut src: [&[i8]; 4] = [&[]; 4];
                 let mut tables: [Option<&[i8; 256]>; 4] = [None; 4];
                 let mut found = true;
@@ -491,13 +511,13 @@ pub fn pack_row<F: Layout, S: Source>(
                 let out = &mut dst[lo * l..hi * l];
                 let done = if !found {
                     0
-                } else if tables.iter().all(Option::is_none) {
+                } else if l == 4 && tables.iter().all(Option::is_none) {
                     F::interleave4_stride2_fast(src, rows, zp, out)
                 } else {
                     F::interleave4_tables_fast(src, tables, rows, 2, zp, out)
                 };
                 if done > 0 {
-                    for (k, w) in out.chunks_exact_mut(4).enumerate().skip(done) {
+                    for (k, w) in out.chunks_exact_mut(l).enumerate().skip(done) {
                         for (li, e) in w.iter_mut().enumerate() {
                             *e = match src.get(li).filter(|_| li < rows) {
                                 Some(r) => {
@@ -611,9 +631,15 @@ fn interleave2<F: Layout>(src: [Run; 2], zp: i32, out: &mut [F::Elem]) {
         }
         return;
     }
-    // Some part is requantised: a table per lane (the identity for the others), one pass.
+    // Some part is requantised: a table per lane (the identity for the others), one pass
+    // (after the layout's vector path, where it has one).
     let (ta, tb) = (src[0].1.unwrap_or(&IDENTITY), src[1].1.unwrap_or(&IDENTITY));
-    for (d, (&a, &b)) in out.chunks_exact_mut(2).zip(src[0].0.iter().zip(src[1].0)) {
+    let rows4 = [src[0].0, src[1].0, &[], &[]];
+    let done = F::interleave4_tables_fast(rows4, [src[0].1, src[1].1, None, None], 2, 1, zp, out);
+    let (a, b) = (src[0].0.get(done..), src[1].0.get(done..));
+    let (a, b) = (a.unwrap_or_default(), b.unwrap_or_default());
+    let out = out.get_mut(done * 2..).unwrap_or_default();
+    for (d, (&a, &b)) in out.chunks_exact_mut(2).zip(a.iter().zip(b)) {
         d[0] = F::elem(ta[a as u8 as usize], zp);
         d[1] = F::elem(tb[b as u8 as usize], zp);
     }

@@ -1,5 +1,7 @@
 //! NEON packing for [`crate::kernels::pack::SignedQuads`]: four channel rows of codes into
-//! 4-byte pixel words is exactly `ST4` (16 pixels per store), the codes kept as they are.
+//! 4-byte pixel words is exactly `ST4` (16 pixels per store), the codes kept as they are; and
+//! for [`crate::kernels::pack::Pairs`] (`neon`): two rows widened to 16-bit `x − zp`
+//! (`SSUBL`) into 2-halfword words with `ST2`.
 
 use core::arch::aarch64::*;
 
@@ -209,5 +211,101 @@ unsafe fn interleave4_tables_neon<const SW: usize>(
         // SAFETY: `x + 16 ≤ n`: `4x + 64 ≤ 4n` bytes of `out`.
         unsafe { vst4q_s8(out.add(4 * x), v) };
         x += 16;
+    }
+}
+
+/// `out[2x + l] = t_l[src[l][sw·x]] − zp` (16-bit; `t_l` row `l`'s table, or the codes as they
+/// are where it has none) for the first `rows` rows (1 or 2), 0 in the other lane, `sw` 1 or
+/// 2: the `Pairs` layout's words, for all `m` pixels that those rows (`sw·m` codes) and `out`
+/// hold where `m ≥ 16` (the last 16 overlapping the ones before: the same values again);
+/// returns how many pixels it packed (0 without NEON, for `m < 16`, or for a zero point outside
+/// int8, where `x − zp` might not be exact in 16 bits).
+pub fn pairs(
+    src: [&[i8]; 2],
+    tables: [Option<&[i8; 256]>; 2],
+    rows: usize,
+    sw: usize,
+    zp: i32,
+    out: &mut [i16],
+) -> usize {
+    let shortest = src.iter().take(rows).map(|s| s.len()).min().unwrap_or(0);
+    let Ok(zp) = i8::try_from(zp) else {
+        return 0;
+    };
+    if !crate::kernels::isa::Isa::Neon.available() || !(1..=2).contains(&rows) {
+        return 0;
+    }
+    let m = match sw {
+        1 => shortest,
+        2 => shortest / 2,
+        _ => return 0,
+    };
+    let m = m.min(out.len() / 2);
+    if m < 16 {
+        return 0;
+    }
+    let src = src.map(|s| s.as_ptr());
+    // SAFETY: NEON is available; each of the first `rows` rows holds `sw·m` codes and `out`
+    // `2m` halfwords (checked above), `m ≥ 16`.
+    unsafe {
+        if sw == 1 {
+            pairs_neon::<1>(src, tables, rows, zp, out.as_mut_ptr(), m);
+        } else {
+            pairs_neon::<2>(src, tables, rows, zp, out.as_mut_ptr(), m);
+        }
+    }
+    m
+}
+
+/// [`pairs`]' loop over `m ≥ 16` pixels, `SW` the column step.
+///
+/// # Safety
+/// The CPU must have NEON; each of the first `rows` rows points at `SW·m` codes and `out` at
+/// `2m` halfwords; `m ≥ 16`.
+#[target_feature(enable = "neon")]
+unsafe fn pairs_neon<const SW: usize>(
+    src: [*const i8; 2],
+    tables: [Option<&[i8; 256]>; 2],
+    rows: usize,
+    zp: i8,
+    out: *mut i16,
+    m: usize,
+) {
+    let (zpv, zpq) = (vdup_n_s8(zp), vdupq_n_s8(zp));
+    // Lane `l`'s 16 values `x − zp` (exact in 16 bits: both are int8) as two halves.
+    let lane = |l: usize, x: usize| -> (int16x8_t, int16x8_t) {
+        if l >= rows {
+            return (vdupq_n_s16(0), vdupq_n_s16(0));
+        }
+        // SAFETY: row `l < rows` holds `SW·m ≥ SW·(x + 16)` codes (the caller's contract).
+        let v = unsafe {
+            if SW == 1 {
+                vld1q_s8(src[l].add(x))
+            } else {
+                vld2q_s8(src[l].add(2 * x)).0
+            }
+        };
+        let v = match tables[l] {
+            // SAFETY: NEON is available (the caller's contract).
+            Some(t) => unsafe { lookup16(t, v) },
+            None => v,
+        };
+        (vsubl_s8(vget_low_s8(v), zpv), vsubl_high_s8(v, zpq))
+    };
+    let sixteen = |x: usize| {
+        let ((a0, a1), (b0, b1)) = (lane(0, x), lane(1, x));
+        // SAFETY: `x + 16 ≤ m`: `2x + 32 ≤ 2m` halfwords of `out`.
+        unsafe {
+            vst2q_s16(out.add(2 * x), int16x8x2_t(a0, b0));
+            vst2q_s16(out.add(2 * x + 16), int16x8x2_t(a1, b1));
+        }
+    };
+    let mut x = 0;
+    while x + 16 <= m {
+        sixteen(x);
+        x += 16;
+    }
+    if x < m {
+        sixteen(m - 16);
     }
 }
