@@ -678,27 +678,22 @@ pub fn pack_weights<F: Layout>(
         for (o, (row, sum)) in weights.chunks_exact(taps).zip(sums).take(ocg).enumerate() {
             let (b, j) = (o / NB, o % NB);
             let dst = &mut out[b * dims.block_len + j * l..];
-            // The sum in its own loop (integer sums: the same value in any order), and four
-            // lanes at a time where the layout has four (no per-element inner loop).
+            // The sum in its own loop (integer sums: the same value in any order), then the
+            // weights group by group.
             *sum = row.iter().map(|&w| i32::from(w)).sum();
+            // `l` is the layout's constant: each group's copy is `l` fixed moves.
             let mut groups = dst.chunks_mut(NB * l);
-            if l == 4 {
-                let whole = row.chunks_exact(4);
-                let rest = whole.remainder();
-                for (ws, d) in whole.zip(&mut groups) {
-                    if let (Some(d), &[a, b, c, e]) = (d.get_mut(..4), ws) {
-                        d.copy_from_slice(&[a, b, c, e].map(F::weight));
-                    }
-                }
-                if let Some(d) = groups.next() {
-                    for (d, &w) in d.iter_mut().zip(rest) {
+            let whole = row.chunks_exact(l);
+            let rest = whole.remainder();
+            for (ws, d) in whole.zip(&mut groups) {
+                if let Some(d) = d.get_mut(..l) {
+                    for (d, &w) in d.iter_mut().zip(ws) {
                         *d = F::weight(w);
                     }
                 }
-                continue;
             }
-            for (ws, d) in row.chunks(l).zip(groups) {
-                for (d, &w) in d.iter_mut().zip(ws) {
+            if let Some(d) = groups.next() {
+                for (d, &w) in d.iter_mut().zip(rest) {
                     *d = F::weight(w);
                 }
             }
