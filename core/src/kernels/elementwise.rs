@@ -596,8 +596,9 @@ pub fn concat_part(
     )
 }
 
-/// [`concat_part`] with kernel set `isa`: `neon` and `neon-dot` read an int8 → int8 part's
-/// 256-entry table with `TBL` ([`super::aarch64::elementwise::lookup`]); the same bits.
+/// [`concat_part`] with kernel set `isa`: `neon` and `neon-dot` read an int8 part's 256-entry
+/// table (into int8 or int16 codes) with `TBL` ([`super::aarch64::elementwise::lookup`],
+/// [`super::aarch64::elementwise::lookup_i16`]); the same bits.
 pub fn concat_part_with(
     isa: Isa,
     input: Codes,
@@ -621,6 +622,13 @@ pub fn concat_part_with(
                         let t: [i16; 256] = core::array::from_fn(|c| {
                             rescale.apply_code_i16(i32::from(c as u8 as i8))
                         });
+                        #[cfg(target_arch = "aarch64")]
+                        let (dst, x) = if matches!(isa, Isa::Neon | Isa::NeonDot) {
+                            let done = super::aarch64::elementwise::lookup_i16(&t, x, dst);
+                            (&mut dst[done..], &x[done..])
+                        } else {
+                            (dst, x)
+                        };
                         for (o, &v) in dst.iter_mut().zip(x) {
                             *o = t[v as u8 as usize];
                         }
@@ -981,6 +989,40 @@ mod tests {
         .unwrap();
         assert_eq!(&out[6..], &[-10, -9, -12, -9, 118, -128]);
         assert_eq!(&out[..6], &[0; 6]);
+    }
+
+    /// Rescaled int8 parts into int8 and int16 concats, every kernel set = the portable bits
+    /// (the table paths past 256 codes, lengths that leave a tail).
+    #[test]
+    fn concat_part_every_set_equals_portable() {
+        let q = |scale: f32, zero_point: i32| QParams { scale, zero_point };
+        let (hw, c) = ((7usize, 11usize), 4usize);
+        let n = c * hw.0 * hw.1;
+        let x: Vec<i8> = (0..n)
+            .map(|i| (i as u32).wrapping_mul(2654435761) as i8)
+            .collect();
+        let s = Shape::new(c, hw.0, hw.1);
+        let os = Shape::new(c + 1, hw.0, hw.1);
+        for (from, to8, to16) in [
+            (q(0.02, -3), q(0.05, 7), q(0.05 / 256.0, 0)),
+            (q(0.1, 100), q(0.013, -120), q(0.1 / 300.0, 0)),
+        ] {
+            let r8 = Rescale::new(from, to8);
+            let r16 = Rescale::new(from, to16);
+            let mut want8 = std::vec![0i8; os.len().unwrap()];
+            let mut want16 = std::vec![0i16; os.len().unwrap()];
+            concat_part(Codes::I8(&x), s, &r8, CodesMut::I8(&mut want8), os, 1).unwrap();
+            concat_part(Codes::I8(&x), s, &r16, CodesMut::I16(&mut want16), os, 1).unwrap();
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                let mut got8 = std::vec![0i8; want8.len()];
+                let mut got16 = std::vec![0i16; want16.len()];
+                let (o8, o16) = (CodesMut::I8(&mut got8), CodesMut::I16(&mut got16));
+                concat_part_with(isa, Codes::I8(&x), s, &r8, o8, os, 1).unwrap();
+                concat_part_with(isa, Codes::I8(&x), s, &r16, o16, os, 1).unwrap();
+                assert_eq!(got8, want8, "{}", isa.name());
+                assert_eq!(got16, want16, "{}", isa.name());
+            }
+        }
     }
 
     #[test]

@@ -162,3 +162,50 @@ unsafe fn lookup_neon(table: &[i8; 256], x: *const i8, out: *mut i8, n: usize) {
         i += 16;
     }
 }
+
+/// `out[i] = table[x[i] as u8]` (16-bit entries) for the leading multiple of 16 of
+/// `out.len()` (`x` at least as long); returns how many it did (0 where NEON is absent). The
+/// table is split into its low and high bytes, each read with `TBL`/`TBX` as [`lookup`] does,
+/// and `ST2` interleaves them back into little-endian halfwords.
+pub fn lookup_i16(table: &[i16; 256], x: &[i8], out: &mut [i16]) -> usize {
+    let n = out.len().min(x.len()) / 16 * 16;
+    if !crate::kernels::isa::Isa::Neon.available() || n == 0 {
+        return 0;
+    }
+    let lo: [i8; 256] = core::array::from_fn(|i| table[i] as u8 as i8);
+    let hi: [i8; 256] = core::array::from_fn(|i| (table[i] >> 8) as i8);
+    // SAFETY: NEON is available; `x` and `out` hold `n` codes each.
+    unsafe { lookup_i16_neon(&lo, &hi, x.as_ptr(), out.as_mut_ptr(), n) };
+    n
+}
+
+/// [`lookup_i16`]'s loop over `n` codes (a multiple of 16).
+///
+/// # Safety
+/// The CPU must have NEON; `x` points at `n` codes and `out` at `n` halfwords.
+#[target_feature(enable = "neon")]
+unsafe fn lookup_i16_neon(lo: &[i8; 256], hi: &[i8; 256], x: *const i8, out: *mut i16, n: usize) {
+    let k64 = vdupq_n_u8(64);
+    let read = |t: &[i8; 256], i: [uint8x16_t; 4]| {
+        let p = t.as_ptr();
+        // SAFETY: `t` holds 4 · 64 bytes.
+        unsafe {
+            let r = vqtbl4q_s8(vld1q_s8_x4(p), i[0]);
+            let r = vqtbx4q_s8(r, vld1q_s8_x4(p.add(64)), i[1]);
+            let r = vqtbx4q_s8(r, vld1q_s8_x4(p.add(128)), i[2]);
+            vqtbx4q_s8(r, vld1q_s8_x4(p.add(192)), i[3])
+        }
+    };
+    let mut i = 0;
+    while i + 16 <= n {
+        // SAFETY: `i + 16 ≤ n`.
+        let i0 = unsafe { vreinterpretq_u8_s8(vld1q_s8(x.add(i))) };
+        let i1 = vsubq_u8(i0, k64);
+        let i2 = vsubq_u8(i1, k64);
+        let idx = [i0, i1, i2, vsubq_u8(i2, k64)];
+        let v = int8x16x2_t(read(lo, idx), read(hi, idx));
+        // SAFETY: as above; 16 halfwords are 32 bytes at `out + i`.
+        unsafe { vst2q_s8(out.add(i) as *mut i8, v) };
+        i += 16;
+    }
+}
