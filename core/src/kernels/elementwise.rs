@@ -25,9 +25,24 @@ pub fn build_lut(in_q: QParams, out_q: QParams, f: impl Fn(f32) -> f32) -> Lut {
 
 /// Applies a table: `out[i] = lut[in[i]]`.
 pub fn lut(input: &[i8], table: &Lut, output: &mut [i8]) -> Result<(), KernelError> {
+    lut_with(Isa::Portable, input, table, output)
+}
+
+/// [`lut`] with kernel set `isa`: `neon` and `neon-dot` read the table with `TBL`
+/// ([`super::aarch64::elementwise::lookup`]); the same bits.
+pub fn lut_with(isa: Isa, input: &[i8], table: &Lut, output: &mut [i8]) -> Result<(), KernelError> {
     if output.len() < input.len() {
         return Err(KernelError::Shape);
     }
+    #[cfg(target_arch = "aarch64")]
+    let (output, input) = if matches!(isa, Isa::Neon | Isa::NeonDot) {
+        let done = super::aarch64::elementwise::lookup(table, input, output);
+        (&mut output[done..], &input[done..])
+    } else {
+        (output, input)
+    };
+    #[cfg(not(target_arch = "aarch64"))]
+    let _ = isa;
     for (o, &x) in output.iter_mut().zip(input) {
         *o = table[x as u8 as usize];
     }
@@ -989,6 +1004,25 @@ mod tests {
         .unwrap();
         assert_eq!(&out[6..], &[-10, -9, -12, -9, 118, -128]);
         assert_eq!(&out[..6], &[0; 6]);
+    }
+
+    /// Table look-ups on every kernel set = the portable bits (lengths around the vector
+    /// width).
+    #[test]
+    fn lut_every_set_equals_portable() {
+        let t: Lut = core::array::from_fn(|i| (i as u32).wrapping_mul(40503) as u8 as i8);
+        for n in [0usize, 1, 15, 16, 17, 33, 300] {
+            let x: Vec<i8> = (0..n)
+                .map(|i| (i as u32).wrapping_mul(2654435761) as i8)
+                .collect();
+            let mut want = std::vec![0i8; n];
+            lut(&x, &t, &mut want).unwrap();
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                let mut got = std::vec![0i8; n];
+                lut_with(isa, &x, &t, &mut got).unwrap();
+                assert_eq!(got, want, "{} n={n}", isa.name());
+            }
+        }
     }
 
     /// Rescaled int8 parts into int8 and int16 concats, every kernel set = the portable bits
