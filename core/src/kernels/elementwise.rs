@@ -550,6 +550,24 @@ pub fn mul_in_place(
             Broadcast::OverSpace => {
                 let y = b[c];
                 if p > 256 {
+                    #[cfg(target_arch = "aarch64")]
+                    let t = if neon && high {
+                        // The table itself as 256 NEON high-word products of every code by `y`
+                        // (`apply_high`: the same bits as `apply`).
+                        let codes: [i8; 256] = core::array::from_fn(|x| x as u8 as i8);
+                        let mut t = [0i8; 256];
+                        let ys = [y; 256];
+                        let e = super::aarch64::elementwise::mul_high(
+                            &codes, &ys, &mut t, f.zp, f.m, f.right,
+                        );
+                        for (d, &x) in t[e..].iter_mut().zip(&codes[e..]) {
+                            *d = f.apply_high(x, y);
+                        }
+                        t
+                    } else {
+                        core::array::from_fn(|x| q.apply(x as u8 as i8, y))
+                    };
+                    #[cfg(not(target_arch = "aarch64"))]
                     let t: [i8; 256] = core::array::from_fn(|x| q.apply(x as u8 as i8, y));
                     #[cfg(target_arch = "aarch64")]
                     let oc = if neon {
@@ -884,6 +902,47 @@ mod tests {
             let b = (0..broadcast_len(bc, shape).unwrap()).map(|_| next()).collect();
             let q = |s, z| QParams { scale: s, zero_point: z };
             BinCase { name: "arb", shape, a, b, bc, qa: q(sa, za), qb: q(sb, zb), qo: q(so, zo) }
+        }
+    }
+
+    /// Planes past 256 pixels (the 256-entry table paths of a plane scaled by one code), every
+    /// set, `mul_with` and `mul_in_place` = the reference.
+    #[test]
+    fn mul_large_planes_every_set_equals_the_reference() {
+        let shape = Shape::new(3, 20, 21);
+        let n = shape.len().unwrap();
+        let a: Vec<i8> = (0..n)
+            .map(|i| (i as u32).wrapping_mul(2654435761) as i8)
+            .collect();
+        for bc in [
+            Broadcast::None,
+            Broadcast::OverChannels,
+            Broadcast::OverSpace,
+        ] {
+            let b: Vec<i8> = (0..broadcast_len(bc, shape).unwrap())
+                .map(|i| (i as u32).wrapping_mul(40503).wrapping_add(7) as i8)
+                .collect();
+            for (zp, multiplier, shift) in [
+                ([3, -7, 2], 1_500_000_000, -9),
+                ([-128, 127, -128], 1_073_741_824, -1),
+                ([0, 5, 9], 2_000_000_000, 1),
+                ([17, -30, 0], 300_000_000, -20),
+            ] {
+                let q = MulQuant {
+                    zp,
+                    m: Requant { multiplier, shift },
+                };
+                let mut want = std::vec![0i8; n];
+                mul_ref(&q, &a, shape, &b, bc, &mut want).unwrap();
+                for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                    let mut got = std::vec![0i8; n];
+                    mul_with(isa, &q, &a, shape, &b, bc, &mut got).unwrap();
+                    assert_eq!(got, want, "{} {bc:?} {zp:?}", isa.name());
+                    let mut inplace = a.clone();
+                    mul_in_place(isa, &q, &mut inplace, shape, &b, bc).unwrap();
+                    assert_eq!(inplace, want, "in place {} {bc:?} {zp:?}", isa.name());
+                }
+            }
         }
     }
 
