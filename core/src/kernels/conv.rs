@@ -976,6 +976,30 @@ fn run_pack<F: Micro, S: Source, O: Sink + ?Sized>(
     let g = &op.geometry;
     let (kh, kw) = (g.kernel[0], g.kernel[1]);
     let (weights, sums) = (pack.weights, pack.sums);
+    // A block's requantisation constants (the same for every row).
+    let block_rq = |b: usize| {
+        let o0 = pack.first + b * NB;
+        let nb = NB.min(pack.channels - b * NB);
+        let mut rq = [RowQuant::default(); NB];
+        for (j, q) in rq.iter_mut().enumerate().take(nb) {
+            let base = op.channels[o0 + j]
+                .bias
+                .wrapping_sub(F::bias_term(zp, sums[b * NB + j]));
+            *q = op.row_quant(o0 + j, base);
+        }
+        rq
+    };
+    // Those of the first blocks made once per call where the stack is large (phones and
+    // desktops: 5 KiB), else once per row and block.
+    #[cfg(any(target_arch = "aarch64", target_arch = "x86_64"))]
+    const CACHED: usize = 32;
+    #[cfg(not(any(target_arch = "aarch64", target_arch = "x86_64")))]
+    const CACHED: usize = 0;
+    let n_blocks = pack.channels.div_ceil(NB);
+    let mut cached = [[RowQuant::default(); NB]; CACHED];
+    for (b, rq) in cached.iter_mut().enumerate().take(n_blocks) {
+        *rq = block_rq(b);
+    }
     for oy in dst.rows.clone() {
         // The input rows of output row `oy` into their slots (packed only where a slot does not
         // hold its row already), and the reduction steps' offsets for this slot order.
@@ -1010,16 +1034,17 @@ fn run_pack<F: Micro, S: Source, O: Sink + ?Sized>(
         // The row's steps with their bounds, once for all its tasks.
         let steps = Steps::new(&*steps);
         // Blocks outermost: a block's requantisation constants once per row.
-        for b in 0..pack.channels.div_ceil(NB) {
+        for b in 0..n_blocks {
             let o0 = pack.first + b * NB;
             let nb = NB.min(pack.channels - b * NB);
-            let mut rq = [RowQuant::default(); NB];
-            for (j, q) in rq.iter_mut().enumerate().take(nb) {
-                let base = op.channels[o0 + j]
-                    .bias
-                    .wrapping_sub(F::bias_term(zp, sums[b * NB + j]));
-                *q = op.row_quant(o0 + j, base);
-            }
+            let made;
+            let rq = match cached.get(b) {
+                Some(rq) => rq,
+                None => {
+                    made = block_rq(b);
+                    &made
+                }
+            };
             for ox0 in (0..out.w).step_by(PB) {
                 let n = PB.min(out.w - ox0);
                 let task = Task {
