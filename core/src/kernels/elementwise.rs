@@ -194,6 +194,20 @@ pub fn add_ref(q: &AddQuant, a: &[i8], b: &[i8], out: &mut [i8]) -> Result<(), K
 
 /// Fast `add`: same bits as [`add_ref`], iterator form without bounds checks in the loop.
 pub fn add(q: &AddQuant, a: &[i8], b: &[i8], out: &mut [i8]) -> Result<(), KernelError> {
+    add_with(Isa::Portable, q, a, b, out)
+}
+
+/// [`add`] with kernel set `isa`: `neon` and `neon-dot` compute the fast path 16 codes per
+/// pass ([`super::aarch64::elementwise::add_rescaled`]); the same bits.
+pub fn add_with(
+    isa: Isa,
+    q: &AddQuant,
+    a: &[i8],
+    b: &[i8],
+    out: &mut [i8],
+) -> Result<(), KernelError> {
+    #[cfg(not(target_arch = "aarch64"))]
+    let _ = isa;
     if a.len() != b.len() || out.len() < a.len() {
         return Err(KernelError::Shape);
     }
@@ -214,6 +228,17 @@ pub fn add(q: &AddQuant, a: &[i8], b: &[i8], out: &mut [i8]) -> Result<(), Kerne
         // `(s·m + 2^30) / 2^31` (gemmlowp's nudge for negative products gives the same
         // integer), so the output's requantisation is a few 32/64-bit steps: the same bits.
         let (m, right, zp) = (i64::from(q.mo.multiplier), -q.mo.shift, q.zp[2]);
+        // The same integers 16 at a time where the inputs' multipliers shift right only.
+        #[cfg(target_arch = "aarch64")]
+        let (out, a, b) =
+            if matches!(isa, Isa::Neon | Isa::NeonDot) && q.ma.shift <= 0 && q.mb.shift <= 0 {
+                let r = |m: &Requant| (m.multiplier, (-m.shift).min(31));
+                let consts = [r(&q.ma), r(&q.mb), r(&q.mo)];
+                let done = super::aarch64::elementwise::add_rescaled(a, b, out, q.zp, consts);
+                (&mut out[done..], &a[done..], &b[done..])
+            } else {
+                (out, a, b)
+            };
         for ((o, &x), &y) in out.iter_mut().zip(a).zip(b) {
             let sum = ta[x as u8 as usize] + tb[y as u8 as usize];
             let high = doubling_high_mul_narrow(sum, m);
@@ -1063,6 +1088,37 @@ mod tests {
         .unwrap();
         assert_eq!(&out[6..], &[-10, -9, -12, -9, 118, -128]);
         assert_eq!(&out[..6], &[0; 6]);
+    }
+
+    /// `add` past 256 codes (the tables' fast path and its NEON form) on every set = the
+    /// reference, for scale ratios either way, zero points at both ends and tails.
+    #[test]
+    fn add_every_set_equals_the_reference() {
+        let q = |scale: f32, zero_point: i32| QParams { scale, zero_point };
+        for (qa, qb, qo) in [
+            (q(0.02, -3), q(0.05, 7), q(0.06, 1)),
+            (q(0.05, 127), q(0.02, -128), q(0.01, -128)),
+            (q(0.1, 0), q(0.1, 0), q(0.2, 0)),
+            (q(0.003, 5), q(0.5, -9), q(0.4, 127)),
+            (q(1.0, -128), q(0.9, 127), q(0.01, 0)),
+        ] {
+            let aq = AddQuant::new(qa, qb, qo);
+            for n in [257usize, 300, 1000] {
+                let a: Vec<i8> = (0..n)
+                    .map(|i| (i as u32).wrapping_mul(2654435761) as i8)
+                    .collect();
+                let b: Vec<i8> = (0..n)
+                    .map(|i| (i as u32).wrapping_mul(40503) as i8)
+                    .collect();
+                let mut want = std::vec![0i8; n];
+                add_ref(&aq, &a, &b, &mut want).unwrap();
+                for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                    let mut got = std::vec![0i8; n];
+                    add_with(isa, &aq, &a, &b, &mut got).unwrap();
+                    assert_eq!(got, want, "{} {qa:?} {qb:?} {qo:?} n={n}", isa.name());
+                }
+            }
+        }
     }
 
     /// Table look-ups on every kernel set = the portable bits (lengths around the vector

@@ -209,3 +209,88 @@ unsafe fn lookup_i16_neon(lo: &[i8; 256], hi: &[i8; 256], x: *const i8, out: *mu
         i += 16;
     }
 }
+
+/// Int8 `add` for the leading multiple of 16 of `out.len()` (`a`, `b` at least as long):
+/// `out = clamp(RDBP(SQRDMULH(r_a + r_b, m_o), e_o) + zp_o)` with `r = RDBP(SQRDMULH((x − zp)
+/// << 20, m), e)` per input (`RDBP`: gemmlowp's `RoundingDivideByPOT`, half away from zero;
+/// `SQRDMULH` is gemmlowp's saturating rounding doubling high multiply exactly): the portable
+/// `add`'s fast path (its tables hold `r_a`, `r_b`) where no multiplier shifts left and every
+/// `|r_a + r_b| < 2^30`, which the caller checks. `m` holds each multiplier (≥ 0) and right
+/// shift `e` (`0..=31`) for a, b and the output. Returns how many it did (0 without NEON, for
+/// constants out of those ranges, or for input zero points outside int8).
+pub fn add_rescaled(a: &[i8], b: &[i8], out: &mut [i8], zp: [i32; 3], m: [(i32, i32); 3]) -> usize {
+    let n = out.len().min(a.len()).min(b.len()) / 16 * 16;
+    let codes = -128..=127;
+    let ok = m
+        .iter()
+        .all(|&(mult, e)| mult >= 0 && (0..=31).contains(&e))
+        && codes.contains(&zp[0])
+        && codes.contains(&zp[1]);
+    if !crate::kernels::isa::Isa::Neon.available() || !ok || n == 0 {
+        return 0;
+    }
+    // SAFETY: NEON is available; `a`, `b` and `out` hold `n` codes each.
+    unsafe { add_neon(a.as_ptr(), b.as_ptr(), out.as_mut_ptr(), n, zp, m) };
+    n
+}
+
+/// `RDBP(SQRDMULH(x, m), e)` of four lanes: `SRSHL` by `−e` rounds half up, so negative
+/// values take 1 off first where `e ≥ 1` (`adj` all ones then, else zero).
+///
+/// # Safety
+/// The CPU must have NEON.
+#[target_feature(enable = "neon")]
+#[inline]
+unsafe fn scale4(x: int32x4_t, m: int32x4_t, shift: int32x4_t, adj: int32x4_t) -> int32x4_t {
+    let q = vqrdmulhq_s32(x, m);
+    vrshlq_s32(vaddq_s32(q, vandq_s32(vshrq_n_s32::<31>(q), adj)), shift)
+}
+
+/// [`add_rescaled`]'s loop over `n` codes (a multiple of 16).
+///
+/// # Safety
+/// The CPU must have NEON; `a`, `b` and `out` point at `n` codes; the constants are in
+/// [`add_rescaled`]'s ranges.
+#[target_feature(enable = "neon")]
+unsafe fn add_neon(
+    a: *const i8,
+    b: *const i8,
+    out: *mut i8,
+    n: usize,
+    zp: [i32; 3],
+    m: [(i32, i32); 3],
+) {
+    let consts = m.map(|(mult, e)| {
+        let adj = vdupq_n_s32(if e > 0 { -1 } else { 0 });
+        (vdupq_n_s32(mult), vdupq_n_s32(-e), adj)
+    });
+    let (za, zb) = (vdup_n_s8(zp[0] as i8), vdup_n_s8(zp[1] as i8));
+    let (zaq, zbq) = (vdupq_n_s8(zp[0] as i8), vdupq_n_s8(zp[1] as i8));
+    let zo = vdupq_n_s32(zp[2]);
+    // The 16 rescaled codes of one input, in four lane groups.
+    let rescale = |v: int8x16_t, z: int8x8_t, zq: int8x16_t, k: usize| -> [int32x4_t; 4] {
+        // x − zp exact in 16 bits, then << 20 (|·| < 2^28).
+        let (lo, hi) = (vsubl_s8(vget_low_s8(v), z), vsubl_high_s8(v, zq));
+        let (mv, sv, adj) = consts[k];
+        let f = |x: int16x4_t| scale4(vshlq_n_s32::<20>(vmovl_s16(x)), mv, sv, adj);
+        [
+            f(vget_low_s16(lo)),
+            f(vget_high_s16(lo)),
+            f(vget_low_s16(hi)),
+            f(vget_high_s16(hi)),
+        ]
+    };
+    let mut i = 0;
+    while i + 16 <= n {
+        // SAFETY: `i + 16 ≤ n`, inside all three.
+        let (va, vb) = unsafe { (vld1q_s8(a.add(i)), vld1q_s8(b.add(i))) };
+        let (ra, rb) = (rescale(va, za, zaq, 0), rescale(vb, zb, zbq, 1));
+        let (mo, so, adj) = consts[2];
+        let o = |k: usize| vqaddq_s32(scale4(vaddq_s32(ra[k], rb[k]), mo, so, adj), zo);
+        let h0 = vcombine_s16(vqmovn_s32(o(0)), vqmovn_s32(o(1)));
+        let h1 = vcombine_s16(vqmovn_s32(o(2)), vqmovn_s32(o(3)));
+        // SAFETY: as above.
+        unsafe { vst1q_s8(out.add(i), vcombine_s8(vqmovn_s16(h0), vqmovn_s16(h1))) };
+        i += 16;
+    }
+}
