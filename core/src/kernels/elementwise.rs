@@ -1121,6 +1121,26 @@ mod tests {
         }
     }
 
+    /// The engine's RGB planes through NEON (`LD3`, `TBL`) = the table read byte by byte.
+    #[cfg(target_arch = "aarch64")]
+    #[test]
+    fn rgb_planes_neon_equal_the_table() {
+        let t: Lut = core::array::from_fn(|i| (i as u32).wrapping_mul(40503) as u8 as i8);
+        for n in [0usize, 15, 16, 17, 47, 48, 100] {
+            let rgb: Vec<u8> = (0..3 * n)
+                .map(|i| (i as u32).wrapping_mul(2654435761) as u8)
+                .collect();
+            let (mut r, mut g, mut b) = (std::vec![0i8; n], std::vec![0i8; n], std::vec![0i8; n]);
+            let done =
+                super::super::aarch64::elementwise::lookup_rgb(&t, &rgb, &mut r, &mut g, &mut b);
+            assert_eq!(done, n / 16 * 16);
+            for i in 0..done {
+                let want = [0, 1, 2].map(|c| t[rgb[3 * i + c] as usize]);
+                assert_eq!([r[i], g[i], b[i]], want, "n={n} i={i}");
+            }
+        }
+    }
+
     /// Table look-ups on every kernel set = the portable bits (lengths around the vector
     /// width).
     #[test]

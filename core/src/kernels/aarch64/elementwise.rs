@@ -294,3 +294,62 @@ unsafe fn add_neon(
         i += 16;
     }
 }
+
+/// Interleaved RGB bytes into three code planes through one 256-entry table: `r[i] =
+/// table[rgb[3i]]`, `g[i] = table[rgb[3i + 1]]`, `b[i] = table[rgb[3i + 2]]` for the leading
+/// multiple of 16 pixels that all four hold (`LD3`, then `TBL`/`TBX` as [`lookup`] does, the
+/// table held in registers); returns how many pixels it did (0 without NEON).
+pub fn lookup_rgb(
+    table: &[i8; 256],
+    rgb: &[u8],
+    r: &mut [i8],
+    g: &mut [i8],
+    b: &mut [i8],
+) -> usize {
+    let n = (rgb.len() / 3).min(r.len()).min(g.len()).min(b.len()) / 16 * 16;
+    if !crate::kernels::isa::Isa::Neon.available() || n == 0 {
+        return 0;
+    }
+    // SAFETY: NEON is available; `rgb` holds `3n` bytes and each plane `n` codes.
+    unsafe { lookup_rgb_neon(table, rgb.as_ptr(), [r, g, b].map(|p| p.as_mut_ptr()), n) };
+    n
+}
+
+/// [`lookup_rgb`]'s loop over `n` pixels (a multiple of 16).
+///
+/// # Safety
+/// The CPU must have NEON; `rgb` points at `3n` bytes and each plane at `n` codes.
+#[target_feature(enable = "neon")]
+unsafe fn lookup_rgb_neon(table: &[i8; 256], rgb: *const u8, planes: [*mut i8; 3], n: usize) {
+    let t = table.as_ptr();
+    // SAFETY: `table` holds 4 · 64 bytes.
+    let (t0, t1, t2, t3) = unsafe {
+        (
+            vld1q_s8_x4(t),
+            vld1q_s8_x4(t.add(64)),
+            vld1q_s8_x4(t.add(128)),
+            vld1q_s8_x4(t.add(192)),
+        )
+    };
+    let k64 = vdupq_n_u8(64);
+    let read = |i0: uint8x16_t| {
+        let i1 = vsubq_u8(i0, k64);
+        let i2 = vsubq_u8(i1, k64);
+        let i3 = vsubq_u8(i2, k64);
+        let r = vqtbl4q_s8(t0, i0);
+        let r = vqtbx4q_s8(r, t1, i1);
+        let r = vqtbx4q_s8(r, t2, i2);
+        vqtbx4q_s8(r, t3, i3)
+    };
+    let mut i = 0;
+    while i + 16 <= n {
+        // SAFETY: `i + 16 ≤ n`: `3i + 48 ≤ 3n` bytes of `rgb`, `i + 16` codes of each plane.
+        unsafe {
+            let px = vld3q_u8(rgb.add(3 * i));
+            vst1q_s8(planes[0].add(i), read(px.0));
+            vst1q_s8(planes[1].add(i), read(px.1));
+            vst1q_s8(planes[2].add(i), read(px.2));
+        }
+        i += 16;
+    }
+}
