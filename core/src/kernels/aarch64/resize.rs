@@ -24,16 +24,55 @@ pub fn rescaled_cols(
         return 0;
     }
     // SAFETY: NEON is available; every column read is `x0 & mask` and the one after it, inside
-    // `v` (checked); `n` taps and outputs exist.
-    unsafe { cols_neon(v, taps, mask, den, r, &mut orow[..n]) };
+    // `v` (checked); `n` taps and outputs exist. The resize's mask (255) as a constant: the
+    // mask and the scaling of a column index are then one `UBFIZ`.
+    unsafe {
+        if mask == 255 {
+            cols_neon(v, taps, Mask::<255>, den, r, &mut orow[..n])
+        } else {
+            cols_neon(v, taps, mask, den, r, &mut orow[..n])
+        }
+    };
     n
+}
+
+/// A column mask, known when compiling ([`Mask`]) or not (`usize`).
+trait ColMask: Copy {
+    /// The mask's value.
+    fn get(self) -> usize;
+}
+
+impl ColMask for usize {
+    #[inline(always)]
+    fn get(self) -> usize {
+        self
+    }
+}
+
+/// The mask `M` as a constant.
+#[derive(Clone, Copy)]
+struct Mask<const M: usize>;
+
+impl<const M: usize> ColMask for Mask<M> {
+    #[inline(always)]
+    fn get(self) -> usize {
+        M
+    }
 }
 
 /// # Safety
 /// The CPU must have NEON, and the slices must be as long as the safe wrapper above checks
 /// (it is the only caller).
 #[target_feature(enable = "neon")]
-unsafe fn cols_neon(v: &[i32], taps: &[u32], mask: usize, den: i32, r: Rescale, out: &mut [i8]) {
+unsafe fn cols_neon(
+    v: &[i32],
+    taps: &[u32],
+    mask: impl ColMask,
+    den: i32,
+    r: Rescale,
+    out: &mut [i8],
+) {
+    let mask = mask.get();
     let (k, bias, shift_hi, zp) = r;
     let (denv, biasv) = (vdupq_n_s32(den), vdupq_n_s64(bias));
     let (shift, zpv) = (vdupq_n_s32(-(shift_hi as i32)), vdupq_n_s32(zp));
@@ -78,7 +117,13 @@ pub fn same_cols(v: &[i32], taps: &[u32], mask: usize, den: i32, d: i32, orow: &
     }
     // SAFETY: NEON is available; every column read is `x0 & mask` and the one after it, inside
     // `v` (checked); `n` taps and outputs exist.
-    unsafe { same_neon(v, taps, mask, den, d, &mut orow[..n]) };
+    unsafe {
+        if mask == 255 {
+            same_neon(v, taps, Mask::<255>, den, d, &mut orow[..n])
+        } else {
+            same_neon(v, taps, mask, den, d, &mut orow[..n])
+        }
+    };
     n
 }
 
@@ -86,7 +131,8 @@ pub fn same_cols(v: &[i32], taps: &[u32], mask: usize, den: i32, d: i32, orow: &
 /// The CPU must have NEON, and the slices must be as long as the safe wrapper above checks
 /// (it is the only caller).
 #[target_feature(enable = "neon")]
-unsafe fn same_neon(v: &[i32], taps: &[u32], mask: usize, den: i32, d: i32, out: &mut [i8]) {
+unsafe fn same_neon(v: &[i32], taps: &[u32], mask: impl ColMask, den: i32, d: i32, out: &mut [i8]) {
+    let mask = mask.get();
     let denv = vdupq_n_s32(den);
     let (dv, half) = (vdupq_n_f32(d as f32), vdupq_n_s32(d / 2));
     let vp = v.as_ptr();
