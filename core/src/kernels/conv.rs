@@ -2039,14 +2039,14 @@ pub(crate) mod tests {
             let mut row = [0i8; 1];
             requant_row(&k, &[x], &mut row);
             prop_assert_eq!(row[0], want, "requant_row");
-            // Rows of every length up to 17 (the arm-dsp loops take two sums per pass, then
-            // the odd one; the NEON one 8, then the rest), with sums of both signs, narrow
-            // where the single one is.
+            // Rows of every length up to 33 (the arm-dsp loops take two sums per pass, then
+            // the odd one; the NEON one 16, then an overlapping 16 or 8s), with sums of both
+            // signs, narrow where the single one is.
             let vary = |i: usize| {
                 let v = x.wrapping_mul(1 + i as i32 % 3) >> (i % 5);
                 if i % 2 == 1 { v.wrapping_neg() } else { v }
             };
-            for len in 1..=17usize {
+            for len in 1..=33usize {
                 let sums: std::vec::Vec<i32> = (0..len)
                     .map(|i| if k.narrow { vary(i).clamp(-(1 << 30) + 1, (1 << 30) - 1) } else { vary(i) })
                     .collect();
