@@ -785,6 +785,18 @@ pub fn minmax_norm(
     out_q: QParams,
     out: &mut [i8],
 ) -> Result<(), KernelError> {
+    minmax_norm_with(Isa::Portable, input, in_q, eps, out_q, out)
+}
+
+/// [`minmax_norm`] with kernel set `isa` (its table read as [`lut_with`] reads it).
+pub fn minmax_norm_with(
+    isa: Isa,
+    input: &[i8],
+    in_q: QParams,
+    eps: f32,
+    out_q: QParams,
+    out: &mut [i8],
+) -> Result<(), KernelError> {
     if out.len() < input.len() || input.is_empty() {
         return Err(KernelError::Shape);
     }
@@ -801,7 +813,7 @@ pub fn minmax_norm(
     for q in lo..=hi {
         t[(q as i8) as u8 as usize] = out_q.quantize((q - lo) as f32 * in_q.scale / denom);
     }
-    lut(input, &t, out)
+    lut_with(isa, input, &t, out)
 }
 
 #[cfg(test)]
