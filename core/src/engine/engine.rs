@@ -611,9 +611,33 @@ fn write_sparse(
             // Most pixels have no depth: 0.0 (and −0.0, the same arithmetic) quantises to one
             // code, computed once; the same bits.
             let zero = info.q.quantize(0.0);
-            for (i, v) in t.iter_mut().enumerate().take(n) {
+            let one = |i: usize| {
                 let x = get(i);
-                *v = if x == 0.0 { zero } else { info.q.quantize(x) };
+                if x == 0.0 {
+                    zero
+                } else {
+                    info.q.quantize(x)
+                }
+            };
+            // 16 pixels at a time: a run with no depth at all (every value compared, no early
+            // exit, so the comparison vectorises) is one fill.
+            let m = n.min(t.len());
+            let t = &mut t[..m];
+            let mut runs = t.chunks_exact_mut(16);
+            for (k, run) in (&mut runs).enumerate() {
+                let at = 16 * k;
+                let empty = (0..16).fold(true, |e, j| e & (get(at + j) == 0.0));
+                if empty {
+                    run.fill(zero);
+                } else {
+                    for (j, v) in run.iter_mut().enumerate() {
+                        *v = one(at + j);
+                    }
+                }
+            }
+            let done = m - runs.into_remainder().len();
+            for (i, v) in t.iter_mut().enumerate().skip(done) {
+                *v = one(i);
             }
         }
         DType::F32 => {
