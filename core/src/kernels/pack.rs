@@ -591,8 +591,16 @@ type Run<'a> = (&'a [i8], Option<&'a [i8; 256]>);
 /// `out[x·4 + l] = elem(src[l][x])`: four contiguous channel rows into words.
 #[inline]
 fn interleave4<F: Layout>(src: [Run; 4], zp: i32, out: &mut [F::Elem]) {
+    // Pixels that all four rows and `out` hold: nothing left after a vector path that did them.
+    let all = src
+        .iter()
+        .map(|s| s.0.len())
+        .fold(out.len() / 4, usize::min);
     if src.iter().all(|s| s.1.is_none()) {
         let done = F::interleave4_fast(src.map(|s| s.0), zp, out);
+        if done >= all {
+            return;
+        }
         let rest = src.map(|s| s.0.get(done..).unwrap_or_default());
         let out = out.get_mut(done * 4..).unwrap_or_default();
         let it = rest[0].iter().zip(rest[1]).zip(rest[2]).zip(rest[3]);
@@ -605,6 +613,9 @@ fn interleave4<F: Layout>(src: [Run; 4], zp: i32, out: &mut [F::Elem]) {
         return;
     }
     let done = F::interleave4_tables_fast(src.map(|s| s.0), src.map(|s| s.1), 4, 1, zp, out);
+    if done >= all {
+        return;
+    }
     let t = src.map(|s| s.1.unwrap_or(&IDENTITY));
     let rest = src.map(|s| s.0.get(done..).unwrap_or_default());
     let out = out.get_mut(done * 4..).unwrap_or_default();
