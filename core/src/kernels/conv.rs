@@ -358,6 +358,35 @@ impl Conv2d<'_> {
         }
     }
 
+    /// [`Conv2d::finish_block`] for rows of `n ≤ stride` sums `stride` apart (a whole output
+    /// row of blocks, `run_pack` on aarch64): the NEON requantisation, else the portable loops.
+    #[cfg(target_arch = "aarch64")]
+    #[allow(clippy::too_many_arguments)]
+    fn finish_wide(
+        &self,
+        rq: &[RowQuant],
+        o0: usize,
+        (acc, stride, n): (&[i32], usize, usize),
+        output: &mut [i8],
+        at: usize,
+        plane: usize,
+    ) {
+        if super::aarch64::requant::block(rq, acc, stride, n, output, at, plane, requant_one) {
+            return;
+        }
+        for (j, r) in rq.iter().enumerate() {
+            let a = &acc[j * stride..j * stride + n];
+            let dst = &mut output[at + j * plane..at + j * plane + n];
+            if r.simple {
+                requant_row(r, a, dst);
+            } else {
+                for (d, &v) in dst.iter_mut().zip(a) {
+                    *d = self.finish(o0 + j, r.base.wrapping_add(v));
+                }
+            }
+        }
+    }
+
     #[inline]
     pub(super) fn finish(&self, o: usize, acc: i32) -> i8 {
         let cq = &self.channels[o];
@@ -890,6 +919,12 @@ fn run<F: Micro, S: Source, O: Sink + ?Sized>(
 /// Where [`run`] puts a block's sums, requantised: int8 codes ([`Conv2d::finish_block`]) or
 /// int16 codes ([`super::wide`]'s rule, scalar).
 trait Sink {
+    /// The int8 codes, where the sink is int8 (the wide-row requantisation of `run_pack`).
+    #[cfg(target_arch = "aarch64")]
+    #[inline(always)]
+    fn as_i8(&mut self) -> Option<&mut [i8]> {
+        None
+    }
     /// Requantises the first `n` sums of each of the `rq.len()` rows of `acc` (output channels
     /// `o0 ..`) to `self` at `at`, channel stride `plane`.
     fn block(
@@ -904,6 +939,11 @@ trait Sink {
 }
 
 impl Sink for [i8] {
+    #[cfg(target_arch = "aarch64")]
+    #[inline(always)]
+    fn as_i8(&mut self) -> Option<&mut [i8]> {
+        Some(self)
+    }
     #[inline(always)]
     fn block(
         &mut self,
@@ -996,6 +1036,12 @@ fn run_pack<F: Micro, S: Source, O: Sink + ?Sized>(
     #[cfg(not(any(target_arch = "aarch64", target_arch = "x86_64")))]
     const CACHED: usize = 0;
     let n_blocks = pack.channels.div_ceil(NB);
+    // Widest output row requantised in one call (aarch64, `NB · WIDE` sums on the stack,
+    // zeroed once per call where used; only the sums of the current row of blocks are read).
+    #[cfg(target_arch = "aarch64")]
+    const WIDE: usize = 320;
+    #[cfg(target_arch = "aarch64")]
+    let mut wide_store: Option<[i32; NB * WIDE]> = None;
     let mut cached = [[RowQuant::default(); NB]; CACHED];
     for (b, rq) in cached.iter_mut().enumerate().take(n_blocks) {
         *rq = block_rq(b);
@@ -1045,6 +1091,44 @@ fn run_pack<F: Micro, S: Source, O: Sink + ?Sized>(
                     &made
                 }
             };
+            // aarch64 (a large stack): an int8 row of blocks into one buffer, then one
+            // requantisation call for the whole row instead of one per block (the same
+            // sums and the same function per sum: the same bits).
+            #[cfg(target_arch = "aarch64")]
+            if matches!(isa, Isa::Neon | Isa::NeonDot) && out.w > PB && out.w <= WIDE {
+                if let Some(out8) = output.as_i8() {
+                    // Lazily: the 5 KiB zeroing only in calls that take this path.
+                    #[allow(clippy::unnecessary_lazy_evaluations)]
+                    let wide = wide_store.get_or_insert_with(|| [0; NB * WIDE]);
+                    for ox0 in (0..out.w).step_by(PB) {
+                        let n = PB.min(out.w - ox0);
+                        let task = Task {
+                            rows,
+                            weights: &weights[b * dims.block_len..(b + 1) * dims.block_len],
+                            steps,
+                            ox0,
+                            pixels: n,
+                        };
+                        F::kernel(isa, &task, acc);
+                        for (w, a) in wide
+                            .chunks_exact_mut(WIDE)
+                            .zip(acc.chunks_exact(PB))
+                            .take(nb)
+                        {
+                            // Whole blocks as fixed-size copies (inlined, no `memcpy` call).
+                            if n == PB {
+                                w[ox0..ox0 + PB].copy_from_slice(&a[..PB]);
+                            } else {
+                                w[ox0..ox0 + n].copy_from_slice(&a[..n]);
+                            }
+                        }
+                    }
+                    let at = o0 * dst.stride + (oy - dst.rows.start) * out.w;
+                    let sums = (&wide[..], WIDE, out.w);
+                    op.finish_wide(&rq[..nb], o0, sums, out8, at, dst.stride);
+                    continue;
+                }
+            }
             for ox0 in (0..out.w).step_by(PB) {
                 let n = PB.min(out.w - ox0);
                 let task = Task {
