@@ -337,7 +337,14 @@ impl<'a> Engine<'a> {
             op: 0,
             error: KernelError::Shape,
         };
-        write_rgb(graph, n, lut, ins[0].get(..3 * n).ok_or(bad)?, rgb_t)?;
+        write_rgb(
+            self.isa,
+            graph,
+            n,
+            lut,
+            ins[0].get(..3 * n).ok_or(bad)?,
+            rgb_t,
+        )?;
         let sparse = typed::<f32>(ins[1], 0)?.get(..n).ok_or(bad)?;
         write_sparse(graph, n, |i| sparse[i], sparse_t)?;
         self.execute(None, None)
@@ -428,7 +435,7 @@ impl<'a> Engine<'a> {
         let (graph, lut) = (&self.graph, &self.rgb_lut);
         let mut none: [&[u8]; MAX_INPUTS] = [&[]; MAX_INPUTS];
         let (rgb_t, sparse_t) = input_tensors(graph, &self.plan, self.arena, &[], &mut none)?;
-        write_rgb(graph, n, lut, rgb, rgb_t)?;
+        write_rgb(self.isa, graph, n, lut, rgb, rgb_t)?;
         match sparse {
             Some(s) => write_sparse(graph, n, |i| s[i], sparse_t)?,
             None => write_sparse(graph, n, |i| out[i], sparse_t)?,
@@ -515,7 +522,16 @@ impl<'a> Engine<'a> {
 
 /// Converts the RGB888 frame `rgb` (`3·n` bytes, interleaved) into the graph's RGB input tensor
 /// `t` (planar, int8 through `lut`, or f32 in `[0, 1]`).
-fn write_rgb(g: &Graph, n: usize, lut: &[i8; 256], rgb: &[u8], t: &mut [u8]) -> Result<(), Error> {
+fn write_rgb(
+    isa: Isa,
+    g: &Graph,
+    n: usize,
+    lut: &[i8; 256],
+    rgb: &[u8],
+    t: &mut [u8],
+) -> Result<(), Error> {
+    #[cfg(not(target_arch = "aarch64"))]
+    let _ = isa;
     check_len("rgb", 3 * n, rgb.len())?;
     let info = *g.tensor(g.rgb)?;
     match info.dtype {
@@ -528,6 +544,15 @@ fn write_rgb(g: &Graph, n: usize, lut: &[i8; 256], rgb: &[u8], t: &mut [u8]) -> 
             };
             let (r, rest) = t.get_mut(..3 * n).ok_or(short)?.split_at_mut(n);
             let (gr, b) = rest.split_at_mut(n);
+            // 16 pixels per pass with `LD3` and `TBL` on `neon`/`neon-dot` (the same table).
+            #[cfg(target_arch = "aarch64")]
+            let (rgb, r, gr, b) = if matches!(isa, Isa::Neon | Isa::NeonDot) {
+                let done = crate::kernels::aarch64::elementwise::lookup_rgb(lut, rgb, r, gr, b);
+                let rgb = rgb.get(3 * done..).unwrap_or_default();
+                (rgb, &mut r[done..], &mut gr[done..], &mut b[done..])
+            } else {
+                (rgb, r, gr, b)
+            };
             for (((px, r), gr), b) in rgb.chunks_exact(3).zip(r).zip(gr).zip(b) {
                 *r = lut[px[0] as usize];
                 *gr = lut[px[1] as usize];
@@ -586,9 +611,33 @@ fn write_sparse(
             // Most pixels have no depth: 0.0 (and −0.0, the same arithmetic) quantises to one
             // code, computed once; the same bits.
             let zero = info.q.quantize(0.0);
-            for (i, v) in t.iter_mut().enumerate().take(n) {
+            let one = |i: usize| {
                 let x = get(i);
-                *v = if x == 0.0 { zero } else { info.q.quantize(x) };
+                if x == 0.0 {
+                    zero
+                } else {
+                    info.q.quantize(x)
+                }
+            };
+            // 16 pixels at a time: a run with no depth at all (every value compared, no early
+            // exit, so the comparison vectorises) is one fill.
+            let m = n.min(t.len());
+            let t = &mut t[..m];
+            let mut runs = t.chunks_exact_mut(16);
+            for (k, run) in (&mut runs).enumerate() {
+                let at = 16 * k;
+                let empty = (0..16).fold(true, |e, j| e & (get(at + j) == 0.0));
+                if empty {
+                    run.fill(zero);
+                } else {
+                    for (j, v) in run.iter_mut().enumerate() {
+                        *v = one(at + j);
+                    }
+                }
+            }
+            let done = m - runs.into_remainder().len();
+            for (i, v) in t.iter_mut().enumerate().skip(done) {
+                *v = one(i);
             }
         }
         DType::F32 => {

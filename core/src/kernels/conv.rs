@@ -358,6 +358,35 @@ impl Conv2d<'_> {
         }
     }
 
+    /// [`Conv2d::finish_block`] for rows of `n ≤ stride` sums `stride` apart (a whole output
+    /// row of blocks, `run_pack` on aarch64): the NEON requantisation, else the portable loops.
+    #[cfg(target_arch = "aarch64")]
+    #[allow(clippy::too_many_arguments)]
+    fn finish_wide(
+        &self,
+        rq: &[RowQuant],
+        o0: usize,
+        (acc, stride, n): (&[i32], usize, usize),
+        output: &mut [i8],
+        at: usize,
+        plane: usize,
+    ) {
+        if super::aarch64::requant::block(rq, acc, stride, n, output, at, plane, requant_one) {
+            return;
+        }
+        for (j, r) in rq.iter().enumerate() {
+            let a = &acc[j * stride..j * stride + n];
+            let dst = &mut output[at + j * plane..at + j * plane + n];
+            if r.simple {
+                requant_row(r, a, dst);
+            } else {
+                for (d, &v) in dst.iter_mut().zip(a) {
+                    *d = self.finish(o0 + j, r.base.wrapping_add(v));
+                }
+            }
+        }
+    }
+
     #[inline]
     pub(super) fn finish(&self, o: usize, acc: i32) -> i8 {
         let cq = &self.channels[o];
@@ -890,6 +919,12 @@ fn run<F: Micro, S: Source, O: Sink + ?Sized>(
 /// Where [`run`] puts a block's sums, requantised: int8 codes ([`Conv2d::finish_block`]) or
 /// int16 codes ([`super::wide`]'s rule, scalar).
 trait Sink {
+    /// The int8 codes, where the sink is int8 (the wide-row requantisation of `run_pack`).
+    #[cfg(target_arch = "aarch64")]
+    #[inline(always)]
+    fn as_i8(&mut self) -> Option<&mut [i8]> {
+        None
+    }
     /// Requantises the first `n` sums of each of the `rq.len()` rows of `acc` (output channels
     /// `o0 ..`) to `self` at `at`, channel stride `plane`.
     fn block(
@@ -904,6 +939,11 @@ trait Sink {
 }
 
 impl Sink for [i8] {
+    #[cfg(target_arch = "aarch64")]
+    #[inline(always)]
+    fn as_i8(&mut self) -> Option<&mut [i8]> {
+        Some(self)
+    }
     #[inline(always)]
     fn block(
         &mut self,
@@ -976,6 +1016,36 @@ fn run_pack<F: Micro, S: Source, O: Sink + ?Sized>(
     let g = &op.geometry;
     let (kh, kw) = (g.kernel[0], g.kernel[1]);
     let (weights, sums) = (pack.weights, pack.sums);
+    // A block's requantisation constants (the same for every row).
+    let block_rq = |b: usize| {
+        let o0 = pack.first + b * NB;
+        let nb = NB.min(pack.channels - b * NB);
+        let mut rq = [RowQuant::default(); NB];
+        for (j, q) in rq.iter_mut().enumerate().take(nb) {
+            let base = op.channels[o0 + j]
+                .bias
+                .wrapping_sub(F::bias_term(zp, sums[b * NB + j]));
+            *q = op.row_quant(o0 + j, base);
+        }
+        rq
+    };
+    // Those of the first blocks made once per call where the stack is large (phones and
+    // desktops: 5 KiB), else once per row and block.
+    #[cfg(any(target_arch = "aarch64", target_arch = "x86_64"))]
+    const CACHED: usize = 32;
+    #[cfg(not(any(target_arch = "aarch64", target_arch = "x86_64")))]
+    const CACHED: usize = 0;
+    let n_blocks = pack.channels.div_ceil(NB);
+    // Widest output row requantised in one call (aarch64, `NB · WIDE` sums on the stack,
+    // zeroed once per call where used; only the sums of the current row of blocks are read).
+    #[cfg(target_arch = "aarch64")]
+    const WIDE: usize = 320;
+    #[cfg(target_arch = "aarch64")]
+    let mut wide_store: Option<[i32; NB * WIDE]> = None;
+    let mut cached = [[RowQuant::default(); NB]; CACHED];
+    for (b, rq) in cached.iter_mut().enumerate().take(n_blocks) {
+        *rq = block_rq(b);
+    }
     for oy in dst.rows.clone() {
         // The input rows of output row `oy` into their slots (packed only where a slot does not
         // hold its row already), and the reduction steps' offsets for this slot order.
@@ -1010,15 +1080,54 @@ fn run_pack<F: Micro, S: Source, O: Sink + ?Sized>(
         // The row's steps with their bounds, once for all its tasks.
         let steps = Steps::new(&*steps);
         // Blocks outermost: a block's requantisation constants once per row.
-        for b in 0..pack.channels.div_ceil(NB) {
+        for b in 0..n_blocks {
             let o0 = pack.first + b * NB;
             let nb = NB.min(pack.channels - b * NB);
-            let mut rq = [RowQuant::default(); NB];
-            for (j, q) in rq.iter_mut().enumerate().take(nb) {
-                let base = op.channels[o0 + j]
-                    .bias
-                    .wrapping_sub(F::bias_term(zp, sums[b * NB + j]));
-                *q = op.row_quant(o0 + j, base);
+            let made;
+            let rq = match cached.get(b) {
+                Some(rq) => rq,
+                None => {
+                    made = block_rq(b);
+                    &made
+                }
+            };
+            // aarch64 (a large stack): an int8 row of blocks into one buffer, then one
+            // requantisation call for the whole row instead of one per block (the same
+            // sums and the same function per sum: the same bits).
+            #[cfg(target_arch = "aarch64")]
+            if matches!(isa, Isa::Neon | Isa::NeonDot) && out.w > PB && out.w <= WIDE {
+                if let Some(out8) = output.as_i8() {
+                    // Lazily: the 5 KiB zeroing only in calls that take this path.
+                    #[allow(clippy::unnecessary_lazy_evaluations)]
+                    let wide = wide_store.get_or_insert_with(|| [0; NB * WIDE]);
+                    for ox0 in (0..out.w).step_by(PB) {
+                        let n = PB.min(out.w - ox0);
+                        let task = Task {
+                            rows,
+                            weights: &weights[b * dims.block_len..(b + 1) * dims.block_len],
+                            steps,
+                            ox0,
+                            pixels: n,
+                        };
+                        F::kernel(isa, &task, acc);
+                        for (w, a) in wide
+                            .chunks_exact_mut(WIDE)
+                            .zip(acc.chunks_exact(PB))
+                            .take(nb)
+                        {
+                            // Whole blocks as fixed-size copies (inlined, no `memcpy` call).
+                            if n == PB {
+                                w[ox0..ox0 + PB].copy_from_slice(&a[..PB]);
+                            } else {
+                                w[ox0..ox0 + n].copy_from_slice(&a[..n]);
+                            }
+                        }
+                    }
+                    let at = o0 * dst.stride + (oy - dst.rows.start) * out.w;
+                    let sums = (&wide[..], WIDE, out.w);
+                    op.finish_wide(&rq[..nb], o0, sums, out8, at, dst.stride);
+                    continue;
+                }
             }
             for ox0 in (0..out.w).step_by(PB) {
                 let n = PB.min(out.w - ox0);
@@ -2014,14 +2123,14 @@ pub(crate) mod tests {
             let mut row = [0i8; 1];
             requant_row(&k, &[x], &mut row);
             prop_assert_eq!(row[0], want, "requant_row");
-            // Rows of every length up to 17 (the arm-dsp loops take two sums per pass, then
-            // the odd one; the NEON one 8, then the rest), with sums of both signs, narrow
-            // where the single one is.
+            // Rows of every length up to 33 (the arm-dsp loops take two sums per pass, then
+            // the odd one; the NEON one 16, then an overlapping 16 or 8s), with sums of both
+            // signs, narrow where the single one is.
             let vary = |i: usize| {
                 let v = x.wrapping_mul(1 + i as i32 % 3) >> (i % 5);
                 if i % 2 == 1 { v.wrapping_neg() } else { v }
             };
-            for len in 1..=17usize {
+            for len in 1..=33usize {
                 let sums: std::vec::Vec<i32> = (0..len)
                     .map(|i| if k.narrow { vary(i).clamp(-(1 << 30) + 1, (1 << 30) - 1) } else { vary(i) })
                     .collect();

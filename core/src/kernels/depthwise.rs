@@ -55,6 +55,24 @@ pub(super) trait Code: Copy + Into<i32> {
     /// The part of `d[k] = src[k·sx] − zp` that the kernel set converts with vectors; returns
     /// how many (0 where it has none).
     fn widen_fast(isa: Isa, src: &[Self], sx: usize, zp: i32, d: &mut [i16]) -> usize;
+    /// A band's converted rows in one call where the kernel set has one
+    /// ([`super::aarch64::depthwise::widen_band`], its arguments); `false` (nothing written)
+    /// elsewhere.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn widen_band_fast(
+        _isa: Isa,
+        _chan: &[Self],
+        _shape: (usize, usize),
+        _first_iy: isize,
+        _widths: (usize, usize),
+        _sx: usize,
+        _spans: &[(usize, usize, usize)],
+        _zp: i32,
+        _x16: &mut [i16],
+    ) -> bool {
+        false
+    }
 }
 
 impl Code for i8 {
@@ -62,6 +80,23 @@ impl Code for i8 {
     #[inline(always)]
     fn widen_fast(isa: Isa, src: &[i8], sx: usize, zp: i32, d: &mut [i16]) -> usize {
         widen_fast(isa, src, sx, zp, d)
+    }
+    #[cfg(target_arch = "aarch64")]
+    #[inline(always)]
+    fn widen_band_fast(
+        isa: Isa,
+        chan: &[i8],
+        shape: (usize, usize),
+        first_iy: isize,
+        widths: (usize, usize),
+        sx: usize,
+        spans: &[(usize, usize, usize)],
+        zp: i32,
+        x16: &mut [i16],
+    ) -> bool {
+        use super::aarch64::depthwise::widen_band;
+        matches!(isa, Isa::Neon | Isa::NeonDot)
+            && widen_band(chan, shape, first_iy, widths, sx, spans, zp, x16)
     }
 }
 
@@ -270,6 +305,20 @@ pub(super) fn bands<T: Code>(call: &Depthwise<T>, output: &mut [i8], scratch: &m
         *o = ky * dy * row_w + (kx * dx) % sx * phase_w + kx * dx / sx;
     }
     let tap_offs = &tap_offs[..n_offs];
+    // Per phase (the first few; the rest computed per row): its columns `p_lo .. p_hi` inside
+    // the image and the input column of `p_lo`, the same for every row and channel.
+    const PHASES: usize = 4;
+    let span_of = |phase: usize| {
+        let off = phase as isize - pw;
+        match pack::valid_cols(off, sx, iw, phase_w) {
+            Some((lo, hi)) => (lo, hi + 1, (lo as isize * sx as isize + off) as usize),
+            None => (0, 0, 0),
+        }
+    };
+    let mut spans = [(0usize, 0usize, 0usize); PHASES];
+    for (phase, sp) in spans.iter_mut().enumerate().take(sx) {
+        *sp = span_of(phase);
+    }
     for c in 0..out.c {
         let chan = &input[c * ih * iw..(c + 1) * ih * iw];
         let w = &op.weights[c * kh * kw..(c + 1) * kh * kw];
@@ -279,24 +328,32 @@ pub(super) fn bands<T: Code>(call: &Depthwise<T>, output: &mut [i8], scratch: &m
             let n = band.min(dst.rows.end - oy0);
             let first_iy = (oy0 * sy) as isize - ph;
             // The band's input rows, phase by phase: column p of phase φ is input column
-            // p·sx + φ − pw.
-            for (r, row) in x16.chunks_exact_mut(row_w).take(rows_for(n)).enumerate() {
+            // p·sx + φ − pw (in one call where the kernel set has one).
+            let band_rows = &mut x16[..rows_for(n) * row_w];
+            let shape = (ih, iw);
+            let spans_all = &spans[..sx.min(PHASES)];
+            let widths = (row_w, phase_w);
+            let done = sx <= PHASES
+                && T::widen_band_fast(
+                    isa, chan, shape, first_iy, widths, sx, spans_all, zp, band_rows,
+                );
+            let rows_left = if done { 0 } else { rows_for(n) };
+            for (r, row) in x16.chunks_exact_mut(row_w).take(rows_left).enumerate() {
                 let iy = first_iy + r as isize;
                 let src = (0..ih as isize)
                     .contains(&iy)
                     .then(|| &chan[iy as usize * iw..][..iw]);
+                let Some(src) = src else {
+                    row.fill(0);
+                    continue;
+                };
                 for (phase, dst_phase) in row.chunks_exact_mut(phase_w).enumerate() {
                     // Columns p_lo .. p_hi of this phase lie inside the image.
-                    let off = phase as isize - pw;
-                    let (p_lo, p_hi) = match (src, pack::valid_cols(off, sx, iw, phase_w)) {
-                        (Some(_), Some((lo, hi))) => (lo, hi + 1),
-                        _ => (0, 0),
+                    let (p_lo, p_hi, first) = match spans.get(phase) {
+                        Some(&sp) => sp,
+                        None => span_of(phase),
                     };
-                    if src.is_none() {
-                        dst_phase.fill(0);
-                    }
-                    if let Some(src) = src.filter(|_| p_lo < p_hi) {
-                        let first = (p_lo as isize * sx as isize + off) as usize;
+                    if p_lo < p_hi {
                         let d = &mut dst_phase[p_lo..p_hi];
                         let done = T::widen_fast(isa, &src[first..], sx, zp, d);
                         let (d, first) = (&mut d[done..], first + done * sx);

@@ -25,9 +25,24 @@ pub fn build_lut(in_q: QParams, out_q: QParams, f: impl Fn(f32) -> f32) -> Lut {
 
 /// Applies a table: `out[i] = lut[in[i]]`.
 pub fn lut(input: &[i8], table: &Lut, output: &mut [i8]) -> Result<(), KernelError> {
+    lut_with(Isa::Portable, input, table, output)
+}
+
+/// [`lut`] with kernel set `isa`: `neon` and `neon-dot` read the table with `TBL`
+/// ([`super::aarch64::elementwise::lookup`]); the same bits.
+pub fn lut_with(isa: Isa, input: &[i8], table: &Lut, output: &mut [i8]) -> Result<(), KernelError> {
     if output.len() < input.len() {
         return Err(KernelError::Shape);
     }
+    #[cfg(target_arch = "aarch64")]
+    let (output, input) = if matches!(isa, Isa::Neon | Isa::NeonDot) {
+        let done = super::aarch64::elementwise::lookup(table, input, output);
+        (&mut output[done..], &input[done..])
+    } else {
+        (output, input)
+    };
+    #[cfg(not(target_arch = "aarch64"))]
+    let _ = isa;
     for (o, &x) in output.iter_mut().zip(input) {
         *o = table[x as u8 as usize];
     }
@@ -179,6 +194,20 @@ pub fn add_ref(q: &AddQuant, a: &[i8], b: &[i8], out: &mut [i8]) -> Result<(), K
 
 /// Fast `add`: same bits as [`add_ref`], iterator form without bounds checks in the loop.
 pub fn add(q: &AddQuant, a: &[i8], b: &[i8], out: &mut [i8]) -> Result<(), KernelError> {
+    add_with(Isa::Portable, q, a, b, out)
+}
+
+/// [`add`] with kernel set `isa`: `neon` and `neon-dot` compute the fast path 16 codes per
+/// pass ([`super::aarch64::elementwise::add_rescaled`]); the same bits.
+pub fn add_with(
+    isa: Isa,
+    q: &AddQuant,
+    a: &[i8],
+    b: &[i8],
+    out: &mut [i8],
+) -> Result<(), KernelError> {
+    #[cfg(not(target_arch = "aarch64"))]
+    let _ = isa;
     if a.len() != b.len() || out.len() < a.len() {
         return Err(KernelError::Shape);
     }
@@ -199,6 +228,17 @@ pub fn add(q: &AddQuant, a: &[i8], b: &[i8], out: &mut [i8]) -> Result<(), Kerne
         // `(s·m + 2^30) / 2^31` (gemmlowp's nudge for negative products gives the same
         // integer), so the output's requantisation is a few 32/64-bit steps: the same bits.
         let (m, right, zp) = (i64::from(q.mo.multiplier), -q.mo.shift, q.zp[2]);
+        // The same integers 16 at a time where the inputs' multipliers shift right only.
+        #[cfg(target_arch = "aarch64")]
+        let (out, a, b) =
+            if matches!(isa, Isa::Neon | Isa::NeonDot) && q.ma.shift <= 0 && q.mb.shift <= 0 {
+                let r = |m: &Requant| (m.multiplier, (-m.shift).min(31));
+                let consts = [r(&q.ma), r(&q.mb), r(&q.mo)];
+                let done = super::aarch64::elementwise::add_rescaled(a, b, out, q.zp, consts);
+                (&mut out[done..], &a[done..], &b[done..])
+            } else {
+                (out, a, b)
+            };
         for ((o, &x), &y) in out.iter_mut().zip(a).zip(b) {
             let sum = ta[x as u8 as usize] + tb[y as u8 as usize];
             let high = doubling_high_mul_narrow(sum, m);
@@ -535,6 +575,24 @@ pub fn mul_in_place(
             Broadcast::OverSpace => {
                 let y = b[c];
                 if p > 256 {
+                    #[cfg(target_arch = "aarch64")]
+                    let t = if neon && high {
+                        // The table itself as 256 NEON high-word products of every code by `y`
+                        // (`apply_high`: the same bits as `apply`).
+                        let codes: [i8; 256] = core::array::from_fn(|x| x as u8 as i8);
+                        let mut t = [0i8; 256];
+                        let ys = [y; 256];
+                        let e = super::aarch64::elementwise::mul_high(
+                            &codes, &ys, &mut t, f.zp, f.m, f.right,
+                        );
+                        for (d, &x) in t[e..].iter_mut().zip(&codes[e..]) {
+                            *d = f.apply_high(x, y);
+                        }
+                        t
+                    } else {
+                        core::array::from_fn(|x| q.apply(x as u8 as i8, y))
+                    };
+                    #[cfg(not(target_arch = "aarch64"))]
                     let t: [i8; 256] = core::array::from_fn(|x| q.apply(x as u8 as i8, y));
                     #[cfg(target_arch = "aarch64")]
                     let oc = if neon {
@@ -585,6 +643,31 @@ pub fn concat_part(
     out_shape: Shape,
     c_offset: usize,
 ) -> Result<(), KernelError> {
+    concat_part_with(
+        Isa::Portable,
+        input,
+        in_shape,
+        rescale,
+        out,
+        out_shape,
+        c_offset,
+    )
+}
+
+/// [`concat_part`] with kernel set `isa`: `neon` and `neon-dot` read an int8 part's 256-entry
+/// table (into int8 or int16 codes) with `TBL` ([`super::aarch64::elementwise::lookup`],
+/// [`super::aarch64::elementwise::lookup_i16`]); the same bits.
+pub fn concat_part_with(
+    isa: Isa,
+    input: Codes,
+    in_shape: Shape,
+    rescale: &Rescale,
+    out: CodesMut,
+    out_shape: Shape,
+    c_offset: usize,
+) -> Result<(), KernelError> {
+    #[cfg(not(target_arch = "aarch64"))]
+    let _ = isa;
     let out = match out {
         CodesMut::I8(out) => out,
         CodesMut::I16(out) => {
@@ -597,6 +680,13 @@ pub fn concat_part(
                         let t: [i16; 256] = core::array::from_fn(|c| {
                             rescale.apply_code_i16(i32::from(c as u8 as i8))
                         });
+                        #[cfg(target_arch = "aarch64")]
+                        let (dst, x) = if matches!(isa, Isa::Neon | Isa::NeonDot) {
+                            let done = super::aarch64::elementwise::lookup_i16(&t, x, dst);
+                            (&mut dst[done..], &x[done..])
+                        } else {
+                            (dst, x)
+                        };
                         for (o, &v) in dst.iter_mut().zip(x) {
                             *o = t[v as u8 as usize];
                         }
@@ -634,6 +724,13 @@ pub fn concat_part(
     } else if n > 256 {
         // A table of the 256 codes (the same function, so the same bits).
         let t: [i8; 256] = core::array::from_fn(|x| rescale.apply(x as u8 as i8));
+        #[cfg(target_arch = "aarch64")]
+        let (dst, input) = if matches!(isa, Isa::Neon | Isa::NeonDot) {
+            let done = super::aarch64::elementwise::lookup(&t, input, dst);
+            (&mut dst[done..], &input[done..])
+        } else {
+            (dst, input)
+        };
         for (o, &x) in dst.iter_mut().zip(input) {
             *o = t[x as u8 as usize];
         }
@@ -688,6 +785,18 @@ pub fn minmax_norm(
     out_q: QParams,
     out: &mut [i8],
 ) -> Result<(), KernelError> {
+    minmax_norm_with(Isa::Portable, input, in_q, eps, out_q, out)
+}
+
+/// [`minmax_norm`] with kernel set `isa` (its table read as [`lut_with`] reads it).
+pub fn minmax_norm_with(
+    isa: Isa,
+    input: &[i8],
+    in_q: QParams,
+    eps: f32,
+    out_q: QParams,
+    out: &mut [i8],
+) -> Result<(), KernelError> {
     if out.len() < input.len() || input.is_empty() {
         return Err(KernelError::Shape);
     }
@@ -704,7 +813,7 @@ pub fn minmax_norm(
     for q in lo..=hi {
         t[(q as i8) as u8 as usize] = out_q.quantize((q - lo) as f32 * in_q.scale / denom);
     }
-    lut(input, &t, out)
+    lut_with(isa, input, &t, out)
 }
 
 #[cfg(test)]
@@ -833,6 +942,47 @@ mod tests {
         }
     }
 
+    /// Planes past 256 pixels (the 256-entry table paths of a plane scaled by one code), every
+    /// set, `mul_with` and `mul_in_place` = the reference.
+    #[test]
+    fn mul_large_planes_every_set_equals_the_reference() {
+        let shape = Shape::new(3, 20, 21);
+        let n = shape.len().unwrap();
+        let a: Vec<i8> = (0..n)
+            .map(|i| (i as u32).wrapping_mul(2654435761) as i8)
+            .collect();
+        for bc in [
+            Broadcast::None,
+            Broadcast::OverChannels,
+            Broadcast::OverSpace,
+        ] {
+            let b: Vec<i8> = (0..broadcast_len(bc, shape).unwrap())
+                .map(|i| (i as u32).wrapping_mul(40503).wrapping_add(7) as i8)
+                .collect();
+            for (zp, multiplier, shift) in [
+                ([3, -7, 2], 1_500_000_000, -9),
+                ([-128, 127, -128], 1_073_741_824, -1),
+                ([0, 5, 9], 2_000_000_000, 1),
+                ([17, -30, 0], 300_000_000, -20),
+            ] {
+                let q = MulQuant {
+                    zp,
+                    m: Requant { multiplier, shift },
+                };
+                let mut want = std::vec![0i8; n];
+                mul_ref(&q, &a, shape, &b, bc, &mut want).unwrap();
+                for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                    let mut got = std::vec![0i8; n];
+                    mul_with(isa, &q, &a, shape, &b, bc, &mut got).unwrap();
+                    assert_eq!(got, want, "{} {bc:?} {zp:?}", isa.name());
+                    let mut inplace = a.clone();
+                    mul_in_place(isa, &q, &mut inplace, shape, &b, bc).unwrap();
+                    assert_eq!(inplace, want, "in place {} {bc:?} {zp:?}", isa.name());
+                }
+            }
+        }
+    }
+
     kernel_tests!(add_suite, ref: add_ref, fast: add, golden: golden_add,
         arb: arb_bin([Broadcast::None; 3]), check: check_add);
     proptest! {
@@ -950,6 +1100,110 @@ mod tests {
         .unwrap();
         assert_eq!(&out[6..], &[-10, -9, -12, -9, 118, -128]);
         assert_eq!(&out[..6], &[0; 6]);
+    }
+
+    /// `add` past 256 codes (the tables' fast path and its NEON form) on every set = the
+    /// reference, for scale ratios either way, zero points at both ends and tails.
+    #[test]
+    fn add_every_set_equals_the_reference() {
+        let q = |scale: f32, zero_point: i32| QParams { scale, zero_point };
+        for (qa, qb, qo) in [
+            (q(0.02, -3), q(0.05, 7), q(0.06, 1)),
+            (q(0.05, 127), q(0.02, -128), q(0.01, -128)),
+            (q(0.1, 0), q(0.1, 0), q(0.2, 0)),
+            (q(0.003, 5), q(0.5, -9), q(0.4, 127)),
+            (q(1.0, -128), q(0.9, 127), q(0.01, 0)),
+        ] {
+            let aq = AddQuant::new(qa, qb, qo);
+            for n in [257usize, 300, 1000] {
+                let a: Vec<i8> = (0..n)
+                    .map(|i| (i as u32).wrapping_mul(2654435761) as i8)
+                    .collect();
+                let b: Vec<i8> = (0..n)
+                    .map(|i| (i as u32).wrapping_mul(40503) as i8)
+                    .collect();
+                let mut want = std::vec![0i8; n];
+                add_ref(&aq, &a, &b, &mut want).unwrap();
+                for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                    let mut got = std::vec![0i8; n];
+                    add_with(isa, &aq, &a, &b, &mut got).unwrap();
+                    assert_eq!(got, want, "{} {qa:?} {qb:?} {qo:?} n={n}", isa.name());
+                }
+            }
+        }
+    }
+
+    /// The engine's RGB planes through NEON (`LD3`, `TBL`) = the table read byte by byte.
+    #[cfg(target_arch = "aarch64")]
+    #[test]
+    fn rgb_planes_neon_equal_the_table() {
+        let t: Lut = core::array::from_fn(|i| (i as u32).wrapping_mul(40503) as u8 as i8);
+        for n in [0usize, 15, 16, 17, 47, 48, 100] {
+            let rgb: Vec<u8> = (0..3 * n)
+                .map(|i| (i as u32).wrapping_mul(2654435761) as u8)
+                .collect();
+            let (mut r, mut g, mut b) = (std::vec![0i8; n], std::vec![0i8; n], std::vec![0i8; n]);
+            let done =
+                super::super::aarch64::elementwise::lookup_rgb(&t, &rgb, &mut r, &mut g, &mut b);
+            assert_eq!(done, n / 16 * 16);
+            for i in 0..done {
+                let want = [0, 1, 2].map(|c| t[rgb[3 * i + c] as usize]);
+                assert_eq!([r[i], g[i], b[i]], want, "n={n} i={i}");
+            }
+        }
+    }
+
+    /// Table look-ups on every kernel set = the portable bits (lengths around the vector
+    /// width).
+    #[test]
+    fn lut_every_set_equals_portable() {
+        let t: Lut = core::array::from_fn(|i| (i as u32).wrapping_mul(40503) as u8 as i8);
+        for n in [0usize, 1, 15, 16, 17, 33, 300] {
+            let x: Vec<i8> = (0..n)
+                .map(|i| (i as u32).wrapping_mul(2654435761) as i8)
+                .collect();
+            let mut want = std::vec![0i8; n];
+            lut(&x, &t, &mut want).unwrap();
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                let mut got = std::vec![0i8; n];
+                lut_with(isa, &x, &t, &mut got).unwrap();
+                assert_eq!(got, want, "{} n={n}", isa.name());
+            }
+        }
+    }
+
+    /// Rescaled int8 parts into int8 and int16 concats, every kernel set = the portable bits
+    /// (the table paths past 256 codes, lengths that leave a tail).
+    #[test]
+    fn concat_part_every_set_equals_portable() {
+        let q = |scale: f32, zero_point: i32| QParams { scale, zero_point };
+        let (hw, c) = ((7usize, 11usize), 4usize);
+        let n = c * hw.0 * hw.1;
+        let x: Vec<i8> = (0..n)
+            .map(|i| (i as u32).wrapping_mul(2654435761) as i8)
+            .collect();
+        let s = Shape::new(c, hw.0, hw.1);
+        let os = Shape::new(c + 1, hw.0, hw.1);
+        for (from, to8, to16) in [
+            (q(0.02, -3), q(0.05, 7), q(0.05 / 256.0, 0)),
+            (q(0.1, 100), q(0.013, -120), q(0.1 / 300.0, 0)),
+        ] {
+            let r8 = Rescale::new(from, to8);
+            let r16 = Rescale::new(from, to16);
+            let mut want8 = std::vec![0i8; os.len().unwrap()];
+            let mut want16 = std::vec![0i16; os.len().unwrap()];
+            concat_part(Codes::I8(&x), s, &r8, CodesMut::I8(&mut want8), os, 1).unwrap();
+            concat_part(Codes::I8(&x), s, &r16, CodesMut::I16(&mut want16), os, 1).unwrap();
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                let mut got8 = std::vec![0i8; want8.len()];
+                let mut got16 = std::vec![0i16; want16.len()];
+                let (o8, o16) = (CodesMut::I8(&mut got8), CodesMut::I16(&mut got16));
+                concat_part_with(isa, Codes::I8(&x), s, &r8, o8, os, 1).unwrap();
+                concat_part_with(isa, Codes::I8(&x), s, &r16, o16, os, 1).unwrap();
+                assert_eq!(got8, want8, "{}", isa.name());
+                assert_eq!(got16, want16, "{}", isa.name());
+            }
+        }
     }
 
     #[test]

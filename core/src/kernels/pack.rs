@@ -59,6 +59,21 @@ pub trait Layout {
     /// Whether [`Layout::interleave4_stride2_fast`] has a vector path (else its caller's
     /// branch compiles away).
     const STRIDE2_FAST: bool = false;
+    /// `out[x·L + l] = elem(t_l[src[l][sw·x]])` (`t_l` row `l`'s table, the codes as they are
+    /// where it has none) for the first `rows` rows (`≤ L`; the rows past `L` unused), padding
+    /// in the other lanes, `sw` 1 or 2, over a leading part, vectorised where the layout and
+    /// target have it; returns how many pixels (0: none).
+    #[inline(always)]
+    fn interleave4_tables_fast(
+        _src: [&[i8]; 4],
+        _tables: [Option<&[i8; 256]>; 4],
+        _rows: usize,
+        _sw: usize,
+        _zp: i32,
+        _out: &mut [Self::Elem],
+    ) -> usize {
+        0
+    }
     /// `out[x·4 + l] = elem(src[l][2x])` for the first `rows` rows, padding in the other
     /// lanes, over a leading part, vectorised where the layout and target have it; returns how
     /// many pixels (0: none).
@@ -99,6 +114,26 @@ impl Layout for Pairs {
     #[inline(always)]
     fn interleave2_fast(a: &[i8], b: &[i8], zp: i32, out: &mut [i16]) -> usize {
         super::arm::pack::interleave_pairs(a, b, zp, out)
+    }
+    #[cfg(target_arch = "aarch64")]
+    #[inline(always)]
+    fn interleave2_fast(a: &[i8], b: &[i8], zp: i32, out: &mut [i16]) -> usize {
+        super::aarch64::pack::pairs([a, b], [None; 2], 2, 1, zp, out)
+    }
+    #[cfg(target_arch = "aarch64")]
+    const STRIDE2_FAST: bool = true;
+    #[cfg(target_arch = "aarch64")]
+    #[inline(always)]
+    fn interleave4_tables_fast(
+        src: [&[i8]; 4],
+        tables: [Option<&[i8; 256]>; 4],
+        rows: usize,
+        sw: usize,
+        zp: i32,
+        out: &mut [i16],
+    ) -> usize {
+        let (src, tables) = ([src[0], src[1]], [tables[0], tables[1]]);
+        super::aarch64::pack::pairs(src, tables, rows.min(2), sw, zp, out)
     }
 }
 
@@ -159,6 +194,18 @@ impl Layout for SignedQuads {
     #[inline(always)]
     fn interleave4_stride2_fast(src: [&[i8]; 4], rows: usize, zp: i32, out: &mut [i8]) -> usize {
         super::aarch64::pack::interleave4_stride2(src, rows, Self::pad(zp), out)
+    }
+    #[cfg(target_arch = "aarch64")]
+    #[inline(always)]
+    fn interleave4_tables_fast(
+        src: [&[i8]; 4],
+        tables: [Option<&[i8; 256]>; 4],
+        rows: usize,
+        sw: usize,
+        zp: i32,
+        out: &mut [i8],
+    ) -> usize {
+        super::aarch64::pack::interleave4_tables(src, tables, rows, sw, Self::pad(zp), out)
     }
 }
 
@@ -246,6 +293,16 @@ pub trait Source {
     /// Codes `start .. start + len` of channel `c`'s plane and the table mapping them to the
     /// conv's input codes (`None`: as they are); `None` past the end.
     fn run(&self, c: usize, start: usize, len: usize) -> Option<(&[i8], Option<&[i8; 256]>)>;
+    /// [`Source::run`] of channels `c .. c + 4`, all or `None`.
+    #[inline(always)]
+    fn run4(&self, c: usize, start: usize, len: usize) -> Option<[Run<'_>; 4]> {
+        Some([
+            self.run(c, start, len)?,
+            self.run(c + 1, start, len)?,
+            self.run(c + 2, start, len)?,
+            self.run(c + 3, start, len)?,
+        ])
+    }
 }
 
 /// One CHW tensor of `plane` pixels per channel.
@@ -263,6 +320,25 @@ impl Source for Dense<'_> {
         let at = c.checked_mul(self.plane)?.checked_add(start)?;
         Some((self.data.get(at..at.checked_add(len)?)?, None))
     }
+    #[inline(always)]
+    fn run4(&self, c: usize, start: usize, len: usize) -> Option<[Run<'_>; 4]> {
+        dense_run4(self.data, self.plane, c, start, len)
+    }
+}
+
+/// [`Source::run4`] of a CHW tensor `data` of `p` pixels per channel (no tables).
+#[inline(always)]
+fn dense_run4(data: &[i8], p: usize, c: usize, start: usize, len: usize) -> Option<[Run<'_>; 4]> {
+    // One check, on the farthest end: channel `c + 3`'s run.
+    let end = c.checked_add(3)?.checked_mul(p)?.checked_add(start)?;
+    let data = data.get(..end.checked_add(len)?)?;
+    let at = c * p + start;
+    Some([0, 1, 2, 3].map(|k| {
+        let a = at + k * p;
+        // SAFETY: `a + len ≤ at + 3p + len = end + len ≤ data.len()` (checked above, and
+        // without overflow since the largest sum did not overflow).
+        (unsafe { data.get_unchecked(a..a + len) }, None)
+    }))
 }
 
 /// Most parts of a [`Parts`] input.
@@ -320,6 +396,26 @@ impl Source for Parts<'_> {
         }
         None
     }
+    #[inline]
+    fn run4(&self, c: usize, start: usize, len: usize) -> Option<[Run<'_>; 4]> {
+        let mut k = c;
+        for &(data, channels, table) in &self.parts[..self.n] {
+            if k < channels {
+                if k.checked_add(4)? > channels {
+                    break;
+                }
+                let runs = dense_run4(data, self.plane, k, start, len)?;
+                return Some(runs.map(|(r, _)| (r, table)));
+            }
+            k -= channels;
+        }
+        Some([
+            self.run(c, start, len)?,
+            self.run(c + 1, start, len)?,
+            self.run(c + 2, start, len)?,
+            self.run(c + 3, start, len)?,
+        ])
+    }
 }
 
 /// Slot of the packed rows that holds input row `iy` of a conv with kernel height `kh` and
@@ -362,28 +458,31 @@ pub fn pack_row<F: Layout, S: Source>(
         (lo.min(hi), hi)
     };
     let row_ok = iy >= 0 && (iy as usize) < ih;
-    for cg in 0..dims.n_cg {
-        for phase in 0..sw {
+    // Per phase (outside the channel-group loop): the in-image column span, where its codes
+    // start and how many (an out-of-image row: all padding).
+    for phase in 0..sw {
+        let (lo, hi, at, len) = if row_ok {
+            let (lo, hi) = span(phase);
+            let at = iy as usize * iw + (lo * sw + phase).saturating_sub(pw);
+            (lo, hi, at, hi.saturating_sub(lo))
+        } else {
+            (rw, rw, 0, 0)
+        };
+        for cg in 0..dims.n_cg {
             let base = cg * dims.cg_stride + (slot * sw + phase) * rw * l;
             let dst = &mut rows[base..base + rw * l];
-            if !row_ok {
-                dst.fill(pad);
-                continue;
-            }
-            let (lo, hi) = span(phase);
             dst[..lo * l].fill(pad);
             dst[hi.max(lo) * l..].fill(pad);
-            let at = iy as usize * iw + (lo * sw + phase).saturating_sub(pw);
-            let len = hi.saturating_sub(lo);
+            if !row_ok {
+                continue;
+            }
             if sw == 1 && (cg + 1) * l <= in_shape.c {
                 let src = |li: usize| input.run(c0 + cg * l + li, at, len);
                 let out = &mut dst[lo * l..hi * l];
                 match l {
                     4 => {
-                        if let (Some(a), Some(b), Some(c), Some(d)) =
-                            (src(0), src(1), src(2), src(3))
-                        {
-                            interleave4::<F>([a, b, c, d], zp, out);
+                        if let Some(runs) = input.run4(c0 + cg * l, at, len) {
+                            interleave4::<F>(runs, zp, out);
                             continue;
                         }
                     }
@@ -395,30 +494,36 @@ pub fn pack_row<F: Layout, S: Source>(
                     }
                 }
             }
-            if F::STRIDE2_FAST && sw == 2 && l == 4 && len > 0 && cg * l < in_shape.c {
+            if F::STRIDE2_FAST && sw == 2 && l <= 4 && len > 0 && cg * l < in_shape.c {
                 let rows = (in_shape.c - cg * l).min(l);
                 // Every other code of the group's channel rows (padding in the lanes past the
-                // last channel), without tables: the layout's vector path where it has one,
-                // then the rest word by word.
+                // last channel), through their tables where they have one: the layout's vector
+                // path where it has one, then the rest word by word.
                 let mut src: [&[i8]; 4] = [&[]; 4];
-                let mut plain = true;
-                for (li, s) in src.iter_mut().enumerate().take(rows) {
+                let mut tables: [Option<&[i8; 256]>; 4] = [None; 4];
+                let mut found = true;
+                for (li, (s, t)) in src.iter_mut().zip(&mut tables).enumerate().take(rows) {
                     match input.run(c0 + cg * l + li, at, 2 * len - 1) {
-                        Some((r, None)) => *s = r,
-                        _ => plain = false,
+                        Some((r, table)) => (*s, *t) = (r, table),
+                        None => found = false,
                     }
                 }
                 let out = &mut dst[lo * l..hi * l];
-                let done = if plain {
+                let done = if !found {
+                    0
+                } else if l == 4 && tables.iter().all(Option::is_none) {
                     F::interleave4_stride2_fast(src, rows, zp, out)
                 } else {
-                    0
+                    F::interleave4_tables_fast(src, tables, rows, 2, zp, out)
                 };
                 if done > 0 {
-                    for (k, w) in out.chunks_exact_mut(4).enumerate().skip(done) {
+                    for (k, w) in out.chunks_exact_mut(l).enumerate().skip(done) {
                         for (li, e) in w.iter_mut().enumerate() {
                             *e = match src.get(li).filter(|_| li < rows) {
-                                Some(r) => F::elem(r[2 * k], zp),
+                                Some(r) => {
+                                    let t = tables[li].unwrap_or(&IDENTITY);
+                                    F::elem(t[r[2 * k] as u8 as usize], zp)
+                                }
                                 None => pad,
                             };
                         }
@@ -486,8 +591,16 @@ type Run<'a> = (&'a [i8], Option<&'a [i8; 256]>);
 /// `out[x·4 + l] = elem(src[l][x])`: four contiguous channel rows into words.
 #[inline]
 fn interleave4<F: Layout>(src: [Run; 4], zp: i32, out: &mut [F::Elem]) {
+    // Pixels that all four rows and `out` hold: nothing left after a vector path that did them.
+    let all = src
+        .iter()
+        .map(|s| s.0.len())
+        .fold(out.len() / 4, usize::min);
     if src.iter().all(|s| s.1.is_none()) {
         let done = F::interleave4_fast(src.map(|s| s.0), zp, out);
+        if done >= all {
+            return;
+        }
         let rest = src.map(|s| s.0.get(done..).unwrap_or_default());
         let out = out.get_mut(done * 4..).unwrap_or_default();
         let it = rest[0].iter().zip(rest[1]).zip(rest[2]).zip(rest[3]);
@@ -499,8 +612,14 @@ fn interleave4<F: Layout>(src: [Run; 4], zp: i32, out: &mut [F::Elem]) {
         }
         return;
     }
+    let done = F::interleave4_tables_fast(src.map(|s| s.0), src.map(|s| s.1), 4, 1, zp, out);
+    if done >= all {
+        return;
+    }
     let t = src.map(|s| s.1.unwrap_or(&IDENTITY));
-    let it = src[0].0.iter().zip(src[1].0).zip(src[2].0).zip(src[3].0);
+    let rest = src.map(|s| s.0.get(done..).unwrap_or_default());
+    let out = out.get_mut(done * 4..).unwrap_or_default();
+    let it = rest[0].iter().zip(rest[1]).zip(rest[2]).zip(rest[3]);
     for (d, (((&a, &b), &c), &e)) in out.chunks_exact_mut(4).zip(it) {
         d[0] = F::elem(t[0][a as u8 as usize], zp);
         d[1] = F::elem(t[1][b as u8 as usize], zp);
@@ -523,9 +642,15 @@ fn interleave2<F: Layout>(src: [Run; 2], zp: i32, out: &mut [F::Elem]) {
         }
         return;
     }
-    // Some part is requantised: a table per lane (the identity for the others), one pass.
+    // Some part is requantised: a table per lane (the identity for the others), one pass
+    // (after the layout's vector path, where it has one).
     let (ta, tb) = (src[0].1.unwrap_or(&IDENTITY), src[1].1.unwrap_or(&IDENTITY));
-    for (d, (&a, &b)) in out.chunks_exact_mut(2).zip(src[0].0.iter().zip(src[1].0)) {
+    let rows4 = [src[0].0, src[1].0, &[], &[]];
+    let done = F::interleave4_tables_fast(rows4, [src[0].1, src[1].1, None, None], 2, 1, zp, out);
+    let (a, b) = (src[0].0.get(done..), src[1].0.get(done..));
+    let (a, b) = (a.unwrap_or_default(), b.unwrap_or_default());
+    let out = out.get_mut(done * 2..).unwrap_or_default();
+    for (d, (&a, &b)) in out.chunks_exact_mut(2).zip(a.iter().zip(b)) {
         d[0] = F::elem(ta[a as u8 as usize], zp);
         d[1] = F::elem(tb[b as u8 as usize], zp);
     }
@@ -564,14 +689,25 @@ pub fn pack_weights<F: Layout>(
         for (o, (row, sum)) in weights.chunks_exact(taps).zip(sums).take(ocg).enumerate() {
             let (b, j) = (o / NB, o % NB);
             let dst = &mut out[b * dims.block_len + j * l..];
-            let mut s = 0i32;
-            for (ws, d) in row.chunks(l).zip(dst.chunks_mut(NB * l)) {
-                for (d, &w) in d.iter_mut().zip(ws) {
-                    s += w as i32;
+            // The sum in its own loop (integer sums: the same value in any order), then the
+            // weights group by group.
+            *sum = row.iter().map(|&w| i32::from(w)).sum();
+            // `l` is the layout's constant: each group's copy is `l` fixed moves.
+            let mut groups = dst.chunks_mut(NB * l);
+            let whole = row.chunks_exact(l);
+            let rest = whole.remainder();
+            for (ws, d) in whole.zip(&mut groups) {
+                if let Some(d) = d.get_mut(..l) {
+                    for (d, &w) in d.iter_mut().zip(ws) {
+                        *d = F::weight(w);
+                    }
+                }
+            }
+            if let Some(d) = groups.next() {
+                for (d, &w) in d.iter_mut().zip(rest) {
                     *d = F::weight(w);
                 }
             }
-            *sum = s;
         }
         return;
     }

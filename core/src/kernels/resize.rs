@@ -421,7 +421,7 @@ fn resize_rows(
                 let den = cols.den as i32;
                 let rows = (r0, r1, fy as i32, dy as i32, den);
                 match rescale {
-                    None => narrow_row_same(rows, &taps, orow, &mut blend),
+                    None => narrow_row_same(isa, rows, &taps, orow, &mut blend),
                     Some(r) => match r.narrow() {
                         Some(nr) => {
                             let cols = |v: &[i32; ROW + 1], t: &[u32; OUT_ROW], o: &mut [i8]| {
@@ -517,6 +517,7 @@ fn narrow_row(
 /// resize loop it spilled registers on Cortex-M (1.6 M more instructions per `mcu` frame).
 #[inline(never)]
 fn narrow_row_same(
+    isa: Isa,
     rows: (&[i8], &[i8], i32, i32, i32),
     taps: &[u32; OUT_ROW],
     orow: &mut [i8],
@@ -524,7 +525,17 @@ fn narrow_row_same(
 ) {
     let d = rows.4 * rows.3;
     let half = d / 2;
-    let cols = |_: &_, _: &_, _: &mut _| 0;
+    let den = rows.4;
+    // The leading columns 8 at a time where the set has NEON (the same integers, the division
+    // exact in f32 there: `super::aarch64::resize::same_cols`).
+    let cols = |v: &[i32; ROW + 1], t: &[u32; OUT_ROW], o: &mut [i8]| {
+        #[cfg(target_arch = "aarch64")]
+        if matches!(isa, Isa::Neon | Isa::NeonDot) {
+            return super::aarch64::resize::same_cols(v, t, ROW - 1, den, d, o);
+        }
+        let _ = (isa, v, t, o, den);
+        0
+    };
     narrow_row(rows, taps, orow, v, cols, move |n: i32| {
         let sign = n >> 31;
         let q = (((((n ^ sign) - sign) + half) / d) ^ sign) - sign;
@@ -809,7 +820,59 @@ mod tests {
         }
     }
 
+    /// A resize into the input's own parameters on every kernel set = the reference bits:
+    /// the NEON columns' f32 division (`den·dy` up to 65535) and the scalar one past it.
+    #[test]
+    fn same_parameters_every_set_equals_the_reference() {
+        let mut seed = 11u32;
+        for (ih, iw, oh, ow) in [
+            (3, 5, 9, 17),
+            (20, 40, 40, 80),
+            (60, 80, 120, 160),
+            (2, 7, 255, 255),
+            (2, 200, 300, 257),
+            (3, 256, 2, 1024),
+        ] {
+            let s = Shape::new(2, ih, iw);
+            let x: Vec<i8> = (0..s.len().unwrap())
+                .map(|_| {
+                    seed = seed.wrapping_mul(1664525).wrapping_add(1013904223);
+                    (seed >> 24) as i8
+                })
+                .collect();
+            // Runs of the extremes too (the largest |n|).
+            let x: Vec<i8> = x
+                .iter()
+                .enumerate()
+                .map(|(i, &v)| match i % 23 {
+                    0..=4 => 127,
+                    5..=9 => -128,
+                    _ => v,
+                })
+                .collect();
+            let o = Shape::new(2, oh, ow);
+            let mut slow = std::vec![0i8; o.len().unwrap()];
+            upsample_bilinear_to_ref(&x, s, &mut slow, o, None).unwrap();
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                let mut fast = std::vec![0i8; slow.len()];
+                upsample_bilinear_to_with(isa, &x, s, &mut fast, o, None).unwrap();
+                assert_eq!(fast, slow, "{} {ih}×{iw} → {oh}×{ow}", isa.name());
+            }
+        }
+    }
+
     proptest! {
+        #[test]
+        fn same_parameters_fast_equals_ref(c in arb()) {
+            let mut slow = std::vec![0i8; c.o.len().unwrap()];
+            upsample_bilinear_to_ref(&c.x, c.s, &mut slow, c.o, None).unwrap();
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                let mut fast = std::vec![0i8; slow.len()];
+                upsample_bilinear_to_with(isa, &c.x, c.s, &mut fast, c.o, None).unwrap();
+                prop_assert_eq!(&fast, &slow, "{}", isa.name());
+            }
+        }
+
         #[test]
         fn rescaled_fast_equals_ref_and_rounds_once(
             c in arb(),

@@ -45,6 +45,6 @@ pub(crate) fn eval(e: Eval) -> Result<(), Error> {
     let (a, b): (&[i8], &[i8]) = (typed(e.ins[0], i)?, typed(e.ins[1], i)?);
     let (a, b) = (a.get(..n).ok_or(e.bad())?, b.get(..n).ok_or(e.bad())?);
     let kerr = e.kerr();
-    elementwise::add(&q, a, b, typed_mut(e.out, i)?).map_err(kerr)?;
+    elementwise::add_with(e.isa, &q, a, b, typed_mut(e.out, i)?).map_err(kerr)?;
     Ok(())
 }

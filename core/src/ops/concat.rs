@@ -72,7 +72,7 @@ pub(crate) fn eval(e: Eval) -> Result<(), Error> {
         } else {
             CodesMut::I8(typed_mut(e.out, i)?)
         };
-        elementwise::concat_part(x, s, r, out, e.out_shape, c0).map_err(kerr)?;
+        elementwise::concat_part_with(e.isa, x, s, r, out, e.out_shape, c0).map_err(kerr)?;
         c0 += s.c;
     }
     Ok(())

@@ -37,6 +37,6 @@ pub(crate) fn eval(e: Eval) -> Result<(), Error> {
         .try_into()
         .map_err(|_| e.bad())?;
     let kerr = e.kerr();
-    elementwise::lut(typed(e.ins[0], e.i)?, t, typed_mut(e.out, e.i)?).map_err(kerr)?;
+    elementwise::lut_with(e.isa, typed(e.ins[0], e.i)?, t, typed_mut(e.out, e.i)?).map_err(kerr)?;
     Ok(())
 }

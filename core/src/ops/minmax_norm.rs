@@ -37,6 +37,7 @@ pub(crate) fn eval(e: Eval) -> Result<(), Error> {
     let x: &[i8] = typed(e.ins[0], i)?;
     let (in_q, out_q) = (e.q(e.op.inputs[0])?, e.q(e.op.output)?);
     let out = typed_mut(e.out, i)?;
-    elementwise::minmax_norm(x.get(..n).ok_or(bad)?, in_q, eps, out_q, out).map_err(kerr)?;
+    let x = x.get(..n).ok_or(bad)?;
+    elementwise::minmax_norm_with(e.isa, x, in_q, eps, out_q, out).map_err(kerr)?;
     Ok(())
 }

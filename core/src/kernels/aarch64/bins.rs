@@ -55,21 +55,53 @@ unsafe fn head_neon(
     let mut x = [vdupq_n_s16(0); MAX_BIN_FEATURES];
     let mut logits = [[vdupq_n_f32(0.0); 2]; MAX_BINS];
     let zpv = vdupq_n_s16(zp as i16);
+    // Each bin's last `c mod 8` weights widened and padded with zeros to eight lanes (zero
+    // weights add nothing), so the last channels take one more lane group too; `x` past `c`
+    // stays zero and inside the array (`c ≤ MAX_BIN_FEATURES`, a multiple of 8).
+    let full = c / 8 * 8;
+    let mut tails = [[0i16; 8]; MAX_BINS];
+    for (t, wrow) in tails[..n].iter_mut().zip(weights.chunks_exact(c.max(1))) {
+        for (t, &w) in t.iter_mut().zip(&wrow[full..]) {
+            *t = i16::from(w);
+        }
+    }
     let mut i = 0;
     while i + 8 <= p {
         for (k, xk) in x[..c].iter_mut().enumerate() {
             // |x − zp| ≤ 255: exact in 16 bits.
             *xk = vsubq_s16(vmovl_s8(vld1_s8(features.as_ptr().add(k * p + i))), zpv);
         }
-        for ((lg, ch), wrow) in logits[..n]
+        for (((lg, ch), wrow), tail) in logits[..n]
             .iter_mut()
             .zip(channels)
             .zip(weights.chunks_exact(c.max(1)))
+            .zip(&tails)
         {
             let (mut lo, mut hi) = (vdupq_n_s32(ch.bias), vdupq_n_s32(ch.bias));
-            for (xk, &w) in x[..c].iter().zip(wrow) {
-                lo = vmlal_n_s16(lo, vget_low_s16(*xk), i16::from(w));
-                hi = vmlal_high_n_s16(hi, *xk, i16::from(w));
+            // Eight channels at a time with their weights widened into one register and read
+            // by lane (integer sums: exact in any order), the last group's from `tails`.
+            let mut k = 0;
+            while k < c {
+                let w8 = if k < full {
+                    vmovl_s8(vld1_s8(wrow.as_ptr().add(k)))
+                } else {
+                    vld1q_s16(tail.as_ptr())
+                };
+                let xs = &x[k..k + 8];
+                macro_rules! lane {
+                    ($l:literal) => {
+                        mla8_lane::<$l>(&mut lo, &mut hi, xs[$l], w8)
+                    };
+                }
+                lane!(0);
+                lane!(1);
+                lane!(2);
+                lane!(3);
+                lane!(4);
+                lane!(5);
+                lane!(6);
+                lane!(7);
+                k += 8;
             }
             lg[0] = vmulq_n_f32(vcvtq_f32_s32(lo), ch.scale);
             lg[1] = vmulq_n_f32(vcvtq_f32_s32(hi), ch.scale);
@@ -92,4 +124,29 @@ unsafe fn head_neon(
         i += 8;
     }
     i
+}
+
+/// `lo += x[0..4] · w[L]`, `hi += x[4..8] · w[L]` (`SMLAL`/`SMLAL2` by element, with `asm!`:
+/// LLVM turns the high half of a lane-broadcast weight into a lane move and a low `SMLAL`).
+///
+/// # Safety
+/// The CPU must have NEON.
+#[inline(always)]
+unsafe fn mla8_lane<const L: i32>(
+    lo: &mut int32x4_t,
+    hi: &mut int32x4_t,
+    x: int16x8_t,
+    w: int16x8_t,
+) {
+    // SAFETY (caller): the CPU has NEON; registers only, no memory, flags untouched.
+    core::arch::asm!(
+        "smlal {lo:v}.4s, {x:v}.4h, {w:v}.h[{l}]",
+        "smlal2 {hi:v}.4s, {x:v}.8h, {w:v}.h[{l}]",
+        lo = inout(vreg) *lo,
+        hi = inout(vreg) *hi,
+        x = in(vreg) x,
+        w = in(vreg_low16) w,
+        l = const L,
+        options(pure, nomem, nostack, preserves_flags)
+    );
 }

@@ -16,10 +16,119 @@ pub fn taps(x: &[i16], offs: &[usize], w: &[i16], out: &mut [i32]) -> bool {
     if !crate::kernels::isa::Isa::Neon.available() || offs.len() != w.len() || !inside {
         return false;
     }
+    if let (Ok(offs9), Ok(w9)) = (<&[usize; 9]>::try_from(offs), <&[i16; 9]>::try_from(w)) {
+        if n >= 16 {
+            // SAFETY: as below; `n ≥ 16`.
+            unsafe { taps9_neon(x, offs9, w9, out) };
+            return true;
+        }
+    }
     // SAFETY: NEON is available; every read `x[o + i]`, `i < n`, is inside `x` (checked) and
     // every write inside `out`.
     unsafe { taps_neon(x, offs, w, out) };
     true
+}
+
+/// [`taps_neon`] for nine taps (3×3) and `n ≥ 16` sums: the weights held in two registers and
+/// read by lane (`SMLAL` by element), the nine runs' pointers in registers, so a tap is its
+/// two loads and four multiply-adds (no offset or weight load, no loop counter per tap).
+///
+/// # Safety
+/// The CPU must have NEON; `n = out.len() ≥ 16` and every read `x[offs[t] + i]`, `i < n`, is
+/// inside `x` ([`taps`] checks).
+#[target_feature(enable = "neon")]
+unsafe fn taps9_neon(x: &[i16], offs: &[usize; 9], w: &[i16; 9], out: &mut [i32]) {
+    let n = out.len();
+    let (xp, op) = (x.as_ptr(), out.as_mut_ptr());
+    let (wa, wb) = (vld1q_s16(w.as_ptr()), vdupq_n_s16(w[8]));
+    let p: [*const i16; 9] = core::array::from_fn(|t| xp.wrapping_add(offs[t]));
+    // Sums `i .. i + 16` (`i + 16 ≤ n`: every read inside `x`, every write inside `out`).
+    let sixteen = |i: usize| {
+        // The first tap's products start the sums (`SMULL`), the others add to them.
+        let q = p[0].add(i);
+        let mut a = mul16_lane0(vld1q_s16(q), vld1q_s16(q.add(8)), wa);
+        macro_rules! tap {
+            ($t:literal, $l:literal, $w:ident) => {{
+                let q = p[$t].add(i);
+                mla16_lane::<$l>(&mut a, vld1q_s16(q), vld1q_s16(q.add(8)), $w);
+            }};
+        }
+        tap!(1, 1, wa);
+        tap!(2, 2, wa);
+        tap!(3, 3, wa);
+        tap!(4, 4, wa);
+        tap!(5, 5, wa);
+        tap!(6, 6, wa);
+        tap!(7, 7, wa);
+        tap!(8, 0, wb);
+        for (q, v) in a.into_iter().enumerate() {
+            vst1q_s32(op.add(i + 4 * q), v);
+        }
+    };
+    let mut i = 0;
+    while i + 16 <= n {
+        sixteen(i);
+        i += 16;
+    }
+    if i < n {
+        // The last sums again, overlapping: the same values rewritten.
+        sixteen(n - 16);
+    }
+}
+
+/// `x[4q .. 4q + 4] · w[0]` for the 16 halfwords of `x0`, `x1` (`SMULL`/`SMULL2` by
+/// element): the sums [`mla16_lane`] then adds to.
+///
+/// # Safety
+/// The CPU must have NEON.
+#[inline(always)]
+unsafe fn mul16_lane0(x0: int16x8_t, x1: int16x8_t, w: int16x8_t) -> [int32x4_t; 4] {
+    let (a0, a1, a2, a3);
+    // SAFETY (caller): the CPU has NEON; registers only, no memory, flags untouched.
+    core::arch::asm!(
+        "smull {a0:v}.4s, {x0:v}.4h, {w:v}.h[0]",
+        "smull2 {a1:v}.4s, {x0:v}.8h, {w:v}.h[0]",
+        "smull {a2:v}.4s, {x1:v}.4h, {w:v}.h[0]",
+        "smull2 {a3:v}.4s, {x1:v}.8h, {w:v}.h[0]",
+        a0 = out(vreg) a0,
+        a1 = out(vreg) a1,
+        a2 = out(vreg) a2,
+        a3 = out(vreg) a3,
+        x0 = in(vreg) x0,
+        x1 = in(vreg) x1,
+        w = in(vreg_low16) w,
+        options(pure, nomem, nostack, preserves_flags)
+    );
+    [a0, a1, a2, a3]
+}
+
+/// [`mla16`] with the weight in lane `L` of `w` (`SMLAL`/`SMLAL2` by element).
+///
+/// # Safety
+/// The CPU must have NEON.
+#[inline(always)]
+unsafe fn mla16_lane<const L: i32>(
+    a: &mut [int32x4_t; 4],
+    x0: int16x8_t,
+    x1: int16x8_t,
+    w: int16x8_t,
+) {
+    // SAFETY (caller): the CPU has NEON; registers only, no memory, flags untouched.
+    core::arch::asm!(
+        "smlal {a0:v}.4s, {x0:v}.4h, {w:v}.h[{l}]",
+        "smlal2 {a1:v}.4s, {x0:v}.8h, {w:v}.h[{l}]",
+        "smlal {a2:v}.4s, {x1:v}.4h, {w:v}.h[{l}]",
+        "smlal2 {a3:v}.4s, {x1:v}.8h, {w:v}.h[{l}]",
+        a0 = inout(vreg) a[0],
+        a1 = inout(vreg) a[1],
+        a2 = inout(vreg) a[2],
+        a3 = inout(vreg) a[3],
+        x0 = in(vreg) x0,
+        x1 = in(vreg) x1,
+        w = in(vreg_low16) w,
+        l = const L,
+        options(pure, nomem, nostack, preserves_flags)
+    );
 }
 
 /// # Safety
@@ -92,6 +201,75 @@ unsafe fn mla16(a: &mut [int32x4_t; 4], x0: int16x8_t, x1: int16x8_t, w: int16x8
         w = in(vreg_low16) w,
         options(pure, nomem, nostack, preserves_flags)
     );
+}
+
+/// The converted rows of a depthwise band in one call (`depthwise::bands`): for `r <
+/// x16.len() / row_w`, input row `iy = first_iy + r` of `chan` (`iw` codes per row, `ih`
+/// rows) into `x16[r·row_w ..]`, phase `φ < spans.len()` at `φ·phase_w`, its columns `lo ..
+/// hi` from codes `first + k·sx` (`spans[φ] = (lo, hi, first)`) as 16-bit `x − zp`; rows
+/// outside the image all zeros; the other columns are left as they are (the caller zeroed
+/// them). Returns `false` (and does nothing) without NEON, for a stride other than 1 or 2 or
+/// a zero point outside int8, or where a span is shorter than 8 columns, lies outside its
+/// phase or reads past its row.
+#[allow(clippy::too_many_arguments)]
+pub fn widen_band(
+    chan: &[i8],
+    (ih, iw): (usize, usize),
+    first_iy: isize,
+    (row_w, phase_w): (usize, usize),
+    sx: usize,
+    spans: &[(usize, usize, usize)],
+    zp: i32,
+    x16: &mut [i16],
+) -> bool {
+    let Ok(zp) = i8::try_from(zp) else {
+        return false;
+    };
+    let ok_span = |&(lo, hi, first): &(usize, usize, usize)| {
+        hi >= lo + 8
+            && hi <= phase_w
+            && (hi - lo - 1)
+                .checked_mul(sx)
+                .and_then(|e| e.checked_add(first))
+                .is_some_and(|e| e < iw)
+    };
+    if !crate::kernels::isa::Isa::Neon.available()
+        || !(1..=2).contains(&sx)
+        || spans.len() != sx
+        || sx.checked_mul(phase_w) != Some(row_w)
+        || ih.checked_mul(iw).is_none_or(|n| chan.len() < n)
+        || !spans.iter().all(ok_span)
+    {
+        return false;
+    }
+    for (r, row) in x16.chunks_exact_mut(row_w).enumerate() {
+        let iy = first_iy + r as isize;
+        if iy < 0 || iy >= ih as isize {
+            row.fill(0);
+            continue;
+        }
+        let src = &chan[iy as usize * iw..][..iw];
+        for (phase, &(lo, hi, first)) in spans.iter().enumerate() {
+            let d = &mut row[phase * phase_w + lo..phase * phase_w + hi];
+            let src = &src[first..];
+            // Whole `sx`-code steps inside the row, at least 7 (`(hi − lo − 1)·sx < iw − first`
+            // checked above), then the last code alone where `sx = 2` leaves it half a step.
+            let m = d.len().min(src.len() / sx);
+            if m >= 8 {
+                // SAFETY: NEON is available; the reads end at `m·sx ≤ src.len()`, the writes
+                // at `m ≤ d.len()`.
+                unsafe { widen_neon(src, sx, zp, &mut d[..m]) };
+            } else {
+                for (k, v) in d[..m].iter_mut().enumerate() {
+                    *v = i16::from(src[k * sx]) - i16::from(zp);
+                }
+            }
+            for (k, v) in d.iter_mut().enumerate().skip(m) {
+                *v = i16::from(src[k * sx]) - i16::from(zp);
+            }
+        }
+    }
+    true
 }
 
 /// `dst[k] = src[k·sx] − zp` (16-bit) for the leading `m = min(dst.len(), src.len() / sx)`

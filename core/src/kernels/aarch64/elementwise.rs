@@ -162,3 +162,194 @@ unsafe fn lookup_neon(table: &[i8; 256], x: *const i8, out: *mut i8, n: usize) {
         i += 16;
     }
 }
+
+/// `out[i] = table[x[i] as u8]` (16-bit entries) for the leading multiple of 16 of
+/// `out.len()` (`x` at least as long); returns how many it did (0 where NEON is absent). The
+/// table is split into its low and high bytes, each read with `TBL`/`TBX` as [`lookup`] does,
+/// and `ST2` interleaves them back into little-endian halfwords.
+pub fn lookup_i16(table: &[i16; 256], x: &[i8], out: &mut [i16]) -> usize {
+    let n = out.len().min(x.len()) / 16 * 16;
+    if !crate::kernels::isa::Isa::Neon.available() || n == 0 {
+        return 0;
+    }
+    let lo: [i8; 256] = core::array::from_fn(|i| table[i] as u8 as i8);
+    let hi: [i8; 256] = core::array::from_fn(|i| (table[i] >> 8) as i8);
+    // SAFETY: NEON is available; `x` and `out` hold `n` codes each.
+    unsafe { lookup_i16_neon(&lo, &hi, x.as_ptr(), out.as_mut_ptr(), n) };
+    n
+}
+
+/// [`lookup_i16`]'s loop over `n` codes (a multiple of 16).
+///
+/// # Safety
+/// The CPU must have NEON; `x` points at `n` codes and `out` at `n` halfwords.
+#[target_feature(enable = "neon")]
+unsafe fn lookup_i16_neon(lo: &[i8; 256], hi: &[i8; 256], x: *const i8, out: *mut i16, n: usize) {
+    let k64 = vdupq_n_u8(64);
+    let read = |t: &[i8; 256], i: [uint8x16_t; 4]| {
+        let p = t.as_ptr();
+        // SAFETY: `t` holds 4 · 64 bytes.
+        unsafe {
+            let r = vqtbl4q_s8(vld1q_s8_x4(p), i[0]);
+            let r = vqtbx4q_s8(r, vld1q_s8_x4(p.add(64)), i[1]);
+            let r = vqtbx4q_s8(r, vld1q_s8_x4(p.add(128)), i[2]);
+            vqtbx4q_s8(r, vld1q_s8_x4(p.add(192)), i[3])
+        }
+    };
+    let mut i = 0;
+    while i + 16 <= n {
+        // SAFETY: `i + 16 ≤ n`.
+        let i0 = unsafe { vreinterpretq_u8_s8(vld1q_s8(x.add(i))) };
+        let i1 = vsubq_u8(i0, k64);
+        let i2 = vsubq_u8(i1, k64);
+        let idx = [i0, i1, i2, vsubq_u8(i2, k64)];
+        let v = int8x16x2_t(read(lo, idx), read(hi, idx));
+        // SAFETY: as above; 16 halfwords are 32 bytes at `out + i`.
+        unsafe { vst2q_s8(out.add(i) as *mut i8, v) };
+        i += 16;
+    }
+}
+
+/// Int8 `add` for the leading multiple of 16 of `out.len()` (`a`, `b` at least as long):
+/// `out = clamp(RDBP(SQRDMULH(r_a + r_b, m_o), e_o) + zp_o)` with `r = RDBP(SQRDMULH((x − zp)
+/// << 20, m), e)` per input (`RDBP`: gemmlowp's `RoundingDivideByPOT`, half away from zero;
+/// `SQRDMULH` is gemmlowp's saturating rounding doubling high multiply exactly): the portable
+/// `add`'s fast path (its tables hold `r_a`, `r_b`) where no multiplier shifts left and every
+/// `|r_a + r_b| < 2^30`, which the caller checks. `m` holds each multiplier (≥ 0) and right
+/// shift `e` (`0..=31`) for a, b and the output. Returns how many it did (0 without NEON, for
+/// constants out of those ranges, or for input zero points outside int8).
+pub fn add_rescaled(a: &[i8], b: &[i8], out: &mut [i8], zp: [i32; 3], m: [(i32, i32); 3]) -> usize {
+    let n = out.len().min(a.len()).min(b.len()) / 16 * 16;
+    let codes = -128..=127;
+    let ok = m
+        .iter()
+        .all(|&(mult, e)| mult >= 0 && (0..=31).contains(&e))
+        && codes.contains(&zp[0])
+        && codes.contains(&zp[1]);
+    if !crate::kernels::isa::Isa::Neon.available() || !ok || n == 0 {
+        return 0;
+    }
+    // SAFETY: NEON is available; `a`, `b` and `out` hold `n` codes each.
+    unsafe { add_neon(a.as_ptr(), b.as_ptr(), out.as_mut_ptr(), n, zp, m) };
+    n
+}
+
+/// `RDBP(SQRDMULH(x, m), e)` of four lanes: `SRSHL` by `−e` rounds half up, so negative
+/// values take 1 off first where `e ≥ 1` (`adj` all ones then, else zero).
+///
+/// # Safety
+/// The CPU must have NEON.
+#[target_feature(enable = "neon")]
+#[inline]
+unsafe fn scale4(x: int32x4_t, m: int32x4_t, shift: int32x4_t, adj: int32x4_t) -> int32x4_t {
+    let q = vqrdmulhq_s32(x, m);
+    vrshlq_s32(vaddq_s32(q, vandq_s32(vshrq_n_s32::<31>(q), adj)), shift)
+}
+
+/// [`add_rescaled`]'s loop over `n` codes (a multiple of 16).
+///
+/// # Safety
+/// The CPU must have NEON; `a`, `b` and `out` point at `n` codes; the constants are in
+/// [`add_rescaled`]'s ranges.
+#[target_feature(enable = "neon")]
+unsafe fn add_neon(
+    a: *const i8,
+    b: *const i8,
+    out: *mut i8,
+    n: usize,
+    zp: [i32; 3],
+    m: [(i32, i32); 3],
+) {
+    let consts = m.map(|(mult, e)| {
+        let adj = vdupq_n_s32(if e > 0 { -1 } else { 0 });
+        (vdupq_n_s32(mult), vdupq_n_s32(-e), adj)
+    });
+    let (za, zb) = (vdup_n_s8(zp[0] as i8), vdup_n_s8(zp[1] as i8));
+    let (zaq, zbq) = (vdupq_n_s8(zp[0] as i8), vdupq_n_s8(zp[1] as i8));
+    let zo = vdupq_n_s32(zp[2]);
+    // The 16 rescaled codes of one input, in four lane groups.
+    let rescale = |v: int8x16_t, z: int8x8_t, zq: int8x16_t, k: usize| -> [int32x4_t; 4] {
+        // x − zp exact in 16 bits, then << 20 (|·| < 2^28).
+        let (lo, hi) = (vsubl_s8(vget_low_s8(v), z), vsubl_high_s8(v, zq));
+        let (mv, sv, adj) = consts[k];
+        let f = |x: int16x4_t| scale4(vshlq_n_s32::<20>(vmovl_s16(x)), mv, sv, adj);
+        [
+            f(vget_low_s16(lo)),
+            f(vget_high_s16(lo)),
+            f(vget_low_s16(hi)),
+            f(vget_high_s16(hi)),
+        ]
+    };
+    let mut i = 0;
+    while i + 16 <= n {
+        // SAFETY: `i + 16 ≤ n`, inside all three.
+        let (va, vb) = unsafe { (vld1q_s8(a.add(i)), vld1q_s8(b.add(i))) };
+        let (ra, rb) = (rescale(va, za, zaq, 0), rescale(vb, zb, zbq, 1));
+        let (mo, so, adj) = consts[2];
+        let o = |k: usize| vqaddq_s32(scale4(vaddq_s32(ra[k], rb[k]), mo, so, adj), zo);
+        let h0 = vcombine_s16(vqmovn_s32(o(0)), vqmovn_s32(o(1)));
+        let h1 = vcombine_s16(vqmovn_s32(o(2)), vqmovn_s32(o(3)));
+        // SAFETY: as above.
+        unsafe { vst1q_s8(out.add(i), vcombine_s8(vqmovn_s16(h0), vqmovn_s16(h1))) };
+        i += 16;
+    }
+}
+
+/// Interleaved RGB bytes into three code planes through one 256-entry table: `r[i] =
+/// table[rgb[3i]]`, `g[i] = table[rgb[3i + 1]]`, `b[i] = table[rgb[3i + 2]]` for the leading
+/// multiple of 16 pixels that all four hold (`LD3`, then `TBL`/`TBX` as [`lookup`] does, the
+/// table held in registers); returns how many pixels it did (0 without NEON).
+pub fn lookup_rgb(
+    table: &[i8; 256],
+    rgb: &[u8],
+    r: &mut [i8],
+    g: &mut [i8],
+    b: &mut [i8],
+) -> usize {
+    let n = (rgb.len() / 3).min(r.len()).min(g.len()).min(b.len()) / 16 * 16;
+    if !crate::kernels::isa::Isa::Neon.available() || n == 0 {
+        return 0;
+    }
+    // SAFETY: NEON is available; `rgb` holds `3n` bytes and each plane `n` codes.
+    unsafe { lookup_rgb_neon(table, rgb.as_ptr(), [r, g, b].map(|p| p.as_mut_ptr()), n) };
+    n
+}
+
+/// [`lookup_rgb`]'s loop over `n` pixels (a multiple of 16).
+///
+/// # Safety
+/// The CPU must have NEON; `rgb` points at `3n` bytes and each plane at `n` codes.
+#[target_feature(enable = "neon")]
+unsafe fn lookup_rgb_neon(table: &[i8; 256], rgb: *const u8, planes: [*mut i8; 3], n: usize) {
+    let t = table.as_ptr();
+    // SAFETY: `table` holds 4 · 64 bytes.
+    let (t0, t1, t2, t3) = unsafe {
+        (
+            vld1q_s8_x4(t),
+            vld1q_s8_x4(t.add(64)),
+            vld1q_s8_x4(t.add(128)),
+            vld1q_s8_x4(t.add(192)),
+        )
+    };
+    let k64 = vdupq_n_u8(64);
+    let read = |i0: uint8x16_t| {
+        let i1 = vsubq_u8(i0, k64);
+        let i2 = vsubq_u8(i1, k64);
+        let i3 = vsubq_u8(i2, k64);
+        let r = vqtbl4q_s8(t0, i0);
+        let r = vqtbx4q_s8(r, t1, i1);
+        let r = vqtbx4q_s8(r, t2, i2);
+        vqtbx4q_s8(r, t3, i3)
+    };
+    let mut i = 0;
+    while i + 16 <= n {
+        // SAFETY: `i + 16 ≤ n`: `3i + 48 ≤ 3n` bytes of `rgb`, `i + 16` codes of each plane.
+        unsafe {
+            let px = vld3q_u8(rgb.add(3 * i));
+            vst1q_s8(planes[0].add(i), read(px.0));
+            vst1q_s8(planes[1].add(i), read(px.1));
+            vst1q_s8(planes[2].add(i), read(px.2));
+        }
+        i += 16;
+    }
+}

@@ -121,56 +121,75 @@ unsafe fn row<O: Narrow>(k: &RowQuant, acc: *const i32, out: *mut O, n: usize, b
 
 /// Output codes [`rows_with`] stores: int8 (the conv's) or int16 ([`block_i16`]).
 trait Narrow: Copy {
-    /// Narrows 16 requantised values (zero point added) with saturation, clamps them to
-    /// `lo ..= hi` (inside the type's range) and stores them at `p`.
+    /// The clamp bounds in the form the stores use, made once per row.
+    type Bounds: Copy;
+    /// `lo ..= hi` (inside the type's range) as [`Narrow::Bounds`].
+    ///
+    /// # Safety
+    /// The CPU must have NEON.
+    unsafe fn bounds(lo: i32, hi: i32) -> Self::Bounds;
+    /// Narrows 16 requantised values (zero point added) with saturation, clamps them to the
+    /// bounds and stores them at `p`.
     ///
     /// # Safety
     /// The CPU must have NEON; `p` points at 16 writable codes.
-    unsafe fn put16(p: *mut Self, v: [int32x4_t; 4], lo: i32, hi: i32);
+    unsafe fn put16(p: *mut Self, v: [int32x4_t; 4], b: Self::Bounds);
     /// [`Narrow::put16`] for 8 values.
     ///
     /// # Safety
     /// The CPU must have NEON; `p` points at 8 writable codes.
-    unsafe fn put8(p: *mut Self, v: [int32x4_t; 2], lo: i32, hi: i32);
+    unsafe fn put8(p: *mut Self, v: [int32x4_t; 2], b: Self::Bounds);
 }
 
 impl Narrow for i8 {
+    type Bounds = (int8x16_t, int8x16_t);
+    /// # Safety
+    /// The CPU must have NEON.
+    #[inline(always)]
+    unsafe fn bounds(lo: i32, hi: i32) -> Self::Bounds {
+        let (lo, hi) = (lo.clamp(-128, 127) as i8, hi.clamp(-128, 127) as i8);
+        (vdupq_n_s8(lo), vdupq_n_s8(hi))
+    }
     /// # Safety
     /// The CPU must have NEON; `p` points at 16 writable codes.
     #[inline(always)]
-    unsafe fn put16(p: *mut i8, v: [int32x4_t; 4], lo: i32, hi: i32) {
-        let (lo, hi) = (lo.clamp(-128, 127) as i8, hi.clamp(-128, 127) as i8);
+    unsafe fn put16(p: *mut i8, v: [int32x4_t; 4], (lo, hi): Self::Bounds) {
         let h0 = vcombine_s16(vqmovn_s32(v[0]), vqmovn_s32(v[1]));
         let h1 = vcombine_s16(vqmovn_s32(v[2]), vqmovn_s32(v[3]));
         let b = vcombine_s8(vqmovn_s16(h0), vqmovn_s16(h1));
         // SAFETY (caller): 16 codes at `p`.
-        vst1q_s8(p, vminq_s8(vmaxq_s8(b, vdupq_n_s8(lo)), vdupq_n_s8(hi)));
+        vst1q_s8(p, vminq_s8(vmaxq_s8(b, lo), hi));
     }
     /// # Safety
     /// The CPU must have NEON; `p` points at 8 writable codes.
     #[inline(always)]
-    unsafe fn put8(p: *mut i8, v: [int32x4_t; 2], lo: i32, hi: i32) {
-        let (lo, hi) = (lo.clamp(-128, 127) as i8, hi.clamp(-128, 127) as i8);
+    unsafe fn put8(p: *mut i8, v: [int32x4_t; 2], (lo, hi): Self::Bounds) {
         let b = vqmovn_s16(vcombine_s16(vqmovn_s32(v[0]), vqmovn_s32(v[1])));
         // SAFETY (caller): 8 codes at `p`.
-        vst1_s8(p, vmin_s8(vmax_s8(b, vdup_n_s8(lo)), vdup_n_s8(hi)));
+        vst1_s8(p, vmin_s8(vmax_s8(b, vget_low_s8(lo)), vget_low_s8(hi)));
     }
 }
 
 impl Narrow for i16 {
+    type Bounds = (int32x4_t, int32x4_t);
+    /// # Safety
+    /// The CPU must have NEON.
+    #[inline(always)]
+    unsafe fn bounds(lo: i32, hi: i32) -> Self::Bounds {
+        (vdupq_n_s32(lo), vdupq_n_s32(hi))
+    }
     /// # Safety
     /// The CPU must have NEON; `p` points at 16 writable codes.
     #[inline(always)]
-    unsafe fn put16(p: *mut i16, v: [int32x4_t; 4], lo: i32, hi: i32) {
+    unsafe fn put16(p: *mut i16, v: [int32x4_t; 4], b: Self::Bounds) {
         // SAFETY (caller): 16 codes at `p`, the first 8 and the next.
-        Self::put8(p, [v[0], v[1]], lo, hi);
-        Self::put8(p.add(8), [v[2], v[3]], lo, hi);
+        Self::put8(p, [v[0], v[1]], b);
+        Self::put8(p.add(8), [v[2], v[3]], b);
     }
     /// # Safety
     /// The CPU must have NEON; `p` points at 8 writable codes.
     #[inline(always)]
-    unsafe fn put8(p: *mut i16, v: [int32x4_t; 2], lo: i32, hi: i32) {
-        let (lo, hi) = (vdupq_n_s32(lo), vdupq_n_s32(hi));
+    unsafe fn put8(p: *mut i16, v: [int32x4_t; 2], (lo, hi): Self::Bounds) {
         let c = |x: int32x4_t| vqmovn_s32(vminq_s32(vmaxq_s32(x, lo), hi));
         // SAFETY (caller): 8 codes at `p`.
         vst1q_s16(p, vcombine_s16(c(v[0]), c(v[1])));
@@ -237,8 +256,9 @@ unsafe fn block_i16_neon(
 
 /// The loops of [`row`] around `scaled` (the rounded, shifted product of `base + acc`): the
 /// zero point added with saturation, then the output type's narrowing and clamp to `lo ..= hi`
-/// ([`Narrow`]; inside the type's range, so the same as the scalar saturating add and clamp): 16 sums per pass, then 8, then the last `n mod 8` as an overlapping 8 (the same
-/// values rewritten).
+/// ([`Narrow`]; inside the type's range, so the same as the scalar saturating add and clamp):
+/// 16 sums per pass, then the rest as an overlapping 16 (9 to 15 left, 16 or more in all) or
+/// 8s, the last overlapping (the same values rewritten).
 ///
 /// # Safety
 /// The CPU must have NEON, `n ≥ 8`, and `acc` and `out` must hold `n` each; [`row`], its only
@@ -254,23 +274,31 @@ unsafe fn rows_with<O: Narrow>(
 ) {
     let base = vdupq_n_s32(k.base);
     let zp = vdupq_n_s32(k.zp);
+    let bounds = O::bounds(lo, hi);
     let one = |p: *const i32| vqaddq_s32(scaled(vaddq_s32(base, vld1q_s32(p))), zp);
     let eight = |i: usize| {
         let p = ap.add(i);
-        O::put8(op.add(i), [one(p), one(p.add(4))], lo, hi);
+        O::put8(op.add(i), [one(p), one(p.add(4))], bounds);
+    };
+    let sixteen = |i: usize| {
+        let p = ap.add(i);
+        let v = [one(p), one(p.add(4)), one(p.add(8)), one(p.add(12))];
+        O::put16(op.add(i), v, bounds);
     };
     let mut i = 0;
     while i + 16 <= n {
-        let p = ap.add(i);
-        let v = [one(p), one(p.add(4)), one(p.add(8)), one(p.add(12))];
-        O::put16(op.add(i), v, lo, hi);
+        sixteen(i);
         i += 16;
     }
-    if i + 8 <= n {
+    // The rest: 9 to 15 past 16 or more as one overlapping 16, else 8 and an overlapping 8,
+    // or one overlapping 8.
+    let rest = n - i;
+    if rest > 8 && n >= 16 {
+        sixteen(n - 16);
+    } else if rest > 8 {
         eight(i);
-        i += 8;
-    }
-    if i < n {
+        eight(n - 8);
+    } else if rest > 0 {
         eight(n - 8);
     }
 }

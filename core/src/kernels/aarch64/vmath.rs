@@ -1,9 +1,12 @@
 //! NEON softmax weight, bit for bit `crate::fmath::softmax_exp` per lane: the same IEEE
 //! operations in the same order (separate multiplies and adds, never fused), `FCVTZS`
-//! truncating as Rust's `as` does (NaN → 0, saturating), the table read lane by lane.
+//! truncating as Rust's `as` does (NaN → 0, saturating), the table's bytes read with `TBL`.
 
 use crate::fmath::{EXP2_32THS, SOFTMAX_FLOOR, SOFTMAX_T, SOFTMAX_U};
 use core::arch::aarch64::*;
+
+/// `fmath`'s 2^(j/32) table at one address (it is a `const` there).
+static TABLE: [u32; 32] = EXP2_32THS;
 
 /// `softmax_exp` of 4 lanes (`x = l − max ≤ 0`, or NaN).
 ///
@@ -18,12 +21,19 @@ pub unsafe fn softmax_exp_f32x4(x: float32x4_t) -> float32x4_t {
     let mut p = vaddq_f32(vdupq_n_f32(0.5), vmulq_f32(u, vdupq_n_f32(1.0 / 6.0)));
     p = vaddq_f32(vdupq_n_f32(1.0), vmulq_f32(u, p));
     p = vaddq_f32(vdupq_n_f32(1.0), vmulq_f32(u, p));
-    let j = vandq_s32(n, vdupq_n_s32(31));
-    let mut table = vdupq_n_u32(0);
-    table = vsetq_lane_u32::<0>(EXP2_32THS[vgetq_lane_s32::<0>(j) as usize & 31], table);
-    table = vsetq_lane_u32::<1>(EXP2_32THS[vgetq_lane_s32::<1>(j) as usize & 31], table);
-    table = vsetq_lane_u32::<2>(EXP2_32THS[vgetq_lane_s32::<2>(j) as usize & 31], table);
-    table = vsetq_lane_u32::<3>(EXP2_32THS[vgetq_lane_s32::<3>(j) as usize & 31], table);
+    // The table's 128 bytes read with `TBL`/`TBX` (64 bytes each): lane `i` takes bytes
+    // `4j_i .. 4j_i + 4` (little-endian words), `4j < 128` so the byte products do not carry.
+    let j = vreinterpretq_u32_s32(vandq_s32(n, vdupq_n_s32(31)));
+    let bytes = vaddq_u32(
+        vmulq_u32(j, vdupq_n_u32(0x0404_0404)),
+        vdupq_n_u32(0x0302_0100),
+    );
+    let idx = vreinterpretq_u8_u32(bytes);
+    let tp = TABLE.as_ptr() as *const u8;
+    // SAFETY: the table is 32 words, 128 bytes, in a static; `u8` reads need no alignment.
+    let (lo, hi) = unsafe { (vld1q_u8_x4(tp), vld1q_u8_x4(tp.add(64))) };
+    let r = vqtbx4q_u8(vqtbl4q_u8(lo, idx), hi, vsubq_u8(idx, vdupq_n_u8(64)));
+    let table = vreinterpretq_u32_u8(r);
     let q = vshrq_n_s32::<5>(n);
     let pow2 = vreinterpretq_f32_s32(vshlq_n_s32::<23>(vaddq_s32(q, vdupq_n_s32(127))));
     let y = vmulq_f32(vmulq_f32(vreinterpretq_f32_u32(table), p), pow2);

@@ -829,6 +829,20 @@ fn accumulate_vector<B: Map>(
             }
         }
     }
+    #[cfg(target_arch = "aarch64")]
+    if matches!(isa, Isa::Neon | Isa::NeonDot) {
+        if let (Some(t), Some(m)) = (int8(tmix), int8(kmix)) {
+            let p = out.len().min(cur.len());
+            fn rows<'m>(m: &'m I8Map, first: usize, p: usize) -> Option<[&'m [i8]; 3]> {
+                let row = |c: usize| m.data.get(c * m.plane + first..)?.get(..p);
+                (m.channels >= 3 && first + p <= m.plane).then_some([row(0)?, row(1)?, row(2)?])
+            }
+            if let (Some(tr), Some(mr)) = (rows(t.0, first, p), rows(m.0, first, p)) {
+                let (out, cur) = (&mut out[..p], &cur[..p]);
+                return super::aarch64::refine::accumulate(out, cur, tr, mr, t.1, m.1, ti, k);
+            }
+        }
+    }
     let _ = (isa, out, cur, tmix, kmix, ti, k, first);
     0
 }

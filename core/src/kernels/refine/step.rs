@@ -157,7 +157,13 @@ pub fn step_row<A: Map>(
 }
 
 /// Pixels per chunk of [`row_i8_chunks`] (its two f32 accumulator rows live on the stack).
+#[cfg(not(target_arch = "aarch64"))]
 const CHUNK: usize = 64;
+/// On aarch64 (a large stack), a whole row of the shipped sizes in one chunk: the per-chunk
+/// look-ups of the neighbours' runs once per row (the same operations per pixel, so the same
+/// bits).
+#[cfg(target_arch = "aarch64")]
+const CHUNK: usize = 256;
 
 /// Row `y` on an int8 map for the portable kernel set: the columns whose windows lie inside
 /// the image in chunks of [`CHUNK`] pixels, four neighbours at a time over each chunk
@@ -229,7 +235,7 @@ fn row_i8_chunks(
             if matches!(isa, Isa::Neon | Isa::NeonDot) {
                 use crate::kernels::aarch64::refine as neon;
                 let (q, d) = ([q0, q1, q2, q3], [d0, d1, d2, d3]);
-                if neon::four(q, d, [g0, g1, g2, g3], lut, s, acc) {
+                if neon::four(q, d, [g0, g1, g2, g3], (lut, a.q()), s, acc) {
                     j += 4;
                     continue;
                 }
