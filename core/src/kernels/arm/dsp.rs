@@ -375,22 +375,27 @@ macro_rules! requant_floor {
     };
 }
 
-/// A loop of `{n}` (≥ 1) requantisation steps `$step`, two per pass (`{c}` counts the passes),
-/// then the odd one.
+/// A loop of `{n}` (≥ 1) requantisation steps `$step`, four per pass (`{c}` counts the
+/// passes), then the last one to three one at a time.
 macro_rules! requant_loop {
     ($step:expr) => {
         concat!(
-            "lsrs {c}, {n}, #1\n",
+            "lsrs {c}, {n}, #2\n",
             "beq 3f\n",
             "2:\n",
+            $step,
+            $step,
             $step,
             $step,
             "subs {c}, {c}, #1\n",
             "bne 2b\n",
             "3:\n",
-            "lsls {n}, {n}, #31\n",
+            "ands {n}, {n}, #3\n",
             "beq 4f\n",
+            "5:\n",
             $step,
+            "subs {n}, {n}, #1\n",
+            "bne 5b\n",
             "4:\n",
         )
     };
@@ -416,15 +421,24 @@ macro_rules! requant_asm {
     };
 }
 
-/// The high product of one sum of [`requant_row`] from the doubled sum with `SMMULR` (narrow
-/// sums), then the tail.
+/// One sum of [`requant_row`] from the doubled sum with `SMMLAR` (narrow sums): the rounded
+/// high product of `{x}` = 2·sum by `{m}` added to `{half}` − [sum < 0] in one instruction
+/// (`SMMLAR` adds its accumulate as the high word, so `(h·2^32 + 2x·m + 2^31) >> 32` is exactly
+/// `h + q`), then the shift, saturation, floor and store of `requant_tail!`. The rounding's
+/// `− [q < 0]` is taken from the sum's sign: with `m ≥ 0`, `q < 0` only for a negative sum and
+/// `q > 0` only for a positive one, and where `q = 0` it changes nothing (`⌊(2^(e−1) − 1 +
+/// zp·2^e) / 2^e⌋ = zp = ⌊(2^(e−1) + zp·2^e) / 2^e⌋`).
 macro_rules! narrow_step {
     ($tail:tt) => {
         concat!(
             "ldr {x}, [{a}], #4\n",
             "add {x}, {b}, {x}, lsl #1\n",
-            "smmulr {x}, {x}, {m}\n",
-            requant_tail!($tail),
+            "sub {lo}, {half}, {x}, lsr #31\n",
+            "smmlar {lo}, {x}, {m}, {lo}\n",
+            "asr {lo}, {lo}, {e}\n",
+            "ssat {lo}, #8, {lo}\n",
+            requant_floor!($tail),
+            "strb {lo}, [{d}], #1\n",
         )
     };
 }
@@ -460,8 +474,9 @@ macro_rules! wide_step {
 /// `requant_one` of the conv over a row for one multiplier `m ≥ 0` and right shift `e`
 /// (`1 ..= 22`), `max` 127: `dst[i] = max(min, sat8(zp + rdbpot(srdhm(base + acc[i], m), e)))`.
 /// `narrow` (every `|base + acc[i]| < 2^30`): `SMMULR` of the doubled sum is the doubling high
-/// multiply, `(2x·m + 2^31) >> 32 = ⌊(x·m + 2^30) / 2^31⌋`, 11.5 instructions per element
-/// (8.5 where the floor `min` is −128); otherwise `SMLAL` and an `SSAT` pre-clamp, 16.5 (13.5).
+/// multiply, `(2x·m + 2^31) >> 32 = ⌊(x·m + 2^30) / 2^31⌋`, in `SMMLAR` with the rounding
+/// term (`narrow_step!`): 10.5 instructions per element (7.5 where the floor `min` is −128);
+/// otherwise `SMLAL` and an `SSAT` pre-clamp, 16.5 (13.5).
 /// `false` (nothing written) outside those cases.
 ///
 /// The pre-clamp of the high product `q` to `[−2^30, 2^30 − 1]` keeps `q + 2^(e−1)` in i32 and
@@ -504,37 +519,37 @@ pub fn requant_row(
     true
 }
 
-/// The constants of [`requant_row_signed`], each as a `[sum ≥ 0, sum < 0]` pair so that the
-/// sum's sign bit indexes them: multipliers, right shifts, `2^(shift − 1)` plus `zp·2^shift`
-/// (the zero point folded in, as in `requant_tail!`).
+/// The constants of [`requant_row_signed`], picked by the sum's sign bit: per sign (`[sum ≥ 0,
+/// sum < 0]`) the multiplier and `2^(shift − 1) + zp·2^shift − [sum < 0]` (the zero point and
+/// the rounding's `− [q < 0]` folded in, as in `narrow_step!`) side by side for one `LDRD`,
+/// then the right shifts eight bytes apart.
 #[repr(C)]
 struct SignQuant {
-    m: [i32; 2],
-    e: [i32; 2],
-    half: [i32; 2],
+    /// `[m, half]` for sums ≥ 0, then for sums < 0.
+    mh: [[i32; 2]; 2],
+    /// `[shift, unused]` for sums ≥ 0, then for sums < 0.
+    e: [[i32; 2]; 2],
 }
 
-/// The sign bit of the sum `{x}` picks the constants (`{k}` = `{kp}` + 4·sign: the pair
-/// element of each field) and loads the multiplier `{m}`: two instructions to pick, no branch
+/// The sign bit of the sum `{x}` picks the constants (`{k}` = `{kp}` + 8·sign) and loads the
+/// multiplier `{m}` and the rounding term `{hi}` in one `LDRD`: three instructions, no branch
 /// or `IT` block.
 macro_rules! pick_sign {
     () => {
         concat!(
             "lsr {k}, {x}, #31\n",
-            "add {k}, {kp}, {k}, lsl #2\n",
-            "ldr {m}, [{k}]\n",
+            "add {k}, {kp}, {k}, lsl #3\n",
+            "ldrd {m}, {hi}, [{k}]\n",
         )
     };
 }
 
-/// `requant_tail!` with the shift and `half` read from the picked constants.
+/// The end of a [`requant_row_signed`] step from `{lo}` = the high product plus the picked
+/// rounding term: the picked shift, saturation, floor and store.
 macro_rules! signed_tail {
     ($tail:tt) => {
         concat!(
             "ldr {hi}, [{k}, #16]\n",
-            "add {lo}, {x}, {hi}\n",
-            "sub {lo}, {lo}, {x}, lsr #31\n",
-            "ldr {hi}, [{k}, #8]\n",
             "asr {lo}, {lo}, {hi}\n",
             "ssat {lo}, #8, {lo}\n",
             requant_floor!($tail),
@@ -543,20 +558,22 @@ macro_rules! signed_tail {
     };
 }
 
-/// One sum of [`requant_row_signed`] with narrow sums: the doubled sum's `SMMULR`.
+/// One sum of [`requant_row_signed`] with narrow sums: the doubled sum's `SMMLAR` with the
+/// picked rounding term (as `narrow_step!`): 10 instructions (13 with a floor).
 macro_rules! signed_narrow_step {
     ($tail:tt) => {
         concat!(
             "ldr {x}, [{a}], #4\n",
             "add {x}, {b}, {x}, lsl #1\n",
             pick_sign!(),
-            "smmulr {x}, {x}, {m}\n",
+            "smmlar {lo}, {x}, {m}, {hi}\n",
             signed_tail!($tail),
         )
     };
 }
 
-/// One sum of [`requant_row_signed`] with `SMLAL` and the pre-clamp (any sum).
+/// One sum of [`requant_row_signed`] with `SMLAL` and the pre-clamp (any sum); `wide_high!`
+/// uses `{hi}`, so the rounding term is loaded again after it.
 macro_rules! signed_wide_step {
     ($tail:tt) => {
         concat!(
@@ -564,15 +581,17 @@ macro_rules! signed_wide_step {
             "add {x}, {x}, {b}\n",
             pick_sign!(),
             wide_high!(),
+            "ldr {hi}, [{k}, #4]\n",
+            "add {lo}, {x}, {hi}\n",
             signed_tail!($tail),
         )
     };
 }
 
 /// [`requant_row`] with a multiplier and shift per sign of `base + acc[i]` (`pos` for ≥ 0,
-/// `neg` below: the leaky ReLU's two slopes): with `narrow` the doubled sum's `SMMULR`, 16.5
-/// instructions per element (13.5 without a floor), otherwise `SMLAL` and the pre-clamp, 21.5
-/// (18.5). `false` (nothing written) unless both shifts are `1 ..= 22`, both multipliers ≥ 0
+/// `neg` below: the leaky ReLU's two slopes): with `narrow` the doubled sum's `SMMLAR`, 13.5
+/// instructions per element (10.5 without a floor), otherwise `SMLAL` and the pre-clamp, 20.5
+/// (17.5). `false` (nothing written) unless both shifts are `1 ..= 22`, both multipliers ≥ 0
 /// and `max` is 127.
 #[allow(clippy::too_many_arguments)]
 pub fn requant_row_signed(
@@ -593,16 +612,16 @@ pub fn requant_row_signed(
     }
     let half = |(_, e): (i32, i32)| (1 << (e - 1)) + (zp << e);
     let table = SignQuant {
-        m: [pos.0, neg.0],
-        e: [pos.1, neg.1],
-        half: [half(pos), half(neg)],
+        mh: [[pos.0, half(pos)], [neg.0, half(neg) - 1]],
+        e: [[pos.1, 0], [neg.1, 0]],
     };
     macro_rules! run {
         ($step:ident, $tail:tt, $b:expr; $($extra:tt)*) => {
             // SAFETY: `n` ≥ 1 words of `acc` and `n` bytes of `dst` exist (n ≤ both lengths);
-            // `table` holds the three constant pairs (sign bit 1 picks the second of each). With
-            // `narrow` every |base + acc| < 2^30, so doubling it keeps its sign and `SMMULR` is
-            // the doubling high multiply (as in `requant_row`).
+            // `table` holds the constants of both signs (sign bit 1 picks those 8 bytes on, the
+            // `LDRD` reads 4-aligned words). With `narrow` every |base + acc| < 2^30, so
+            // doubling it keeps its sign and `SMMLAR` is the doubling high multiply plus the
+            // rounding term (as in `requant_row`).
             unsafe {
                 requant_asm!(acc, dst, n, $b, $step!($tail);
                     kp = in(reg) core::ptr::addr_of!(table), hi = out(reg) _, k = out(reg) _,
@@ -673,7 +692,7 @@ pub unsafe fn pair_row_s2(row: *const i16, words: &[u32], first: bool, acc: &mut
 
 /// One output row of the 3×3 depthwise ring strip (`depthwise::ring3`): `acc[ox]` = the
 /// 12 halfwords from `strip + 8·sx·ox` bytes (three columns of `[row, row, row, 0]`) against
-/// the 12 halfwords of `taps`, as six `SMLAD` over word pairs: 13 instructions per pixel
+/// the 12 halfwords of `taps`, as six `SMLAD` over word pairs: 11 instructions per pixel
 /// (nine multiply-accumulates).
 ///
 /// # Safety
@@ -694,41 +713,77 @@ pub unsafe fn ring3_row(strip: *const i16, taps: &[i16; 12], sx: usize, acc: &mu
     }
 }
 
-/// [`ring3_row`] with the pixel step `STEP` bytes as an immediate.
+/// [`ring3_row`] with the pixel step `STEP` bytes as an immediate: two pixels per pass, each
+/// reading its first column post-indexed (the pointer then sits at the next pixel, the other
+/// two columns at `8 − STEP` and `16 − STEP` bytes from it): 11 instructions per pixel, then
+/// the odd one.
 ///
 /// # Safety
-/// The conditions of [`ring3_row`] with `STEP = 8·sx` bytes, and `acc` is not empty (the loop
-/// runs until `a` reaches `end`, so an empty `acc` would never stop).
+/// The conditions of [`ring3_row`] with `STEP = 8·sx` bytes, and `acc` is not empty.
 #[inline(always)]
 unsafe fn ring3<const STEP: usize>(strip: *const i16, w: &[u32; 6], acc: &mut [i32]) {
-    core::arch::asm!(
-        "2:",
-        "ldrd {x0}, {x1}, [{p}]",
-        "smuad {s}, {x0}, {w0}",
-        "smlad {s}, {x1}, {w1}, {s}",
-        "ldrd {x0}, {x1}, [{p}, #8]",
-        "smlad {s}, {x0}, {w2}, {s}",
-        "smlad {s}, {x1}, {w3}, {s}",
-        "ldrd {x0}, {x1}, [{p}, #16]",
-        "smlad {s}, {x0}, {w4}, {s}",
-        "smlad {s}, {x1}, {w5}, {s}",
-        "add {p}, {p}, #{step}",
-        "str {s}, [{a}], #4",
-        "cmp {a}, {end}",
-        "bne 2b",
-        step = const STEP,
-        p = inout(reg) strip => _,
-        a = inout(reg) acc.as_mut_ptr() => _,
-        end = in(reg) acc.as_mut_ptr().add(acc.len()),
-        w0 = in(reg) w[0],
-        w1 = in(reg) w[1],
-        w2 = in(reg) w[2],
-        w3 = in(reg) w[3],
-        w4 = in(reg) w[4],
-        w5 = in(reg) w[5],
-        x0 = out(reg) _,
-        x1 = out(reg) _,
-        s = out(reg) _,
-        options(nostack),
-    );
+    macro_rules! pixel {
+        () => {
+            concat!(
+                "ldrd {x0}, {x1}, [{p}], #{step}\n",
+                "smuad {s}, {x0}, {w0}\n",
+                "smlad {s}, {x1}, {w1}, {s}\n",
+                "ldrd {x0}, {x1}, [{p}, #{c1}]\n",
+                "smlad {s}, {x0}, {w2}, {s}\n",
+                "smlad {s}, {x1}, {w3}, {s}\n",
+                "ldrd {x0}, {x1}, [{p}, #{c2}]\n",
+                "smlad {s}, {x0}, {w4}, {s}\n",
+                "smlad {s}, {x1}, {w5}, {s}\n",
+                "str {s}, [{a}], #4\n",
+            )
+        };
+    }
+    let n = acc.len();
+    let mut p = strip;
+    let mut a = acc.as_mut_ptr();
+    if n >= 2 {
+        core::arch::asm!(
+            "2:",
+            pixel!(),
+            pixel!(),
+            "cmp {a}, {end}",
+            "bne 2b",
+            step = const STEP,
+            c1 = const 8 - STEP as isize,
+            c2 = const 16 - STEP as isize,
+            p = inout(reg) p,
+            a = inout(reg) a,
+            end = in(reg) a.add(n & !1),
+            w0 = in(reg) w[0],
+            w1 = in(reg) w[1],
+            w2 = in(reg) w[2],
+            w3 = in(reg) w[3],
+            w4 = in(reg) w[4],
+            w5 = in(reg) w[5],
+            x0 = out(reg) _,
+            x1 = out(reg) _,
+            s = out(reg) _,
+            options(nostack),
+        );
+    }
+    if n % 2 == 1 {
+        core::arch::asm!(
+            pixel!(),
+            step = const STEP,
+            c1 = const 8 - STEP as isize,
+            c2 = const 16 - STEP as isize,
+            p = inout(reg) p => _,
+            a = inout(reg) a => _,
+            w0 = in(reg) w[0],
+            w1 = in(reg) w[1],
+            w2 = in(reg) w[2],
+            w3 = in(reg) w[3],
+            w4 = in(reg) w[4],
+            w5 = in(reg) w[5],
+            x0 = out(reg) _,
+            x1 = out(reg) _,
+            s = out(reg) _,
+            options(nostack),
+        );
+    }
 }
