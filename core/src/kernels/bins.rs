@@ -169,6 +169,9 @@ pub fn bins_head_i8(
         use super::arm::dsp;
         let mut words = [0u32; MAX_BIN_FEATURES / 2];
         let mut sums = [0i32; MAX_BINS];
+        // Heads of 12 features and up to 16 bins: the weights widened once per call.
+        let mut wide = [0u32; dsp::WIDE12_WORDS];
+        let wide12 = c == 12 && 6 * n <= wide.len() && dsp::widen_rows12(weights, n, &mut wide);
         let mut done = lanes;
         for (i, o) in out[..p].iter_mut().enumerate().skip(lanes) {
             let packed = c.is_multiple_of(4)
@@ -180,7 +183,12 @@ pub fn bins_head_i8(
             for (s, ch) in sums[..n].iter_mut().zip(channels) {
                 *s = ch.bias;
             }
-            if !dsp::dot_rows(weights, c, &words[..c / 2], &mut sums[..n]) {
+            let summed = if wide12 {
+                dsp::dot_rows12(&wide[..6 * n], &words[..6], &mut sums[..n])
+            } else {
+                dsp::dot_rows(weights, c, &words[..c / 2], &mut sums[..n])
+            };
+            if !summed {
                 break;
             }
             // The logits and their maximum in one pass (the fold of `expected_depth`).
@@ -346,6 +354,55 @@ mod tests {
                 .zip(&want)
                 .all(|(a, b)| a.to_bits() == b.to_bits());
             assert!(same, "{} differs from the portable head", isa.name());
+        }
+    }
+
+    /// Heads of 12 features (the Cortex-M path with widened weights, up to 16 bins) give the
+    /// portable bits on every set, extremes of codes and weights included.
+    #[test]
+    fn twelve_feature_heads_agree_across_sets() {
+        for n in [1usize, 2, 15, 16, 17] {
+            let (c, h, w) = (12usize, 3usize, 5usize);
+            let shape = Shape::new(c, h, w);
+            let feats: Vec<i8> = (0..c * h * w)
+                .map(|i| match i % 11 {
+                    0 => -128,
+                    1 => 127,
+                    _ => ((i * 73 + 5) % 251) as i8,
+                })
+                .collect();
+            let wq: Vec<i8> = (0..n * c)
+                .map(|i| {
+                    if i % 5 == 0 {
+                        -128
+                    } else {
+                        ((i * 31 + 7) % 253) as i8
+                    }
+                })
+                .collect();
+            let chans: Vec<BinChannel> = (0..n)
+                .map(|i| BinChannel {
+                    bias: i as i32 * 13 - 160,
+                    scale: 1e-3 * (1.0 + (i % 7) as f32),
+                })
+                .collect();
+            let centres: Vec<f32> = (0..n).map(|i| 0.1 + 0.04 * i as f32).collect();
+            let (f, ch, ce) = (&feats, &chans, &centres);
+            let mut want = std::vec![0f32; h * w];
+            bins_head_i8(Isa::Portable, f, shape, -3, &wq, ch, ce, &mut want).unwrap();
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                let mut got = std::vec![0f32; h * w];
+                bins_head_i8(isa, f, shape, -3, &wq, ch, ce, &mut got).unwrap();
+                let same = got
+                    .iter()
+                    .zip(&want)
+                    .all(|(a, b)| a.to_bits() == b.to_bits());
+                assert!(
+                    same,
+                    "{} differs from the portable head, {n} bins",
+                    isa.name()
+                );
+            }
         }
     }
 

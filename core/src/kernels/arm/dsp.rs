@@ -315,6 +315,76 @@ pub fn dot_rows(weights: &[i8], c: usize, x: &[u32], sums: &mut [i32]) -> bool {
     true
 }
 
+/// Words of [`widen_rows`]' output that [`dot_rows12`] callers hold (16 rows of 12 weights).
+pub const WIDE12_WORDS: usize = 96;
+
+/// `out[r·6 ..][..6]` = row `r` of the `rows` int8 weight rows of 12 as 16-bit pairs in
+/// [`pack_pixel`]'s order (`[w0|w2], [w1|w3], [w4|w6], …`), for [`dot_rows12`]; `false`
+/// (nothing written) if `weights` is shorter than `12·rows` or `out` than `6·rows` words.
+pub fn widen_rows12(weights: &[i8], rows: usize, out: &mut [u32]) -> bool {
+    let Some(w) = weights.get(..12 * rows) else {
+        return false;
+    };
+    let Some(out) = out.get_mut(..6 * rows) else {
+        return false;
+    };
+    let half = |v: i8| v as i16 as u16 as u32;
+    for (q, o) in w.chunks_exact(4).zip(out.chunks_exact_mut(2)) {
+        o[0] = half(q[0]) | half(q[2]) << 16;
+        o[1] = half(q[1]) | half(q[3]) << 16;
+    }
+    true
+}
+
+/// [`dot_rows`] for `c = 12` with the weights widened by [`widen_rows12`] (`wide`, six words
+/// per row) and the pixel's six words in registers: per row three `LDRD` of weight words and
+/// six `SMLAD`, 13 instructions (the int8 rows take 27). The same sums. `false` (nothing
+/// written) unless `wide` holds `6·sums.len()` words and `x` six.
+pub fn dot_rows12(wide: &[u32], x: &[u32], sums: &mut [i32]) -> bool {
+    let rows = sums.len();
+    if rows == 0 {
+        return true;
+    }
+    if x.len() < 6 || rows.checked_mul(6).is_none_or(|n| wide.len() < n) {
+        return false;
+    }
+    // SAFETY: `6·rows` words of `wide` are read (checked), `rows ≥ 1` sums read and written
+    // (the loop stops at `end`), six words of `x` read (checked) before the loop. Unaligned
+    // `LDRD` would fault, and `wide` is a `u32` slice (4-aligned).
+    unsafe {
+        core::arch::asm!(
+            "2:",
+            "ldr {acc}, [{s}]",
+            "ldrd {w0}, {w1}, [{w}], #8",
+            "smlad {acc}, {w0}, {x0}, {acc}",
+            "smlad {acc}, {w1}, {x1}, {acc}",
+            "ldrd {w0}, {w1}, [{w}], #8",
+            "smlad {acc}, {w0}, {x2}, {acc}",
+            "smlad {acc}, {w1}, {x3}, {acc}",
+            "ldrd {w0}, {w1}, [{w}], #8",
+            "smlad {acc}, {w0}, {x4}, {acc}",
+            "smlad {acc}, {w1}, {x5}, {acc}",
+            "str {acc}, [{s}], #4",
+            "cmp {s}, {end}",
+            "bne 2b",
+            s = inout(reg) sums.as_mut_ptr() => _,
+            end = in(reg) sums.as_mut_ptr().add(rows),
+            w = inout(reg) wide.as_ptr() => _,
+            x0 = in(reg) x[0],
+            x1 = in(reg) x[1],
+            x2 = in(reg) x[2],
+            x3 = in(reg) x[3],
+            x4 = in(reg) x[4],
+            x5 = in(reg) x[5],
+            acc = out(reg) _,
+            w0 = out(reg) _,
+            w1 = out(reg) _,
+            options(nostack),
+        );
+    }
+    true
+}
+
 /// [`pack_pixel`] of `x_k = src[k·stride] − zp` for `k < 2·out.len()` (one pixel's channels
 /// of a planar map), four codes per pass; `false` (nothing written) if `src` is too short or
 /// `out` is not whole pairs of words.
