@@ -169,9 +169,12 @@ pub fn bins_head_i8(
         use super::arm::dsp;
         let mut words = [0u32; MAX_BIN_FEATURES / 2];
         let mut sums = [0i32; MAX_BINS];
-        // Heads of 12 features and up to 16 bins: the weights widened once per call.
-        let mut wide = [0u32; dsp::WIDE12_WORDS];
-        let wide12 = c == 12 && 6 * n <= wide.len() && dsp::widen_rows12(weights, n, &mut wide);
+        // Heads of 12 features and up to 16 bins: bias, widened weights and scale per bin,
+        // made once per call, then each pixel's logits and their maximum in one asm loop.
+        let mut wide = [0u32; 16 * dsp::WIDE12_ROW];
+        let wide12 = c == 12
+            && dsp::WIDE12_ROW * n <= wide.len()
+            && dsp::widen_rows12(weights, channels, n, &mut wide);
         let mut done = lanes;
         for (i, o) in out[..p].iter_mut().enumerate().skip(lanes) {
             let packed = c.is_multiple_of(4)
@@ -180,15 +183,19 @@ pub fn bins_head_i8(
                 let x = (0..c).map(|k| features[k * p + i] as i32 - zp);
                 dsp::pack_pixel(x, &mut words[..c / 2]);
             }
+            if wide12 {
+                let wide = &wide[..dsp::WIDE12_ROW * n];
+                let Some(m) = dsp::logits12(wide, &words[..6], &mut logits[..n]) else {
+                    break;
+                };
+                *o = expectation(&logits[..n], m, &centres[..n]);
+                done = i + 1;
+                continue;
+            }
             for (s, ch) in sums[..n].iter_mut().zip(channels) {
                 *s = ch.bias;
             }
-            let summed = if wide12 {
-                dsp::dot_rows12(&wide[..6 * n], &words[..6], &mut sums[..n])
-            } else {
-                dsp::dot_rows(weights, c, &words[..c / 2], &mut sums[..n])
-            };
-            if !summed {
+            if !dsp::dot_rows(weights, c, &words[..c / 2], &mut sums[..n]) {
                 break;
             }
             // The logits and their maximum in one pass (the fold of `expected_depth`).

@@ -315,46 +315,64 @@ pub fn dot_rows(weights: &[i8], c: usize, x: &[u32], sums: &mut [i32]) -> bool {
     true
 }
 
-/// Words of [`widen_rows`]' output that [`dot_rows12`] callers hold (16 rows of 12 weights).
-pub const WIDE12_WORDS: usize = 96;
+/// Words per row of [`widen_rows12`]' table: the bias, six weight words, the logit scale.
+pub const WIDE12_ROW: usize = 8;
 
-/// `out[r·6 ..][..6]` = row `r` of the `rows` int8 weight rows of 12 as 16-bit pairs in
-/// [`pack_pixel`]'s order (`[w0|w2], [w1|w3], [w4|w6], …`), for [`dot_rows12`]; `false`
-/// (nothing written) if `weights` is shorter than `12·rows` or `out` than `6·rows` words.
-pub fn widen_rows12(weights: &[i8], rows: usize, out: &mut [u32]) -> bool {
-    let Some(w) = weights.get(..12 * rows) else {
-        return false;
-    };
-    let Some(out) = out.get_mut(..6 * rows) else {
+/// `out[r·8 ..][..8]` = row `r` of a 12-feature bins head for [`logits12`]: the bias, the
+/// row's 12 int8 weights as 16-bit pairs in [`pack_pixel`]'s order (`[w0|w2], [w1|w3], [w4|w6],
+/// …`), the scale's bits; `false` (nothing written) if `weights` is shorter than `12·rows`,
+/// `channels` than `rows` or `out` than `8·rows` words.
+pub fn widen_rows12(
+    weights: &[i8],
+    channels: &[crate::kernels::bins::BinChannel],
+    rows: usize,
+    out: &mut [u32],
+) -> bool {
+    let (Some(w), Some(bs), Some(out)) = (
+        weights.get(..12 * rows),
+        channels.get(..rows),
+        out.get_mut(..WIDE12_ROW * rows),
+    ) else {
         return false;
     };
     let half = |v: i8| v as i16 as u16 as u32;
-    for (q, o) in w.chunks_exact(4).zip(out.chunks_exact_mut(2)) {
-        o[0] = half(q[0]) | half(q[2]) << 16;
-        o[1] = half(q[1]) | half(q[3]) << 16;
+    for ((row, ch), o) in w.chunks_exact(12).zip(bs).zip(out.chunks_exact_mut(8)) {
+        o[0] = ch.bias as u32;
+        for (q, pair) in row.chunks_exact(4).zip(o[1..7].chunks_exact_mut(2)) {
+            pair[0] = half(q[0]) | half(q[2]) << 16;
+            pair[1] = half(q[1]) | half(q[3]) << 16;
+        }
+        o[7] = ch.scale.to_bits();
     }
     true
 }
 
-/// [`dot_rows`] for `c = 12` with the weights widened by [`widen_rows12`] (`wide`, six words
-/// per row) and the pixel's six words in registers: per row three `LDRD` of weight words and
-/// six `SMLAD`, 13 instructions (the int8 rows take 27). The same sums. `false` (nothing
-/// written) unless `wide` holds `6·sums.len()` words and `x` six.
-pub fn dot_rows12(wide: &[u32], x: &[u32], sums: &mut [i32]) -> bool {
-    let rows = sums.len();
+/// The logits of a 12-feature bins head for one pixel: `logits[r] = (bias_r + Σ_k w_rk·x_k) as
+/// f32 · scale_r` over the rows of `wide` ([`widen_rows12`], eight words each) with the
+/// pixel's six words `x` ([`pack_pixel`]) in registers, and their maximum (from −∞, taking a
+/// logit where it is greater: the fold of the portable loop): per row three `LDRD` of weight
+/// words, six `SMLAD`, the conversion, product and maximum on the FPU, 21 instructions. The
+/// same integers and f32 operations as the portable loop, so the same bits. `None` (nothing
+/// written) unless `wide` holds `8·logits.len()` words and `x` six.
+pub fn logits12(wide: &[u32], x: &[u32], logits: &mut [f32]) -> Option<f32> {
+    let rows = logits.len();
     if rows == 0 {
-        return true;
+        return Some(f32::NEG_INFINITY);
     }
-    if x.len() < 6 || rows.checked_mul(6).is_none_or(|n| wide.len() < n) {
-        return false;
+    if x.len() < 6 || rows.checked_mul(WIDE12_ROW).is_none_or(|n| wide.len() < n) {
+        return None;
     }
-    // SAFETY: `6·rows` words of `wide` are read (checked), `rows ≥ 1` sums read and written
-    // (the loop stops at `end`), six words of `x` read (checked) before the loop. Unaligned
-    // `LDRD` would fault, and `wide` is a `u32` slice (4-aligned).
+    let mut m = f32::NEG_INFINITY.to_bits();
+    // SAFETY: `8·rows` words of `wide` are read (checked; 4-aligned as `u32`, which `LDRD`
+    // needs), `rows ≥ 1` f32 of `logits` written (the loop stops at `end`), six words of `x`
+    // read (checked) before the loop. The FP registers s16–s18 are named in the text, saved
+    // and restored here (as in `bins::sums`: no `sreg` operands on this target).
     unsafe {
         core::arch::asm!(
+            "vpush {{s16-s18}}",
+            "vmov s18, {w0}",
             "2:",
-            "ldr {acc}, [{s}]",
+            "ldr {acc}, [{w}], #4",
             "ldrd {w0}, {w1}, [{w}], #8",
             "smlad {acc}, {w0}, {x0}, {acc}",
             "smlad {acc}, {w1}, {x1}, {acc}",
@@ -364,11 +382,21 @@ pub fn dot_rows12(wide: &[u32], x: &[u32], sums: &mut [i32]) -> bool {
             "ldrd {w0}, {w1}, [{w}], #8",
             "smlad {acc}, {w0}, {x4}, {acc}",
             "smlad {acc}, {w1}, {x5}, {acc}",
-            "str {acc}, [{s}], #4",
-            "cmp {s}, {end}",
+            "vmov s16, {acc}",
+            "vcvt.f32.s32 s16, s16",
+            "vldmia {w}!, {{s17}}",
+            "vmul.f32 s16, s16, s17",
+            "vstmia {l}!, {{s16}}",
+            "vcmp.f32 s16, s18",
+            "vmrs APSR_nzcv, fpscr",
+            "it gt",
+            "vmovgt.f32 s18, s16",
+            "cmp {l}, {end}",
             "bne 2b",
-            s = inout(reg) sums.as_mut_ptr() => _,
-            end = in(reg) sums.as_mut_ptr().add(rows),
+            "vmov {w0}, s18",
+            "vpop {{s16-s18}}",
+            l = inout(reg) logits.as_mut_ptr() => _,
+            end = in(reg) logits.as_mut_ptr().add(rows),
             w = inout(reg) wide.as_ptr() => _,
             x0 = in(reg) x[0],
             x1 = in(reg) x[1],
@@ -377,12 +405,11 @@ pub fn dot_rows12(wide: &[u32], x: &[u32], sums: &mut [i32]) -> bool {
             x4 = in(reg) x[4],
             x5 = in(reg) x[5],
             acc = out(reg) _,
-            w0 = out(reg) _,
+            w0 = inout(reg) m,
             w1 = out(reg) _,
-            options(nostack),
         );
     }
-    true
+    Some(f32::from_bits(m))
 }
 
 /// [`pack_pixel`] of `x_k = src[k·stride] − zp` for `k < 2·out.len()` (one pixel's channels
