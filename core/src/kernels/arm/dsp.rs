@@ -617,37 +617,30 @@ pub fn requant_row(
 }
 
 /// The constants of [`requant_row_signed`], picked by the sum's sign bit: per sign (`[sum ≥ 0,
-/// sum < 0]`) the multiplier and `2^(shift − 1) + zp·2^shift − [sum < 0]` (the zero point and
-/// the rounding's `− [q < 0]` folded in, as in `narrow_step!`) side by side for one `LDRD`,
-/// then the right shifts eight bytes apart.
+/// sum < 0]`, 16 bytes apart) the multiplier, `2^(shift − 1) + zp·2^shift − [sum < 0]` (the
+/// zero point and the rounding's `− [q < 0]` folded in, as in `narrow_step!`) and the right
+/// shift, for one `LDM`.
 #[repr(C)]
 struct SignQuant {
-    /// `[m, half]` for sums ≥ 0, then for sums < 0.
-    mh: [[i32; 2]; 2],
-    /// `[shift, unused]` for sums ≥ 0, then for sums < 0.
-    e: [[i32; 2]; 2],
+    /// `[m, half, shift, unused]` for sums ≥ 0, then for sums < 0.
+    k: [[i32; 4]; 2],
 }
 
-/// The sign bit of the sum `{x}` picks the constants (`{k}` = `{kp}` + 8·sign) and loads the
-/// multiplier `{m}` and the rounding term `{hi}` in one `LDRD`: three instructions, no branch
-/// or `IT` block.
+/// The sign bit of the sum `{x}` picks the constants: `r2` = `{kp}` + 16·sign. The steps
+/// below name `r0`–`r2` in the text (explicit operands have no names): `LDM` fills registers
+/// in number order.
 macro_rules! pick_sign {
     () => {
-        concat!(
-            "lsr {k}, {x}, #31\n",
-            "add {k}, {kp}, {k}, lsl #3\n",
-            "ldrd {m}, {hi}, [{k}]\n",
-        )
+        concat!("lsr r2, {x}, #31\n", "add r2, {kp}, r2, lsl #4\n",)
     };
 }
 
 /// The end of a [`requant_row_signed`] step from `{lo}` = the high product plus the picked
-/// rounding term: the picked shift, saturation, floor and store.
+/// rounding term, the picked shift in `r2`: shift, saturation, floor and store.
 macro_rules! signed_tail {
     ($tail:tt) => {
         concat!(
-            "ldr {hi}, [{k}, #16]\n",
-            "asr {lo}, {lo}, {hi}\n",
+            "asr {lo}, {lo}, r2\n",
             "ssat {lo}, #8, {lo}\n",
             requant_floor!($tail),
             "strb {lo}, [{d}], #1\n",
@@ -655,39 +648,49 @@ macro_rules! signed_tail {
     };
 }
 
-/// One sum of [`requant_row_signed`] with narrow sums: the doubled sum's `SMMLAR` with the
-/// picked rounding term (as `narrow_step!`): 10 instructions (13 with a floor).
+/// One sum of [`requant_row_signed`] with narrow sums: one `LDM` of the picked multiplier
+/// (`r0`), rounding term (`r1`) and shift (`r2`, over the address), the doubled sum's `SMMLAR`
+/// with the rounding term (as `narrow_step!`): 9 instructions (12 with a floor).
 macro_rules! signed_narrow_step {
     ($tail:tt) => {
         concat!(
             "ldr {x}, [{a}], #4\n",
             "add {x}, {b}, {x}, lsl #1\n",
             pick_sign!(),
-            "smmlar {lo}, {x}, {m}, {hi}\n",
+            "ldm r2, {{r0, r1, r2}}\n",
+            "smmlar {lo}, {x}, r0, r1\n",
             signed_tail!($tail),
         )
     };
 }
 
-/// One sum of [`requant_row_signed`] with `SMLAL` and the pre-clamp (any sum); `wide_high!`
-/// uses `{hi}`, so the rounding term is loaded again after it.
+/// One sum of [`requant_row_signed`] with `SMLAL` and the pre-clamp (any sum): the
+/// `wide_high!` steps on `r0` (multiplier) and `r1` (high word), then the rounding term and
+/// the shift loaded from the picked constants.
 macro_rules! signed_wide_step {
     ($tail:tt) => {
         concat!(
             "ldr {x}, [{a}], #4\n",
             "add {x}, {x}, {b}\n",
             pick_sign!(),
-            wide_high!(),
-            "ldr {hi}, [{k}, #4]\n",
-            "add {lo}, {x}, {hi}\n",
+            "ldr r0, [r2]\n",
+            "mov {lo}, #0x40000000\n",
+            "mov r1, #0\n",
+            "smlal {lo}, r1, {x}, r0\n",
+            "lsr {lo}, {lo}, #31\n",
+            "orr {x}, {lo}, r1, lsl #1\n",
+            "ssat {x}, #31, {x}\n",
+            "ldr r1, [r2, #4]\n",
+            "add {lo}, {x}, r1\n",
+            "ldr r2, [r2, #8]\n",
             signed_tail!($tail),
         )
     };
 }
 
 /// [`requant_row`] with a multiplier and shift per sign of `base + acc[i]` (`pos` for ≥ 0,
-/// `neg` below: the leaky ReLU's two slopes): with `narrow` the doubled sum's `SMMLAR`, 13.5
-/// instructions per element (10.5 without a floor), otherwise `SMLAL` and the pre-clamp, 20.5
+/// `neg` below: the leaky ReLU's two slopes): with `narrow` the doubled sum's `SMMLAR`, 12.5
+/// instructions per element (9.5 without a floor), otherwise `SMLAL` and the pre-clamp, 20.5
 /// (17.5). `false` (nothing written) unless both shifts are `1 ..= 22`, both multipliers ≥ 0
 /// and `max` is 127.
 #[allow(clippy::too_many_arguments)]
@@ -709,20 +712,22 @@ pub fn requant_row_signed(
     }
     let half = |(_, e): (i32, i32)| (1 << (e - 1)) + (zp << e);
     let table = SignQuant {
-        mh: [[pos.0, half(pos)], [neg.0, half(neg) - 1]],
-        e: [[pos.1, 0], [neg.1, 0]],
+        k: [
+            [pos.0, half(pos), pos.1, 0],
+            [neg.0, half(neg) - 1, neg.1, 0],
+        ],
     };
     macro_rules! run {
         ($step:ident, $tail:tt, $b:expr; $($extra:tt)*) => {
             // SAFETY: `n` ≥ 1 words of `acc` and `n` bytes of `dst` exist (n ≤ both lengths);
-            // `table` holds the constants of both signs (sign bit 1 picks those 8 bytes on, the
-            // `LDRD` reads 4-aligned words). With `narrow` every |base + acc| < 2^30, so
+            // `table` holds the constants of both signs (sign bit 1 picks those 16 bytes on,
+            // 4-aligned words for `LDM`/`LDR`). With `narrow` every |base + acc| < 2^30, so
             // doubling it keeps its sign and `SMMLAR` is the doubling high multiply plus the
-            // rounding term (as in `requant_row`).
+            // rounding term (as in `requant_row`). r0–r2 are declared clobbered.
             unsafe {
                 requant_asm!(acc, dst, n, $b, $step!($tail);
-                    kp = in(reg) core::ptr::addr_of!(table), hi = out(reg) _, k = out(reg) _,
-                    m = out(reg) _, $($extra)*)
+                    kp = in(reg) core::ptr::addr_of!(table), $($extra)* out("r0") _,
+                    out("r1") _, out("r2") _,)
             }
         };
     }
