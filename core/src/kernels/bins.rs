@@ -177,8 +177,13 @@ pub fn bins_head_i8(
             && dsp::widen_rows12(weights, channels, n, &mut wide);
         let mut done = lanes;
         for (i, o) in out[..p].iter_mut().enumerate().skip(lanes) {
-            let packed = c.is_multiple_of(4)
-                && dsp::pack_strided(&features[i..], p, zp, &mut words[..c / 2]);
+            let packed = if wide12 {
+                let src = &features[i..];
+                (words.first_chunk_mut::<6>())
+                    .is_some_and(|six| dsp::pack12_strided(src, p, zp, six))
+            } else {
+                c.is_multiple_of(4) && dsp::pack_strided(&features[i..], p, zp, &mut words[..c / 2])
+            };
             if !packed {
                 let x = (0..c).map(|k| features[k * p + i] as i32 - zp);
                 dsp::pack_pixel(x, &mut words[..c / 2]);

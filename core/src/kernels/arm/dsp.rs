@@ -412,6 +412,52 @@ pub fn logits12(wide: &[u32], x: &[u32], logits: &mut [f32]) -> Option<f32> {
     Some(f32::from_bits(m))
 }
 
+/// [`pack_strided`] for 12 channels (`out` six words), unrolled in asm: per four channels
+/// four `LDRSB`, two `PKHBT`, two `SSUB16` and one `STRD` (33 instructions per pixel); `false`
+/// (nothing written) if `src` is shorter than `11·stride + 1`.
+pub fn pack12_strided(src: &[i8], stride: usize, zp: i32, out: &mut [u32; 6]) -> bool {
+    if stride.checked_mul(11).is_none_or(|last| last >= src.len()) {
+        return false;
+    }
+    let zz = (zp as u32 & 0xffff).wrapping_mul(0x1_0001);
+    macro_rules! quad {
+        () => {
+            concat!(
+                "ldrsb {a}, [{p}]\n",
+                "ldrsb {b}, [{p}, {st}]\n",
+                "add {p}, {p}, {st}, lsl #1\n",
+                "ldrsb {c}, [{p}]\n",
+                "ldrsb {d}, [{p}, {st}]\n",
+                "add {p}, {p}, {st}, lsl #1\n",
+                "pkhbt {a}, {a}, {c}, lsl #16\n",
+                "pkhbt {b}, {b}, {d}, lsl #16\n",
+                "ssub16 {a}, {a}, {zz}\n",
+                "ssub16 {b}, {b}, {zz}\n",
+                "strd {a}, {b}, [{o}], #8\n",
+            )
+        };
+    }
+    // SAFETY: the bytes read are `src[k·stride]`, `k < 12`, all within `src` (checked); the
+    // six words written are `out`'s (4-aligned, as `STRD` needs).
+    unsafe {
+        core::arch::asm!(
+            quad!(),
+            quad!(),
+            quad!(),
+            p = inout(reg) src.as_ptr() => _,
+            st = in(reg) stride,
+            o = inout(reg) out.as_mut_ptr() => _,
+            zz = in(reg) zz,
+            a = out(reg) _,
+            b = out(reg) _,
+            c = out(reg) _,
+            d = out(reg) _,
+            options(nostack),
+        );
+    }
+    true
+}
+
 /// [`pack_pixel`] of `x_k = src[k·stride] − zp` for `k < 2·out.len()` (one pixel's channels
 /// of a planar map), four codes per pass; `false` (nothing written) if `src` is too short or
 /// `out` is not whole pairs of words.
