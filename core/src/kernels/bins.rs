@@ -169,13 +169,33 @@ pub fn bins_head_i8(
         use super::arm::dsp;
         let mut words = [0u32; MAX_BIN_FEATURES / 2];
         let mut sums = [0i32; MAX_BINS];
+        // Heads of 12 features and up to 16 bins: bias, widened weights and scale per bin,
+        // made once per call, then each pixel's logits and their maximum in one asm loop.
+        let mut wide = [0u32; 16 * dsp::WIDE12_ROW];
+        let wide12 = c == 12
+            && dsp::WIDE12_ROW * n <= wide.len()
+            && dsp::widen_rows12(weights, channels, n, &mut wide);
         let mut done = lanes;
         for (i, o) in out[..p].iter_mut().enumerate().skip(lanes) {
-            let packed = c.is_multiple_of(4)
-                && dsp::pack_strided(&features[i..], p, zp, &mut words[..c / 2]);
+            let packed = if wide12 {
+                let src = &features[i..];
+                (words.first_chunk_mut::<6>())
+                    .is_some_and(|six| dsp::pack12_strided(src, p, zp, six))
+            } else {
+                c.is_multiple_of(4) && dsp::pack_strided(&features[i..], p, zp, &mut words[..c / 2])
+            };
             if !packed {
                 let x = (0..c).map(|k| features[k * p + i] as i32 - zp);
                 dsp::pack_pixel(x, &mut words[..c / 2]);
+            }
+            if wide12 {
+                let wide = &wide[..dsp::WIDE12_ROW * n];
+                let Some(m) = dsp::logits12(wide, &words[..6], &mut logits[..n]) else {
+                    break;
+                };
+                *o = expectation(&logits[..n], m, &centres[..n]);
+                done = i + 1;
+                continue;
             }
             for (s, ch) in sums[..n].iter_mut().zip(channels) {
                 *s = ch.bias;
@@ -346,6 +366,55 @@ mod tests {
                 .zip(&want)
                 .all(|(a, b)| a.to_bits() == b.to_bits());
             assert!(same, "{} differs from the portable head", isa.name());
+        }
+    }
+
+    /// Heads of 12 features (the Cortex-M path with widened weights, up to 16 bins) give the
+    /// portable bits on every set, extremes of codes and weights included.
+    #[test]
+    fn twelve_feature_heads_agree_across_sets() {
+        for n in [1usize, 2, 15, 16, 17] {
+            let (c, h, w) = (12usize, 3usize, 5usize);
+            let shape = Shape::new(c, h, w);
+            let feats: Vec<i8> = (0..c * h * w)
+                .map(|i| match i % 11 {
+                    0 => -128,
+                    1 => 127,
+                    _ => ((i * 73 + 5) % 251) as i8,
+                })
+                .collect();
+            let wq: Vec<i8> = (0..n * c)
+                .map(|i| {
+                    if i % 5 == 0 {
+                        -128
+                    } else {
+                        ((i * 31 + 7) % 253) as i8
+                    }
+                })
+                .collect();
+            let chans: Vec<BinChannel> = (0..n)
+                .map(|i| BinChannel {
+                    bias: i as i32 * 13 - 160,
+                    scale: 1e-3 * (1.0 + (i % 7) as f32),
+                })
+                .collect();
+            let centres: Vec<f32> = (0..n).map(|i| 0.1 + 0.04 * i as f32).collect();
+            let (f, ch, ce) = (&feats, &chans, &centres);
+            let mut want = std::vec![0f32; h * w];
+            bins_head_i8(Isa::Portable, f, shape, -3, &wq, ch, ce, &mut want).unwrap();
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                let mut got = std::vec![0f32; h * w];
+                bins_head_i8(isa, f, shape, -3, &wq, ch, ce, &mut got).unwrap();
+                let same = got
+                    .iter()
+                    .zip(&want)
+                    .all(|(a, b)| a.to_bits() == b.to_bits());
+                assert!(
+                    same,
+                    "{} differs from the portable head, {n} bins",
+                    isa.name()
+                );
+            }
         }
     }
 

@@ -494,7 +494,7 @@ const RING_COLUMN: usize = 4;
 /// as six words against six weight words ordered to match the slots (six `SMLAD`). Same sums
 /// as the reference, same bits. `false` (nothing written) for other geometries or a scratch
 /// too small for the strip.
-pub(super) fn ring3<T: Copy + Into<i32>>(
+pub(super) fn ring3<T: Copy + Into<i32> + 'static>(
     call: &Depthwise<T>,
     output: &mut [i8],
     scratch: &mut [i32],
@@ -547,14 +547,32 @@ pub(super) fn ring3<T: Copy + Into<i32>>(
                     continue;
                 }
                 held[slot] = iy;
-                let cols =
-                    strip[first * RING_COLUMN..last * RING_COLUMN].chunks_exact_mut(RING_COLUMN);
                 if (0..ih as isize).contains(&iy) {
                     let src = &chan[iy as usize * iw..][..iw];
-                    for (col, &x) in cols.zip(src) {
+                    // int8 rows: the first pixels four at a time on the Cortex-M.
+                    #[cfg(all(target_arch = "arm", feature = "arm-dsp"))]
+                    let done = if isa == Isa::ArmDsp
+                        && core::any::TypeId::of::<T>() == core::any::TypeId::of::<i8>()
+                    {
+                        // SAFETY: `T` is `i8` (checked): the same slice, as bytes.
+                        let bytes =
+                            unsafe { core::slice::from_raw_parts(src.as_ptr().cast(), src.len()) };
+                        strip
+                            .get_mut(first * RING_COLUMN + slot..last * RING_COLUMN)
+                            .map_or(0, |at| super::arm::pack::strip_row(bytes, zp, at))
+                    } else {
+                        0
+                    };
+                    #[cfg(not(all(target_arch = "arm", feature = "arm-dsp")))]
+                    let done = 0;
+                    let cols = strip[(first + done) * RING_COLUMN..last * RING_COLUMN]
+                        .chunks_exact_mut(RING_COLUMN);
+                    for (col, &x) in cols.zip(&src[done..]) {
                         col[slot] = (x.into() - zp) as i16;
                     }
                 } else {
+                    let cols = strip[first * RING_COLUMN..last * RING_COLUMN]
+                        .chunks_exact_mut(RING_COLUMN);
                     for col in cols {
                         col[slot] = 0;
                     }
@@ -573,7 +591,7 @@ const MAX_RING_ROWS: usize = 7;
 /// The `SMLAD` depthwise paths ([`ring3`], else [`ring_rows`]) on int8 or int16 codes, as
 /// [`conv`] tries them for int8 on the arm-dsp set ([`super::wide`] reads int16 through them
 /// on every set: the same bits). `false` (nothing written) where neither suits.
-pub(super) fn rings_of<T: Copy + Into<i32>>(
+pub(super) fn rings_of<T: Copy + Into<i32> + 'static>(
     call: &Depthwise<T>,
     output: &mut [i8],
     scratch: &mut [i32],

@@ -315,6 +315,149 @@ pub fn dot_rows(weights: &[i8], c: usize, x: &[u32], sums: &mut [i32]) -> bool {
     true
 }
 
+/// Words per row of [`widen_rows12`]' table: the bias, six weight words, the logit scale.
+pub const WIDE12_ROW: usize = 8;
+
+/// `out[r·8 ..][..8]` = row `r` of a 12-feature bins head for [`logits12`]: the bias, the
+/// row's 12 int8 weights as 16-bit pairs in [`pack_pixel`]'s order (`[w0|w2], [w1|w3], [w4|w6],
+/// …`), the scale's bits; `false` (nothing written) if `weights` is shorter than `12·rows`,
+/// `channels` than `rows` or `out` than `8·rows` words.
+pub fn widen_rows12(
+    weights: &[i8],
+    channels: &[crate::kernels::bins::BinChannel],
+    rows: usize,
+    out: &mut [u32],
+) -> bool {
+    let (Some(w), Some(bs), Some(out)) = (
+        weights.get(..12 * rows),
+        channels.get(..rows),
+        out.get_mut(..WIDE12_ROW * rows),
+    ) else {
+        return false;
+    };
+    let half = |v: i8| v as i16 as u16 as u32;
+    for ((row, ch), o) in w.chunks_exact(12).zip(bs).zip(out.chunks_exact_mut(8)) {
+        o[0] = ch.bias as u32;
+        for (q, pair) in row.chunks_exact(4).zip(o[1..7].chunks_exact_mut(2)) {
+            pair[0] = half(q[0]) | half(q[2]) << 16;
+            pair[1] = half(q[1]) | half(q[3]) << 16;
+        }
+        o[7] = ch.scale.to_bits();
+    }
+    true
+}
+
+/// The logits of a 12-feature bins head for one pixel: `logits[r] = (bias_r + Σ_k w_rk·x_k) as
+/// f32 · scale_r` over the rows of `wide` ([`widen_rows12`], eight words each) with the
+/// pixel's six words `x` ([`pack_pixel`]) in registers, and their maximum (from −∞, taking a
+/// logit where it is greater: the fold of the portable loop): per row three `LDRD` of weight
+/// words, six `SMLAD`, the conversion, product and maximum on the FPU, 21 instructions. The
+/// same integers and f32 operations as the portable loop, so the same bits. `None` (nothing
+/// written) unless `wide` holds `8·logits.len()` words and `x` six.
+pub fn logits12(wide: &[u32], x: &[u32], logits: &mut [f32]) -> Option<f32> {
+    let rows = logits.len();
+    if rows == 0 {
+        return Some(f32::NEG_INFINITY);
+    }
+    if x.len() < 6 || rows.checked_mul(WIDE12_ROW).is_none_or(|n| wide.len() < n) {
+        return None;
+    }
+    let mut m = f32::NEG_INFINITY.to_bits();
+    // SAFETY: `8·rows` words of `wide` are read (checked; 4-aligned as `u32`, which `LDRD`
+    // needs), `rows ≥ 1` f32 of `logits` written (the loop stops at `end`), six words of `x`
+    // read (checked) before the loop. The FP registers s16–s18 are named in the text, saved
+    // and restored here (as in `bins::sums`: no `sreg` operands on this target).
+    unsafe {
+        core::arch::asm!(
+            "vpush {{s16-s18}}",
+            "vmov s18, {w0}",
+            "2:",
+            "ldr {acc}, [{w}], #4",
+            "ldrd {w0}, {w1}, [{w}], #8",
+            "smlad {acc}, {w0}, {x0}, {acc}",
+            "smlad {acc}, {w1}, {x1}, {acc}",
+            "ldrd {w0}, {w1}, [{w}], #8",
+            "smlad {acc}, {w0}, {x2}, {acc}",
+            "smlad {acc}, {w1}, {x3}, {acc}",
+            "ldrd {w0}, {w1}, [{w}], #8",
+            "smlad {acc}, {w0}, {x4}, {acc}",
+            "smlad {acc}, {w1}, {x5}, {acc}",
+            "vmov s16, {acc}",
+            "vcvt.f32.s32 s16, s16",
+            "vldmia {w}!, {{s17}}",
+            "vmul.f32 s16, s16, s17",
+            "vstmia {l}!, {{s16}}",
+            "vcmp.f32 s16, s18",
+            "vmrs APSR_nzcv, fpscr",
+            "it gt",
+            "vmovgt.f32 s18, s16",
+            "cmp {l}, {end}",
+            "bne 2b",
+            "vmov {w0}, s18",
+            "vpop {{s16-s18}}",
+            l = inout(reg) logits.as_mut_ptr() => _,
+            end = in(reg) logits.as_mut_ptr().add(rows),
+            w = inout(reg) wide.as_ptr() => _,
+            x0 = in(reg) x[0],
+            x1 = in(reg) x[1],
+            x2 = in(reg) x[2],
+            x3 = in(reg) x[3],
+            x4 = in(reg) x[4],
+            x5 = in(reg) x[5],
+            acc = out(reg) _,
+            w0 = inout(reg) m,
+            w1 = out(reg) _,
+        );
+    }
+    Some(f32::from_bits(m))
+}
+
+/// [`pack_strided`] for 12 channels (`out` six words), unrolled in asm: per four channels
+/// four `LDRSB`, two `PKHBT`, two `SSUB16` and one `STRD` (33 instructions per pixel); `false`
+/// (nothing written) if `src` is shorter than `11·stride + 1`.
+pub fn pack12_strided(src: &[i8], stride: usize, zp: i32, out: &mut [u32; 6]) -> bool {
+    if stride.checked_mul(11).is_none_or(|last| last >= src.len()) {
+        return false;
+    }
+    let zz = (zp as u32 & 0xffff).wrapping_mul(0x1_0001);
+    macro_rules! quad {
+        () => {
+            concat!(
+                "ldrsb {a}, [{p}]\n",
+                "ldrsb {b}, [{p}, {st}]\n",
+                "add {p}, {p}, {st}, lsl #1\n",
+                "ldrsb {c}, [{p}]\n",
+                "ldrsb {d}, [{p}, {st}]\n",
+                "add {p}, {p}, {st}, lsl #1\n",
+                "pkhbt {a}, {a}, {c}, lsl #16\n",
+                "pkhbt {b}, {b}, {d}, lsl #16\n",
+                "ssub16 {a}, {a}, {zz}\n",
+                "ssub16 {b}, {b}, {zz}\n",
+                "strd {a}, {b}, [{o}], #8\n",
+            )
+        };
+    }
+    // SAFETY: the bytes read are `src[k·stride]`, `k < 12`, all within `src` (checked); the
+    // six words written are `out`'s (4-aligned, as `STRD` needs).
+    unsafe {
+        core::arch::asm!(
+            quad!(),
+            quad!(),
+            quad!(),
+            p = inout(reg) src.as_ptr() => _,
+            st = in(reg) stride,
+            o = inout(reg) out.as_mut_ptr() => _,
+            zz = in(reg) zz,
+            a = out(reg) _,
+            b = out(reg) _,
+            c = out(reg) _,
+            d = out(reg) _,
+            options(nostack),
+        );
+    }
+    true
+}
+
 /// [`pack_pixel`] of `x_k = src[k·stride] − zp` for `k < 2·out.len()` (one pixel's channels
 /// of a planar map), four codes per pass; `false` (nothing written) if `src` is too short or
 /// `out` is not whole pairs of words.
@@ -375,22 +518,27 @@ macro_rules! requant_floor {
     };
 }
 
-/// A loop of `{n}` (≥ 1) requantisation steps `$step`, two per pass (`{c}` counts the passes),
-/// then the odd one.
+/// A loop of `{n}` (≥ 1) requantisation steps `$step`, four per pass (`{c}` counts the
+/// passes), then the last one to three one at a time.
 macro_rules! requant_loop {
     ($step:expr) => {
         concat!(
-            "lsrs {c}, {n}, #1\n",
+            "lsrs {c}, {n}, #2\n",
             "beq 3f\n",
             "2:\n",
+            $step,
+            $step,
             $step,
             $step,
             "subs {c}, {c}, #1\n",
             "bne 2b\n",
             "3:\n",
-            "lsls {n}, {n}, #31\n",
+            "ands {n}, {n}, #3\n",
             "beq 4f\n",
+            "5:\n",
             $step,
+            "subs {n}, {n}, #1\n",
+            "bne 5b\n",
             "4:\n",
         )
     };
@@ -416,15 +564,24 @@ macro_rules! requant_asm {
     };
 }
 
-/// The high product of one sum of [`requant_row`] from the doubled sum with `SMMULR` (narrow
-/// sums), then the tail.
+/// One sum of [`requant_row`] from the doubled sum with `SMMLAR` (narrow sums): the rounded
+/// high product of `{x}` = 2·sum by `{m}` added to `{half}` − [sum < 0] in one instruction
+/// (`SMMLAR` adds its accumulate as the high word, so `(h·2^32 + 2x·m + 2^31) >> 32` is exactly
+/// `h + q`), then the shift, saturation, floor and store of `requant_tail!`. The rounding's
+/// `− [q < 0]` is taken from the sum's sign: with `m ≥ 0`, `q < 0` only for a negative sum and
+/// `q > 0` only for a positive one, and where `q = 0` it changes nothing (`⌊(2^(e−1) − 1 +
+/// zp·2^e) / 2^e⌋ = zp = ⌊(2^(e−1) + zp·2^e) / 2^e⌋`).
 macro_rules! narrow_step {
     ($tail:tt) => {
         concat!(
             "ldr {x}, [{a}], #4\n",
             "add {x}, {b}, {x}, lsl #1\n",
-            "smmulr {x}, {x}, {m}\n",
-            requant_tail!($tail),
+            "sub {lo}, {half}, {x}, lsr #31\n",
+            "smmlar {lo}, {x}, {m}, {lo}\n",
+            "asr {lo}, {lo}, {e}\n",
+            "ssat {lo}, #8, {lo}\n",
+            requant_floor!($tail),
+            "strb {lo}, [{d}], #1\n",
         )
     };
 }
@@ -460,8 +617,9 @@ macro_rules! wide_step {
 /// `requant_one` of the conv over a row for one multiplier `m ≥ 0` and right shift `e`
 /// (`1 ..= 22`), `max` 127: `dst[i] = max(min, sat8(zp + rdbpot(srdhm(base + acc[i], m), e)))`.
 /// `narrow` (every `|base + acc[i]| < 2^30`): `SMMULR` of the doubled sum is the doubling high
-/// multiply, `(2x·m + 2^31) >> 32 = ⌊(x·m + 2^30) / 2^31⌋`, 11.5 instructions per element
-/// (8.5 where the floor `min` is −128); otherwise `SMLAL` and an `SSAT` pre-clamp, 16.5 (13.5).
+/// multiply, `(2x·m + 2^31) >> 32 = ⌊(x·m + 2^30) / 2^31⌋`, in `SMMLAR` with the rounding
+/// term (`narrow_step!`): 10.5 instructions per element (7.5 where the floor `min` is −128);
+/// otherwise `SMLAL` and an `SSAT` pre-clamp, 16.5 (13.5).
 /// `false` (nothing written) outside those cases.
 ///
 /// The pre-clamp of the high product `q` to `[−2^30, 2^30 − 1]` keeps `q + 2^(e−1)` in i32 and
@@ -504,38 +662,31 @@ pub fn requant_row(
     true
 }
 
-/// The constants of [`requant_row_signed`], each as a `[sum ≥ 0, sum < 0]` pair so that the
-/// sum's sign bit indexes them: multipliers, right shifts, `2^(shift − 1)` plus `zp·2^shift`
-/// (the zero point folded in, as in `requant_tail!`).
+/// The constants of [`requant_row_signed`], picked by the sum's sign bit: per sign (`[sum ≥ 0,
+/// sum < 0]`, 16 bytes apart) the multiplier, `2^(shift − 1) + zp·2^shift − [sum < 0]` (the
+/// zero point and the rounding's `− [q < 0]` folded in, as in `narrow_step!`) and the right
+/// shift, for one `LDM`.
 #[repr(C)]
 struct SignQuant {
-    m: [i32; 2],
-    e: [i32; 2],
-    half: [i32; 2],
+    /// `[m, half, shift, unused]` for sums ≥ 0, then for sums < 0.
+    k: [[i32; 4]; 2],
 }
 
-/// The sign bit of the sum `{x}` picks the constants (`{k}` = `{kp}` + 4·sign: the pair
-/// element of each field) and loads the multiplier `{m}`: two instructions to pick, no branch
-/// or `IT` block.
+/// The sign bit of the sum `{x}` picks the constants: `r2` = `{kp}` + 16·sign. The steps
+/// below name `r0`–`r2` in the text (explicit operands have no names): `LDM` fills registers
+/// in number order.
 macro_rules! pick_sign {
     () => {
-        concat!(
-            "lsr {k}, {x}, #31\n",
-            "add {k}, {kp}, {k}, lsl #2\n",
-            "ldr {m}, [{k}]\n",
-        )
+        concat!("lsr r2, {x}, #31\n", "add r2, {kp}, r2, lsl #4\n",)
     };
 }
 
-/// `requant_tail!` with the shift and `half` read from the picked constants.
+/// The end of a [`requant_row_signed`] step from `{lo}` = the high product plus the picked
+/// rounding term, the picked shift in `r2`: shift, saturation, floor and store.
 macro_rules! signed_tail {
     ($tail:tt) => {
         concat!(
-            "ldr {hi}, [{k}, #16]\n",
-            "add {lo}, {x}, {hi}\n",
-            "sub {lo}, {lo}, {x}, lsr #31\n",
-            "ldr {hi}, [{k}, #8]\n",
-            "asr {lo}, {lo}, {hi}\n",
+            "asr {lo}, {lo}, r2\n",
             "ssat {lo}, #8, {lo}\n",
             requant_floor!($tail),
             "strb {lo}, [{d}], #1\n",
@@ -543,36 +694,50 @@ macro_rules! signed_tail {
     };
 }
 
-/// One sum of [`requant_row_signed`] with narrow sums: the doubled sum's `SMMULR`.
+/// One sum of [`requant_row_signed`] with narrow sums: one `LDM` of the picked multiplier
+/// (`r0`), rounding term (`r1`) and shift (`r2`, over the address), the doubled sum's `SMMLAR`
+/// with the rounding term (as `narrow_step!`): 9 instructions (12 with a floor).
 macro_rules! signed_narrow_step {
     ($tail:tt) => {
         concat!(
             "ldr {x}, [{a}], #4\n",
             "add {x}, {b}, {x}, lsl #1\n",
             pick_sign!(),
-            "smmulr {x}, {x}, {m}\n",
+            "ldm r2, {{r0, r1, r2}}\n",
+            "smmlar {lo}, {x}, r0, r1\n",
             signed_tail!($tail),
         )
     };
 }
 
-/// One sum of [`requant_row_signed`] with `SMLAL` and the pre-clamp (any sum).
+/// One sum of [`requant_row_signed`] with `SMLAL` and the pre-clamp (any sum): the
+/// `wide_high!` steps on `r0` (multiplier) and `r1` (high word), then the rounding term and
+/// the shift loaded from the picked constants.
 macro_rules! signed_wide_step {
     ($tail:tt) => {
         concat!(
             "ldr {x}, [{a}], #4\n",
             "add {x}, {x}, {b}\n",
             pick_sign!(),
-            wide_high!(),
+            "ldr r0, [r2]\n",
+            "mov {lo}, #0x40000000\n",
+            "mov r1, #0\n",
+            "smlal {lo}, r1, {x}, r0\n",
+            "lsr {lo}, {lo}, #31\n",
+            "orr {x}, {lo}, r1, lsl #1\n",
+            "ssat {x}, #31, {x}\n",
+            "ldr r1, [r2, #4]\n",
+            "add {lo}, {x}, r1\n",
+            "ldr r2, [r2, #8]\n",
             signed_tail!($tail),
         )
     };
 }
 
 /// [`requant_row`] with a multiplier and shift per sign of `base + acc[i]` (`pos` for ≥ 0,
-/// `neg` below: the leaky ReLU's two slopes): with `narrow` the doubled sum's `SMMULR`, 16.5
-/// instructions per element (13.5 without a floor), otherwise `SMLAL` and the pre-clamp, 21.5
-/// (18.5). `false` (nothing written) unless both shifts are `1 ..= 22`, both multipliers ≥ 0
+/// `neg` below: the leaky ReLU's two slopes): with `narrow` the doubled sum's `SMMLAR`, 12.5
+/// instructions per element (9.5 without a floor), otherwise `SMLAL` and the pre-clamp, 20.5
+/// (17.5). `false` (nothing written) unless both shifts are `1 ..= 22`, both multipliers ≥ 0
 /// and `max` is 127.
 #[allow(clippy::too_many_arguments)]
 pub fn requant_row_signed(
@@ -593,20 +758,22 @@ pub fn requant_row_signed(
     }
     let half = |(_, e): (i32, i32)| (1 << (e - 1)) + (zp << e);
     let table = SignQuant {
-        m: [pos.0, neg.0],
-        e: [pos.1, neg.1],
-        half: [half(pos), half(neg)],
+        k: [
+            [pos.0, half(pos), pos.1, 0],
+            [neg.0, half(neg) - 1, neg.1, 0],
+        ],
     };
     macro_rules! run {
         ($step:ident, $tail:tt, $b:expr; $($extra:tt)*) => {
             // SAFETY: `n` ≥ 1 words of `acc` and `n` bytes of `dst` exist (n ≤ both lengths);
-            // `table` holds the three constant pairs (sign bit 1 picks the second of each). With
-            // `narrow` every |base + acc| < 2^30, so doubling it keeps its sign and `SMMULR` is
-            // the doubling high multiply (as in `requant_row`).
+            // `table` holds the constants of both signs (sign bit 1 picks those 16 bytes on,
+            // 4-aligned words for `LDM`/`LDR`). With `narrow` every |base + acc| < 2^30, so
+            // doubling it keeps its sign and `SMMLAR` is the doubling high multiply plus the
+            // rounding term (as in `requant_row`). r0–r2 are declared clobbered.
             unsafe {
                 requant_asm!(acc, dst, n, $b, $step!($tail);
-                    kp = in(reg) core::ptr::addr_of!(table), hi = out(reg) _, k = out(reg) _,
-                    m = out(reg) _, $($extra)*)
+                    kp = in(reg) core::ptr::addr_of!(table), $($extra)* out("r0") _,
+                    out("r1") _, out("r2") _,)
             }
         };
     }
@@ -673,7 +840,7 @@ pub unsafe fn pair_row_s2(row: *const i16, words: &[u32], first: bool, acc: &mut
 
 /// One output row of the 3×3 depthwise ring strip (`depthwise::ring3`): `acc[ox]` = the
 /// 12 halfwords from `strip + 8·sx·ox` bytes (three columns of `[row, row, row, 0]`) against
-/// the 12 halfwords of `taps`, as six `SMLAD` over word pairs: 13 instructions per pixel
+/// the 12 halfwords of `taps`, as six `SMLAD` over word pairs: 11 instructions per pixel
 /// (nine multiply-accumulates).
 ///
 /// # Safety
@@ -694,41 +861,77 @@ pub unsafe fn ring3_row(strip: *const i16, taps: &[i16; 12], sx: usize, acc: &mu
     }
 }
 
-/// [`ring3_row`] with the pixel step `STEP` bytes as an immediate.
+/// [`ring3_row`] with the pixel step `STEP` bytes as an immediate: two pixels per pass, each
+/// reading its first column post-indexed (the pointer then sits at the next pixel, the other
+/// two columns at `8 − STEP` and `16 − STEP` bytes from it): 11 instructions per pixel, then
+/// the odd one.
 ///
 /// # Safety
-/// The conditions of [`ring3_row`] with `STEP = 8·sx` bytes, and `acc` is not empty (the loop
-/// runs until `a` reaches `end`, so an empty `acc` would never stop).
+/// The conditions of [`ring3_row`] with `STEP = 8·sx` bytes, and `acc` is not empty.
 #[inline(always)]
 unsafe fn ring3<const STEP: usize>(strip: *const i16, w: &[u32; 6], acc: &mut [i32]) {
-    core::arch::asm!(
-        "2:",
-        "ldrd {x0}, {x1}, [{p}]",
-        "smuad {s}, {x0}, {w0}",
-        "smlad {s}, {x1}, {w1}, {s}",
-        "ldrd {x0}, {x1}, [{p}, #8]",
-        "smlad {s}, {x0}, {w2}, {s}",
-        "smlad {s}, {x1}, {w3}, {s}",
-        "ldrd {x0}, {x1}, [{p}, #16]",
-        "smlad {s}, {x0}, {w4}, {s}",
-        "smlad {s}, {x1}, {w5}, {s}",
-        "add {p}, {p}, #{step}",
-        "str {s}, [{a}], #4",
-        "cmp {a}, {end}",
-        "bne 2b",
-        step = const STEP,
-        p = inout(reg) strip => _,
-        a = inout(reg) acc.as_mut_ptr() => _,
-        end = in(reg) acc.as_mut_ptr().add(acc.len()),
-        w0 = in(reg) w[0],
-        w1 = in(reg) w[1],
-        w2 = in(reg) w[2],
-        w3 = in(reg) w[3],
-        w4 = in(reg) w[4],
-        w5 = in(reg) w[5],
-        x0 = out(reg) _,
-        x1 = out(reg) _,
-        s = out(reg) _,
-        options(nostack),
-    );
+    macro_rules! pixel {
+        () => {
+            concat!(
+                "ldrd {x0}, {x1}, [{p}], #{step}\n",
+                "smuad {s}, {x0}, {w0}\n",
+                "smlad {s}, {x1}, {w1}, {s}\n",
+                "ldrd {x0}, {x1}, [{p}, #{c1}]\n",
+                "smlad {s}, {x0}, {w2}, {s}\n",
+                "smlad {s}, {x1}, {w3}, {s}\n",
+                "ldrd {x0}, {x1}, [{p}, #{c2}]\n",
+                "smlad {s}, {x0}, {w4}, {s}\n",
+                "smlad {s}, {x1}, {w5}, {s}\n",
+                "str {s}, [{a}], #4\n",
+            )
+        };
+    }
+    let n = acc.len();
+    let mut p = strip;
+    let mut a = acc.as_mut_ptr();
+    if n >= 2 {
+        core::arch::asm!(
+            "2:",
+            pixel!(),
+            pixel!(),
+            "cmp {a}, {end}",
+            "bne 2b",
+            step = const STEP,
+            c1 = const 8 - STEP as isize,
+            c2 = const 16 - STEP as isize,
+            p = inout(reg) p,
+            a = inout(reg) a,
+            end = in(reg) a.add(n & !1),
+            w0 = in(reg) w[0],
+            w1 = in(reg) w[1],
+            w2 = in(reg) w[2],
+            w3 = in(reg) w[3],
+            w4 = in(reg) w[4],
+            w5 = in(reg) w[5],
+            x0 = out(reg) _,
+            x1 = out(reg) _,
+            s = out(reg) _,
+            options(nostack),
+        );
+    }
+    if n % 2 == 1 {
+        core::arch::asm!(
+            pixel!(),
+            step = const STEP,
+            c1 = const 8 - STEP as isize,
+            c2 = const 16 - STEP as isize,
+            p = inout(reg) p => _,
+            a = inout(reg) a => _,
+            w0 = in(reg) w[0],
+            w1 = in(reg) w[1],
+            w2 = in(reg) w[2],
+            w3 = in(reg) w[3],
+            w4 = in(reg) w[4],
+            w5 = in(reg) w[5],
+            x0 = out(reg) _,
+            x1 = out(reg) _,
+            s = out(reg) _,
+            options(nostack),
+        );
+    }
 }
