@@ -54,6 +54,42 @@ pub fn host_lines(bytes: &[u8]) -> Vec<String> {
     lines
 }
 
+/// Per frame of the replay image `bytes`, what the firmware built with its `adversarial` feature
+/// must print: `Ok(line)`, the frame's `frame …` line, or `Err(code)` for a frame the core refuses
+/// (exit code 17 in the default build: no valid zone), which that build reports and skips; panics
+/// on an image the host refuses or another loop error (a test helper).
+pub fn host_results(bytes: &[u8]) -> Vec<Result<String, u8>> {
+    struct NoDelay;
+    impl DelayNs for NoDelay {
+        fn delay_ns(&mut self, _ns: u32) {}
+    }
+    let image = Image::parse(bytes).expect("host parses the image");
+    let (h, w) = image.size();
+    let mut arena = vec![0u8; ARENA_BUDGET_BYTES];
+    let mut slot = Box::new(core::mem::MaybeUninit::uninit());
+    let engine = prepare(&mut slot, MCU_BLOB, &mut arena, h, w).expect("engine");
+    let mut bridge = [0f32; 64];
+    let mut zones = ZoneFrame::<64>::new();
+    let mut ws = Workspace {
+        bridge_mm: &mut bridge,
+        zones: &mut zones,
+    };
+    let mut io = vec![0u8; VL53_IO_BYTES];
+    let mut replay = ReplayLoop::with_vl53l5cx(image, NoDelay, &mut io, || 0);
+    let mut out = Vec::new();
+    loop {
+        match replay.process(engine, &mut ws) {
+            Ok(Some(p)) => {
+                let depth = engine.output_m().expect("engine output");
+                out.push(Ok(FrameOutput::new(&p, depth).to_string()));
+            }
+            Ok(None) => return out,
+            Err(e @ LoopError::Frame(_)) => out.push(Err(e.exit_code())),
+            Err(e) => panic!("host loop stopped at frame {}: {e}", out.len()),
+        }
+    }
+}
+
 /// Runs the Cortex-M4 firmware `elf` under `qemu-system-arm` (mps2-an386, `-icount shift=0`,
 /// semihosting) and returns (exit status, stdout); panics, naming what to install, when QEMU is
 /// missing, and when the run exceeds `timeout` (a hung firmware). A test helper shared by the Rust
@@ -146,5 +182,52 @@ mod tests {
         assert_eq!(a, b.iter().map(|o| o.to_string()).collect::<Vec<_>>());
         assert!(a[0].starts_with("frame 0 depth_fnv1a64="), "{}", a[0]);
         assert_ne!(b[0].hash, b[1].hash);
+    }
+
+    #[test]
+    fn host_results_go_on_past_refused_frames() {
+        let mut frames = mcu_frames(3);
+        frames[1].status.fill(4);
+        let results = host_results(&image_bytes(&mcu_calibration(), &frames).unwrap());
+        let good = host_lines(&image_bytes(&mcu_calibration(), &mcu_frames(1)).unwrap());
+        assert_eq!(results.len(), 3);
+        assert_eq!(results[0].as_ref().unwrap(), &good[0]);
+        assert_eq!(results[1], Err(17));
+        assert!(results[2].as_ref().unwrap().starts_with("frame 2 "));
+    }
+
+    #[test]
+    fn adversarial_frames_cover_the_listed_cases() {
+        use crate::synthetic::adversarial_frames;
+        let named = adversarial_frames();
+        let names: Vec<_> = named.iter().map(|(n, _)| *n).collect();
+        for want in [
+            "normal_0",
+            "no_target",
+            "invalid_status",
+            "max_range",
+            "min_max",
+            "extreme",
+            "white",
+            "black",
+            "random_0",
+        ] {
+            assert!(names.contains(&want), "{want} missing from {names:?}");
+        }
+        // The first five are the default image's frames.
+        let default = mcu_frames(5);
+        for (i, f) in default.iter().enumerate() {
+            assert_eq!(&named[i].1, f);
+        }
+        // Everything fits the format; the two invalid frames are the only refused ones.
+        let frames: Vec<_> = named.into_iter().map(|(_, f)| f).collect();
+        let results = host_results(&image_bytes(&mcu_calibration(), &frames).unwrap());
+        let refused: Vec<_> = results
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| r.is_err())
+            .map(|(i, _)| names[i])
+            .collect();
+        assert_eq!(refused, ["no_target", "invalid_status"]);
     }
 }

@@ -7,6 +7,8 @@
 //!   [`depthor_core::blob::checksum::crc32`] (zlib's CRC-32, as for the model blob).
 //! - [`camera`]: [`camera::ReplayCamera`], an [`depthor_core::hal::RgbCamera`] over the image.
 //! - [`model`]: the embedded int8 blob (`mcu_lite` by default, 16-byte aligned) and the arena budget.
+//! - [`frametime`]: instructions per frame over a set of frames (min, max, mean, spread), for the
+//!   firmware's check on adversarial frames.
 //! - [`pipeline`]: the per-frame loop (camera → VL53L5CX driver over the simulated sensor, or the
 //!   zone bridge → projection → int8 engine)
 //!   and the hash line both builds print.
@@ -26,6 +28,7 @@
 
 pub mod camera;
 pub mod format;
+pub mod frametime;
 #[cfg(any(test, feature = "std"))]
 pub mod host;
 pub mod model;

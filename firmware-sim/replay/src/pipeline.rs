@@ -384,6 +384,11 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
         }
     }
 
+    /// Index of the frame the next [`ReplayLoop::process`] reads.
+    pub fn next_index(&self) -> u32 {
+        self.next
+    }
+
     /// The VL53L5CX path's figures (all zero on the bridge path or before the first frame).
     pub fn vl53_stats(&self) -> Vl53Stats {
         self.vl53
@@ -393,6 +398,10 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
     /// into the sparse map) and runs `engine` (prepared for the image's size with
     /// [`crate::model::prepare`]); the dense depth is then [`Engine::output_m`]. `Ok(None)` after
     /// the last frame. This is the part of a frame the firmware times.
+    ///
+    /// A frame without one valid zone is [`LoopError::Frame`] (the model does not run); it is
+    /// consumed, so a caller may go on with the next frame. Any other error leaves the loop at
+    /// the frame that failed.
     pub fn process<const N: usize>(
         &mut self,
         engine: &mut Engine<'_>,
@@ -475,7 +484,15 @@ impl<'a, D: DelayNs> ReplayLoop<'a, D> {
                 report
             }
         }
-        .map_err(LoopError::from)?;
+        .map_err(|e| {
+            let e = LoopError::from(e);
+            // A frame the core refused (no valid zone) is consumed like a processed one: a
+            // caller that goes on gets the next frame (the sensor has moved on too).
+            if matches!(e, LoopError::Frame(_)) {
+                self.next += 1;
+            }
+            e
+        })?;
         self.next += 1;
         Ok(Some(Processed {
             index,
@@ -649,6 +666,40 @@ mod tests {
             .unwrap_err();
         assert_eq!(err, LoopError::DtofGrid { rows: 6, cols: 6 });
         assert_eq!(err.exit_code(), 12);
+    }
+
+    #[test]
+    fn a_frame_without_valid_zones_is_refused_and_consumed() {
+        let cal = mcu_calibration();
+        let mut frames = mcu_frames(3);
+        frames[1].status.fill(255);
+        let bytes = image_bytes(&cal, &frames).unwrap();
+        let image = Image::parse(&bytes).unwrap();
+        let (mut bridge, mut zones) = ([0f32; 64], ZoneFrame::<64>::new());
+        let mut ws = Workspace {
+            bridge_mm: &mut bridge,
+            zones: &mut zones,
+        };
+        let mut arena = vec![0u8; ARENA_BUDGET_BYTES];
+        let mut slot = MaybeUninit::uninit();
+        let engine = prepare(&mut slot, MCU_BLOB, &mut arena, 120, 160).unwrap();
+        let mut io = vec![0u8; VL53_IO_BYTES];
+        let mut replay = ReplayLoop::with_vl53l5cx(image, NoDelay, &mut io, || 0);
+        assert_eq!(replay.process(engine, &mut ws).unwrap().unwrap().index, 0);
+        assert_eq!(replay.next_index(), 1);
+        let err = replay.process(engine, &mut ws).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                LoopError::Frame(FrameError::NoValidZones { zones: 64 })
+            ),
+            "{err:?}"
+        );
+        assert_eq!(err.exit_code(), 17);
+        // The refused frame is consumed: the next call reads frame 2, then the image ends.
+        assert_eq!(replay.next_index(), 2);
+        assert_eq!(replay.process(engine, &mut ws).unwrap().unwrap().index, 2);
+        assert_eq!(replay.process(engine, &mut ws).unwrap(), None);
     }
 
     #[test]

@@ -2,6 +2,11 @@
 //! shared loop ([`depthor_replay::pipeline`]), prints one hash line per frame (identical to the
 //! host build's `replay-host`), then the instruction, RAM and flash figures, `TEST OK`, and
 //! exits 0. A bad image or a loop error prints `ERROR <code>: <what>` and exits with the code.
+//!
+//! Feature `adversarial` (the frame-time check, README "Frame time on adversarial frames"): a
+//! frame without one valid zone prints its `icount frame … refused` line instead of stopping the
+//! run with exit 17, and the run ends with the `adversarial: … min … max … mean … spread …%`
+//! line over the frames with depth ([`depthor_replay::frametime`]).
 #![no_std]
 #![no_main]
 
@@ -197,6 +202,9 @@ impl ProfileScratch {
 
 /// What the frame loop measured.
 struct Totals {
+    /// Instructions per frame of every frame (feature `adversarial`: refused frames apart).
+    #[cfg(feature = "adversarial")]
+    times: depthor_replay::frametime::FrameTimes,
     frames: u64,
     min: u64,
     max: u64,
@@ -216,6 +224,8 @@ fn run_frames<const N: usize>(
     let (mut driver_total, mut device_total) = (0u64, 0u64);
     let (mut frames, mut min, mut max) = (0u64, u64::MAX, 0u64);
     let mut stage_totals = [0u64; STAGES.len()];
+    #[cfg(feature = "adversarial")]
+    let mut times = depthor_replay::frametime::FrameTimes::new();
     loop {
         let mut probe = TickProbe::default();
         let result = replay.process_probed(engine, ws, &mut probe);
@@ -274,8 +284,28 @@ fn run_frames<const N: usize>(
                 }
                 min = min.min(instructions);
                 max = max.max(instructions);
+                #[cfg(feature = "adversarial")]
+                times.add(instructions);
             }
             Ok(None) => break,
+            // Feature `adversarial`: a frame without one valid zone is refused by the core (the
+            // model does not run); the firmware reports it and goes on with the next frame.
+            #[cfg(feature = "adversarial")]
+            Err(e @ LoopError::Frame(_)) => {
+                probe.mark(Stage::Done);
+                let per_stage = probe.ticks.map(cycles::instructions);
+                let instructions: u64 = per_stage.iter().sum();
+                println!(
+                    "icount frame {} instructions={instructions} camera={} dtof={} projection={} \
+                     model={} refused ({e}: the model does not run)",
+                    replay.next_index().saturating_sub(1),
+                    per_stage[0],
+                    per_stage[1],
+                    per_stage[2],
+                    per_stage[3]
+                );
+                times.add_refused(instructions);
+            }
             Err(e) => {
                 println!("ERROR {}: {e}", e.exit_code());
                 console::exit(e.exit_code());
@@ -283,6 +313,8 @@ fn run_frames<const N: usize>(
         }
     }
     Totals {
+        #[cfg(feature = "adversarial")]
+        times,
         frames,
         min,
         max,
@@ -416,6 +448,8 @@ fn main() -> ! {
     };
     let replay = init_replay(REPLAY, image, VL53_IO);
     let Totals {
+        #[cfg(feature = "adversarial")]
+        times,
         frames,
         min,
         max,
@@ -481,6 +515,8 @@ fn main() -> ! {
         MCU_BLOB.len(),
         IMAGE.len()
     );
+    #[cfg(feature = "adversarial")]
+    println!("{times}");
     println!("TEST OK");
     console::exit(0)
 }
