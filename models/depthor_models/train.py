@@ -177,8 +177,22 @@ def zone_baselines(rec: data.Recording, idx: np.ndarray,
     inside = rec.zone_px[:, 0] >= 0
     yy, xx = np.meshgrid(np.arange(h, dtype=np.float64), np.arange(w, dtype=np.float64),
                          indexing="ij")
-    # nearest: pixel → zone distances
-    d2 = (yy.reshape(-1, 1) - px[None, :, 0]) ** 2 + (xx.reshape(-1, 1) - px[None, :, 1]) ** 2
+    # nearest: each pixel's zones by distance (the closest `k` kept; a frame whose valid zones
+    # are all farther falls back to every zone), so a 40×30 grid does not hold H·W·Z distances
+    flat_y, flat_x = yy.reshape(-1), xx.reshape(-1)
+    k = min(16, len(px))
+    order = np.empty((h * w, k), np.int64)
+    kth_d2 = np.empty(h * w)  # the k-th smallest distance: a pick below it is exact
+    chunk = max(1, 8_000_000 // len(px))
+    for a in range(0, h * w, chunk):
+        d2 = (flat_y[a:a + chunk, None] - px[None, :, 0]) ** 2 \
+            + (flat_x[a:a + chunk, None] - px[None, :, 1]) ** 2
+        part = np.argpartition(d2, k - 1, axis=1)[:, :k] if k < len(px) else \
+            np.broadcast_to(np.arange(len(px)), d2.shape)
+        near_d2 = np.take_along_axis(d2, part, 1)
+        sort = np.lexsort((part, near_d2), axis=1)
+        order[a:a + chunk] = np.take_along_axis(part, sort, 1)
+        kth_d2[a:a + chunk] = near_d2.max(1)
     # bilinear: grid node coordinates per row / column (zones' pixels, averaged along the grid)
     gy = px[:, 0].reshape(rows, cols).mean(axis=1)
     gx = px[:, 1].reshape(rows, cols).mean(axis=0)
@@ -200,7 +214,15 @@ def zone_baselines(rec: data.Recording, idx: np.ndarray,
             bil.append(np.ones((h, w), np.float32))
             continue
         z = rec.zone_m[i].astype(np.float64)
-        nz = np.where(ok[None, :], d2, np.inf).argmin(axis=1).reshape(h, w)
+        ok_k = ok[order]
+        nz = order[np.arange(h * w), ok_k.argmax(1)]
+        pick_d2 = (flat_y - px[nz, 0]) ** 2 + (flat_x - px[nz, 1]) ** 2
+        miss = ~ok_k.any(1) | (pick_d2 >= kth_d2)
+        if miss.any():  # no valid zone among the closest k, or one tied with the k-th: all valid
+            d2 = (flat_y[miss, None] - px[None, ok, 0]) ** 2 \
+                + (flat_x[miss, None] - px[None, ok, 1]) ** 2
+            nz[miss] = np.flatnonzero(ok)[d2.argmin(1)]
+        nz = nz.reshape(h, w)
         n_map = z[nz]
         grid_v = z.reshape(rows, cols)
         grid_ok = ok.reshape(rows, cols).astype(np.float64)

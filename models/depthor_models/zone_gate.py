@@ -46,25 +46,35 @@ def joint_bilateral(rgb: np.ndarray, sparse: np.ndarray) -> np.ndarray:
     guided by `rgb` [H,W,3] uint8: each pixel averages the points within two point spacings
     (spacing = sqrt(H·W / points)), weighted by a spatial Gaussian (σ = one spacing) times a range
     Gaussian on the RGB difference to the point's pixel (σ = 20 levels); pixels with no point in
-    reach take the nearest point; no point at all gives 1 m everywhere. float32 [H,W]."""
+    reach take the nearest point; no point at all gives 1 m everywhere. float32 [H,W].
+    Each point is splatted over the window of its reach (cost points × reach², not pixels ×
+    points)."""
     h, w = sparse.shape
     ys, xs = np.nonzero(sparse > 0)
     if len(ys) == 0:
         return np.ones((h, w), np.float32)
     z = sparse[ys, xs].astype(np.float64)
     spacing = math.sqrt(h * w / len(ys))
-    point_colour = rgb[ys, xs].astype(np.float64)
-    colour = rgb.reshape(-1, 3).astype(np.float64)
-    yy, xx = np.divmod(np.arange(h * w), w)
+    r = int(math.floor(2 * spacing))
+    dy, dx = np.mgrid[-r:r + 1, -r:r + 1]
+    d2 = (dy * dy + dx * dx).ravel()
+    keep = d2 <= 4 * spacing**2
+    dy, dx, d2 = dy.ravel()[keep], dx.ravel()[keep], d2[keep]
+    py, px = ys[:, None] + dy[None], xs[:, None] + dx[None]  # [points, window]
+    inside = (py >= 0) & (py < h) & (px >= 0) & (px < w)
+    colour = rgb.astype(np.float64)
+    pix = np.where(inside, py * w + px, 0)
+    r2 = ((colour.reshape(-1, 3)[pix] - colour[ys, xs][:, None]) ** 2).sum(-1)
+    wt = np.exp(-d2[None] / (2 * spacing**2) - r2 / (2 * SIGMA_RGB**2)) * inside
+    num = np.bincount(pix.ravel(), (wt * z[:, None]).ravel(), h * w)
+    den = np.bincount(pix.ravel(), wt.ravel(), h * w)
     out = np.empty(h * w)
-    chunk = max(1, 4_000_000 // len(ys))  # pixels per block: ≈ 32 MB per pixel × point array
-    for a in range(0, h * w, chunk):
-        b = min(a + chunk, h * w)
-        d2 = (yy[a:b, None] - ys[None]) ** 2 + (xx[a:b, None] - xs[None]) ** 2
-        r2 = ((colour[a:b, None, :] - point_colour[None]) ** 2).sum(-1)
-        wt = np.exp(-d2 / (2 * spacing**2) - r2 / (2 * SIGMA_RGB**2)) * (d2 <= 4 * spacing**2)
-        num, den = wt @ z, wt.sum(1)
-        out[a:b] = np.where(den > 1e-12, num / np.maximum(den, 1e-300), z[d2.argmin(1)])
+    ok = den > 1e-12
+    out[ok] = num[ok] / den[ok]
+    if not ok.all():  # no point in reach (or weights underflowed): the nearest point
+        yy, xx = np.divmod(np.flatnonzero(~ok), w)
+        near = ((yy[:, None] - ys[None]) ** 2 + (xx[:, None] - xs[None]) ** 2).argmin(1)
+        out[~ok] = z[near]
     return out.reshape(h, w).astype(np.float32)
 
 
