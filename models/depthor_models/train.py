@@ -284,7 +284,8 @@ class Evaluator:
 
     def __call__(self, net: Depthor) -> dict[str, float]:
         m = metrics(predict(net, self.rec, self.idx, valid_status=self.valid_status), self.gt)
-        row = {"frames": len(self.idx), "prior_ssi": prior_ssi(net, self.rec, self.idx)}
+        row = {"frames": len(self.idx),
+               "prior_ssi": prior_ssi(net, self.rec, self.idx) if hasattr(net, "prior") else ""}
         for name, res in [("model", m), *self.base.items()]:
             for k, v in res.items():
                 row[f"{name}_{k}"] = v
@@ -465,9 +466,22 @@ def parse_crop(text: str | None) -> tuple[int, int] | None:
     return h, w
 
 
-def make_model(variant: str, seed: int, overrides: dict | None = None) -> Depthor:
+ARCHS = ("depthor", "sparse_to_dense")
+
+
+def make_model(variant: str, seed: int, overrides: dict | None = None,
+               arch: str = "depthor") -> torch.nn.Module:
     """A fresh trainable network: default PyTorch init (no random BN calibration), train mode;
-    `overrides`: NetConfig fields that differ from the variant's (`--set`)."""
+    `overrides`: NetConfig fields that differ from the variant's (`--set`). `arch
+    "sparse_to_dense"`: the learned baseline of `sparse_to_dense.py` instead of a DEPTHOR
+    variant (`variant` ignored, `overrides` are its S2DConfig fields); it has no prior, so the
+    prior's loss and evaluation are skipped for it."""
+    if arch == "sparse_to_dense":
+        from . import sparse_to_dense
+
+        return sparse_to_dense.build(seed, **(overrides or {}))
+    if arch != "depthor":
+        raise ValueError(f"unknown --arch {arch!r} (one of {ARCHS})")
     net = build(variant, seed=seed, calibrate_bn=False, **(overrides or {}))
     return net.train()
 
@@ -623,8 +637,13 @@ def _train(args: argparse.Namespace, d: dist.Dist) -> dict:
     if d.main:
         out.mkdir(parents=True, exist_ok=True)
     ckpt_path = out / "ckpt.pt"
-    net = make_model(args.variant, args.seed, parse_overrides(getattr(args, "set", None) or []))
+    arch = getattr(args, "arch", "depthor")
+    net = make_model(args.variant, args.seed, parse_overrides(getattr(args, "set", None) or []),
+                     arch)
+    has_prior = hasattr(net, "prior")
     prior_only = args.stage == "prior"
+    if not has_prior and (prior_only or getattr(args, "qat", False)):
+        raise ValueError(f"--arch {arch}: no prior stage and no --qat (float baseline only)")
     trained = net.prior if prior_only else net
     net.requires_grad_(not prior_only)
     trained.requires_grad_(True)
@@ -641,8 +660,9 @@ def _train(args: argparse.Namespace, d: dist.Dist) -> dict:
         torch.set_rng_state(ck["rng"]["torch"])
         saved = {"schedule_s": 0.0, **ck["args"]}  # checkpoints from before --schedule-s
         saved.setdefault("stage", "depthor")  # checkpoints from before --stage
+        saved.setdefault("arch", "depthor")  # checkpoints from before --arch
         forced = ("variant", "seed", "batch", "steps", "max_lr", "train", "schedule_s", "crop",
-                  "stage")
+                  "stage", "arch")
         for k in forced:
             if k == "train" and args.switch_train:
                 if saved.get(k) != args.train:
@@ -703,7 +723,8 @@ def _train(args: argparse.Namespace, d: dist.Dist) -> dict:
             f"{args.kd_weight}; {int(teacher.done.sum())}/{len(train_src)} frames cached")
 
     captured: dict[str, Tensor] = {}
-    net.prior.register_forward_hook(lambda _m, _i, o: captured.__setitem__("d_inv", o[0]))
+    if has_prior:
+        net.prior.register_forward_hook(lambda _m, _i, o: captured.__setitem__("d_inv", o[0]))
     dist.sync_batchnorm(net, d)
     model = trained
     if d.world > 1:
@@ -800,7 +821,9 @@ def _train(args: argparse.Namespace, d: dist.Dist) -> dict:
             parts = [ssi_stats(model(rgb)[0], gt)]
         else:
             pred = model(rgb, sp)
-            parts = [silog_stats(pred, gt), ssi_stats(captured["d_inv"], gt)]
+            parts = [silog_stats(pred, gt)]
+            if has_prior:
+                parts.append(ssi_stats(captured["d_inv"], gt))
             if t_depth is not None:
                 parts.append(silog_stats(pred, t_depth))
         sums = dist.all_reduce_sum(torch.cat(parts), d)
@@ -810,10 +833,15 @@ def _train(args: argparse.Namespace, d: dist.Dist) -> dict:
             l_main, loss = None, l_prior
         else:
             l_main = silog_from_stats(sums[0:3])
-            l_prior = ssi_from_stats(sums[3:5])
-            loss = l_main + args.prior_weight * l_prior
+            k = 3
+            l_prior = None
+            loss = l_main
+            if has_prior:
+                l_prior = ssi_from_stats(sums[3:5])
+                loss = loss + args.prior_weight * l_prior
+                k = 5
             if t_depth is not None:
-                l_kd = silog_from_stats(sums[5:8])
+                l_kd = silog_from_stats(sums[k:k + 3])
                 loss = loss + args.kd_weight * l_kd
         opt.zero_grad(set_to_none=True)
         loss.backward()
@@ -834,13 +862,14 @@ def _train(args: argparse.Namespace, d: dist.Dist) -> dict:
         _append(out / "train.csv", TRAIN_FIELDS, {
             "step": step, "wall_s": round(wall, 2), "lr": f"{lr:.3e}", "loss": f"{loss.item():.5f}",
             "silog": "" if l_main is None else f"{l_main.item():.5f}",
-            "prior": f"{l_prior.item():.5f}",
+            "prior": "" if l_prior is None else f"{l_prior.item():.5f}",
             "kd": "" if l_kd is None else f"{l_kd.item():.5f}", "grad_norm": f"{float(gn):.4f}"})
         if step % 10 == 0:
             silog = "-" if l_main is None else f"{l_main.item():.4f}"
             kd = "" if l_kd is None else f" kd {l_kd.item():.4f}"
+            prior = "-" if l_prior is None else f"{l_prior.item():.4f}"
             print(f"step {step} loss {loss.item():.4f} silog {silog} "
-                  f"prior {l_prior.item():.4f}{kd} lr {lr:.2e} ({wall:.0f} s)", flush=True)
+                  f"prior {prior}{kd} lr {lr:.2e} ({wall:.0f} s)", flush=True)
         if fq is not None:
             fq.enabled = True  # in-run checks and the saved ranges are the int8 network's
         if time.perf_counter() - last_ckpt >= args.ckpt_every_s:
@@ -939,6 +968,9 @@ def main(argv: list[str] | None = None) -> int:
     """CLI entry point (see module doc)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--variant", default="mcu", choices=sorted(VARIANTS))
+    ap.add_argument("--arch", default="depthor", choices=ARCHS,
+                    help="depthor (the variant) or sparse_to_dense (the learned baseline of "
+                         "sparse_to_dense.py, issue 39 item 4; --set sets its S2DConfig fields)")
     ap.add_argument("--train", help="training recording folder(s), comma-separated "
                     "(required to train)")
     ap.add_argument("--test", help="held-out recording folder (required to train or evaluate)")
@@ -1018,7 +1050,7 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--test is required, and --train unless --eval-only is given")
     if a.eval_only:
         torch.set_num_threads(a.threads)
-        net = make_model(a.variant, a.seed, parse_overrides(a.set))
+        net = make_model(a.variant, a.seed, parse_overrides(a.set), a.arch)
         net.load_state_dict(load_weights(a.eval_only))
         net.to(dist.pick_device(a.device))
         size = (net.cfg.height, net.cfg.width)
