@@ -85,7 +85,16 @@ def test_macs_match_an_independent_count_and_the_mcu_lite_budget():
     assert S.build(enc_widths=(16, 24, 32, 48, 64)).macs() > macs
 
 
-def test_overfits_two_frames():
+@pytest.fixture
+def one_thread():
+    """One torch thread (a tiny network; two threads on a busy machine spin far longer)."""
+    n = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(n)
+
+
+def test_overfits_two_frames(one_thread):
     """Two 32×48 frames whose depth is the sparse points' value, one plane each: 150 AdamW
     steps on the SILog loss must bring the RMSE below a quarter of its start."""
     torch.manual_seed(0)
