@@ -1042,10 +1042,17 @@ fn run_pack<F: Micro, S: Source, O: Sink + ?Sized>(
     const WIDE: usize = 320;
     #[cfg(target_arch = "aarch64")]
     let mut wide_store: Option<[i32; NB * WIDE]> = None;
-    let mut cached = [[RowQuant::default(); NB]; CACHED];
-    for (b, rq) in cached.iter_mut().enumerate().take(n_blocks) {
-        *rq = block_rq(b);
+    // Only the blocks this pack has are written (a default-filled array cost about 1000
+    // instructions per call on aarch64: the refinement's heads run one call per row).
+    let mut store = [const { core::mem::MaybeUninit::<[RowQuant; NB]>::uninit() }; CACHED];
+    let n_cached = n_blocks.min(CACHED);
+    for (b, rq) in store[..n_cached].iter_mut().enumerate() {
+        rq.write(block_rq(b));
     }
+    // SAFETY: `MaybeUninit<T>` has `T`'s layout, and the first `n_cached` entries were
+    // written just above.
+    let cached: &[[RowQuant; NB]] =
+        unsafe { core::slice::from_raw_parts(store.as_ptr().cast(), n_cached) };
     for oy in dst.rows.clone() {
         // The input rows of output row `oy` into their slots (packed only where a slot does not
         // hold its row already), and the reduction steps' offsets for this slot order.
