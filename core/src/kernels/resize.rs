@@ -622,7 +622,24 @@ pub fn upsample_bilinear_f32(
     out: &mut [f32],
     out_shape: Shape,
 ) -> Result<(), KernelError> {
+    upsample_bilinear_f32_with(Isa::Portable, input, in_shape, out, out_shape)
+}
+
+/// As [`upsample_bilinear_f32`] with kernel set `isa`: on the NEON sets each input row's column
+/// blend once per channel ([`separable_f32`]), the same bits.
+pub fn upsample_bilinear_f32_with(
+    isa: Isa,
+    input: &[f32],
+    in_shape: Shape,
+    out: &mut [f32],
+    out_shape: Shape,
+) -> Result<(), KernelError> {
     check(input, in_shape, out, out_shape)?;
+    #[cfg(target_arch = "aarch64")]
+    if matches!(isa, Isa::Neon | Isa::NeonDot) && separable_f32(input, in_shape, out, out_shape) {
+        return Ok(());
+    }
+    let _ = isa;
     for c in 0..out_shape.c {
         for oy in 0..out_shape.h {
             let at = (c * out_shape.h + oy) * out_shape.w;
@@ -637,6 +654,63 @@ pub fn upsample_bilinear_f32(
         }
     }
     Ok(())
+}
+
+/// [`upsample_bilinear_f32`] in two passes: `top` and `bot` of [`upsample_bilinear_f32_row`]
+/// are the column blend `r[x0]·(1 − wx) + r[x1]·wx` of input rows `y0` and `y1`, the same
+/// value for every output row that reads that input row, so each input row's is computed once
+/// per channel and each output row is then `top·(1 − wy) + bot·wy` over two contiguous rows
+/// (vectorised by the compiler: separate multiplies and adds, no reassociation, the same IEEE
+/// operations per pixel in the same order). `false` (nothing written) for output rows wider
+/// than its buffers.
+#[cfg(target_arch = "aarch64")]
+fn separable_f32(input: &[f32], in_shape: Shape, out: &mut [f32], out_shape: Shape) -> bool {
+    const COLS: usize = 1024;
+    let (ih, iw, oh, ow) = (in_shape.h, in_shape.w, out_shape.h, out_shape.w);
+    if ow == 0 || ow > COLS || oh == 0 {
+        return false;
+    }
+    // Each output column's input columns and weights, as the row function computes them.
+    let (mut x0s, mut x1s) = ([0u16; COLS], [0u16; COLS]);
+    let (mut wx, mut vx) = ([0f32; COLS], [0f32; COLS]);
+    let mut cols = Coords::new(iw, ow);
+    for o in 0..ow {
+        let (x0, fx, dx) = cols.next();
+        // x0 < iw ≤ 2^15 (`check`).
+        x0s[o] = x0 as u16;
+        x1s[o] = (x0 + 1).min(iw - 1) as u16;
+        wx[o] = fx as i32 as f32 / dx as i32 as f32;
+        vx[o] = 1.0 - wx[o];
+    }
+    let (x0s, x1s, wx, vx) = (&x0s[..ow], &x1s[..ow], &wx[..ow], &vx[..ow]);
+    let blend = |r: &[f32], h: &mut [f32; COLS]| {
+        for ((((h, &x0), &x1), &w), &v) in h.iter_mut().zip(x0s).zip(x1s).zip(wx).zip(vx) {
+            *h = r[x0 as usize] * v + r[x1 as usize] * w;
+        }
+    };
+    // The blends of the last two input rows, slot `y & 1` holding row `tag[y & 1]`.
+    let mut h = [[0f32; COLS]; 2];
+    for (c, plane) in out.chunks_exact_mut(oh * ow).take(out_shape.c).enumerate() {
+        let chan = &input[c * ih * iw..(c + 1) * ih * iw];
+        let mut tag = [usize::MAX; 2];
+        for (oy, orow) in plane.chunks_exact_mut(ow).enumerate() {
+            let (y0, fy, dy) = src(oy, ih, oh);
+            let y1 = (y0 + 1).min(ih - 1);
+            for y in [y0, y1] {
+                if tag[y & 1] != y {
+                    blend(&chan[y * iw..(y + 1) * iw], &mut h[y & 1]);
+                    tag[y & 1] = y;
+                }
+            }
+            let wy = fy as f32 / dy as f32;
+            let vy = 1.0 - wy;
+            let (top, bot) = (&h[y0 & 1][..ow], &h[y1 & 1][..ow]);
+            for ((o, &t), &b) in orow.iter_mut().zip(top).zip(bot) {
+                *o = t * vy + b * wy;
+            }
+        }
+    }
+    true
 }
 
 /// Row `oy` of channel `c` of [`upsample_bilinear_f32`]'s output (`out_shape.w` values into
@@ -987,6 +1061,47 @@ mod tests {
                     zero_point: zo,
                 };
                 check_rescaled(&c, from, to);
+            }
+        }
+    }
+
+    /// The f32 resize on every kernel set (the NEON sets' two passes) = the portable bits,
+    /// specials included.
+    #[test]
+    fn f32_every_set_equals_portable() {
+        let mut seed = 3u32;
+        for (ih, iw, oh, ow) in [
+            (60, 80, 120, 160),
+            (3, 5, 9, 17),
+            (1, 1, 2, 3),
+            (7, 9, 3, 4),
+        ] {
+            let s = Shape::new(2, ih, iw);
+            let x: Vec<f32> = (0..s.len().unwrap())
+                .map(|i| {
+                    seed = seed.wrapping_mul(1664525).wrapping_add(1013904223);
+                    match i % 41 {
+                        0 => f32::NAN,
+                        1 => f32::INFINITY,
+                        2 => -0.0,
+                        3 => f32::MAX,
+                        _ => (seed >> 8) as f32 / 65536.0 - 100.0,
+                    }
+                })
+                .collect();
+            let o = Shape::new(2, oh, ow);
+            let mut slow = std::vec![0f32; o.len().unwrap()];
+            upsample_bilinear_f32(&x, s, &mut slow, o).unwrap();
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                let mut fast = std::vec![0f32; slow.len()];
+                upsample_bilinear_f32_with(isa, &x, s, &mut fast, o).unwrap();
+                let bits = |v: &[f32]| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
+                assert_eq!(
+                    bits(&fast),
+                    bits(&slow),
+                    "{} {ih}×{iw} → {oh}×{ow}",
+                    isa.name()
+                );
             }
         }
     }
