@@ -258,3 +258,132 @@ unsafe fn accumulate_neon<const TI: usize, const K: usize>(
         i += 8;
     }
 }
+
+/// `out[i] = acc[i] / (1 + s[i])` (the step's last operation per pixel: IEEE `FADD` then
+/// `FDIV`, 4 lanes at a time, the rest one by one) for `i` below the shortest length.
+pub fn divide(out: &mut [f32], s: &[f32], acc: &[f32]) {
+    let n = out.len().min(s.len()).min(acc.len());
+    let mut i = 0;
+    if crate::kernels::isa::Isa::Neon.available() {
+        // SAFETY: NEON is available; `i + 4 ≤ n` values of each slice are read or written.
+        unsafe {
+            let one = vdupq_n_f32(1.0);
+            while i + 4 <= n {
+                let d = vaddq_f32(one, vld1q_f32(s.as_ptr().add(i)));
+                vst1q_f32(
+                    out.as_mut_ptr().add(i),
+                    vdivq_f32(vld1q_f32(acc.as_ptr().add(i)), d),
+                );
+                i += 4;
+            }
+        }
+    }
+    for ((o, &s), &a) in out[i..n].iter_mut().zip(&s[i..n]).zip(&acc[i..n]) {
+        *o = a / (1.0 + s);
+    }
+}
+
+/// The step at four pixels `x .. x + 4` of a row `w` wide where some neighbours fall outside
+/// the row (the border columns). Neighbour `j < g.len()` has its four codes at
+/// `codes[q0 + j·plane ..]`, its four values at `cur[c0 + delta[j] ..]` (any value in lanes
+/// whose neighbour is outside the row), Gaussian `g[j]` and column offset `off[j].1`. From
+/// `s = 0`, `acc = cur[c0 .. c0 + 4]`, each term in order adds `r = lut[q]·g` to `s` and `r·d`
+/// to `acc` in the lanes whose neighbour column `x + lane + dx` lies in `0 .. w` and leaves the
+/// others as they were (`BSL`: a skipped term, as in the scalar loop), then `acc / (1 + s)`:
+/// per lane the scalar border pixel's operations in its order. `None` (nothing done) without
+/// NEON, where the slices differ in length or a read would leave `codes` or `cur`.
+#[allow(clippy::too_many_arguments)]
+pub fn edge4(
+    (codes, q0, plane): (&[i8], usize, usize),
+    (cur, c0): (&[f32], usize),
+    (delta, off, g): (&[isize], &[(isize, isize)], &[f32]),
+    lut: &[f32; 256],
+    x: usize,
+    w: usize,
+) -> Option<[f32; 4]> {
+    let n = g.len();
+    let codes_ok = n == 0
+        || (n - 1)
+            .checked_mul(plane)
+            .and_then(|e| e.checked_add(q0 + 4))
+            .is_some_and(|e| e <= codes.len());
+    let cur_ok = c0 + 4 <= cur.len() && cur.len() <= isize::MAX as usize;
+    let ok = delta.len() == n && off.len() == n && codes_ok && cur_ok && w <= i32::MAX as usize;
+    if !crate::kernels::isa::Isa::Neon.available() || !ok {
+        return None;
+    }
+    // SAFETY: NEON is available; every read is checked above (term `j`'s four codes at
+    // `q0 + j·plane`, the start values at `c0`) or by `edge4_neon` (the neighbours' values);
+    // the table reads are `u8` indices into 256 entries.
+    Some(unsafe {
+        edge4_neon(
+            codes.as_ptr().add(q0),
+            plane,
+            cur,
+            c0,
+            (delta, off, g),
+            lut,
+            x,
+            w,
+        )
+    })
+}
+
+/// # Safety
+/// The CPU must have NEON; the reads [`edge4`] checks are inside their slices (`q` at term 0's
+/// codes, `c0 + 4 ≤ cur.len() ≤ isize::MAX`).
+#[target_feature(enable = "neon")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn edge4_neon(
+    q: *const i8,
+    plane: usize,
+    cur: &[f32],
+    c0: usize,
+    (delta, off, g): (&[isize], &[(isize, isize)], &[f32]),
+    lut: &[f32; 256],
+    x: usize,
+    w: usize,
+) -> [f32; 4] {
+    let lanes = vld1q_s32([0i32, 1, 2, 3].as_ptr());
+    let (wv, xv) = (
+        vdupq_n_s32(w as i32),
+        vaddq_s32(lanes, vdupq_n_s32(x as i32)),
+    );
+    let mut s = vdupq_n_f32(0.0);
+    let c = cur.as_ptr();
+    let mut acc = vld1q_f32(c.add(c0));
+    let lp = lut.as_ptr();
+    for (j, ((&d, &(_, dx)), &gj)) in delta.iter().zip(off).zip(g).enumerate() {
+        let p = vaddq_s32(xv, vdupq_n_s32(dx as i32));
+        let m = vandq_u32(vcgezq_s32(p), vcltq_s32(p, wv));
+        let qj = q.add(j * plane);
+        let v = vld1q_dup_f32(lp.add(*qj as u8 as usize));
+        let v = vld1q_lane_f32::<1>(lp.add(*qj.add(1) as u8 as usize), v);
+        let v = vld1q_lane_f32::<2>(lp.add(*qj.add(2) as u8 as usize), v);
+        let v = vld1q_lane_f32::<3>(lp.add(*qj.add(3) as u8 as usize), v);
+        let r = vmulq_n_f32(v, gj);
+        s = vbslq_f32(m, vaddq_f32(s, r), s);
+        let at = c0 as isize + d;
+        let dv = if at >= 0 && at as usize + 4 <= cur.len() {
+            vld1q_f32(c.offset(at))
+        } else {
+            // A run reaching past the buffer (a corner's term): the lanes inside it, the
+            // others 0 (their neighbours are outside the row, so the lanes are masked).
+            let v: [f32; 4] = core::array::from_fn(|l| {
+                usize::try_from(at + l as isize)
+                    .ok()
+                    .and_then(|i| cur.get(i))
+                    .copied()
+                    .unwrap_or(0.0)
+            });
+            vld1q_f32(v.as_ptr())
+        };
+        acc = vbslq_f32(m, vaddq_f32(acc, vmulq_f32(r, dv)), acc);
+    }
+    let mut out = [0f32; 4];
+    vst1q_f32(
+        out.as_mut_ptr(),
+        vdivq_f32(acc, vaddq_f32(vdupq_n_f32(1.0), s)),
+    );
+    out
+}
