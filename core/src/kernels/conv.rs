@@ -1036,12 +1036,12 @@ fn run_pack<F: Micro, S: Source, O: Sink + ?Sized>(
     #[cfg(not(any(target_arch = "aarch64", target_arch = "x86_64")))]
     const CACHED: usize = 0;
     let n_blocks = pack.channels.div_ceil(NB);
-    // Widest output row requantised in one call (aarch64, `NB · WIDE` sums on the stack,
-    // zeroed once per call where used; only the sums of the current row of blocks are read).
+    // Widest output row requantised in one call (aarch64: `NB · WIDE` sums on the stack, left
+    // uninitialised; each row of blocks writes the `nb · out.w` it then reads).
     #[cfg(target_arch = "aarch64")]
     const WIDE: usize = 320;
     #[cfg(target_arch = "aarch64")]
-    let mut wide_store: Option<[i32; NB * WIDE]> = None;
+    let mut wide_store = core::mem::MaybeUninit::<[i32; NB * WIDE]>::uninit();
     // Only the blocks this pack has are written (a default-filled array cost about 1000
     // instructions per call on aarch64: the refinement's heads run one call per row).
     let mut store = [const { core::mem::MaybeUninit::<[RowQuant; NB]>::uninit() }; CACHED];
@@ -1104,9 +1104,8 @@ fn run_pack<F: Micro, S: Source, O: Sink + ?Sized>(
             #[cfg(target_arch = "aarch64")]
             if matches!(isa, Isa::Neon | Isa::NeonDot) && out.w > PB && out.w <= WIDE {
                 if let Some(out8) = output.as_i8() {
-                    // Lazily: the 5 KiB zeroing only in calls that take this path.
-                    #[allow(clippy::unnecessary_lazy_evaluations)]
-                    let wide = wide_store.get_or_insert_with(|| [0; NB * WIDE]);
+                    // Row `j`'s sums at `j · out.w` (`nb · out.w ≤ NB · WIDE`).
+                    let base = wide_store.as_mut_ptr().cast::<i32>();
                     for ox0 in (0..out.w).step_by(PB) {
                         let n = PB.min(out.w - ox0);
                         let task = Task {
@@ -1117,21 +1116,25 @@ fn run_pack<F: Micro, S: Source, O: Sink + ?Sized>(
                             pixels: n,
                         };
                         F::kernel(isa, &task, acc);
-                        for (w, a) in wide
-                            .chunks_exact_mut(WIDE)
-                            .zip(acc.chunks_exact(PB))
-                            .take(nb)
-                        {
+                        for (j, a) in acc.chunks_exact(PB).take(nb).enumerate() {
+                            // SAFETY: `j · out.w + ox0 + n ≤ nb · out.w ≤ NB · WIDE` i32 of
+                            // the store, and `a` holds `PB ≥ n`; the two do not overlap.
                             // Whole blocks as fixed-size copies (inlined, no `memcpy` call).
-                            if n == PB {
-                                w[ox0..ox0 + PB].copy_from_slice(&a[..PB]);
-                            } else {
-                                w[ox0..ox0 + n].copy_from_slice(&a[..n]);
-                            }
+                            unsafe {
+                                let to = base.add(j * out.w + ox0);
+                                if n == PB {
+                                    core::ptr::copy_nonoverlapping(a.as_ptr(), to, PB)
+                                } else {
+                                    core::ptr::copy_nonoverlapping(a.as_ptr(), to, n)
+                                }
+                            };
                         }
                     }
+                    // SAFETY: the loop above wrote every `j · out.w + x`, `j < nb`, `x < out.w`
+                    // (`ox0` steps through `0 .. out.w` by `PB`, `n` to the row's end).
+                    let wide = unsafe { core::slice::from_raw_parts(base, nb * out.w) };
                     let at = o0 * dst.stride + (oy - dst.rows.start) * out.w;
-                    let sums = (&wide[..], WIDE, out.w);
+                    let sums = (wide, out.w, out.w);
                     op.finish_wide(&rq[..nb], o0, sums, out8, at, dst.stride);
                     continue;
                 }
