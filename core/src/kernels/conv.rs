@@ -1114,6 +1114,7 @@ fn run_pack<F: Micro, S: Source, O: Sink + ?Sized>(
                             steps,
                             ox0,
                             pixels: n,
+                            channels: nb,
                         };
                         F::kernel(isa, &task, acc);
                         for (j, a) in acc.chunks_exact(PB).take(nb).enumerate() {
@@ -1147,6 +1148,7 @@ fn run_pack<F: Micro, S: Source, O: Sink + ?Sized>(
                     steps,
                     ox0,
                     pixels: n,
+                    channels: nb,
                 };
                 F::kernel(isa, &task, acc);
                 let at = o0 * dst.stride + (oy - dst.rows.start) * out.w + ox0;

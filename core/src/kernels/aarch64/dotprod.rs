@@ -16,7 +16,14 @@ pub fn quads(t: &Task<i8, i8>, acc: &mut Acc) -> bool {
         return false;
     }
     // SAFETY: NEON and the dot product are available and every read is in bounds (checked).
-    unsafe { quads_dot(t, acc) };
+    unsafe {
+        match t.channels {
+            1 => quads_dot::<1>(t, acc),
+            2 => quads_dot::<2>(t, acc),
+            3 => quads_dot::<3>(t, acc),
+            _ => quads_dot::<4>(t, acc),
+        }
+    };
     true
 }
 
@@ -37,11 +44,14 @@ unsafe fn sdot<const J: i32>(a: &mut int32x4_t, x: int8x16_t, w: int8x16_t) {
     );
 }
 
+/// The first `C` channels of the block only (the others' accumulators are left as they were:
+/// a one-channel conv runs 4 `SDOT` per step instead of 16).
+///
 /// # Safety
 /// The CPU must have NEON and the dot-product extension (`FEAT_DotProd`), and the task's
 /// slices must hold the block the task names; the safe wrapper checks both.
 #[target_feature(enable = "neon,dotprod")]
-unsafe fn quads_dot(t: &Task<i8, i8>, acc: &mut Acc) {
+unsafe fn quads_dot<const C: usize>(t: &Task<i8, i8>, acc: &mut Acc) {
     const _: () = assert!(NB == 4 && PB.is_multiple_of(16));
     for half in 0..t.pixels.clamp(1, PB).div_ceil(16) {
         let mut c = [vdupq_n_s32(0); 16];
@@ -53,13 +63,19 @@ unsafe fn quads_dot(t: &Task<i8, i8>, acc: &mut Acc) {
             for q in 0..4 {
                 let x = vld1q_s8(pr.add(16 * q));
                 sdot::<0>(&mut c[q], x, w);
-                sdot::<1>(&mut c[4 + q], x, w);
-                sdot::<2>(&mut c[8 + q], x, w);
-                sdot::<3>(&mut c[12 + q], x, w);
+                if C > 1 {
+                    sdot::<1>(&mut c[4 + q], x, w);
+                }
+                if C > 2 {
+                    sdot::<2>(&mut c[8 + q], x, w);
+                }
+                if C > 3 {
+                    sdot::<3>(&mut c[12 + q], x, w);
+                }
             }
             wq = wq.add(4 * NB);
         }
-        for j in 0..NB {
+        for j in 0..C.min(NB) {
             let dst = acc.as_mut_ptr().add(j * PB + 16 * half);
             for q in 0..4 {
                 vst1q_s32(dst.add(4 * q), c[4 * j + q]);
