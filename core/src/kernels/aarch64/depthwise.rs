@@ -209,8 +209,8 @@ unsafe fn mla16(a: &mut [int32x4_t; 4], x0: int16x8_t, x1: int16x8_t, w: int16x8
 /// hi` from codes `first + k·sx` (`spans[φ] = (lo, hi, first)`) as 16-bit `x − zp`; rows
 /// outside the image all zeros; the other columns are left as they are (the caller zeroed
 /// them). Returns `false` (and does nothing) without NEON, for a stride other than 1 or 2 or
-/// a zero point outside int8, or where a span is shorter than 8 columns, lies outside its
-/// phase or reads past its row.
+/// a zero point outside int8, or where a span lies outside its phase or reads past its row
+/// (a span of fewer than 8 columns is converted one code at a time).
 #[allow(clippy::too_many_arguments)]
 pub fn widen_band(
     chan: &[i8],
@@ -225,13 +225,16 @@ pub fn widen_band(
     let Ok(zp) = i8::try_from(zp) else {
         return false;
     };
+    // A span of any length (fewer than 8 codes go through the scalar loop below; an empty
+    // one writes nothing).
     let ok_span = |&(lo, hi, first): &(usize, usize, usize)| {
-        hi >= lo + 8
-            && hi <= phase_w
-            && (hi - lo - 1)
-                .checked_mul(sx)
-                .and_then(|e| e.checked_add(first))
-                .is_some_and(|e| e < iw)
+        hi <= phase_w
+            && (hi == lo
+                || hi > lo
+                    && (hi - lo - 1)
+                        .checked_mul(sx)
+                        .and_then(|e| e.checked_add(first))
+                        .is_some_and(|e| e < iw))
     };
     if !crate::kernels::isa::Isa::Neon.available()
         || !(1..=2).contains(&sx)
@@ -250,6 +253,9 @@ pub fn widen_band(
         }
         let src = &chan[iy as usize * iw..][..iw];
         for (phase, &(lo, hi, first)) in spans.iter().enumerate() {
+            if hi == lo {
+                continue;
+            }
             let d = &mut row[phase * phase_w + lo..phase * phase_w + hi];
             let src = &src[first..];
             // Whole `sx`-code steps inside the row, at least 7 (`(hi − lo − 1)·sx < iw − first`
