@@ -482,7 +482,7 @@ fn resize_rows(
 /// `n = h_y0[o]·(dy − fy) + h_y1[o]·fy`, which is the reference's `top·(dy − fy) + bot·fy`
 /// (the same integer), finished by the same rescale or rounded division: the same bits.
 /// `false` (nothing written) where it does not apply (sums beyond the 32-bit paths, `den` above
-/// 127, rows below 8 or above its width, a rescale without its 32-bit form).
+/// 255, rows below 8 or above its width, a rescale without its 32-bit form).
 #[cfg(target_arch = "aarch64")]
 fn separable(
     input: &[i8],
@@ -1009,7 +1009,7 @@ mod tests {
 
     /// The NEON sets' two-pass path (`separable`) and its fallbacks = the reference bits, into
     /// the input's parameters and into others: the model's ×2 shapes, rows not a multiple of 8
-    /// or 16, the extreme codes, `den` at and past 127, a downsample whose 16 outputs read more
+    /// or 16, the extreme codes, `den` at 127 and past 255, a downsample whose 16 outputs read more
     /// than 32 columns, and rows below 8.
     #[test]
     fn separable_rows_every_set_equal_the_reference() {
@@ -1025,6 +1025,8 @@ mod tests {
             (3, 100, 4, 40),
             (2, 2, 2, 7),
             (7, 13, 1, 11),
+            (2, 130, 3, 257),
+            (30, 80, 59, 160),
         ] {
             let s = Shape::new(3, ih, iw);
             let x: Vec<i8> = (0..s.len().unwrap())

@@ -197,15 +197,15 @@ pub const SEP_COLS: usize = 512;
 struct Group {
     a: [u8; 16],
     b: [u8; 16],
-    wa: [i8; 16],
-    wb: [i8; 16],
+    wa: [i16; 16],
+    wb: [i16; 16],
     base: usize,
 }
 
 /// The column half of a separable resize: `h[o] = r[x0]·(den − f) + r[x1]·f` for each output
 /// column `o` of an input row `r` (`x1 = min(x0 + 1, iw − 1)`), 16 columns per pass: one 32-byte
-/// load at the group's first `x0`, two `TBL`s, `SMULL`/`SMLAL` of int8 codes by int8 weights
-/// into exact int16 (`|h| ≤ 128·den ≤ 16256`). Built once per resize, used for every input row
+/// load at the group's first `x0`, two `TBL`s, the codes widened and `MUL`/`MLA` by 16-bit
+/// weights, exact in int16 (`|h| ≤ 128·den ≤ 32640`). Built once per resize, used for every input row
 /// of every channel.
 pub struct Columns {
     groups: [Group; SEP_COLS / 16],
@@ -217,12 +217,12 @@ pub struct Columns {
 
 impl Columns {
     /// The columns of output taps `taps[o] = x0 | f << 16` (`f < den`) over input rows of `iw`
-    /// codes; `None` where the path does not apply: no NEON, `den` above 127, rows wider than
+    /// codes; `None` where the path does not apply: no NEON, `den` above 255, rows wider than
     /// [`SEP_COLS`], or 16 consecutive outputs reading more than 32 input columns.
     pub fn new(taps: &[u32], iw: usize, den: i32) -> Option<Columns> {
         let ow = taps.len();
         if !crate::kernels::isa::Isa::Neon.available()
-            || !(1..=127).contains(&den)
+            || !(1..=255).contains(&den)
             || iw == 0
             || iw > SEP_COLS
             || ow == 0
@@ -246,9 +246,9 @@ impl Columns {
                 }
                 g.a[l] = (x0 - g.base) as u8;
                 g.b[l] = (x1 - g.base) as u8;
-                // 1 ≤ den − f ≤ 127 and 0 ≤ f < 127.
-                g.wa[l] = (den - f) as i8;
-                g.wb[l] = f as i8;
+                // 1 ≤ den − f ≤ 255 and 0 ≤ f < 255.
+                g.wa[l] = (den - f) as i16;
+                g.wb[l] = f as i16;
             }
         }
         Some(c)
@@ -276,14 +276,19 @@ unsafe fn blend_neon(groups: &[Group], row: &[i8], h: &mut [i16]) {
     for (i, g) in groups.iter().enumerate() {
         let t = vld1q_s8_x2(rp.add(g.base));
         let (ia, ib) = (vld1q_u8(g.a.as_ptr()), vld1q_u8(g.b.as_ptr()));
-        let (wa, wb) = (vld1q_s8(g.wa.as_ptr()), vld1q_s8(g.wb.as_ptr()));
         let (a, b) = (vqtbl2q_s8(t, ia), vqtbl2q_s8(t, ib));
-        let lo = vmlal_s8(
-            vmull_s8(vget_low_s8(a), vget_low_s8(wa)),
-            vget_low_s8(b),
-            vget_low_s8(wb),
+        let w = |p: &[i16; 16], k: usize| vld1q_s16(p.as_ptr().add(k));
+        // |x·(den − f) + x'·f| ≤ 128·den < 2^15: the 16-bit products and sum are exact.
+        let lo = vmlaq_s16(
+            vmulq_s16(vmovl_s8(vget_low_s8(a)), w(&g.wa, 0)),
+            vmovl_s8(vget_low_s8(b)),
+            w(&g.wb, 0),
         );
-        let hi = vmlal_high_s8(vmull_high_s8(a, wa), b, wb);
+        let hi = vmlaq_s16(
+            vmulq_s16(vmovl_high_s8(a), w(&g.wa, 8)),
+            vmovl_high_s8(b),
+            w(&g.wb, 8),
+        );
         vst1q_s16(hp.add(16 * i), lo);
         vst1q_s16(hp.add(16 * i + 8), hi);
     }
