@@ -209,11 +209,24 @@ fn row_i8_chunks(
     while x < x1 {
         let len = (x1 - x).min(CHUNK);
         // The sums, then the accumulators, `CHUNK` apart (the Cortex-M loop's layout).
-        let mut sums = [0f32; 2 * CHUNK];
-        let (s, acc) = sums.split_at_mut(CHUNK);
-        let (s, acc) = (&mut s[..len], &mut acc[..len]);
+        // Only the chunk's `len` of each are written (zeros, the previous iteration's values)
+        // and then read: the rest of the store stays uninitialised (zeroing all of it cost
+        // more than the chunk's own work at the image widths shipped).
         let ic = at.cur + x;
-        acc.copy_from_slice(cur.get(ic..ic + len).ok_or(KernelError::Shape)?);
+        let start = cur.get(ic..ic + len).ok_or(KernelError::Shape)?;
+        let mut store = core::mem::MaybeUninit::<[f32; 2 * CHUNK]>::uninit();
+        let base = store.as_mut_ptr().cast::<f32>();
+        // SAFETY: `len ≤ CHUNK`, so `base .. base + len` and `base + CHUNK .. + len` lie in the
+        // store and do not overlap; both are written here (all-zero bits are `+0.0`) before the
+        // slices over them are made, and `start` (another buffer) holds `len` values.
+        let (s, acc) = unsafe {
+            base.write_bytes(0, len);
+            core::ptr::copy_nonoverlapping(start.as_ptr(), base.add(CHUNK), len);
+            (
+                core::slice::from_raw_parts_mut(base, len),
+                core::slice::from_raw_parts_mut(base.add(CHUNK), len),
+            )
+        };
         // Neighbour j's codes and previous-iteration values over the chunk.
         let terms = |j: usize| -> Result<(&[i8], &[f32], f32), KernelError> {
             let ia = j * a.plane() + at.aff + x;
