@@ -464,16 +464,12 @@ fn neon_taps<T>(
         if sx == 1 && sy == 1 {
             return super::aarch64::depthwise::taps(x16, offs, ws, sums);
         }
-        // Row j of the band starts `j·sy` input rows down.
+        // Row j of the band starts `j·sy` input rows down: the same offsets from there.
         for (j, acc) in sums.chunks_mut(pitch).enumerate() {
-            let Some(acc) = acc.get_mut(..ow) else {
+            let (Some(acc), Some(x)) = (acc.get_mut(..ow), x16.get(j * sy * row_w..)) else {
                 return false;
             };
-            let mut shifted = [0usize; MAX_DEPTHWISE_TAPS];
-            for (s, &o) in shifted.iter_mut().zip(offs) {
-                *s = o + j * sy * row_w;
-            }
-            if !super::aarch64::depthwise::taps(x16, &shifted[..n_taps], ws, acc) {
+            if !super::aarch64::depthwise::taps(x, offs, ws, acc) {
                 return false;
             }
         }
