@@ -106,6 +106,23 @@ impl Code for i16 {
     fn widen_fast(_: Isa, _: &[i16], _: usize, _: i32, _: &mut [i16]) -> usize {
         0
     }
+    #[cfg(target_arch = "aarch64")]
+    #[inline(always)]
+    fn widen_band_fast(
+        isa: Isa,
+        chan: &[i16],
+        shape: (usize, usize),
+        first_iy: isize,
+        widths: (usize, usize),
+        sx: usize,
+        spans: &[(usize, usize, usize)],
+        zp: i32,
+        x16: &mut [i16],
+    ) -> bool {
+        use super::aarch64::depthwise::widen_band;
+        matches!(isa, Isa::Neon | Isa::NeonDot)
+            && widen_band(chan, shape, first_iy, widths, sx, spans, zp, x16)
+    }
 }
 
 /// Depthwise convolution of `call` into `output`: the kernel set's path (module doc), or its

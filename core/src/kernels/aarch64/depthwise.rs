@@ -212,8 +212,8 @@ unsafe fn mla16(a: &mut [int32x4_t; 4], x0: int16x8_t, x1: int16x8_t, w: int16x8
 /// a zero point outside int8, or where a span lies outside its phase or reads past its row
 /// (a span of fewer than 8 columns is converted one code at a time).
 #[allow(clippy::too_many_arguments)]
-pub fn widen_band(
-    chan: &[i8],
+pub fn widen_band<C: BandCode>(
+    chan: &[C],
     (ih, iw): (usize, usize),
     first_iy: isize,
     (row_w, phase_w): (usize, usize),
@@ -222,7 +222,7 @@ pub fn widen_band(
     zp: i32,
     x16: &mut [i16],
 ) -> bool {
-    let Ok(zp) = i8::try_from(zp) else {
+    let Some(zp) = C::zero_point(zp) else {
         return false;
     };
     // A span of any length (fewer than 8 codes go through the scalar loop below; an empty
@@ -264,18 +264,95 @@ pub fn widen_band(
             if m >= 8 {
                 // SAFETY: NEON is available; the reads end at `m·sx ≤ src.len()`, the writes
                 // at `m ≤ d.len()`.
-                unsafe { widen_neon(src, sx, zp, &mut d[..m]) };
+                unsafe { C::widen_neon(src, sx, zp, &mut d[..m]) };
             } else {
                 for (k, v) in d[..m].iter_mut().enumerate() {
-                    *v = i16::from(src[k * sx]) - i16::from(zp);
+                    *v = C::one(src[k * sx], zp);
                 }
             }
             for (k, v) in d.iter_mut().enumerate().skip(m) {
-                *v = i16::from(src[k * sx]) - i16::from(zp);
+                *v = C::one(src[k * sx], zp);
             }
         }
     }
     true
+}
+
+/// Input codes [`widen_band`] converts: int8 (`x − zp` exact in 16 bits) or int16 with zero
+/// point 0 (the codes themselves: the int16 convs of `wide.rs`).
+pub trait BandCode: Copy {
+    /// The zero point in the form the conversion uses; `None` where it is not supported.
+    type Zp: Copy;
+    /// `zp` as [`BandCode::Zp`], `None` outside its range.
+    fn zero_point(zp: i32) -> Option<Self::Zp>;
+    /// One code converted.
+    fn one(x: Self, zp: Self::Zp) -> i16;
+    /// `dst[k] = one(src[k·sx])` for every `k < dst.len()`, 8 or 16 at a time.
+    ///
+    /// # Safety
+    /// The CPU must have NEON; `8 ≤ dst.len()`, `dst.len()·sx ≤ src.len()`, `sx` 1 or 2.
+    unsafe fn widen_neon(src: &[Self], sx: usize, zp: Self::Zp, dst: &mut [i16]);
+}
+
+impl BandCode for i8 {
+    type Zp = i8;
+    fn zero_point(zp: i32) -> Option<i8> {
+        i8::try_from(zp).ok()
+    }
+    #[inline(always)]
+    fn one(x: i8, zp: i8) -> i16 {
+        i16::from(x) - i16::from(zp)
+    }
+    /// # Safety
+    /// As the trait's.
+    #[inline(always)]
+    unsafe fn widen_neon(src: &[i8], sx: usize, zp: i8, dst: &mut [i16]) {
+        widen_neon(src, sx, zp, dst)
+    }
+}
+
+impl BandCode for i16 {
+    type Zp = ();
+    fn zero_point(zp: i32) -> Option<()> {
+        (zp == 0).then_some(())
+    }
+    #[inline(always)]
+    fn one(x: i16, _: ()) -> i16 {
+        x
+    }
+    /// # Safety
+    /// As the trait's.
+    #[inline(always)]
+    unsafe fn widen_neon(src: &[i16], sx: usize, _: (), dst: &mut [i16]) {
+        copy_i16_neon(src, sx, dst)
+    }
+}
+
+/// `dst[k] = src[k·sx]` (`LD2` keeps the even codes at `sx = 2`), 8 at a time, the last 8
+/// overlapping.
+///
+/// # Safety
+/// The CPU must have NEON; `8 ≤ dst.len()`, `dst.len()·sx ≤ src.len()`, `sx` 1 or 2.
+#[target_feature(enable = "neon")]
+unsafe fn copy_i16_neon(src: &[i16], sx: usize, dst: &mut [i16]) {
+    let (sp, dp) = (src.as_ptr(), dst.as_mut_ptr());
+    let m = dst.len();
+    let eight = |k: usize| {
+        let x = if sx == 2 {
+            vld2q_s16(sp.add(2 * k)).0
+        } else {
+            vld1q_s16(sp.add(k))
+        };
+        vst1q_s16(dp.add(k), x);
+    };
+    let mut k = 0;
+    while k + 8 <= m {
+        eight(k);
+        k += 8;
+    }
+    if k < m {
+        eight(m - 8);
+    }
 }
 
 /// `dst[k] = src[k·sx] − zp` (16-bit) for the leading `m = min(dst.len(), src.len() / sx)`
