@@ -16,7 +16,23 @@ pub fn taps(x: &[i16], offs: &[usize], w: &[i16], out: &mut [i32]) -> bool {
     if !crate::kernels::isa::Isa::Neon.available() || offs.len() != w.len() || !inside {
         return false;
     }
-    if let (Ok(offs9), Ok(w9)) = (<&[usize; 9]>::try_from(offs), <&[i16; 9]>::try_from(w)) {
+    let nine = (<&[usize; 9]>::try_from(offs), <&[i16; 9]>::try_from(w));
+    if (1..16).contains(&n) && far + 16 <= x.len() {
+        // A short run (a strided band's narrow rows) as one 16-wide pass into a buffer when
+        // its 16 reads stay inside `x`: the first `n` sums are the same.
+        let mut t = [0i32; 16];
+        // SAFETY: NEON is available; every read `x[o + i]`, `i < 16`, is inside `x` (checked)
+        // and every write inside `t` (16).
+        unsafe {
+            match nine {
+                (Ok(offs9), Ok(w9)) => taps9_neon(x, offs9, w9, &mut t),
+                _ => taps_neon(x, offs, w, &mut t),
+            }
+        };
+        out.copy_from_slice(&t[..n]);
+        return true;
+    }
+    if let (Ok(offs9), Ok(w9)) = nine {
         if n >= 16 {
             // SAFETY: as below; `n ≥ 16`.
             unsafe { taps9_neon(x, offs9, w9, out) };
