@@ -3,6 +3,7 @@
 //! of the scalar loop in the same order (separate `FMUL` and `FADD`, never fused), so the bits
 //! are those of every other path.
 
+use crate::kernels::refine::SkRow;
 use crate::kernels::requant::QParams;
 use core::arch::aarch64::*;
 
@@ -137,28 +138,40 @@ pub fn accumulate(
     kt: &[f32; 256],
     ti: usize,
     k: usize,
+    sk: SkRow<'_>,
 ) -> usize {
     let n = out.len() / 8 * 8;
     let short = cur.len() < n || t.iter().chain(&m).any(|r| r.len() < n);
-    if !crate::kernels::isa::Isa::Neon.available() || n == 0 || short || ti > 2 || k > 2 {
+    let sk_short = match &sk {
+        SkRow::Compute => false,
+        SkRow::Fill(r) => r.len() < n,
+        SkRow::Use(r) => r.len() < n,
+    };
+    if !crate::kernels::isa::Isa::Neon.available() || n == 0 || short || sk_short || ti > 2 || k > 2
+    {
         return 0;
     }
     let (o, c) = (out.as_mut_ptr(), cur.as_ptr());
     let (t, m) = (t.map(|r| r.as_ptr()), m.map(|r| r.as_ptr()));
     let e = (tt, kt);
-    // SAFETY (each arm): NEON is available; `out`, `cur` and the six rows hold ≥ `n` values
-    // (checked above), `n` a multiple of 8.
+    let sk = match sk {
+        SkRow::Compute => Sk::Compute,
+        SkRow::Fill(r) => Sk::Fill(r.as_mut_ptr()),
+        SkRow::Use(r) => Sk::Use(r.as_ptr()),
+    };
+    // SAFETY (each arm): NEON is available; `out`, `cur`, the six rows and a cached row hold
+    // ≥ `n` values (checked above), `n` a multiple of 8.
     unsafe {
         match (ti, k) {
-            (0, 0) => accumulate_neon::<0, 0>(o, c, t, m, e, n),
-            (0, 1) => accumulate_neon::<0, 1>(o, c, t, m, e, n),
-            (0, _) => accumulate_neon::<0, 2>(o, c, t, m, e, n),
-            (1, 0) => accumulate_neon::<1, 0>(o, c, t, m, e, n),
-            (1, 1) => accumulate_neon::<1, 1>(o, c, t, m, e, n),
-            (1, _) => accumulate_neon::<1, 2>(o, c, t, m, e, n),
-            (_, 0) => accumulate_neon::<2, 0>(o, c, t, m, e, n),
-            (_, 1) => accumulate_neon::<2, 1>(o, c, t, m, e, n),
-            (_, _) => accumulate_neon::<2, 2>(o, c, t, m, e, n),
+            (0, 0) => accumulate_neon::<0, 0>(o, c, t, m, e, n, sk),
+            (0, 1) => accumulate_neon::<0, 1>(o, c, t, m, e, n, sk),
+            (0, _) => accumulate_neon::<0, 2>(o, c, t, m, e, n, sk),
+            (1, 0) => accumulate_neon::<1, 0>(o, c, t, m, e, n, sk),
+            (1, 1) => accumulate_neon::<1, 1>(o, c, t, m, e, n, sk),
+            (1, _) => accumulate_neon::<1, 2>(o, c, t, m, e, n, sk),
+            (_, 0) => accumulate_neon::<2, 0>(o, c, t, m, e, n, sk),
+            (_, 1) => accumulate_neon::<2, 1>(o, c, t, m, e, n, sk),
+            (_, _) => accumulate_neon::<2, 2>(o, c, t, m, e, n, sk),
         }
     }
     n
@@ -230,10 +243,18 @@ unsafe fn softmax8<const C: usize>(
     }
 }
 
+/// [`SkRow`] as a pointer for [`accumulate_neon`].
+#[derive(Clone, Copy)]
+enum Sk {
+    Compute,
+    Fill(*mut f32),
+    Use(*const f32),
+}
+
 /// [`accumulate`]'s loop over `n` values (a multiple of 8).
 ///
 /// # Safety
-/// The CPU must have NEON; `o`, `c` and the six rows point at ≥ `n` values.
+/// The CPU must have NEON; `o`, `c`, the six rows and a cached row point at ≥ `n` values.
 #[target_feature(enable = "neon")]
 unsafe fn accumulate_neon<const TI: usize, const K: usize>(
     o: *mut f32,
@@ -242,13 +263,23 @@ unsafe fn accumulate_neon<const TI: usize, const K: usize>(
     m: [*const i8; 3],
     (tt, kt): (&[f32; 256], &[f32; 256]),
     n: usize,
+    sk: Sk,
 ) {
     let mut i = 0;
     while i + 8 <= n {
-        // SAFETY: `i + 8 ≤ n`, inside every row and both value slices.
+        // SAFETY: `i + 8 ≤ n`, inside every row, both value slices and a cached row.
         unsafe {
             let ct = softmax8::<TI>(t, tt, i);
-            let ck = softmax8::<K>(m, kt, i);
+            let ck = match sk {
+                Sk::Use(p) => [vld1q_f32(p.add(i)), vld1q_f32(p.add(i + 4))],
+                Sk::Fill(p) => {
+                    let ck = softmax8::<K>(m, kt, i);
+                    vst1q_f32(p.add(i), ck[0]);
+                    vst1q_f32(p.add(i + 4), ck[1]);
+                    ck
+                }
+                Sk::Compute => softmax8::<K>(m, kt, i),
+            };
             for h in 0..2 {
                 let at = i + 4 * h;
                 let add = vmulq_f32(vmulq_f32(ct[h], ck[h]), vld1q_f32(c.add(at)));
