@@ -798,6 +798,21 @@ pub(super) fn take<T: Copy>(s: &mut [i32], n: usize) -> (&mut [T], &mut [i32]) {
 /// for this layout).
 trait Micro: Layout + Sized {
     fn kernel(isa: Isa, t: &Task<Self::Elem, Self::W>, acc: &mut Acc);
+    /// As [`Micro::kernel`], channel `j`'s sums written at `dst + j·stride` (the kernel's
+    /// whole 16-pixel groups); `false` (nothing done) where the set has no such kernel.
+    ///
+    /// # Safety
+    /// `dst + j·stride + i` must be valid for writes for `j < t.channels`,
+    /// `i < 16·⌈t.pixels/16⌉`.
+    #[cfg(target_arch = "aarch64")]
+    unsafe fn kernel_into(
+        _isa: Isa,
+        _t: &Task<Self::Elem, Self::W>,
+        _dst: *mut i32,
+        _stride: usize,
+    ) -> bool {
+        false
+    }
 }
 
 impl Micro for Pairs {
@@ -843,6 +858,14 @@ impl Micro for SignedQuads {
         if !done {
             dot::portable::<i8, i8, 4>(t, acc);
         }
+    }
+    /// # Safety
+    /// As the trait's.
+    #[cfg(target_arch = "aarch64")]
+    #[inline]
+    unsafe fn kernel_into(isa: Isa, t: &Task<i8, i8>, dst: *mut i32, stride: usize) -> bool {
+        // SAFETY: the caller's contract is `quads_into`'s.
+        isa == Isa::NeonDot && unsafe { super::aarch64::dotprod::quads_into(t, dst, stride) }
     }
 }
 
@@ -1104,8 +1127,38 @@ fn run_pack<F: Micro, S: Source, O: Sink + ?Sized>(
             #[cfg(target_arch = "aarch64")]
             if matches!(isa, Isa::Neon | Isa::NeonDot) && out.w > PB && out.w <= WIDE {
                 if let Some(out8) = output.as_i8() {
-                    // Row `j`'s sums at `j · out.w` (`nb · out.w ≤ NB · WIDE`).
                     let base = wide_store.as_mut_ptr().cast::<i32>();
+                    // `neon-dot`: the kernel writes row `j` at `j · stride` itself (`stride`
+                    // = W rounded up to 16: whole 16-pixel groups, `nb · stride ≤ NB · WIDE`).
+                    let stride = out.w.div_ceil(16) * 16;
+                    let into = |ox0: usize, n: usize| {
+                        let task = Task {
+                            rows,
+                            weights: &weights[b * dims.block_len..(b + 1) * dims.block_len],
+                            steps,
+                            ox0,
+                            pixels: n,
+                            channels: nb,
+                        };
+                        // SAFETY: rows `j < nb` of the store from `j · stride + ox0`, 16-pixel
+                        // groups up to `ox0 + 16·⌈n/16⌉ ≤ stride`: inside `NB · WIDE` (`stride ≤
+                        // WIDE`, 320 being a multiple of 16).
+                        unsafe { F::kernel_into(isa, &task, base.add(ox0), stride) }
+                    };
+                    // Every block or none (then the copies below redo the row).
+                    let all = (0..out.w)
+                        .step_by(PB)
+                        .all(|ox0| into(ox0, PB.min(out.w - ox0)));
+                    if all {
+                        // SAFETY: the kernel wrote every `j · stride + x`, `j < nb`, `x <
+                        // stride` (its groups of 16 from `ox0 = 0, PB, …` cover `0 .. stride`).
+                        let wide = unsafe { core::slice::from_raw_parts(base, nb * stride) };
+                        let at = o0 * dst.stride + (oy - dst.rows.start) * out.w;
+                        let sums = (wide, stride, out.w);
+                        op.finish_wide(&rq[..nb], o0, sums, out8, at, dst.stride);
+                        continue;
+                    }
+                    // Row `j`'s sums at `j · out.w` (`nb · out.w ≤ NB · WIDE`).
                     for ox0 in (0..out.w).step_by(PB) {
                         let n = PB.min(out.w - ox0);
                         let task = Task {

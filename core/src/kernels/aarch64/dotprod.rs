@@ -15,16 +15,38 @@ pub fn quads(t: &Task<i8, i8>, acc: &mut Acc) -> bool {
     if !crate::kernels::isa::Isa::NeonDot.available() || !t.in_bounds(4) {
         return false;
     }
-    // SAFETY: NEON and the dot product are available and every read is in bounds (checked).
-    unsafe {
-        match t.channels {
-            1 => quads_dot::<1>(t, acc),
-            2 => quads_dot::<2>(t, acc),
-            3 => quads_dot::<3>(t, acc),
-            _ => quads_dot::<4>(t, acc),
-        }
-    };
+    // SAFETY: NEON and the dot product are available and every read is in bounds (checked);
+    // `acc` holds the `NB` rows of `PB` the kernel writes.
+    unsafe { dispatch(t, acc.as_mut_ptr(), PB) };
     true
+}
+
+/// As [`quads`], each used channel `j`'s sums written to `dst + j·stride` instead of `acc`
+/// (the rest of a 16-pixel group included: `16·⌈pixels/16⌉` sums per channel).
+///
+/// # Safety
+/// `dst + j·stride + i` must be valid for writes for `j < t.channels`, `i < 16·⌈pixels/16⌉`.
+pub unsafe fn quads_into(t: &Task<i8, i8>, dst: *mut i32, stride: usize) -> bool {
+    if !crate::kernels::isa::Isa::NeonDot.available() || !t.in_bounds(4) {
+        return false;
+    }
+    // SAFETY: as in `quads`; the writes are the caller's contract.
+    unsafe { dispatch(t, dst, stride) };
+    true
+}
+
+/// [`quads_dot`] for the task's channel count.
+///
+/// # Safety
+/// As [`quads_dot`].
+#[inline(always)]
+unsafe fn dispatch(t: &Task<i8, i8>, dst: *mut i32, stride: usize) {
+    match t.channels {
+        1 => quads_dot::<1>(t, dst, stride),
+        2 => quads_dot::<2>(t, dst, stride),
+        3 => quads_dot::<3>(t, dst, stride),
+        _ => quads_dot::<4>(t, dst, stride),
+    }
 }
 
 /// `a += SDOT(x, w.4b[J])`: lane `p` of `a` gains `Σ_l x[4p + l] · w[4J + l]`.
@@ -49,9 +71,10 @@ unsafe fn sdot<const J: i32>(a: &mut int32x4_t, x: int8x16_t, w: int8x16_t) {
 ///
 /// # Safety
 /// The CPU must have NEON and the dot-product extension (`FEAT_DotProd`), and the task's
-/// slices must hold the block the task names; the safe wrapper checks both.
+/// slices must hold the block the task names; the safe wrappers check both. Channel `j`'s sums
+/// go to `dst + j·stride`, `16·⌈pixels/16⌉` of them, which must be valid for writes.
 #[target_feature(enable = "neon,dotprod")]
-unsafe fn quads_dot<const C: usize>(t: &Task<i8, i8>, acc: &mut Acc) {
+unsafe fn quads_dot<const C: usize>(t: &Task<i8, i8>, dst: *mut i32, stride: usize) {
     const _: () = assert!(NB == 4 && PB.is_multiple_of(16));
     for half in 0..t.pixels.clamp(1, PB).div_ceil(16) {
         let mut c = [vdupq_n_s32(0); 16];
@@ -76,7 +99,7 @@ unsafe fn quads_dot<const C: usize>(t: &Task<i8, i8>, acc: &mut Acc) {
             wq = wq.add(4 * NB);
         }
         for j in 0..C.min(NB) {
-            let dst = acc.as_mut_ptr().add(j * PB + 16 * half);
+            let dst = dst.add(j * stride + 16 * half);
             for q in 0..4 {
                 vst1q_s32(dst.add(4 * q), c[4 * j + q]);
             }
