@@ -261,6 +261,17 @@ pub fn widen_band<C: BandCode>(
     {
         return false;
     }
+    // Per phase, once for every row: its columns in the converted row, its first code and
+    // `m`, the whole `sx`-code steps inside the input row (then the last code alone where
+    // `sx = 2` leaves it half a step).
+    let mut runs = [(0usize, 0usize, 0usize, 0usize); 2];
+    for (run, (phase, &(lo, hi, first))) in runs.iter_mut().zip(spans.iter().enumerate()) {
+        if hi > lo {
+            let m = (hi - lo).min((iw - first) / sx);
+            *run = (phase * phase_w + lo, phase * phase_w + hi, first, m);
+        }
+    }
+    let runs = &runs[..spans.len()];
     for (r, row) in x16.chunks_exact_mut(row_w).enumerate() {
         let iy = first_iy + r as isize;
         if iy < 0 || iy >= ih as isize {
@@ -268,15 +279,12 @@ pub fn widen_band<C: BandCode>(
             continue;
         }
         let src = &chan[iy as usize * iw..][..iw];
-        for (phase, &(lo, hi, first)) in spans.iter().enumerate() {
-            if hi == lo {
+        for &(a, b, first, m) in runs {
+            if a == b {
                 continue;
             }
-            let d = &mut row[phase * phase_w + lo..phase * phase_w + hi];
+            let d = &mut row[a..b];
             let src = &src[first..];
-            // Whole `sx`-code steps inside the row, at least 7 (`(hi − lo − 1)·sx < iw − first`
-            // checked above), then the last code alone where `sx = 2` leaves it half a step.
-            let m = d.len().min(src.len() / sx);
             if m >= 8 {
                 // SAFETY: NEON is available; the reads end at `m·sx ≤ src.len()`, the writes
                 // at `m ≤ d.len()`.
