@@ -798,6 +798,21 @@ pub(super) fn take<T: Copy>(s: &mut [i32], n: usize) -> (&mut [T], &mut [i32]) {
 /// for this layout).
 trait Micro: Layout + Sized {
     fn kernel(isa: Isa, t: &Task<Self::Elem, Self::W>, acc: &mut Acc);
+    /// As [`Micro::kernel`], channel `j`'s sums written at `dst + j·stride` (the kernel's
+    /// whole 16-pixel groups); `false` (nothing done) where the set has no such kernel.
+    ///
+    /// # Safety
+    /// `dst + j·stride + i` must be valid for writes for `j < t.channels`,
+    /// `i < 16·⌈t.pixels/16⌉`.
+    #[cfg(target_arch = "aarch64")]
+    unsafe fn kernel_into(
+        _isa: Isa,
+        _t: &Task<Self::Elem, Self::W>,
+        _dst: *mut i32,
+        _stride: usize,
+    ) -> bool {
+        false
+    }
 }
 
 impl Micro for Pairs {
@@ -843,6 +858,14 @@ impl Micro for SignedQuads {
         if !done {
             dot::portable::<i8, i8, 4>(t, acc);
         }
+    }
+    /// # Safety
+    /// As the trait's.
+    #[cfg(target_arch = "aarch64")]
+    #[inline]
+    unsafe fn kernel_into(isa: Isa, t: &Task<i8, i8>, dst: *mut i32, stride: usize) -> bool {
+        // SAFETY: the caller's contract is `quads_into`'s.
+        isa == Isa::NeonDot && unsafe { super::aarch64::dotprod::quads_into(t, dst, stride) }
     }
 }
 
@@ -1036,16 +1059,23 @@ fn run_pack<F: Micro, S: Source, O: Sink + ?Sized>(
     #[cfg(not(any(target_arch = "aarch64", target_arch = "x86_64")))]
     const CACHED: usize = 0;
     let n_blocks = pack.channels.div_ceil(NB);
-    // Widest output row requantised in one call (aarch64, `NB · WIDE` sums on the stack,
-    // zeroed once per call where used; only the sums of the current row of blocks are read).
+    // Widest output row requantised in one call (aarch64: `NB · WIDE` sums on the stack, left
+    // uninitialised; each row of blocks writes the `nb · out.w` it then reads).
     #[cfg(target_arch = "aarch64")]
     const WIDE: usize = 320;
     #[cfg(target_arch = "aarch64")]
-    let mut wide_store: Option<[i32; NB * WIDE]> = None;
-    let mut cached = [[RowQuant::default(); NB]; CACHED];
-    for (b, rq) in cached.iter_mut().enumerate().take(n_blocks) {
-        *rq = block_rq(b);
+    let mut wide_store = core::mem::MaybeUninit::<[i32; NB * WIDE]>::uninit();
+    // Only the blocks this pack has are written (a default-filled array cost about 1000
+    // instructions per call on aarch64: the refinement's heads run one call per row).
+    let mut store = [const { core::mem::MaybeUninit::<[RowQuant; NB]>::uninit() }; CACHED];
+    let n_cached = n_blocks.min(CACHED);
+    for (b, rq) in store[..n_cached].iter_mut().enumerate() {
+        rq.write(block_rq(b));
     }
+    // SAFETY: `MaybeUninit<T>` has `T`'s layout, and the first `n_cached` entries were
+    // written just above.
+    let cached: &[[RowQuant; NB]] =
+        unsafe { core::slice::from_raw_parts(store.as_ptr().cast(), n_cached) };
     for oy in dst.rows.clone() {
         // The input rows of output row `oy` into their slots (packed only where a slot does not
         // hold its row already), and the reduction steps' offsets for this slot order.
@@ -1097,9 +1127,38 @@ fn run_pack<F: Micro, S: Source, O: Sink + ?Sized>(
             #[cfg(target_arch = "aarch64")]
             if matches!(isa, Isa::Neon | Isa::NeonDot) && out.w > PB && out.w <= WIDE {
                 if let Some(out8) = output.as_i8() {
-                    // Lazily: the 5 KiB zeroing only in calls that take this path.
-                    #[allow(clippy::unnecessary_lazy_evaluations)]
-                    let wide = wide_store.get_or_insert_with(|| [0; NB * WIDE]);
+                    let base = wide_store.as_mut_ptr().cast::<i32>();
+                    // `neon-dot`: the kernel writes row `j` at `j · stride` itself (`stride`
+                    // = W rounded up to 16: whole 16-pixel groups, `nb · stride ≤ NB · WIDE`).
+                    let stride = out.w.div_ceil(16) * 16;
+                    let into = |ox0: usize, n: usize| {
+                        let task = Task {
+                            rows,
+                            weights: &weights[b * dims.block_len..(b + 1) * dims.block_len],
+                            steps,
+                            ox0,
+                            pixels: n,
+                            channels: nb,
+                        };
+                        // SAFETY: rows `j < nb` of the store from `j · stride + ox0`, 16-pixel
+                        // groups up to `ox0 + 16·⌈n/16⌉ ≤ stride`: inside `NB · WIDE` (`stride ≤
+                        // WIDE`, 320 being a multiple of 16).
+                        unsafe { F::kernel_into(isa, &task, base.add(ox0), stride) }
+                    };
+                    // Every block or none (then the copies below redo the row).
+                    let all = (0..out.w)
+                        .step_by(PB)
+                        .all(|ox0| into(ox0, PB.min(out.w - ox0)));
+                    if all {
+                        // SAFETY: the kernel wrote every `j · stride + x`, `j < nb`, `x <
+                        // stride` (its groups of 16 from `ox0 = 0, PB, …` cover `0 .. stride`).
+                        let wide = unsafe { core::slice::from_raw_parts(base, nb * stride) };
+                        let at = o0 * dst.stride + (oy - dst.rows.start) * out.w;
+                        let sums = (wide, stride, out.w);
+                        op.finish_wide(&rq[..nb], o0, sums, out8, at, dst.stride);
+                        continue;
+                    }
+                    // Row `j`'s sums at `j · out.w` (`nb · out.w ≤ NB · WIDE`).
                     for ox0 in (0..out.w).step_by(PB) {
                         let n = PB.min(out.w - ox0);
                         let task = Task {
@@ -1108,23 +1167,28 @@ fn run_pack<F: Micro, S: Source, O: Sink + ?Sized>(
                             steps,
                             ox0,
                             pixels: n,
+                            channels: nb,
                         };
                         F::kernel(isa, &task, acc);
-                        for (w, a) in wide
-                            .chunks_exact_mut(WIDE)
-                            .zip(acc.chunks_exact(PB))
-                            .take(nb)
-                        {
+                        for (j, a) in acc.chunks_exact(PB).take(nb).enumerate() {
+                            // SAFETY: `j · out.w + ox0 + n ≤ nb · out.w ≤ NB · WIDE` i32 of
+                            // the store, and `a` holds `PB ≥ n`; the two do not overlap.
                             // Whole blocks as fixed-size copies (inlined, no `memcpy` call).
-                            if n == PB {
-                                w[ox0..ox0 + PB].copy_from_slice(&a[..PB]);
-                            } else {
-                                w[ox0..ox0 + n].copy_from_slice(&a[..n]);
-                            }
+                            unsafe {
+                                let to = base.add(j * out.w + ox0);
+                                if n == PB {
+                                    core::ptr::copy_nonoverlapping(a.as_ptr(), to, PB)
+                                } else {
+                                    core::ptr::copy_nonoverlapping(a.as_ptr(), to, n)
+                                }
+                            };
                         }
                     }
+                    // SAFETY: the loop above wrote every `j · out.w + x`, `j < nb`, `x < out.w`
+                    // (`ox0` steps through `0 .. out.w` by `PB`, `n` to the row's end).
+                    let wide = unsafe { core::slice::from_raw_parts(base, nb * out.w) };
                     let at = o0 * dst.stride + (oy - dst.rows.start) * out.w;
-                    let sums = (&wide[..], WIDE, out.w);
+                    let sums = (wide, out.w, out.w);
                     op.finish_wide(&rq[..nb], o0, sums, out8, at, dst.stride);
                     continue;
                 }
@@ -1137,6 +1201,7 @@ fn run_pack<F: Micro, S: Source, O: Sink + ?Sized>(
                     steps,
                     ox0,
                     pixels: n,
+                    channels: nb,
                 };
                 F::kernel(isa, &task, acc);
                 let at = o0 * dst.stride + (oy - dst.rows.start) * out.w + ox0;

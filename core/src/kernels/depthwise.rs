@@ -106,6 +106,23 @@ impl Code for i16 {
     fn widen_fast(_: Isa, _: &[i16], _: usize, _: i32, _: &mut [i16]) -> usize {
         0
     }
+    #[cfg(target_arch = "aarch64")]
+    #[inline(always)]
+    fn widen_band_fast(
+        isa: Isa,
+        chan: &[i16],
+        shape: (usize, usize),
+        first_iy: isize,
+        widths: (usize, usize),
+        sx: usize,
+        spans: &[(usize, usize, usize)],
+        zp: i32,
+        x16: &mut [i16],
+    ) -> bool {
+        use super::aarch64::depthwise::widen_band;
+        matches!(isa, Isa::Neon | Isa::NeonDot)
+            && widen_band(chan, shape, first_iy, widths, sx, spans, zp, x16)
+    }
 }
 
 /// Depthwise convolution of `call` into `output`: the kernel set's path (module doc), or its
@@ -464,16 +481,12 @@ fn neon_taps<T>(
         if sx == 1 && sy == 1 {
             return super::aarch64::depthwise::taps(x16, offs, ws, sums);
         }
-        // Row j of the band starts `j·sy` input rows down.
+        // Row j of the band starts `j·sy` input rows down: the same offsets from there.
         for (j, acc) in sums.chunks_mut(pitch).enumerate() {
-            let Some(acc) = acc.get_mut(..ow) else {
+            let (Some(acc), Some(x)) = (acc.get_mut(..ow), x16.get(j * sy * row_w..)) else {
                 return false;
             };
-            let mut shifted = [0usize; MAX_DEPTHWISE_TAPS];
-            for (s, &o) in shifted.iter_mut().zip(offs) {
-                *s = o + j * sy * row_w;
-            }
-            if !super::aarch64::depthwise::taps(x16, &shifted[..n_taps], ws, acc) {
+            if !super::aarch64::depthwise::taps(x, offs, ws, acc) {
                 return false;
             }
         }

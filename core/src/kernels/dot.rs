@@ -64,6 +64,9 @@ pub struct Task<'a, E, W> {
     /// Output columns of the block that are used (`1..=PB`; a kernel may leave the
     /// accumulators of the others unset, as the Cortex-M one does at narrow layers).
     pub pixels: usize,
+    /// Output channels of the weight block that are used (`1..=NB`; a kernel may leave the
+    /// accumulators of the others unset, as the `neon-dot` one does for 1 to 3).
+    pub channels: usize,
 }
 
 impl<E, W> Task<'_, E, W> {

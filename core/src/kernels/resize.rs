@@ -406,6 +406,20 @@ fn resize_rows(
             *t = x0 as u32 | (f as u32) << 16;
         }
     }
+    #[cfg(target_arch = "aarch64")]
+    if tabled
+        && matches!(isa, Isa::Neon | Isa::NeonDot)
+        && separable(
+            input,
+            in_shape,
+            out,
+            out_shape,
+            rescale,
+            &taps[..out_shape.w],
+        )
+    {
+        return;
+    }
     for c in 0..out_shape.c {
         let chan = &input[c * ih * iw..(c + 1) * ih * iw];
         for oy in 0..out_shape.h {
@@ -461,6 +475,64 @@ fn resize_rows(
             }
         }
     }
+}
+
+/// The NEON resize in two passes (`super::aarch64::resize`): each input row's column blend
+/// `h[o] = r[x0]·(den − f) + r[x1]·f` once per channel (int16, exact), then per output row
+/// `n = h_y0[o]·(dy − fy) + h_y1[o]·fy`, which is the reference's `top·(dy − fy) + bot·fy`
+/// (the same integer), finished by the same rescale or rounded division: the same bits.
+/// `false` (nothing written) where it does not apply (sums beyond the 32-bit paths, `den` above
+/// 255, rows below 8 or above its width, a rescale without its 32-bit form).
+#[cfg(target_arch = "aarch64")]
+fn separable(
+    input: &[i8],
+    in_shape: Shape,
+    out: &mut [i8],
+    out_shape: Shape,
+    rescale: Option<&ResizeRescale>,
+    taps: &[u32],
+) -> bool {
+    use super::aarch64::resize::{rows, Columns, Finish, SEP_COLS};
+    let (ih, iw, oh, ow) = (in_shape.h, in_shape.w, out_shape.h, out_shape.w);
+    let (den, dy) = (Coords::new(iw, ow).den, Coords::new(ih, oh).den);
+    if ow < 8 || oh == 0 || den * dy > 1 << 23 {
+        return false;
+    }
+    let fin = match rescale {
+        None => Finish::Same((den * dy) as i32),
+        Some(r) => match r.narrow() {
+            Some(n) => Finish::Rescaled((n.k, n.bias, n.shift_hi, n.zp_out)),
+            None => return false,
+        },
+    };
+    if !fin.valid() {
+        return false;
+    }
+    let Some(mut cols) = Columns::new(taps, iw, den as i32) else {
+        return false;
+    };
+    // The blends of the last two input rows, slot `y & 1` holding row `tag[y & 1]`.
+    let mut h = [[0i16; SEP_COLS]; 2];
+    for (c, plane) in out.chunks_exact_mut(oh * ow).take(out_shape.c).enumerate() {
+        let chan = &input[c * ih * iw..(c + 1) * ih * iw];
+        let mut tag = [usize::MAX; 2];
+        let mut ys = Coords::new(ih, oh);
+        for orow in plane.chunks_exact_mut(ow) {
+            let (y0, fy, dy) = ys.next();
+            let y1 = (y0 + 1).min(ih - 1);
+            for y in [y0, y1] {
+                if tag[y & 1] != y {
+                    cols.blend(&chan[y * iw..(y + 1) * iw], &mut h[y & 1]);
+                    tag[y & 1] = y;
+                }
+            }
+            // dy ≤ 2^15 − 1 (`check`), so both weights fit int16.
+            let w = ((dy - fy) as i16, fy as i16);
+            let done = rows(&h[y0 & 1][..ow], &h[y1 & 1][..ow], w, fin, orow);
+            debug_assert!(done);
+        }
+    }
+    true
 }
 
 /// Widest input row of [`narrow_row`] (its column blend lives on the stack).
@@ -550,7 +622,24 @@ pub fn upsample_bilinear_f32(
     out: &mut [f32],
     out_shape: Shape,
 ) -> Result<(), KernelError> {
+    upsample_bilinear_f32_with(Isa::Portable, input, in_shape, out, out_shape)
+}
+
+/// As [`upsample_bilinear_f32`] with kernel set `isa`: on the NEON sets each input row's column
+/// blend once per channel ([`separable_f32`]), the same bits.
+pub fn upsample_bilinear_f32_with(
+    isa: Isa,
+    input: &[f32],
+    in_shape: Shape,
+    out: &mut [f32],
+    out_shape: Shape,
+) -> Result<(), KernelError> {
     check(input, in_shape, out, out_shape)?;
+    #[cfg(target_arch = "aarch64")]
+    if matches!(isa, Isa::Neon | Isa::NeonDot) && separable_f32(input, in_shape, out, out_shape) {
+        return Ok(());
+    }
+    let _ = isa;
     for c in 0..out_shape.c {
         for oy in 0..out_shape.h {
             let at = (c * out_shape.h + oy) * out_shape.w;
@@ -565,6 +654,63 @@ pub fn upsample_bilinear_f32(
         }
     }
     Ok(())
+}
+
+/// [`upsample_bilinear_f32`] in two passes: `top` and `bot` of [`upsample_bilinear_f32_row`]
+/// are the column blend `r[x0]·(1 − wx) + r[x1]·wx` of input rows `y0` and `y1`, the same
+/// value for every output row that reads that input row, so each input row's is computed once
+/// per channel and each output row is then `top·(1 − wy) + bot·wy` over two contiguous rows
+/// (vectorised by the compiler: separate multiplies and adds, no reassociation, the same IEEE
+/// operations per pixel in the same order). `false` (nothing written) for output rows wider
+/// than its buffers.
+#[cfg(target_arch = "aarch64")]
+fn separable_f32(input: &[f32], in_shape: Shape, out: &mut [f32], out_shape: Shape) -> bool {
+    const COLS: usize = 1024;
+    let (ih, iw, oh, ow) = (in_shape.h, in_shape.w, out_shape.h, out_shape.w);
+    if ow == 0 || ow > COLS || oh == 0 {
+        return false;
+    }
+    // Each output column's input columns and weights, as the row function computes them.
+    let (mut x0s, mut x1s) = ([0u16; COLS], [0u16; COLS]);
+    let (mut wx, mut vx) = ([0f32; COLS], [0f32; COLS]);
+    let mut cols = Coords::new(iw, ow);
+    for o in 0..ow {
+        let (x0, fx, dx) = cols.next();
+        // x0 < iw ≤ 2^15 (`check`).
+        x0s[o] = x0 as u16;
+        x1s[o] = (x0 + 1).min(iw - 1) as u16;
+        wx[o] = fx as i32 as f32 / dx as i32 as f32;
+        vx[o] = 1.0 - wx[o];
+    }
+    let (x0s, x1s, wx, vx) = (&x0s[..ow], &x1s[..ow], &wx[..ow], &vx[..ow]);
+    let blend = |r: &[f32], h: &mut [f32; COLS]| {
+        for ((((h, &x0), &x1), &w), &v) in h.iter_mut().zip(x0s).zip(x1s).zip(wx).zip(vx) {
+            *h = r[x0 as usize] * v + r[x1 as usize] * w;
+        }
+    };
+    // The blends of the last two input rows, slot `y & 1` holding row `tag[y & 1]`.
+    let mut h = [[0f32; COLS]; 2];
+    for (c, plane) in out.chunks_exact_mut(oh * ow).take(out_shape.c).enumerate() {
+        let chan = &input[c * ih * iw..(c + 1) * ih * iw];
+        let mut tag = [usize::MAX; 2];
+        for (oy, orow) in plane.chunks_exact_mut(ow).enumerate() {
+            let (y0, fy, dy) = src(oy, ih, oh);
+            let y1 = (y0 + 1).min(ih - 1);
+            for y in [y0, y1] {
+                if tag[y & 1] != y {
+                    blend(&chan[y * iw..(y + 1) * iw], &mut h[y & 1]);
+                    tag[y & 1] = y;
+                }
+            }
+            let wy = fy as f32 / dy as f32;
+            let vy = 1.0 - wy;
+            let (top, bot) = (&h[y0 & 1][..ow], &h[y1 & 1][..ow]);
+            for ((o, &t), &b) in orow.iter_mut().zip(top).zip(bot) {
+                *o = t * vy + b * wy;
+            }
+        }
+    }
+    true
 }
 
 /// Row `oy` of channel `c` of [`upsample_bilinear_f32`]'s output (`out_shape.w` values into
@@ -857,6 +1003,107 @@ mod tests {
                 let mut fast = std::vec![0i8; slow.len()];
                 upsample_bilinear_to_with(isa, &x, s, &mut fast, o, None).unwrap();
                 assert_eq!(fast, slow, "{} {ih}×{iw} → {oh}×{ow}", isa.name());
+            }
+        }
+    }
+
+    /// The NEON sets' two-pass path (`separable`) and its fallbacks = the reference bits, into
+    /// the input's parameters and into others: the model's ×2 shapes, rows not a multiple of 8
+    /// or 16, the extreme codes, `den` at 127 and past 255, a downsample whose 16 outputs read more
+    /// than 32 columns, and rows below 8.
+    #[test]
+    fn separable_rows_every_set_equal_the_reference() {
+        let mut seed = 5u32;
+        for (ih, iw, oh, ow) in [
+            (30, 40, 60, 80),
+            (15, 20, 30, 40),
+            (60, 80, 120, 160),
+            (1, 9, 3, 27),
+            (4, 3, 7, 8),
+            (5, 64, 9, 128),
+            (5, 64, 9, 129),
+            (3, 100, 4, 40),
+            (2, 2, 2, 7),
+            (7, 13, 1, 11),
+            (2, 130, 3, 257),
+            (30, 80, 59, 160),
+        ] {
+            let s = Shape::new(3, ih, iw);
+            let x: Vec<i8> = (0..s.len().unwrap())
+                .map(|i| {
+                    seed = seed.wrapping_mul(1664525).wrapping_add(1013904223);
+                    match i % 19 {
+                        0..=3 => 127,
+                        4..=7 => -128,
+                        _ => (seed >> 24) as i8,
+                    }
+                })
+                .collect();
+            let c = Case {
+                x,
+                s,
+                o: Shape::new(3, oh, ow),
+                expect: None,
+            };
+            let o = c.o;
+            let mut slow = std::vec![0i8; o.len().unwrap()];
+            upsample_bilinear_to_ref(&c.x, s, &mut slow, o, None).unwrap();
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                let mut fast = std::vec![0i8; slow.len()];
+                upsample_bilinear_to_with(isa, &c.x, s, &mut fast, o, None).unwrap();
+                assert_eq!(fast, slow, "{} {ih}×{iw} → {oh}×{ow}", isa.name());
+            }
+            for (zi, zo, ratio) in [(3, -9, 1.7f32), (-128, 127, 0.3), (0, 0, 1.0)] {
+                let from = QParams {
+                    scale: 0.05,
+                    zero_point: zi,
+                };
+                let to = QParams {
+                    scale: 0.05 * ratio,
+                    zero_point: zo,
+                };
+                check_rescaled(&c, from, to);
+            }
+        }
+    }
+
+    /// The f32 resize on every kernel set (the NEON sets' two passes) = the portable bits,
+    /// specials included.
+    #[test]
+    fn f32_every_set_equals_portable() {
+        let mut seed = 3u32;
+        for (ih, iw, oh, ow) in [
+            (60, 80, 120, 160),
+            (3, 5, 9, 17),
+            (1, 1, 2, 3),
+            (7, 9, 3, 4),
+        ] {
+            let s = Shape::new(2, ih, iw);
+            let x: Vec<f32> = (0..s.len().unwrap())
+                .map(|i| {
+                    seed = seed.wrapping_mul(1664525).wrapping_add(1013904223);
+                    match i % 41 {
+                        0 => f32::NAN,
+                        1 => f32::INFINITY,
+                        2 => -0.0,
+                        3 => f32::MAX,
+                        _ => (seed >> 8) as f32 / 65536.0 - 100.0,
+                    }
+                })
+                .collect();
+            let o = Shape::new(2, oh, ow);
+            let mut slow = std::vec![0f32; o.len().unwrap()];
+            upsample_bilinear_f32(&x, s, &mut slow, o).unwrap();
+            for isa in Isa::ALL.into_iter().filter(|i| i.available()) {
+                let mut fast = std::vec![0f32; slow.len()];
+                upsample_bilinear_f32_with(isa, &x, s, &mut fast, o).unwrap();
+                let bits = |v: &[f32]| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
+                assert_eq!(
+                    bits(&fast),
+                    bits(&slow),
+                    "{} {ih}×{iw} → {oh}×{ow}",
+                    isa.name()
+                );
             }
         }
     }

@@ -112,7 +112,7 @@ pub(crate) fn eval(e: Eval) -> Result<(), Error> {
         }
         DType::F32 => {
             let (x, out) = (typed(e.ins[0], i)?, typed_mut(e.out, i)?);
-            resize::upsample_bilinear_f32(x, e.x, out, e.out_shape).map_err(kerr)?
+            resize::upsample_bilinear_f32_with(e.isa, x, e.x, out, e.out_shape).map_err(kerr)?
         }
         DType::I16 => return Err(bad),
     }

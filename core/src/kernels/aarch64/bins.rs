@@ -97,10 +97,13 @@ unsafe fn head_neon(
                 lane!(1);
                 lane!(2);
                 lane!(3);
-                lane!(4);
-                lane!(5);
-                lane!(6);
-                lane!(7);
+                // A last group of at most 4 channels: its other lanes' weights are zero.
+                if c - k > 4 {
+                    lane!(4);
+                    lane!(5);
+                    lane!(6);
+                    lane!(7);
+                }
                 k += 8;
             }
             lg[0] = vmulq_n_f32(vcvtq_f32_s32(lo), ch.scale);

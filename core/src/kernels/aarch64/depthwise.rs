@@ -16,7 +16,23 @@ pub fn taps(x: &[i16], offs: &[usize], w: &[i16], out: &mut [i32]) -> bool {
     if !crate::kernels::isa::Isa::Neon.available() || offs.len() != w.len() || !inside {
         return false;
     }
-    if let (Ok(offs9), Ok(w9)) = (<&[usize; 9]>::try_from(offs), <&[i16; 9]>::try_from(w)) {
+    let nine = (<&[usize; 9]>::try_from(offs), <&[i16; 9]>::try_from(w));
+    if (1..16).contains(&n) && far + 16 <= x.len() {
+        // A short run (a strided band's narrow rows) as one 16-wide pass into a buffer when
+        // its 16 reads stay inside `x`: the first `n` sums are the same.
+        let mut t = [0i32; 16];
+        // SAFETY: NEON is available; every read `x[o + i]`, `i < 16`, is inside `x` (checked)
+        // and every write inside `t` (16).
+        unsafe {
+            match nine {
+                (Ok(offs9), Ok(w9)) => taps9_neon(x, offs9, w9, &mut t),
+                _ => taps_neon(x, offs, w, &mut t),
+            }
+        };
+        out.copy_from_slice(&t[..n]);
+        return true;
+    }
+    if let (Ok(offs9), Ok(w9)) = nine {
         if n >= 16 {
             // SAFETY: as below; `n ≥ 16`.
             unsafe { taps9_neon(x, offs9, w9, out) };
@@ -209,11 +225,11 @@ unsafe fn mla16(a: &mut [int32x4_t; 4], x0: int16x8_t, x1: int16x8_t, w: int16x8
 /// hi` from codes `first + k·sx` (`spans[φ] = (lo, hi, first)`) as 16-bit `x − zp`; rows
 /// outside the image all zeros; the other columns are left as they are (the caller zeroed
 /// them). Returns `false` (and does nothing) without NEON, for a stride other than 1 or 2 or
-/// a zero point outside int8, or where a span is shorter than 8 columns, lies outside its
-/// phase or reads past its row.
+/// a zero point outside int8, or where a span lies outside its phase or reads past its row
+/// (a span of fewer than 8 columns is converted one code at a time).
 #[allow(clippy::too_many_arguments)]
-pub fn widen_band(
-    chan: &[i8],
+pub fn widen_band<C: BandCode>(
+    chan: &[C],
     (ih, iw): (usize, usize),
     first_iy: isize,
     (row_w, phase_w): (usize, usize),
@@ -222,16 +238,19 @@ pub fn widen_band(
     zp: i32,
     x16: &mut [i16],
 ) -> bool {
-    let Ok(zp) = i8::try_from(zp) else {
+    let Some(zp) = C::zero_point(zp) else {
         return false;
     };
+    // A span of any length (fewer than 8 codes go through the scalar loop below; an empty
+    // one writes nothing).
     let ok_span = |&(lo, hi, first): &(usize, usize, usize)| {
-        hi >= lo + 8
-            && hi <= phase_w
-            && (hi - lo - 1)
-                .checked_mul(sx)
-                .and_then(|e| e.checked_add(first))
-                .is_some_and(|e| e < iw)
+        hi <= phase_w
+            && (hi == lo
+                || hi > lo
+                    && (hi - lo - 1)
+                        .checked_mul(sx)
+                        .and_then(|e| e.checked_add(first))
+                        .is_some_and(|e| e < iw))
     };
     if !crate::kernels::isa::Isa::Neon.available()
         || !(1..=2).contains(&sx)
@@ -242,6 +261,17 @@ pub fn widen_band(
     {
         return false;
     }
+    // Per phase, once for every row: its columns in the converted row, its first code and
+    // `m`, the whole `sx`-code steps inside the input row (then the last code alone where
+    // `sx = 2` leaves it half a step).
+    let mut runs = [(0usize, 0usize, 0usize, 0usize); 2];
+    for (run, (phase, &(lo, hi, first))) in runs.iter_mut().zip(spans.iter().enumerate()) {
+        if hi > lo {
+            let m = (hi - lo).min((iw - first) / sx);
+            *run = (phase * phase_w + lo, phase * phase_w + hi, first, m);
+        }
+    }
+    let runs = &runs[..spans.len()];
     for (r, row) in x16.chunks_exact_mut(row_w).enumerate() {
         let iy = first_iy + r as isize;
         if iy < 0 || iy >= ih as isize {
@@ -249,27 +279,104 @@ pub fn widen_band(
             continue;
         }
         let src = &chan[iy as usize * iw..][..iw];
-        for (phase, &(lo, hi, first)) in spans.iter().enumerate() {
-            let d = &mut row[phase * phase_w + lo..phase * phase_w + hi];
+        for &(a, b, first, m) in runs {
+            if a == b {
+                continue;
+            }
+            let d = &mut row[a..b];
             let src = &src[first..];
-            // Whole `sx`-code steps inside the row, at least 7 (`(hi − lo − 1)·sx < iw − first`
-            // checked above), then the last code alone where `sx = 2` leaves it half a step.
-            let m = d.len().min(src.len() / sx);
             if m >= 8 {
                 // SAFETY: NEON is available; the reads end at `m·sx ≤ src.len()`, the writes
                 // at `m ≤ d.len()`.
-                unsafe { widen_neon(src, sx, zp, &mut d[..m]) };
+                unsafe { C::widen_neon(src, sx, zp, &mut d[..m]) };
             } else {
                 for (k, v) in d[..m].iter_mut().enumerate() {
-                    *v = i16::from(src[k * sx]) - i16::from(zp);
+                    *v = C::one(src[k * sx], zp);
                 }
             }
             for (k, v) in d.iter_mut().enumerate().skip(m) {
-                *v = i16::from(src[k * sx]) - i16::from(zp);
+                *v = C::one(src[k * sx], zp);
             }
         }
     }
     true
+}
+
+/// Input codes [`widen_band`] converts: int8 (`x − zp` exact in 16 bits) or int16 with zero
+/// point 0 (the codes themselves: the int16 convs of `wide.rs`).
+pub trait BandCode: Copy {
+    /// The zero point in the form the conversion uses; `None` where it is not supported.
+    type Zp: Copy;
+    /// `zp` as [`BandCode::Zp`], `None` outside its range.
+    fn zero_point(zp: i32) -> Option<Self::Zp>;
+    /// One code converted.
+    fn one(x: Self, zp: Self::Zp) -> i16;
+    /// `dst[k] = one(src[k·sx])` for every `k < dst.len()`, 8 or 16 at a time.
+    ///
+    /// # Safety
+    /// The CPU must have NEON; `8 ≤ dst.len()`, `dst.len()·sx ≤ src.len()`, `sx` 1 or 2.
+    unsafe fn widen_neon(src: &[Self], sx: usize, zp: Self::Zp, dst: &mut [i16]);
+}
+
+impl BandCode for i8 {
+    type Zp = i8;
+    fn zero_point(zp: i32) -> Option<i8> {
+        i8::try_from(zp).ok()
+    }
+    #[inline(always)]
+    fn one(x: i8, zp: i8) -> i16 {
+        i16::from(x) - i16::from(zp)
+    }
+    /// # Safety
+    /// As the trait's.
+    #[inline(always)]
+    unsafe fn widen_neon(src: &[i8], sx: usize, zp: i8, dst: &mut [i16]) {
+        widen_neon(src, sx, zp, dst)
+    }
+}
+
+impl BandCode for i16 {
+    type Zp = ();
+    fn zero_point(zp: i32) -> Option<()> {
+        (zp == 0).then_some(())
+    }
+    #[inline(always)]
+    fn one(x: i16, _: ()) -> i16 {
+        x
+    }
+    /// # Safety
+    /// As the trait's.
+    #[inline(always)]
+    unsafe fn widen_neon(src: &[i16], sx: usize, _: (), dst: &mut [i16]) {
+        copy_i16_neon(src, sx, dst)
+    }
+}
+
+/// `dst[k] = src[k·sx]` (`LD2` keeps the even codes at `sx = 2`), 8 at a time, the last 8
+/// overlapping.
+///
+/// # Safety
+/// The CPU must have NEON; `8 ≤ dst.len()`, `dst.len()·sx ≤ src.len()`, `sx` 1 or 2.
+#[target_feature(enable = "neon")]
+unsafe fn copy_i16_neon(src: &[i16], sx: usize, dst: &mut [i16]) {
+    let (sp, dp) = (src.as_ptr(), dst.as_mut_ptr());
+    let m = dst.len();
+    let eight = |k: usize| {
+        let x = if sx == 2 {
+            vld2q_s16(sp.add(2 * k)).0
+        } else {
+            vld1q_s16(sp.add(k))
+        };
+        vst1q_s16(dp.add(k), x);
+    };
+    let mut k = 0;
+    while k + 8 <= m {
+        eight(k);
+        k += 8;
+    }
+    if k < m {
+        eight(m - 8);
+    }
 }
 
 /// `dst[k] = src[k·sx] − zp` (16-bit) for the leading `m = min(dst.len(), src.len() / sx)`

@@ -15,9 +15,38 @@ pub fn quads(t: &Task<i8, i8>, acc: &mut Acc) -> bool {
     if !crate::kernels::isa::Isa::NeonDot.available() || !t.in_bounds(4) {
         return false;
     }
-    // SAFETY: NEON and the dot product are available and every read is in bounds (checked).
-    unsafe { quads_dot(t, acc) };
+    // SAFETY: NEON and the dot product are available and every read is in bounds (checked);
+    // `acc` holds the `NB` rows of `PB` the kernel writes.
+    unsafe { dispatch(t, acc.as_mut_ptr(), PB) };
     true
+}
+
+/// As [`quads`], each used channel `j`'s sums written to `dst + j·stride` instead of `acc`
+/// (the rest of a 16-pixel group included: `16·⌈pixels/16⌉` sums per channel).
+///
+/// # Safety
+/// `dst + j·stride + i` must be valid for writes for `j < t.channels`, `i < 16·⌈pixels/16⌉`.
+pub unsafe fn quads_into(t: &Task<i8, i8>, dst: *mut i32, stride: usize) -> bool {
+    if !crate::kernels::isa::Isa::NeonDot.available() || !t.in_bounds(4) {
+        return false;
+    }
+    // SAFETY: as in `quads`; the writes are the caller's contract.
+    unsafe { dispatch(t, dst, stride) };
+    true
+}
+
+/// [`quads_dot`] for the task's channel count.
+///
+/// # Safety
+/// As [`quads_dot`].
+#[inline(always)]
+unsafe fn dispatch(t: &Task<i8, i8>, dst: *mut i32, stride: usize) {
+    match t.channels {
+        1 => quads_dot::<1>(t, dst, stride),
+        2 => quads_dot::<2>(t, dst, stride),
+        3 => quads_dot::<3>(t, dst, stride),
+        _ => quads_dot::<4>(t, dst, stride),
+    }
 }
 
 /// `a += SDOT(x, w.4b[J])`: lane `p` of `a` gains `Σ_l x[4p + l] · w[4J + l]`.
@@ -37,11 +66,15 @@ unsafe fn sdot<const J: i32>(a: &mut int32x4_t, x: int8x16_t, w: int8x16_t) {
     );
 }
 
+/// The first `C` channels of the block only (the others' accumulators are left as they were:
+/// a one-channel conv runs 4 `SDOT` per step instead of 16).
+///
 /// # Safety
 /// The CPU must have NEON and the dot-product extension (`FEAT_DotProd`), and the task's
-/// slices must hold the block the task names; the safe wrapper checks both.
+/// slices must hold the block the task names; the safe wrappers check both. Channel `j`'s sums
+/// go to `dst + j·stride`, `16·⌈pixels/16⌉` of them, which must be valid for writes.
 #[target_feature(enable = "neon,dotprod")]
-unsafe fn quads_dot(t: &Task<i8, i8>, acc: &mut Acc) {
+unsafe fn quads_dot<const C: usize>(t: &Task<i8, i8>, dst: *mut i32, stride: usize) {
     const _: () = assert!(NB == 4 && PB.is_multiple_of(16));
     for half in 0..t.pixels.clamp(1, PB).div_ceil(16) {
         let mut c = [vdupq_n_s32(0); 16];
@@ -53,14 +86,20 @@ unsafe fn quads_dot(t: &Task<i8, i8>, acc: &mut Acc) {
             for q in 0..4 {
                 let x = vld1q_s8(pr.add(16 * q));
                 sdot::<0>(&mut c[q], x, w);
-                sdot::<1>(&mut c[4 + q], x, w);
-                sdot::<2>(&mut c[8 + q], x, w);
-                sdot::<3>(&mut c[12 + q], x, w);
+                if C > 1 {
+                    sdot::<1>(&mut c[4 + q], x, w);
+                }
+                if C > 2 {
+                    sdot::<2>(&mut c[8 + q], x, w);
+                }
+                if C > 3 {
+                    sdot::<3>(&mut c[12 + q], x, w);
+                }
             }
             wq = wq.add(4 * NB);
         }
-        for j in 0..NB {
-            let dst = acc.as_mut_ptr().add(j * PB + 16 * half);
+        for j in 0..C.min(NB) {
+            let dst = dst.add(j * stride + 16 * half);
             for q in 0..4 {
                 vst1q_s32(dst.add(4 * q), c[4 * j + q]);
             }

@@ -3,6 +3,7 @@
 //! of the scalar loop in the same order (separate `FMUL` and `FADD`, never fused), so the bits
 //! are those of every other path.
 
+use crate::kernels::refine::SkRow;
 use crate::kernels::requant::QParams;
 use core::arch::aarch64::*;
 
@@ -137,28 +138,40 @@ pub fn accumulate(
     kt: &[f32; 256],
     ti: usize,
     k: usize,
+    sk: SkRow<'_>,
 ) -> usize {
     let n = out.len() / 8 * 8;
     let short = cur.len() < n || t.iter().chain(&m).any(|r| r.len() < n);
-    if !crate::kernels::isa::Isa::Neon.available() || n == 0 || short || ti > 2 || k > 2 {
+    let sk_short = match &sk {
+        SkRow::Compute => false,
+        SkRow::Fill(r) => r.len() < n,
+        SkRow::Use(r) => r.len() < n,
+    };
+    if !crate::kernels::isa::Isa::Neon.available() || n == 0 || short || sk_short || ti > 2 || k > 2
+    {
         return 0;
     }
     let (o, c) = (out.as_mut_ptr(), cur.as_ptr());
     let (t, m) = (t.map(|r| r.as_ptr()), m.map(|r| r.as_ptr()));
     let e = (tt, kt);
-    // SAFETY (each arm): NEON is available; `out`, `cur` and the six rows hold ≥ `n` values
-    // (checked above), `n` a multiple of 8.
+    let sk = match sk {
+        SkRow::Compute => Sk::Compute,
+        SkRow::Fill(r) => Sk::Fill(r.as_mut_ptr()),
+        SkRow::Use(r) => Sk::Use(r.as_ptr()),
+    };
+    // SAFETY (each arm): NEON is available; `out`, `cur`, the six rows and a cached row hold
+    // ≥ `n` values (checked above), `n` a multiple of 8.
     unsafe {
         match (ti, k) {
-            (0, 0) => accumulate_neon::<0, 0>(o, c, t, m, e, n),
-            (0, 1) => accumulate_neon::<0, 1>(o, c, t, m, e, n),
-            (0, _) => accumulate_neon::<0, 2>(o, c, t, m, e, n),
-            (1, 0) => accumulate_neon::<1, 0>(o, c, t, m, e, n),
-            (1, 1) => accumulate_neon::<1, 1>(o, c, t, m, e, n),
-            (1, _) => accumulate_neon::<1, 2>(o, c, t, m, e, n),
-            (_, 0) => accumulate_neon::<2, 0>(o, c, t, m, e, n),
-            (_, 1) => accumulate_neon::<2, 1>(o, c, t, m, e, n),
-            (_, _) => accumulate_neon::<2, 2>(o, c, t, m, e, n),
+            (0, 0) => accumulate_neon::<0, 0>(o, c, t, m, e, n, sk),
+            (0, 1) => accumulate_neon::<0, 1>(o, c, t, m, e, n, sk),
+            (0, _) => accumulate_neon::<0, 2>(o, c, t, m, e, n, sk),
+            (1, 0) => accumulate_neon::<1, 0>(o, c, t, m, e, n, sk),
+            (1, 1) => accumulate_neon::<1, 1>(o, c, t, m, e, n, sk),
+            (1, _) => accumulate_neon::<1, 2>(o, c, t, m, e, n, sk),
+            (_, 0) => accumulate_neon::<2, 0>(o, c, t, m, e, n, sk),
+            (_, 1) => accumulate_neon::<2, 1>(o, c, t, m, e, n, sk),
+            (_, _) => accumulate_neon::<2, 2>(o, c, t, m, e, n, sk),
         }
     }
     n
@@ -230,10 +243,18 @@ unsafe fn softmax8<const C: usize>(
     }
 }
 
+/// [`SkRow`] as a pointer for [`accumulate_neon`].
+#[derive(Clone, Copy)]
+enum Sk {
+    Compute,
+    Fill(*mut f32),
+    Use(*const f32),
+}
+
 /// [`accumulate`]'s loop over `n` values (a multiple of 8).
 ///
 /// # Safety
-/// The CPU must have NEON; `o`, `c` and the six rows point at ≥ `n` values.
+/// The CPU must have NEON; `o`, `c`, the six rows and a cached row point at ≥ `n` values.
 #[target_feature(enable = "neon")]
 unsafe fn accumulate_neon<const TI: usize, const K: usize>(
     o: *mut f32,
@@ -242,13 +263,23 @@ unsafe fn accumulate_neon<const TI: usize, const K: usize>(
     m: [*const i8; 3],
     (tt, kt): (&[f32; 256], &[f32; 256]),
     n: usize,
+    sk: Sk,
 ) {
     let mut i = 0;
     while i + 8 <= n {
-        // SAFETY: `i + 8 ≤ n`, inside every row and both value slices.
+        // SAFETY: `i + 8 ≤ n`, inside every row, both value slices and a cached row.
         unsafe {
             let ct = softmax8::<TI>(t, tt, i);
-            let ck = softmax8::<K>(m, kt, i);
+            let ck = match sk {
+                Sk::Use(p) => [vld1q_f32(p.add(i)), vld1q_f32(p.add(i + 4))],
+                Sk::Fill(p) => {
+                    let ck = softmax8::<K>(m, kt, i);
+                    vst1q_f32(p.add(i), ck[0]);
+                    vst1q_f32(p.add(i + 4), ck[1]);
+                    ck
+                }
+                Sk::Compute => softmax8::<K>(m, kt, i),
+            };
             for h in 0..2 {
                 let at = i + 4 * h;
                 let add = vmulq_f32(vmulq_f32(ct[h], ck[h]), vld1q_f32(c.add(at)));
@@ -257,4 +288,133 @@ unsafe fn accumulate_neon<const TI: usize, const K: usize>(
         }
         i += 8;
     }
+}
+
+/// `out[i] = acc[i] / (1 + s[i])` (the step's last operation per pixel: IEEE `FADD` then
+/// `FDIV`, 4 lanes at a time, the rest one by one) for `i` below the shortest length.
+pub fn divide(out: &mut [f32], s: &[f32], acc: &[f32]) {
+    let n = out.len().min(s.len()).min(acc.len());
+    let mut i = 0;
+    if crate::kernels::isa::Isa::Neon.available() {
+        // SAFETY: NEON is available; `i + 4 ≤ n` values of each slice are read or written.
+        unsafe {
+            let one = vdupq_n_f32(1.0);
+            while i + 4 <= n {
+                let d = vaddq_f32(one, vld1q_f32(s.as_ptr().add(i)));
+                vst1q_f32(
+                    out.as_mut_ptr().add(i),
+                    vdivq_f32(vld1q_f32(acc.as_ptr().add(i)), d),
+                );
+                i += 4;
+            }
+        }
+    }
+    for ((o, &s), &a) in out[i..n].iter_mut().zip(&s[i..n]).zip(&acc[i..n]) {
+        *o = a / (1.0 + s);
+    }
+}
+
+/// The step at four pixels `x .. x + 4` of a row `w` wide where some neighbours fall outside
+/// the row (the border columns). Neighbour `j < g.len()` has its four codes at
+/// `codes[q0 + j·plane ..]`, its four values at `cur[c0 + delta[j] ..]` (any value in lanes
+/// whose neighbour is outside the row), Gaussian `g[j]` and column offset `off[j].1`. From
+/// `s = 0`, `acc = cur[c0 .. c0 + 4]`, each term in order adds `r = lut[q]·g` to `s` and `r·d`
+/// to `acc` in the lanes whose neighbour column `x + lane + dx` lies in `0 .. w` and leaves the
+/// others as they were (`BSL`: a skipped term, as in the scalar loop), then `acc / (1 + s)`:
+/// per lane the scalar border pixel's operations in its order. `None` (nothing done) without
+/// NEON, where the slices differ in length or a read would leave `codes` or `cur`.
+#[allow(clippy::too_many_arguments)]
+pub fn edge4(
+    (codes, q0, plane): (&[i8], usize, usize),
+    (cur, c0): (&[f32], usize),
+    (delta, off, g): (&[isize], &[(isize, isize)], &[f32]),
+    lut: &[f32; 256],
+    x: usize,
+    w: usize,
+) -> Option<[f32; 4]> {
+    let n = g.len();
+    let codes_ok = n == 0
+        || (n - 1)
+            .checked_mul(plane)
+            .and_then(|e| e.checked_add(q0 + 4))
+            .is_some_and(|e| e <= codes.len());
+    let cur_ok = c0 + 4 <= cur.len() && cur.len() <= isize::MAX as usize;
+    let ok = delta.len() == n && off.len() == n && codes_ok && cur_ok && w <= i32::MAX as usize;
+    if !crate::kernels::isa::Isa::Neon.available() || !ok {
+        return None;
+    }
+    // SAFETY: NEON is available; every read is checked above (term `j`'s four codes at
+    // `q0 + j·plane`, the start values at `c0`) or by `edge4_neon` (the neighbours' values);
+    // the table reads are `u8` indices into 256 entries.
+    Some(unsafe {
+        edge4_neon(
+            codes.as_ptr().add(q0),
+            plane,
+            cur,
+            c0,
+            (delta, off, g),
+            lut,
+            x,
+            w,
+        )
+    })
+}
+
+/// # Safety
+/// The CPU must have NEON; the reads [`edge4`] checks are inside their slices (`q` at term 0's
+/// codes, `c0 + 4 ≤ cur.len() ≤ isize::MAX`).
+#[target_feature(enable = "neon")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn edge4_neon(
+    q: *const i8,
+    plane: usize,
+    cur: &[f32],
+    c0: usize,
+    (delta, off, g): (&[isize], &[(isize, isize)], &[f32]),
+    lut: &[f32; 256],
+    x: usize,
+    w: usize,
+) -> [f32; 4] {
+    let lanes = vld1q_s32([0i32, 1, 2, 3].as_ptr());
+    let (wv, xv) = (
+        vdupq_n_s32(w as i32),
+        vaddq_s32(lanes, vdupq_n_s32(x as i32)),
+    );
+    let mut s = vdupq_n_f32(0.0);
+    let c = cur.as_ptr();
+    let mut acc = vld1q_f32(c.add(c0));
+    let lp = lut.as_ptr();
+    for (j, ((&d, &(_, dx)), &gj)) in delta.iter().zip(off).zip(g).enumerate() {
+        let p = vaddq_s32(xv, vdupq_n_s32(dx as i32));
+        let m = vandq_u32(vcgezq_s32(p), vcltq_s32(p, wv));
+        let qj = q.add(j * plane);
+        let v = vld1q_dup_f32(lp.add(*qj as u8 as usize));
+        let v = vld1q_lane_f32::<1>(lp.add(*qj.add(1) as u8 as usize), v);
+        let v = vld1q_lane_f32::<2>(lp.add(*qj.add(2) as u8 as usize), v);
+        let v = vld1q_lane_f32::<3>(lp.add(*qj.add(3) as u8 as usize), v);
+        let r = vmulq_n_f32(v, gj);
+        s = vbslq_f32(m, vaddq_f32(s, r), s);
+        let at = c0 as isize + d;
+        let dv = if at >= 0 && at as usize + 4 <= cur.len() {
+            vld1q_f32(c.offset(at))
+        } else {
+            // A run reaching past the buffer (a corner's term): the lanes inside it, the
+            // others 0 (their neighbours are outside the row, so the lanes are masked).
+            let v: [f32; 4] = core::array::from_fn(|l| {
+                usize::try_from(at + l as isize)
+                    .ok()
+                    .and_then(|i| cur.get(i))
+                    .copied()
+                    .unwrap_or(0.0)
+            });
+            vld1q_f32(v.as_ptr())
+        };
+        acc = vbslq_f32(m, vaddq_f32(acc, vmulq_f32(r, dv)), acc);
+    }
+    let mut out = [0f32; 4];
+    vst1q_f32(
+        out.as_mut_ptr(),
+        vdivq_f32(acc, vaddq_f32(vdupq_n_f32(1.0), s)),
+    );
+    out
 }

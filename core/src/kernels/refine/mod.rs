@@ -535,6 +535,26 @@ impl<'t> Mix<'t> {
 /// One mixing map's view with its [`Mix`].
 type MixAt<'a, B> = (&'a B, &'a Mix<'a>);
 
+/// A row of a branch's kmix weights `σ_k` (`Mix::one` of its component `k`) that the NEON
+/// [`accumulate`] keeps for the row's later terms: computed and stored (`Fill`), read back
+/// (`Use`, the same values), or neither (`Compute`). Only the leading values the vector loop
+/// does are stored or read.
+pub enum SkRow<'a> {
+    /// Compute `σ_k` (nothing cached).
+    Compute,
+    /// Compute `σ_k` and store it here.
+    Fill(&'a mut [f32]),
+    /// Read `σ_k` from here (a `Fill` of the same row, branch and maps).
+    Use(&'a [f32]),
+}
+
+/// Rows of the aarch64 `σ_k` cache of [`refine_with`] (a branch's rows `s − T·r ..= s`).
+#[cfg(target_arch = "aarch64")]
+const SK_ROWS: usize = 13;
+/// Widest row the aarch64 `σ_k` cache holds.
+#[cfg(target_arch = "aarch64")]
+const SK_W: usize = 256;
+
 /// The int8 map and its table, where the map is int8 and the mix has a table.
 fn int8<'a, B: Map>((map, mix): MixAt<'a, B>) -> Option<(&'a I8Map<'a>, &'a [f32; 256])> {
     Some((map.as_i8()?, mix.table?))
@@ -648,9 +668,19 @@ pub fn refine_with<D: DepthRows, R: AffinityRows, M: MixRows>(
     let out = &mut out[..p];
     out.fill(0.0);
     let win_len = WINDOW_ROWS * w;
+    // aarch64: each row's `σ_k` computed at its first term (t = 0) and read back at its later
+    // ones, in a ring of the rows a branch still adds to (on the stack).
+    #[cfg(target_arch = "aarch64")]
+    let mut sk_store = [[0f32; SK_W]; SK_ROWS];
     for (k, &size) in KERNELS.iter().enumerate() {
         let mut br = Branch::new(size, attrs.sigma[k], attrs.neighbourhood, w);
         let r = br.radius();
+        #[cfg(target_arch = "aarch64")]
+        let cached = matches!(isa, Isa::Neon | Isa::NeonDot)
+            && w <= SK_W
+            && t_max.saturating_mul(r) < SK_ROWS;
+        #[cfg(target_arch = "aarch64")]
+        let mut sk_tag = [usize::MAX; SK_ROWS];
         // Window t holds rows of iteration t (t = 0: D_0), for t < T.
         let mut win = [Window::default(); MAX_ITERATIONS];
         for s in 0..h + t_max * r {
@@ -666,7 +696,18 @@ pub fn refine_with<D: DepthRows, R: AffinityRows, M: MixRows>(
                 check_mix(&km, &tm, at, w)?;
                 for (ti, _) in times.iter().enumerate().filter(|(_, &t)| t == 0) {
                     let o = &mut out[s * w..(s + 1) * w];
-                    accumulate(isa, o, d, (&tm, &mixes.0), (&km, &mixes.1), ti, k, at);
+                    #[cfg(target_arch = "aarch64")]
+                    let sk = match s % SK_ROWS {
+                        q if cached && sk_tag[q] == s => SkRow::Use(&sk_store[q][..]),
+                        q if cached => {
+                            sk_tag[q] = s;
+                            SkRow::Fill(&mut sk_store[q][..])
+                        }
+                        _ => SkRow::Compute,
+                    };
+                    #[cfg(not(target_arch = "aarch64"))]
+                    let sk = SkRow::Compute;
+                    accumulate(isa, o, d, (&tm, &mixes.0), (&km, &mixes.1), ti, k, at, sk);
                 }
             }
             for t in 1..=t_max {
@@ -700,7 +741,15 @@ pub fn refine_with<D: DepthRows, R: AffinityRows, M: MixRows>(
                     check_mix(&km, &tm, m_at, w)?;
                     for (ti, _) in times.iter().enumerate().filter(|(_, &tt)| tt == t) {
                         let o = &mut out[y * w..(y + 1) * w];
-                        accumulate(isa, o, dst, (&tm, &mixes.0), (&km, &mixes.1), ti, k, m_at);
+                        #[cfg(target_arch = "aarch64")]
+                        let sk = match y % SK_ROWS {
+                            q if cached && sk_tag[q] == y => SkRow::Use(&sk_store[q][..]),
+                            _ => SkRow::Compute,
+                        };
+                        #[cfg(not(target_arch = "aarch64"))]
+                        let sk = SkRow::Compute;
+                        let (tmx, kmx) = ((&tm, &mixes.0), (&km, &mixes.1));
+                        accumulate(isa, o, dst, tmx, kmx, ti, k, m_at, sk);
                     }
                 }
             }
@@ -817,6 +866,7 @@ fn accumulate_vector<B: Map>(
     ti: usize,
     k: usize,
     first: usize,
+    sk: SkRow<'_>,
 ) -> usize {
     #[cfg(target_arch = "x86_64")]
     if matches!(isa, Isa::Avx2 | Isa::Avx512Vnni) && Isa::Avx2.available() {
@@ -839,11 +889,11 @@ fn accumulate_vector<B: Map>(
             }
             if let (Some(tr), Some(mr)) = (rows(t.0, first, p), rows(m.0, first, p)) {
                 let (out, cur) = (&mut out[..p], &cur[..p]);
-                return super::aarch64::refine::accumulate(out, cur, tr, mr, t.1, m.1, ti, k);
+                return super::aarch64::refine::accumulate(out, cur, tr, mr, t.1, m.1, ti, k, sk);
             }
         }
     }
-    let _ = (isa, out, cur, tmix, kmix, ti, k, first);
+    let _ = (isa, out, cur, tmix, kmix, ti, k, first, sk);
     0
 }
 
@@ -859,9 +909,10 @@ fn accumulate<B: Map>(
     ti: usize,
     k: usize,
     first: usize,
+    sk: SkRow<'_>,
 ) {
     let p = out.len().min(cur.len());
-    let done = accumulate_vector(isa, out, cur, tmix, kmix, ti, k, first);
+    let done = accumulate_vector(isa, out, cur, tmix, kmix, ti, k, first, sk);
     if done == 0 {
         if let (Some(t), Some(m)) = (int8(tmix), int8(kmix)) {
             if accumulate_i8(&mut out[..p], &cur[..p], t, m, ti, k, first) {

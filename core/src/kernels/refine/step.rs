@@ -190,18 +190,43 @@ fn row_i8_chunks(
     let rad = br.rad;
     let (x0, x1) = if w > 2 * rad { (rad, w - rad) } else { (w, w) };
     let inside = br.inside_rows(h, y);
-    for x in (0..x0.min(w)).chain(x1.max(x0)..w) {
-        nxt[x] = border_pixel(a, lut, br, &inside, w, x, at, cur)?;
+    // On aarch64 the border columns four at a time (masked lanes), else pixel by pixel.
+    #[cfg(target_arch = "aarch64")]
+    let edges = matches!(isa, Isa::Neon | Isa::NeonDot)
+        && x0 < x1
+        && w >= 4
+        && x0 <= 4
+        && w - x1 <= 4
+        && edges_neon(a, lut, br, &inside, w, (x0, x1), at, cur, nxt);
+    #[cfg(not(target_arch = "aarch64"))]
+    let edges = false;
+    if !edges {
+        for x in (0..x0.min(w)).chain(x1.max(x0)..w) {
+            nxt[x] = border_pixel(a, lut, br, &inside, w, x, at, cur)?;
+        }
     }
     let mut x = x0;
     while x < x1 {
         let len = (x1 - x).min(CHUNK);
         // The sums, then the accumulators, `CHUNK` apart (the Cortex-M loop's layout).
-        let mut sums = [0f32; 2 * CHUNK];
-        let (s, acc) = sums.split_at_mut(CHUNK);
-        let (s, acc) = (&mut s[..len], &mut acc[..len]);
+        // Only the chunk's `len` of each are written (zeros, the previous iteration's values)
+        // and then read: the rest of the store stays uninitialised (zeroing all of it cost
+        // more than the chunk's own work at the image widths shipped).
         let ic = at.cur + x;
-        acc.copy_from_slice(cur.get(ic..ic + len).ok_or(KernelError::Shape)?);
+        let start = cur.get(ic..ic + len).ok_or(KernelError::Shape)?;
+        let mut store = core::mem::MaybeUninit::<[f32; 2 * CHUNK]>::uninit();
+        let base = store.as_mut_ptr().cast::<f32>();
+        // SAFETY: `len ≤ CHUNK`, so `base .. base + len` and `base + CHUNK .. + len` lie in the
+        // store and do not overlap; both are written here (all-zero bits are `+0.0`) before the
+        // slices over them are made, and `start` (another buffer) holds `len` values.
+        let (s, acc) = unsafe {
+            base.write_bytes(0, len);
+            core::ptr::copy_nonoverlapping(start.as_ptr(), base.add(CHUNK), len);
+            (
+                core::slice::from_raw_parts_mut(base, len),
+                core::slice::from_raw_parts_mut(base.add(CHUNK), len),
+            )
+        };
         // Neighbour j's codes and previous-iteration values over the chunk.
         let terms = |j: usize| -> Result<(&[i8], &[f32], f32), KernelError> {
             let ia = j * a.plane() + at.aff + x;
@@ -259,12 +284,58 @@ fn row_i8_chunks(
                 *acc += r * d;
             }
         }
+        #[cfg(target_arch = "aarch64")]
+        if matches!(isa, Isa::Neon | Isa::NeonDot) {
+            crate::kernels::aarch64::refine::divide(&mut nxt[x..x + len], s, acc);
+            x += len;
+            continue;
+        }
         for ((o, &s), &acc) in nxt[x..x + len].iter_mut().zip(s.iter()).zip(acc.iter()) {
             *o = acc / (1.0 + s);
         }
         x += len;
     }
     Ok(())
+}
+
+/// The border columns `0 .. x0` and `x1 .. w` of [`row_i8_chunks`] (`x0 ≤ 4 ≤ w`) as two
+/// groups of four pixels (`0 .. 4` and `w − 4 .. w`) through the NEON
+/// [`crate::kernels::aarch64::refine::edge4`]: each lane adds the terms of the neighbours inside
+/// the image in [`border_pixel`]'s order and skips the others, so a border pixel gets
+/// [`border_pixel`]'s bits; only the border lanes are written. `false` (nothing written) where
+/// a group's reads would leave the buffers (then [`border_pixel`] runs).
+#[cfg(target_arch = "aarch64")]
+#[allow(clippy::too_many_arguments)]
+fn edges_neon(
+    a: &I8Map,
+    lut: &[f32; 256],
+    br: &Branch,
+    inside: &core::ops::Range<usize>,
+    w: usize,
+    (x0, x1): (usize, usize),
+    at: RowAt,
+    cur: &[f32],
+    nxt: &mut [f32],
+) -> bool {
+    use crate::kernels::aarch64::refine::edge4;
+    let (codes, plane) = (a.data(), a.plane());
+    let js = inside.clone();
+    let terms = (
+        &br.delta[js.clone()],
+        &br.off[js.clone()],
+        &br.g[js.clone()],
+    );
+    let group = |gx: usize| {
+        let q0 = js.start * plane + at.aff + gx;
+        edge4((codes, q0, plane), (cur, at.cur + gx), terms, lut, gx, w)
+    };
+    let (Some(left), Some(right)) = (group(0), group(w - 4)) else {
+        return false;
+    };
+    nxt[..x0].copy_from_slice(&left[..x0]);
+    let r = x1 - (w - 4);
+    nxt[x1..w].copy_from_slice(&right[r..]);
+    true
 }
 
 /// [`step_pixel`] on an int8 map through the branch's table (`lut[q] = relu(dequantise(q))`, the
