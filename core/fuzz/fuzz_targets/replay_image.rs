@@ -1,8 +1,8 @@
 //! Fuzzes the replay flash image (`depthor_replay::format::Image::parse`, `DPTHRPLY` v1, what
 //! the firmware reads from flash) and, when it parses, the firmware loop over it: the replay
 //! camera, the simulated zone bridge read back by the real driver, projection with the image's
-//! calibration, and the int8 engine (the 12×16 test network run at the image's size, up to
-//! 32×32) — `ReplayLoop::process`, at most 4 frames.
+//! calibration, and the int8 engine (the fuzz targets' micro test network run at the image's
+//! size, up to 32×32) — `ReplayLoop::process`, at most 4 frames.
 //!
 //! Input: `mode, image…`. Bit 0 of `mode` recomputes the trailing CRC, so mutations reach the
 //! checks behind it (zone counts, reserved fields, the frames themselves). Checks: nothing
@@ -15,7 +15,7 @@ mod common;
 
 use std::mem::MaybeUninit;
 
-use common::{NoDelay, TINY_BLOB};
+use common::{NoDelay, MICRO_BLOB};
 use depthor_core::blob::checksum::crc32;
 use depthor_core::engine::{required_arena_bytes_io, Engine, Io, Memory};
 use depthor_core::hal::{RgbCamera, RgbFrame, ZoneFrame};
@@ -77,14 +77,14 @@ fuzz_target!(|input: &[u8]| {
     }
     // As the firmware prepares it (`depthor_replay::model::prepare`): the frame buffers in the
     // arena (`Io::Arena`), the loop captures and projects into `Engine::staging`.
-    let Ok(need) = required_arena_bytes_io(TINY_BLOB, h, w, Memory::Streamed, Io::Arena) else {
+    let Ok(need) = required_arena_bytes_io(MICRO_BLOB, h, w, Memory::Streamed, Io::Arena) else {
         return;
     };
     let mut arena = vec![0u8; need];
     let mut slot = Box::new(MaybeUninit::<Engine<'_>>::uninit());
     let Ok(engine) = Engine::init_in(
         &mut slot,
-        TINY_BLOB,
+        MICRO_BLOB,
         &mut arena,
         h,
         w,
