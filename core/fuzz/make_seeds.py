@@ -117,17 +117,31 @@ def bridge(cfg, frames, lazy):
 write("zone_bridge", "rec_init_2frames_big", bridge(0b0011_0011, [0, 1], False))
 write("zone_bridge", "rec_lazy_1frame_64", bridge(0b0001_1000, [2], True))
 
-# engine_run: mode, rgb (3*12*16), sparse; the recording's frame subsampled to 12x16 and a
-# sparse map with a few points at the zone centres' depths.
-_, _, rgb = frame(0)
-dist, status, _ = frame(0)
-small = subsample(rgb, 12, 16)
-sparse = [0.0] * (12 * 16)
-for z in range(Z):
-    r, c = divmod(z, COLS)
-    if status[z] in (5, 9) and dist[z] > 0:
-        sparse[(r * 12 // ROWS + 1) * 16 + c * 16 // COLS] = dist[z] / 1000.0
-write("engine_run", "rec_raw_f32", b"\x00" + small + struct.pack("<192f", *sparse))
-write("engine_run", "rec_in_place_mm", b"\x0d" + small + struct.pack("<192H", *(round(v * 1000) for v in sparse)))
-write("engine_run", "specials_palette", b"\x04" + small + bytes(range(16)) * 12)
-write("engine_run", "wrong_lengths", b"\x02" + struct.pack("<3H", 0, 1, 3) + small)
+# engine_run: mode (bits 4-5: size 4x4, 8x8, 4x16, 12x16), rgb (3*h*w), sparse; the
+# recording's frame subsampled to h x w and a sparse map with a few points at the zone centres'
+# depths.
+SIZES = [(4, 4), (8, 8), (4, 16), (12, 16)]
+
+
+def engine_frame(size):
+    h, w = SIZES[size]
+    _, _, rgb = frame(0)
+    dist, status, _ = frame(0)
+    sparse = [0.0] * (h * w)
+    for z in range(Z):
+        r, c = divmod(z, COLS)
+        if status[z] in (5, 9) and dist[z] > 0:
+            sparse[min(r * h // ROWS + 1, h - 1) * w + c * w // COLS] = dist[z] / 1000.0
+    return size << 4, subsample(rgb, h, w), sparse
+
+
+m, small, sparse = engine_frame(0)
+write("engine_run", "rec_raw_f32", bytes([m]) + small + struct.pack("<%df" % len(sparse), *sparse))
+m, small, sparse = engine_frame(1)
+mm = struct.pack("<%dH" % len(sparse), *(round(v * 1000) for v in sparse))
+write("engine_run", "rec_in_place_mm", bytes([m | 0x0D]) + small + mm)
+m, small, sparse = engine_frame(2)
+write("engine_run", "specials_palette", bytes([m | 0x04]) + small + bytes(range(16)) * (len(sparse) // 16))
+m, small, sparse = engine_frame(3)
+write("engine_run", "rec_raw_f32_12x16", bytes([m]) + small + struct.pack("<%df" % len(sparse), *sparse))
+write("engine_run", "wrong_lengths", bytes([m | 0x02]) + struct.pack("<3H", 0, 1, 3) + small)

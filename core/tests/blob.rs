@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{fix_crc, frame, rgb_planar, tiny_net, tiny_net_with};
+use common::{fix_crc, frame, net_of, rgb_planar, tiny_net, tiny_net_with, Widths};
 use depthor_core::blob::format::{HEADER_LEN, TENSOR_ENTRY_LEN};
 use depthor_core::blob::parse::DType;
 use depthor_core::blob::{parse, BlobError};
@@ -283,29 +283,19 @@ proptest! {
     }
 }
 
-/// The fuzzing seed blob `core/fuzz/seeds/tiny_net.dblob` (the `engine_run` and `replay_image`
-/// targets embed it; `parse_blob`'s seeds are it with a mode byte in front) is this file's
-/// 12×16 test network, every opcode of the vocabulary included, and it runs. Rewrite the seeds
-/// after changing the network with `DEPTHOR_WRITE_FUZZ_SEEDS=1 cargo test -p depthor-core
-/// --test blob fuzz_seed`.
-#[test]
-fn fuzz_seed_blob_is_the_test_network() {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/seeds");
-    let path = dir.join("tiny_net.dblob");
+/// Checks that the committed blob `core/fuzz/seeds/<name>` is `blob`, every opcode of the
+/// vocabulary included, and that it runs at each of `sizes`; with `DEPTHOR_WRITE_FUZZ_SEEDS`
+/// set, rewrites it first.
+fn check_fuzz_seed(name: &str, blob: &[u8], sizes: &[(usize, usize)]) {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("fuzz/seeds")
+        .join(name);
     if std::env::var_os("DEPTHOR_WRITE_FUZZ_SEEDS").is_some() {
-        std::fs::write(&path, blob()).unwrap();
-        let seeds = dir.join("parse_blob");
-        std::fs::create_dir_all(&seeds).unwrap();
-        // Mode 0: CRC as stored, native size, streamed plan; 1: CRC repaired, whole plan, 8×8.
-        for (mode, name) in [(0u8, "tiny_net"), (0b100011, "tiny_net_whole_8x8")] {
-            let mut seed = vec![mode];
-            seed.extend_from_slice(blob());
-            std::fs::write(seeds.join(name), seed).unwrap();
-        }
+        std::fs::write(&path, blob).unwrap();
     }
     let seed = std::fs::read(&path).unwrap();
     assert!(
-        seed == blob(),
+        seed == blob,
         "{} is stale: rewrite it (see the doc)",
         path.display()
     );
@@ -318,5 +308,41 @@ fn fuzz_seed_blob_is_the_test_network() {
             "opcode {code} missing"
         );
     }
-    assert!(exercise_small_at(&seed, 12, 16));
+    for &(h, w) in sizes {
+        assert!(exercise_small_at(&seed, h, w), "{h}×{w}");
+    }
+}
+
+/// `core/fuzz/seeds/tiny_net.dblob` (the core's unit tests of the parser and the engine embed
+/// it) is this file's 12×16 test network. Rewrite the seeds after changing the network with
+/// `DEPTHOR_WRITE_FUZZ_SEEDS=1 cargo test -p depthor-core --test blob fuzz_seed`.
+#[test]
+fn fuzz_seed_blob_is_the_test_network() {
+    check_fuzz_seed("tiny_net.dblob", blob(), &[(12, 16)]);
+}
+
+/// The fuzzing seed blob `core/fuzz/seeds/micro_net.dblob` (the `engine_run` and
+/// `replay_image` targets embed it; `parse_blob`'s seeds are it with a mode byte in front) is
+/// the test network at 4×4 with few channels ([`Widths::MICRO`]): every opcode, 8 KB, so
+/// that each fuzz execution is cheap.
+#[test]
+fn fuzz_seed_blob_is_the_micro_network() {
+    let net = net_of(4, 4, Neighbourhood::Window, Widths::MICRO);
+    let (rgb, sparse) = frame(4, 4);
+    let blob = net.to_blob(&net.run_float(&rgb_planar(&rgb, 4, 4), &sparse));
+    if std::env::var_os("DEPTHOR_WRITE_FUZZ_SEEDS").is_some() {
+        let seeds = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/seeds/parse_blob");
+        std::fs::create_dir_all(&seeds).unwrap();
+        // Mode 0: CRC as stored, native size, streamed plan; 1: CRC repaired, whole plan, 8×8.
+        for (mode, name) in [(0u8, "micro_net"), (0b100011, "micro_net_whole_8x8")] {
+            let mut seed = vec![mode];
+            seed.extend_from_slice(&blob);
+            std::fs::write(seeds.join(name), seed).unwrap();
+        }
+    }
+    check_fuzz_seed(
+        "micro_net.dblob",
+        &blob,
+        &[(4, 4), (8, 8), (12, 16), (32, 32)],
+    );
 }

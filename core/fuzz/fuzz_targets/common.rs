@@ -44,9 +44,10 @@ impl<'a> Bytes<'a> {
     }
 }
 
-/// The 12×16 test network's blob (`core/tests/common`: every op of the blob vocabulary),
-/// written by `DEPTHOR_WRITE_FUZZ_SEEDS=1 cargo test -p depthor-core --test blob fuzz_seed`.
-pub static TINY_BLOB: &[u8] = include_bytes!("../seeds/tiny_net.dblob");
+/// The test network at 4×4 with few channels (`core/tests/common`'s `Widths::MICRO`: every op
+/// of the blob vocabulary, 8 KB), written by `DEPTHOR_WRITE_FUZZ_SEEDS=1 cargo test -p
+/// depthor-core --test blob fuzz_seed`.
+pub static MICRO_BLOB: &[u8] = include_bytes!("../seeds/micro_net.dblob");
 
 /// A delay that does not wait (the drivers' polling loops are bounded by their own counts).
 pub struct NoDelay;

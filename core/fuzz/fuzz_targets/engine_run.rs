@@ -1,11 +1,13 @@
-//! Fuzzes `Engine::run` / `run_in_place` with arbitrary input buffers on a valid blob (the 12×16
-//! test network, every op of the vocabulary): any RGB bytes, sparse depths of any `f32` bit
-//! pattern (NaN, ±inf, negative, subnormal, huge), and buffers of the wrong length.
+//! Fuzzes `Engine::run` / `run_in_place` with arbitrary input buffers on a valid blob (the
+//! micro test network, every op of the vocabulary) at four sizes: any RGB bytes, sparse depths
+//! of any `f32` bit pattern (NaN, ±inf, negative, subnormal, huge), and buffers of the wrong
+//! length.
 //!
 //! Input: `mode, [len deltas], rgb…, sparse…` (missing bytes read as 0). `mode` bit 0: run in
 //! place; bit 1: take the three buffer lengths from the input (usually wrong); bits 2–3: how
 //! the sparse values are made (raw `f32` bits, a palette of special values, one special value
-//! everywhere, millimetres as `u16`).
+//! everywhere, millimetres as `u16`); bits 4–5: the size, 4×4, 8×8, 4×16 or 12×16 (small, so
+//! that an execution is cheap; 16 columns reach the 16-lane kernels' full vectors).
 //!
 //! Checks: nothing panics; a wrong length is an error; a run that succeeds writes only finite
 //! depths, and the portable kernels and the fastest set this CPU has give the same bits.
@@ -16,7 +18,7 @@ mod common;
 
 use std::sync::{Mutex, OnceLock};
 
-use common::{Bytes, TINY_BLOB};
+use common::{Bytes, MICRO_BLOB};
 use depthor_core::engine::{required_arena_bytes, Engine};
 use depthor_core::kernels::isa::Isa;
 use libfuzzer_sys::fuzz_target;
@@ -40,32 +42,38 @@ const SPECIAL: [f32; 16] = [
     1e6,
 ];
 
-/// One engine per kernel set, prepared once per process (planning is not what this target
-/// measures; `parse_blob` fuzzes it). Kept in a `static`, so their leaked arenas stay reachable
-/// and LeakSanitizer does not report them at exit.
-fn engines() -> Vec<Engine<'static>> {
-    let (h, w) = (12, 16);
-    let need = required_arena_bytes(TINY_BLOB, h, w).expect("seed blob plans");
-    let mut out = Vec::new();
-    for isa in [Isa::Portable, Isa::best()] {
-        let arena: &'static mut [u8] = Box::leak(vec![0u8; need].into_boxed_slice());
-        let mut e = Engine::with_size(TINY_BLOB, arena, h, w).expect("seed blob prepares");
-        e.set_kernels(isa).expect("available");
-        out.push(e);
-    }
-    out
+/// The sizes `mode` bits 4–5 pick.
+const SIZES: [(usize, usize); 4] = [(4, 4), (8, 8), (4, 16), (12, 16)];
+
+/// One engine per size and kernel set (portable, then the fastest), prepared once per process
+/// (planning is not what this target measures; `parse_blob` fuzzes it). Kept in a `static`,
+/// so their leaked arenas stay reachable and LeakSanitizer does not report them at exit.
+fn engines() -> Vec<[Engine<'static>; 2]> {
+    SIZES
+        .iter()
+        .map(|&(h, w)| {
+            let need = required_arena_bytes(MICRO_BLOB, h, w).expect("seed blob plans");
+            [Isa::Portable, Isa::best()].map(|isa| {
+                let arena: &'static mut [u8] = Box::leak(vec![0u8; need].into_boxed_slice());
+                let mut e = Engine::with_size(MICRO_BLOB, arena, h, w).expect("seed blob prepares");
+                e.set_kernels(isa).expect("available");
+                e
+            })
+        })
+        .collect()
 }
 
-static ENGINES: OnceLock<Mutex<Vec<Engine<'static>>>> = OnceLock::new();
+static ENGINES: OnceLock<Mutex<Vec<[Engine<'static>; 2]>>> = OnceLock::new();
 
 fuzz_target!(|input: &[u8]| {
     let mut b = Bytes::new(input);
     let mode = b.u8();
     {
-        let mut engines = ENGINES
+        let mut all = ENGINES
             .get_or_init(|| Mutex::new(engines()))
             .lock()
             .unwrap_or_else(|e| e.into_inner());
+        let engines = &mut all[usize::from(mode >> 4) & 3];
         let (h, w) = engines[0].input_shape();
         let n = h * w;
         let (mut rgb_len, mut sparse_len, mut out_len) = (3 * n, n, n);

@@ -1,8 +1,8 @@
 //! Fuzzes the replay flash image (`depthor_replay::format::Image::parse`, `DPTHRPLY` v1, what
 //! the firmware reads from flash) and, when it parses, the firmware loop over it: the replay
 //! camera, the simulated zone bridge read back by the real driver, projection with the image's
-//! calibration, and the int8 engine (the 12×16 test network run at the image's size, up to
-//! 32×32) — `ReplayLoop::process`, at most 4 frames.
+//! calibration, and the int8 engine (the fuzz targets' micro test network run at the image's
+//! size, up to 32×32) — `ReplayLoop::process`, at most 4 frames.
 //!
 //! Input: `mode, image…`. Bit 0 of `mode` recomputes the trailing CRC, so mutations reach the
 //! checks behind it (zone counts, reserved fields, the frames themselves). Checks: nothing
@@ -13,9 +13,11 @@
 #[path = "common.rs"]
 mod common;
 
+use std::collections::BTreeMap;
 use std::mem::MaybeUninit;
+use std::sync::Mutex;
 
-use common::{NoDelay, TINY_BLOB};
+use common::{NoDelay, MICRO_BLOB};
 use depthor_core::blob::checksum::crc32;
 use depthor_core::engine::{required_arena_bytes_io, Engine, Io, Memory};
 use depthor_core::hal::{RgbCamera, RgbFrame, ZoneFrame};
@@ -26,6 +28,24 @@ use libfuzzer_sys::fuzz_target;
 
 /// Zones the loop's workspace holds (the firmware's is 64).
 const ZONES: usize = 256;
+
+/// As the firmware prepares it (`depthor_replay::model::prepare`): the frame buffers in the
+/// arena (`Io::Arena`), the loop captures and projects into `Engine::staging`. `None` where the
+/// size does not plan.
+fn prepare(h: usize, w: usize) -> Option<&'static mut Engine<'static>> {
+    let need = required_arena_bytes_io(MICRO_BLOB, h, w, Memory::Streamed, Io::Arena).ok()?;
+    let arena: &'static mut [u8] = Box::leak(vec![0u8; need].into_boxed_slice());
+    let slot = Box::leak(Box::new(MaybeUninit::<Engine<'static>>::uninit()));
+    let engine = Engine::init_in(slot, MICRO_BLOB, arena, h, w, Memory::Streamed, Io::Arena);
+    Some(engine.expect("the engine accepts the arena it asked for"))
+}
+
+/// One engine per image size, prepared on first use: parsing and planning depend only on the
+/// fixed blob and the size (as in the firmware, which prepares once at boot), so executions
+/// skip them (`parse_blob` fuzzes both). Leaked into a `static`, so LeakSanitizer sees them
+/// reachable.
+static ENGINES: Mutex<BTreeMap<(usize, usize), Option<&'static mut Engine<'static>>>> =
+    Mutex::new(BTreeMap::new());
 
 fuzz_target!(|input: &[u8]| {
     let Some((&mode, rest)) = input.split_first() else {
@@ -75,22 +95,8 @@ fuzz_target!(|input: &[u8]| {
     if h * w > 32 * 32 {
         return;
     }
-    // As the firmware prepares it (`depthor_replay::model::prepare`): the frame buffers in the
-    // arena (`Io::Arena`), the loop captures and projects into `Engine::staging`.
-    let Ok(need) = required_arena_bytes_io(TINY_BLOB, h, w, Memory::Streamed, Io::Arena) else {
-        return;
-    };
-    let mut arena = vec![0u8; need];
-    let mut slot = Box::new(MaybeUninit::<Engine<'_>>::uninit());
-    let Ok(engine) = Engine::init_in(
-        &mut slot,
-        TINY_BLOB,
-        &mut arena,
-        h,
-        w,
-        Memory::Streamed,
-        Io::Arena,
-    ) else {
+    let mut engines = ENGINES.lock().unwrap_or_else(|e| e.into_inner());
+    let Some(engine) = engines.entry((h, w)).or_insert_with(|| prepare(h, w)) else {
         return;
     };
     let mut bridge = [0f32; ZONES];

@@ -714,7 +714,7 @@ mod tests {
         // The header and the tables byte by byte, the rest sparsely; no panic, and the header
         // fields the reader must refuse are refused.
         let (mut refused, mut tried) = (0, 0);
-        // Under Miri (slow: each parse runs the bitwise CRC over 15 KB) a few header, table and
+        // Under Miri (slow: each parse runs the CRC over 15 KB) a few header, table and
         // op bytes with one value; natively every header and table byte and every 211th other.
         let first_op = parse(TEST_BLOB).unwrap().ops[0].offset;
         let (picks, values): (Vec<usize>, &[u8]) = if cfg!(miri) {

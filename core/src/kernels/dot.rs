@@ -80,7 +80,8 @@ impl<E, W> Task<'_, E, W> {
     }
 }
 
-/// Portable kernel for either layout (`L` lanes per word).
+/// Portable kernel for either layout (`L` lanes per word). Sums the block's used columns
+/// only (`t.pixels`; the others stay 0), so narrow layers cost what they use.
 pub fn portable<E: Copy + Into<i32>, W: Copy + Into<i32>, const L: usize>(
     t: &Task<E, W>,
     acc: &mut Acc,
@@ -90,7 +91,7 @@ pub fn portable<E: Copy + Into<i32>, W: Copy + Into<i32>, const L: usize>(
         let base = step as usize + t.ox0 * L;
         let x = &t.rows[base..base + PB * L];
         for (a, wj) in acc.chunks_exact_mut(PB).zip(wq.chunks_exact(L)) {
-            for (a, xs) in a.iter_mut().zip(x.chunks_exact(L)) {
+            for (a, xs) in a.iter_mut().zip(x.chunks_exact(L)).take(t.pixels) {
                 let mut s = 0i32;
                 for k in 0..L {
                     s += xs[k].into() * wj[k].into();

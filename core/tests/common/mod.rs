@@ -446,6 +446,46 @@ pub fn tiny_net(h: usize, w: usize) -> Net {
 
 /// [`tiny_net`] with the refinement's neighbourhood `hood`.
 pub fn tiny_net_with(h: usize, w: usize, hood: Neighbourhood) -> Net {
+    net_of(h, w, hood, Widths::TEST)
+}
+
+/// Channel counts of the test network's layers.
+#[derive(Clone, Copy)]
+pub struct Widths {
+    /// Feature channels of the encoder and of the attention output.
+    pub feat: usize,
+    /// Hidden channels of the channel attention's two MLPs.
+    pub mid: usize,
+    /// Hidden channels of the bin logits' first linear layer.
+    pub hidden: usize,
+    /// Depth bins.
+    pub bins: usize,
+    /// Guidance channels after the pixel shuffle (the 1×1 conv makes 4× as many).
+    pub guide: usize,
+}
+
+impl Widths {
+    /// The test network's (`tiny_net`).
+    pub const TEST: Widths = Widths {
+        feat: 8,
+        mid: 4,
+        hidden: 16,
+        bins: 16,
+        guide: 4,
+    };
+    /// Few channels, every op kept, one full group of four and odd counts: the fuzz targets'
+    /// cheap network (`core/fuzz/seeds/micro_net.dblob`).
+    pub const MICRO: Widths = Widths {
+        feat: 4,
+        mid: 2,
+        hidden: 4,
+        bins: 4,
+        guide: 1,
+    };
+}
+
+/// The test network's graph at `h × w` with the channel counts `c`.
+pub fn net_of(h: usize, w: usize, hood: Neighbourhood, c: Widths) -> Net {
     let mut rng = Lcg(7);
     let mut n = Net {
         h,
@@ -460,7 +500,8 @@ pub fn tiny_net_with(h: usize, w: usize, hood: Neighbourhood) -> Net {
         }
         .with_groups(c)
     };
-    let t2 = n.conv(&mut rng, 0, 3, 8, p3(1), Activation::LeakyRelu(0.1));
+    let f = c.feat;
+    let t2 = n.conv(&mut rng, 0, 3, f, p3(1), Activation::LeakyRelu(0.1));
     let u1 = n.add_op(Op::ChanMean(t2));
     let u2 = n.add_op(Op::MinMax(u1, 1e-6));
     let u3 = n.add_op(Op::Reciprocal(u2, 0.5));
@@ -471,17 +512,17 @@ pub fn tiny_net_with(h: usize, w: usize, hood: Neighbourhood) -> Net {
         padding: [1, 1],
         ..ConvGeometry::POINTWISE
     };
-    let t4 = n.conv(&mut rng, t3, 10, 8, s2, Activation::Relu);
-    let dw = n.conv(&mut rng, t4, 8, 8, p3(8), Activation::None); // depthwise
+    let t4 = n.conv(&mut rng, t3, f + 2, f, s2, Activation::Relu);
+    let dw = n.conv(&mut rng, t4, f, f, p3(f), Activation::None); // depthwise
     let t4 = n.add_op(Op::Add(t4, dw));
     // CBAM: channel attention …
     let gap = n.add_op(Op::Gap(t4));
     let gmp = n.add_op(Op::Gmp(t4));
     let pw = ConvGeometry::POINTWISE;
-    let ma = n.conv(&mut rng, gap, 8, 4, pw, Activation::Relu);
-    let ma = n.conv(&mut rng, ma, 4, 8, pw, Activation::None);
-    let mb = n.conv(&mut rng, gmp, 8, 4, pw, Activation::Relu);
-    let mb = n.conv(&mut rng, mb, 4, 8, pw, Activation::None);
+    let ma = n.conv(&mut rng, gap, f, c.mid, pw, Activation::Relu);
+    let ma = n.conv(&mut rng, ma, c.mid, f, pw, Activation::None);
+    let mb = n.conv(&mut rng, gmp, f, c.mid, pw, Activation::Relu);
+    let mb = n.conv(&mut rng, mb, c.mid, f, pw, Activation::None);
     let att = n.add_op(Op::Add(ma, mb));
     let att = n.add_op(Op::Sigmoid(att));
     let t11 = n.add_op(Op::Mul(t4, att));
@@ -499,12 +540,12 @@ pub fn tiny_net_with(h: usize, w: usize, hood: Neighbourhood) -> Net {
     let t17 = n.add_op(Op::Mul(t11, sa));
     // Bin logits: pooled → linear → linear.
     let pooled = n.add_op(Op::Gap(t17));
-    let nb = 16;
-    let l1 = n.conv(&mut rng, pooled, 8, 16, pw, Activation::Relu);
+    let nb = c.bins;
+    let l1 = n.conv(&mut rng, pooled, f, c.hidden, pw, Activation::Relu);
     if let Some(Op::Conv { linear, .. }) = n.ops.last_mut() {
         *linear = true;
     }
-    let logits = n.conv(&mut rng, l1, 16, nb, pw, Activation::None);
+    let logits = n.conv(&mut rng, l1, c.hidden, nb, pw, Activation::None);
     if let Some(Op::Conv { linear, .. }) = n.ops.last_mut() {
         *linear = true;
     }
@@ -513,7 +554,7 @@ pub fn tiny_net_with(h: usize, w: usize, hood: Neighbourhood) -> Net {
         min_depth: 0.1,
         max_depth: 10.0,
     };
-    let bw: Vec<f32> = (0..nb * 8).map(|_| rng.next() * 6.0).collect();
+    let bw: Vec<f32> = (0..nb * f).map(|_| rng.next() * 6.0).collect();
     let bb: Vec<f32> = (0..nb).map(|_| rng.next() * 0.2).collect();
     let d_half = n.add_op(Op::Bins {
         f: t17,
@@ -524,20 +565,28 @@ pub fn tiny_net_with(h: usize, w: usize, hood: Neighbourhood) -> Net {
     });
     let d0 = n.add_op(Op::UpsampleLike(d_half, 0));
     // Guidance: 1×1 conv → pixel_shuffle(2), concat with upsampled features.
-    let gf = n.conv(&mut rng, t17, 8, 16, pw, Activation::LeakyRelu(0.1));
+    let gf = n.conv(
+        &mut rng,
+        t17,
+        f,
+        4 * c.guide,
+        pw,
+        Activation::LeakyRelu(0.1),
+    );
     let gf = n.add_op(Op::PixelShuffle(gf, 2));
     let up = n.add_op(Op::UpsampleScale(t11, 2));
     let gcat = n.add_op(Op::Concat(vec![gf, up]));
+    let gc = c.guide + f;
     let g3 = ConvGeometry {
         kernel: [3, 3],
         padding: [1, 1],
         ..ConvGeometry::POINTWISE
     };
-    let a3 = n.conv(&mut rng, gcat, 12, hood.neighbours(3), g3, Activation::None);
-    let a5 = n.conv(&mut rng, gcat, 12, hood.neighbours(5), g3, Activation::None);
-    let a7 = n.conv(&mut rng, gcat, 12, hood.neighbours(7), g3, Activation::None);
-    let km = n.conv(&mut rng, gcat, 12, 3, g3, Activation::None);
-    let tm = n.conv(&mut rng, gcat, 12, 3, g3, Activation::None);
+    let a3 = n.conv(&mut rng, gcat, gc, hood.neighbours(3), g3, Activation::None);
+    let a5 = n.conv(&mut rng, gcat, gc, hood.neighbours(5), g3, Activation::None);
+    let a7 = n.conv(&mut rng, gcat, gc, hood.neighbours(7), g3, Activation::None);
+    let km = n.conv(&mut rng, gcat, gc, 3, g3, Activation::None);
+    let tm = n.conv(&mut rng, gcat, gc, 3, g3, Activation::None);
     n.add_op(Op::Refine {
         ins: [d0, a3, a5, a7, km, tm],
         attrs: RefineAttrs {
