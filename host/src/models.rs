@@ -60,8 +60,12 @@ const PRESETS: [(&str, &str); 4] = [
 pub struct ModelFiles {
     /// The model directory.
     pub dir: PathBuf,
-    /// Variant name (the directory name): also the simulator preset its inputs come from.
+    /// Variant name (the directory name), for output paths and summaries.
     pub variant: String,
+    /// The network the folder holds: `graph.json`'s `variant` where it names a shipped one
+    /// (a candidate folder such as `runs/cand1` exported as `phone_lite`), else [`Self::variant`].
+    /// Decides the simulator preset of the model's inputs.
+    pub network: String,
     /// No folder was found and the variant's int8 blob is embedded in the binary (`mcu_lite`,
     /// `mcu`; the float network and the prior are not available).
     pub embedded: bool,
@@ -91,6 +95,7 @@ impl ModelFiles {
                 return Ok(ModelFiles {
                     dir: PathBuf::from("<embedded>"),
                     variant: name_or_dir.into(),
+                    network: name_or_dir.into(),
                     embedded: true,
                 });
             }
@@ -103,9 +108,11 @@ impl ModelFiles {
             || name_or_dir.to_string(),
             |n| n.to_string_lossy().into_owned(),
         );
+        let network = graph_variant(&dir).unwrap_or_else(|| variant.clone());
         Ok(ModelFiles {
             dir,
             variant,
+            network,
             embedded: false,
         })
     }
@@ -134,14 +141,23 @@ impl ModelFiles {
         self.dir.join("prior.nnef.tgz")
     }
 
-    /// Simulator preset for this model's inputs: the shipped variant's ([`PRESETS`]), else
-    /// `mcu`.
+    /// Simulator preset for this model's inputs: that of the shipped network the folder holds
+    /// ([`Self::network`], [`PRESETS`]), else `mcu`.
     pub fn preset(&self) -> &str {
         PRESETS
             .iter()
-            .find(|(v, _)| *v == self.variant)
+            .find(|(v, _)| *v == self.network)
             .map_or("mcu", |(_, p)| p)
     }
+}
+
+/// The shipped variant named by `<dir>/graph.json`'s `variant` field; `None` when the file is
+/// missing, unreadable, not JSON or names no shipped variant (the folder name decides then).
+fn graph_variant(dir: &Path) -> Option<String> {
+    let text = std::fs::read_to_string(dir.join("graph.json")).ok()?;
+    let graph: serde_json::Value = serde_json::from_str(&text).ok()?;
+    let v = graph.get("variant")?.as_str()?;
+    VARIANTS.contains(&v).then(|| v.to_string())
 }
 
 #[cfg(test)]
@@ -161,6 +177,17 @@ mod tests {
         let phone_lite = ModelFiles::resolve("phone_lite").unwrap();
         assert_eq!(phone_lite.preset(), "phone");
         assert!(phone_lite.blob().is_file());
+        // A candidate folder of another name takes its network's preset from graph.json.
+        let tmp = tempfile::tempdir().unwrap();
+        let cand = tmp.path().join("cand1");
+        std::fs::create_dir(&cand).unwrap();
+        let cand_s = cand.to_str().unwrap();
+        assert_eq!(ModelFiles::resolve(cand_s).unwrap().preset(), "mcu");
+        std::fs::write(cand.join("graph.json"), r#"{"variant": "phone_lite"}"#).unwrap();
+        let c = ModelFiles::resolve(cand_s).unwrap();
+        assert_eq!((c.variant.as_str(), c.preset()), ("cand1", "phone"));
+        std::fs::write(cand.join("graph.json"), r#"{"variant": "nano"}"#).unwrap();
+        assert_eq!(ModelFiles::resolve(cand_s).unwrap().preset(), "mcu");
         let e = ModelFiles::resolve("nano").unwrap_err().to_string();
         assert!(
             e.contains("\"nano\"") && e.contains("mcu_lite, mcu, phone_lite, phone"),
