@@ -47,7 +47,8 @@ def test_phone_lite_budget():
 
 def test_phone_lite_loads_its_shipped_weights_and_mcu_lites():
     """phone_lite was trained from mcu_lite's weights (models/phone_lite/train/data_generation.txt):
-    its network must load those, its float run's and its own shipped weights strictly."""
+    its network must load those, its first runs' (pre_mix1/, its float run) and its own shipped
+    weights strictly."""
     from pathlib import Path
 
     from depthor_models.train import load_weights
@@ -55,8 +56,8 @@ def test_phone_lite_loads_its_shipped_weights_and_mcu_lites():
     models = Path(__file__).resolve().parents[1]
     net = build("phone_lite", seed=0)
     assert (net.cfg.height, net.cfg.width) == (320, 240)
-    for w in ("mcu_lite/train/model_final.pt", "phone_lite/train/float/model_final_bn.pt",
-              "phone_lite/train/model_final.pt"):
+    for w in ("mcu_lite/train/model_final.pt", "phone_lite/train/pre_mix1/float/model_final_bn.pt",
+              "phone_lite/train/pre_mix1/model_final.pt", "phone_lite/train/model_final.pt"):
         net.load_state_dict(load_weights(models / w), strict=True)
 
 
