@@ -40,6 +40,7 @@ import torch
 from torch import Tensor, nn
 
 from . import data, graph_export, ops
+from .train import predict
 from .blocks import ConvBNAct, InvertedResidual, SepConv
 
 MCU_LITE_MACS = 21_224_184  # budget.budget("mcu_lite")["macs"]; the test recounts it
@@ -147,18 +148,6 @@ def image_rmse(pred: np.ndarray, gt: np.ndarray, hi: float = 10.0) -> np.ndarray
     return np.sqrt(e[n > 0])
 
 
-@torch.no_grad()
-def predict(net: nn.Module, rec: data.Recording, batch_size: int = 4) -> np.ndarray:
-    """Depth [N,H,W] (m) of every frame of `rec` (frames resampled to the net's input size by
-    the reader), through `data.batch` as training sees them."""
-    net.eval()
-    out = []
-    for s in range(0, len(rec), batch_size):
-        rgb, sp, _ = data.batch(rec, np.arange(s, min(s + batch_size, len(rec))))
-        out.append(net(rgb, sp)[:, 0].numpy())
-    return np.concatenate(out)
-
-
 def evaluate(nets: dict[str, nn.Module], recording: str | Path,
              eval_json: str | Path | None = None) -> dict:
     """Per-image mean RMSE of each network on `recording` (at the nets' 120×160 input, as
@@ -168,7 +157,7 @@ def evaluate(nets: dict[str, nn.Module], recording: str | Path,
     gt = rec.depth_mm.astype(np.float32) / 1000
     out: dict = {"frames": len(rec)}
     for name, net in nets.items():
-        out[name] = float(image_rmse(predict(net, rec), gt).mean())
+        out[name] = float(image_rmse(predict(net, rec, np.arange(len(rec)), 4), gt).mean())
     if eval_json is not None:
         methods = json.loads(Path(eval_json).read_text())["methods"]
         base = {k: v["rmse"] for k, v in methods.items() if k not in ("int8", "float", "prior")}
