@@ -75,6 +75,26 @@ pub(super) trait Code: Copy + Into<i32> {
     }
 }
 
+/// [`Code::widen_band_fast`] of both code types: the NEON sets' one-call band conversion.
+#[cfg(target_arch = "aarch64")]
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn widen_band_neon<C: super::aarch64::depthwise::BandCode>(
+    isa: Isa,
+    chan: &[C],
+    shape: (usize, usize),
+    first_iy: isize,
+    widths: (usize, usize),
+    sx: usize,
+    spans: &[(usize, usize, usize)],
+    zp: i32,
+    x16: &mut [i16],
+) -> bool {
+    use super::aarch64::depthwise::widen_band;
+    matches!(isa, Isa::Neon | Isa::NeonDot)
+        && widen_band(chan, shape, first_iy, widths, sx, spans, zp, x16)
+}
+
 impl Code for i8 {
     const NARROW: bool = true;
     #[inline(always)]
@@ -94,9 +114,7 @@ impl Code for i8 {
         zp: i32,
         x16: &mut [i16],
     ) -> bool {
-        use super::aarch64::depthwise::widen_band;
-        matches!(isa, Isa::Neon | Isa::NeonDot)
-            && widen_band(chan, shape, first_iy, widths, sx, spans, zp, x16)
+        widen_band_neon(isa, chan, shape, first_iy, widths, sx, spans, zp, x16)
     }
 }
 
@@ -119,9 +137,7 @@ impl Code for i16 {
         zp: i32,
         x16: &mut [i16],
     ) -> bool {
-        use super::aarch64::depthwise::widen_band;
-        matches!(isa, Isa::Neon | Isa::NeonDot)
-            && widen_band(chan, shape, first_iy, widths, sx, spans, zp, x16)
+        widen_band_neon(isa, chan, shape, first_iy, widths, sx, spans, zp, x16)
     }
 }
 
