@@ -87,11 +87,28 @@ pub fn portable<E: Copy + Into<i32>, W: Copy + Into<i32>, const L: usize>(
     acc: &mut Acc,
 ) {
     acc.fill(0);
+    // A whole block (most of them) keeps a trip count known at compile time, which the
+    // compiler vectorises (a variable one cost aarch64's portable set 84 → 119 M instructions
+    // per mcu_lite frame).
+    if t.pixels >= PB {
+        sum_columns::<E, W, L>(t, acc, PB);
+    } else {
+        sum_columns::<E, W, L>(t, acc, t.pixels);
+    }
+}
+
+/// [`portable`]'s sums over the first `columns` columns of the block.
+#[inline(always)]
+fn sum_columns<E: Copy + Into<i32>, W: Copy + Into<i32>, const L: usize>(
+    t: &Task<E, W>,
+    acc: &mut Acc,
+    columns: usize,
+) {
     for (&step, wq) in t.steps.iter().zip(t.weights.chunks_exact(NB * L)) {
         let base = step as usize + t.ox0 * L;
         let x = &t.rows[base..base + PB * L];
         for (a, wj) in acc.chunks_exact_mut(PB).zip(wq.chunks_exact(L)) {
-            for (a, xs) in a.iter_mut().zip(x.chunks_exact(L)).take(t.pixels) {
+            for (a, xs) in a.iter_mut().zip(x.chunks_exact(L)).take(columns) {
                 let mut s = 0i32;
                 for k in 0..L {
                     s += xs[k].into() * wj[k].into();
