@@ -33,15 +33,14 @@ from __future__ import annotations
 import argparse
 import collections
 import json
-import math
 import os
-import platform
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
 import warnings
+from functools import partial
 from pathlib import Path
 
 if __package__ in (None, ""):  # `python models/depthor_models/bench_onnx.py …`
@@ -51,6 +50,7 @@ import numpy as np
 import torch
 
 from depthor_models import data, graph_export
+from depthor_models.bench_common import cpu_name, loadavg, sqnr_db, time_interleaved
 from depthor_models.export import build_trained
 from depthor_models.net import Depthor, build, random_inputs
 
@@ -125,6 +125,18 @@ def random_frames(net: Depthor, count: int, seed: int) -> list[tuple[np.ndarray,
     return out
 
 
+def bench_frames(net: Depthor, source: str, count: int, seed: int,
+                 cli: Path) -> list[tuple[np.ndarray, np.ndarray]]:
+    """`count` frames at `net`'s size from `source`: "sim" (`sim_frames` of its variant) or
+    "random" (`random_frames`)."""
+    cfg = net.cfg
+    if source == "sim":
+        return sim_frames(cfg.variant, cfg.height, cfg.width, count, seed, cli)
+    if source == "random":
+        return random_frames(net, count, seed)
+    raise ValueError(f"unknown frame source {source!r}")
+
+
 def feeds(frame: tuple[np.ndarray, np.ndarray]) -> dict[str, np.ndarray]:
     """ORT input dict of one frame."""
     return {name: np.ascontiguousarray(x, dtype=np.float32) for name, x in zip(INPUTS, frame)}
@@ -135,8 +147,10 @@ def feeds(frame: tuple[np.ndarray, np.ndarray]) -> dict[str, np.ndarray]:
 # ---------------------------------------------------------------------------------------------
 
 
-def export_onnx(net: Depthor, frame, path: Path, opset: int = OPSET) -> Path:
-    """Exports `net` at the frame's fixed size; eval mode folds BN into the convs. TorchScript
+def export_onnx(net: torch.nn.Module, frame, path: Path, opset: int = OPSET,
+                output_names: tuple[str, ...] = ("depth",)) -> Path:
+    """Exports `net` (a `Depthor`, or `net.Backbone` with its two outputs named in
+    `output_names`) at the frame's fixed size; eval mode folds BN into the convs. TorchScript
     exporter (`dynamo=False`): the dynamo one needs onnxscript, which requirements.txt does not
     pin, and the TorchScript node names (`/refine/Mul_3`) carry the module scopes that
     `f32_nodes` and `profile` read."""
@@ -145,7 +159,7 @@ def export_onnx(net: Depthor, frame, path: Path, opset: int = OPSET) -> Path:
     with warnings.catch_warnings(), torch.no_grad():
         warnings.simplefilter("ignore")
         torch.onnx.export(net.eval(), args, str(path), input_names=list(INPUTS),
-                          output_names=["depth"], opset_version=opset, dynamo=False,
+                          output_names=list(output_names), opset_version=opset, dynamo=False,
                           do_constant_folding=True)
     return path
 
@@ -303,32 +317,6 @@ def session(path: Path, optimised_out: Path | None = None):
     return ort.InferenceSession(str(path), so, providers=["CPUExecutionProvider"])
 
 
-def time_interleaved(sessions: dict, feed: dict, warmup: int, runs: int) -> dict[str, list]:
-    """Milliseconds of `runs` timed sess.run calls per session, after `warmup` untimed ones
-    each; the sessions take turns run by run, so a change in the load of a shared machine
-    hits them alike."""
-    for sess in sessions.values():
-        for _ in range(warmup):
-            sess.run(None, feed)
-    ms = {name: [] for name in sessions}
-    for _ in range(runs):
-        for name, sess in sessions.items():
-            t0 = time.perf_counter()
-            sess.run(None, feed)
-            ms[name].append((time.perf_counter() - t0) * 1e3)
-    return ms
-
-
-def sqnr_db(ref: np.ndarray, test: np.ndarray, centred: bool = False) -> float:
-    """10·log10(Σ s² / Σ (s − t)²), s = ref (minus its mean when `centred`), as
-    host quantize::check::sqnr_db and its "depth − mean" column."""
-    r = ref.astype(np.float64).ravel()
-    t = test.astype(np.float64).ravel()
-    s = r - r.mean() if centred else r
-    noise = float(np.sum((r - t) ** 2))
-    return math.inf if noise == 0 else 10.0 * math.log10(float(np.sum(s * s)) / noise)
-
-
 _INT_TYPES = (2, 3)  # onnx.TensorProto.UINT8, INT8
 
 
@@ -434,10 +422,7 @@ def run(a: argparse.Namespace) -> dict:
     net, weights = load_net(a.variant, a.weights)
     cfg = net.cfg
     n = a.calib_frames
-    if a.calib == "sim":
-        frames = sim_frames(a.variant, cfg.height, cfg.width, n + 1, a.calib_seed, Path(a.cli))
-    else:
-        frames = random_frames(net, n + 1, a.calib_seed)
+    frames = bench_frames(net, a.calib, n + 1, a.calib_seed, Path(a.cli))
     calib, held_out = frames[:n], frames[n]
 
     with torch.no_grad():
@@ -457,9 +442,10 @@ def run(a: argparse.Namespace) -> dict:
     session(int8_path, opt)  # saves the graph ORT runs after its fusions
     census = op_census(opt, set(qinfo["nodes_kept_f32"]), () if a.int8_heads else F32_SCOPES)
     sessions = {name: session(path) for name, path in models.items()}
-    load = [_loadavg()]
-    ms = time_interleaved(sessions, feed, a.warmup, a.runs)
-    load.append(_loadavg())
+    load = [loadavg()]
+    ms = time_interleaved({name: partial(s.run, None, feed) for name, s in sessions.items()},
+                          a.warmup, a.runs)
+    load.append(loadavg())
     rows = []
     for name, path in models.items():
         (depth,) = sessions[name].run(None, feed)
@@ -483,29 +469,12 @@ def run(a: argparse.Namespace) -> dict:
         "sqnr_input": f"{held} (not a calibration frame)",
         "opset": a.opset, "export_s": export_s, "warmup": a.warmup,
         "onnxruntime": ort.__version__, "torch": torch.__version__,
-        "cpu": _cpu_name(), "cpus": os.cpu_count(), "loadavg_1min_before_after": load,
+        "cpu": cpu_name(), "cpus": os.cpu_count(), "loadavg_1min_before_after": load,
         "rows": rows,
     }
     (out / "bench.json").write_text(json.dumps(res, indent=1) + "\n")
     res["out"] = str(out)
     return res
-
-
-def _loadavg() -> float | None:
-    try:
-        return round(os.getloadavg()[0], 2)
-    except OSError:
-        return None
-
-
-def _cpu_name() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
 
 
 def table(res: dict) -> str:

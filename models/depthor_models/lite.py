@@ -141,8 +141,9 @@ class DepthorLite(nn.Module):
         self.tmix = ops.Conv(c, 3, 1, padding=0)
         self.refine = ops.Refine(cfg.iterations, cfg.sigmas, cfg.refine_neighbourhood)
 
-    def forward(self, rgb: Tensor, sparse: Tensor) -> Tensor:
-        h, w = int(rgb.shape[2]), int(rgb.shape[3])
+    def backbone(self, rgb: Tensor, sparse: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+        """The conv trunk before the bins head and refinement: (F_unet [1,C,H/2,W/2], F_mde
+        [1,C_mde,H/2,W/2], bin logits [1,N])."""
         if self.cfg.sparse_input == "fill":
             from .zone_fill import nearest_fill
 
@@ -158,7 +159,11 @@ class DepthorLite(nn.Module):
             s = 4 - i
             x = ops.upsample_bilinear(x, int(rgbf[s].shape[2]), int(rgbf[s].shape[3]))
             x = self.dec[i](ops.concat([x, rgbf[s], dep[s]]))
-        f_unet = x
+        return x, f_mde, bin_logits
+
+    def forward(self, rgb: Tensor, sparse: Tensor) -> Tensor:
+        h, w = int(rgb.shape[2]), int(rgb.shape[3])
+        f_unet, f_mde, bin_logits = self.backbone(rgb, sparse)
         d_half = self.bins_head(f_unet, bin_logits)
         g = self.guide_conv(self.guide_cbam(ops.concat([f_unet, f_mde])))
         if self.cfg.refine_scale == 1:

@@ -243,8 +243,9 @@ class Depthor(nn.Module):
         self.tmix = ops.Conv(c, 3, 3)
         self.refine = ops.Refine(cfg.iterations, cfg.sigmas, cfg.refine_neighbourhood)
 
-    def forward(self, rgb: Tensor, sparse: Tensor) -> Tensor:
-        h, w = int(rgb.shape[2]), int(rgb.shape[3])
+    def backbone(self, rgb: Tensor, sparse: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+        """The conv trunk before the bins head and refinement: (F_unet [1,C,H/2,W/2], F_mde
+        [1,C_mde,H/2,W/2], bin logits [1,N])."""
         d_inv, f_mde = self.prior(rgb)
         # Normalise first, then invert with ε = 0.1: 1/(n + 0.1) spans [1/1.1, 10] whatever the
         # prior's scale, so the int8 reciprocal table and the minmax after it keep their
@@ -260,7 +261,11 @@ class Depthor(nn.Module):
             s = 4 - i
             x = ops.upsample_bilinear(x, int(rgbf[s].shape[2]), int(rgbf[s].shape[3]))
             x = self.dec[i](ops.concat([x, rgbf[s], dep[s]]))
-        f_unet = x
+        return x, f_mde, bin_logits
+
+    def forward(self, rgb: Tensor, sparse: Tensor) -> Tensor:
+        h, w = int(rgb.shape[2]), int(rgb.shape[3])
+        f_unet, f_mde, bin_logits = self.backbone(rgb, sparse)
         d_half = self.bins_head(f_unet, bin_logits)
         g = self.guide_conv(self.guide_cbam(ops.concat([f_unet, f_mde])))
         f_cspn = ops.pixel_shuffle(g, 2)
@@ -269,6 +274,21 @@ class Depthor(nn.Module):
             d0, self.aff3(f_cspn), self.aff5(f_cspn), self.aff7(f_cspn),
             self.kmix(f_cspn), self.tmix(f_cspn),
         )
+
+
+class Backbone(nn.Module):
+    """`net` without its bins head, guidance and refinement (the benchmarks' "backbone" cut):
+    (rgb, sparse) → (F_unet, bin logits), the two inputs of the bins head; F_mde, which only the
+    guidance reads, is left out. Shares `net`'s modules (no copy)."""
+
+    def __init__(self, net: nn.Module):
+        super().__init__()
+        self.net = net
+        self.cfg = net.cfg
+
+    def forward(self, rgb: Tensor, sparse: Tensor) -> tuple[Tensor, Tensor]:
+        f_unet, _f_mde, bin_logits = self.net.backbone(rgb, sparse)
+        return f_unet, bin_logits
 
 
 def build(variant: str, seed: int = 0, calibrate_bn: bool = True, **overrides) -> Depthor:
