@@ -103,8 +103,8 @@ def nhwc(x: np.ndarray) -> np.ndarray:
 
 
 def prepare(a: argparse.Namespace, out: Path) -> dict:
-    """Exports the two graphs, writes the frames and PyTorch references to `out` and returns
-    the worker's job (also written to <out>/job.json) plus what only this side knows."""
+    """Exports the two graphs and writes them, the frames, the PyTorch references and the
+    worker's job (job.json) to `out`; returns what only this side knows (weights, MACs, frames)."""
     import torch
 
     from depthor_models import bench_onnx, graph_export
@@ -421,7 +421,7 @@ def table(res: dict) -> str:
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     """Command-line arguments (see module doc)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--variant", choices=["mcu", "mcu_lite", "phone", "phone_lite"])
+    ap.add_argument("--variant", help="mcu, mcu_lite, phone or phone_lite")
     ap.add_argument("--weights", default=None,
                     help="checkpoint/state dict, or 'random' (default: <variant>/summary.json's)")
     ap.add_argument("--runs", type=int, default=20, help="timed runs per model (default 20)")
@@ -447,10 +447,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         a.calib, a.calib_frames, a.check_frames, a.runs = "random", 2, 1, 2
     if a.runs < 1 or a.calib_frames < 1 or a.check_frames < 1 or a.warmup < 0:
         ap.error("--runs, --calib-frames and --check-frames must be >= 1, --warmup >= 0")
-    if a.cli is None and a.worker is None:
-        from depthor_models.bench_onnx import default_cli
+    if a.worker is None:  # bench_onnx imports PyTorch: not in the worker's environment
+        from depthor_models.bench_onnx import PRESETS, default_cli
 
-        a.cli = str(default_cli())
+        if a.variant not in PRESETS:
+            ap.error(f"--variant must be one of {sorted(PRESETS)}")
+        a.cli = a.cli or str(default_cli())
     return a
 
 
