@@ -63,7 +63,6 @@ import numpy as np
 from depthor_models.bench_common import cpu_name, loadavg, sqnr_db, time_interleaved
 
 MODELS = Path(__file__).resolve().parents[1]
-REPO = MODELS.parent
 LITERT_VENV = MODELS / ".venv-litert"
 INPUTS = ("rgb", "sparse")
 # The graphs benchmarked: name → their ONNX output names (the backbone's are `net.Backbone`'s).
