@@ -6,7 +6,7 @@ mod common;
 
 use common::{fix_crc, frame, net_of, rgb_planar, tiny_net, tiny_net_with, Widths};
 use depthor_core::blob::format::{HEADER_LEN, TENSOR_ENTRY_LEN};
-use depthor_core::blob::parse::DType;
+use depthor_core::blob::parse::{Attrs, DType, Geometry};
 use depthor_core::blob::{parse, BlobError};
 use depthor_core::engine::{required_arena_bytes, Engine, Error};
 use depthor_core::kernels::refine::Neighbourhood;
@@ -99,6 +99,48 @@ fn corrupt_fields_with_valid_crc_are_bad_blob() {
     let mut b = blob().to_vec();
     b[8..12].copy_from_slice(&u32::MAX.to_le_bytes());
     assert!(matches!(parse(&b), Err(BlobError::Bad { offset: 8, .. })));
+}
+
+#[test]
+fn conv_padding_beyond_the_kernel_is_refused() {
+    // Found by `parse_blob` (a timeout): pad_h 65 526 on a 7×7 kernel planned 12.8 M MACs for a
+    // 4×4 run. Any conv of the tiny net: its pad_h set one past dil_h·(kh − 1) is named.
+    let g = parse(blob()).unwrap();
+    let op = g.ops.iter().find(|o| o.code == 1).expect("a conv");
+    let b = blob().to_vec();
+    let Attrs::Conv {
+        geometry: Geometry(v),
+        ..
+    } = op.attrs
+    else {
+        unreachable!()
+    };
+    // The op's 9 geometry words, as the blob stores them, locate its attributes.
+    let words: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+    let at = b
+        .windows(18)
+        .position(|w| w == words.as_slice())
+        .expect("geometry bytes");
+    let reach = v[4] * (v[0] - 1);
+    for (pad, ok) in [(reach, true), (reach + 1, false), (u16::MAX - 9, false)] {
+        let mut b = b.clone();
+        b[at + 12..at + 14].copy_from_slice(&pad.to_le_bytes());
+        fix_crc(&mut b);
+        let got = parse(&b);
+        if ok {
+            assert!(
+                got.is_ok(),
+                "pad_h {pad} (= the reach) refused: {:?}",
+                got.err()
+            );
+        } else {
+            assert!(
+                matches!(got, Err(BlobError::Bad { offset, what }) if offset == at + 12 && what.contains("padding")),
+                "pad_h {pad}: {:?}",
+                got.err()
+            );
+        }
+    }
 }
 
 /// Where the refine op's attributes start: `T = 4`, the neighbourhood code, σ = 1, 1.5, 2.
