@@ -140,6 +140,10 @@ class DepthorLite(nn.Module):
         self.kmix = ops.Conv(c, 3, 1, padding=0)
         self.tmix = ops.Conv(c, 3, 1, padding=0)
         self.refine = ops.Refine(cfg.iterations, cfg.sigmas, cfg.refine_neighbourhood)
+        if cfg.zone_prior:
+            from .zone_prior import ZonePrior
+
+            self.zone_prior = ZonePrior(c)
 
     def backbone(self, rgb: Tensor, sparse: Tensor) -> tuple[Tensor, Tensor, Tensor]:
         """The conv trunk before the bins head and refinement: (F_unet [1,C,H/2,W/2], F_mde
@@ -163,6 +167,7 @@ class DepthorLite(nn.Module):
 
     def forward(self, rgb: Tensor, sparse: Tensor) -> Tensor:
         h, w = int(rgb.shape[2]), int(rgb.shape[3])
+        points = sparse
         f_unet, f_mde, bin_logits = self.backbone(rgb, sparse)
         d_half = self.bins_head(f_unet, bin_logits)
         g = self.guide_conv(self.guide_cbam(ops.concat([f_unet, f_mde])))
@@ -171,6 +176,8 @@ class DepthorLite(nn.Module):
             d0 = ops.upsample_bilinear(d_half, h, w)
         else:
             d0 = d_half
+        if self.cfg.zone_prior:
+            d0 = self.zone_prior(d0, g, points)
         d = self.refine(d0, self.aff3(g), self.aff5(g), self.aff7(g), self.kmix(g), self.tmix(g))
         if self.cfg.refine_scale == 2:
             d = ops.upsample_bilinear(d, h, w)

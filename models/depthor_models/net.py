@@ -51,6 +51,9 @@ class NetConfig:
     # the depth input: "points" (one pixel per zone, the graph contract's `sparse`) or "fill"
     # (zone_fill.nearest_fill applied in PyTorch first; the issue-39 ablation, float only)
     sparse_input: str = "points"
+    # The refinement starts from D_0 blended with a gated interpolation of the zones
+    # (zone_prior.ZonePrior; the issue-39 item-3 ablation, lite architecture, float only)
+    zone_prior: bool = False
 
     def __post_init__(self):
         for name in ("rgb_widths", "rgb_blocks", "depth_widths", "dec_widths"):
@@ -128,8 +131,8 @@ def make_net(cfg: NetConfig) -> nn.Module:
         return DepthorLite(cfg)
     if cfg.arch != "dense":
         raise ValueError(f"unknown arch {cfg.arch!r}")
-    if cfg.sparse_input != "points":
-        raise ValueError("sparse_input 'fill' is built into the lite architecture only")
+    if cfg.sparse_input != "points" or cfg.zone_prior:
+        raise ValueError("sparse_input 'fill' and zone_prior are built into the lite architecture only")
     return Depthor(cfg)
 
 

@@ -486,11 +486,24 @@ def make_model(variant: str, seed: int, overrides: dict | None = None,
     return net.train()
 
 
+# Learning-rate multiplier of the zone prior's gate (make_optim).
+ZONE_PRIOR_LR_SCALE = 100.0
+
+
 def make_optim(net: Depthor, max_lr: float, steps: int, weight_decay: float = 0.1):
-    """AdamW + OneCycle (initial max/25, final max/100, 30 % warm-up, cosine)."""
-    opt = torch.optim.AdamW(net.parameters(), lr=max_lr / 25.0, weight_decay=weight_decay)
+    """AdamW + OneCycle (initial max/25, final max/100, 30 % warm-up, cosine). A zone prior's
+    gate (new on trained weights, a handful of parameters) learns at ZONE_PRIOR_LR_SCALE × the
+    rate, without weight decay (`lr_scale` in its group)."""
+    zp = [p for n, p in net.named_parameters() if n.startswith("zone_prior.")]
+    ids = {id(p) for p in zp}
+    rest = [p for p in net.parameters() if id(p) not in ids]
+    groups = [{"params": rest, "lr_scale": 1.0}]
+    if zp:
+        groups.append({"params": zp, "lr_scale": ZONE_PRIOR_LR_SCALE, "weight_decay": 0.0})
+    opt = torch.optim.AdamW(groups, lr=max_lr / 25.0, weight_decay=weight_decay)
     sched = torch.optim.lr_scheduler.OneCycleLR(
-        opt, max_lr=max_lr, total_steps=steps, div_factor=25.0, final_div_factor=4.0)
+        opt, max_lr=[max_lr * g["lr_scale"] for g in groups], total_steps=steps,
+        div_factor=25.0, final_div_factor=4.0)
     return opt, sched
 
 
@@ -677,8 +690,13 @@ def _train(args: argparse.Namespace, d: dist.Dist) -> dict:
         say(f"resumed from {ckpt_path} at step {step} ({wall:.0f} s trained; written by "
             f"{was} process{'es' if was > 1 else ''}, continued by {d.world})")
     elif args.init:
-        net.load_state_dict(load_weights(args.init))
-        say(f"initialised from {args.init}")
+        missing, unexpected = net.load_state_dict(load_weights(args.init), strict=False)
+        new = [k for k in missing if k.startswith("zone_prior.")]
+        if unexpected or len(new) != len(missing):
+            raise ValueError(f"--init {args.init}: keys missing {sorted(set(missing) - set(new))}, "
+                             f"unexpected {sorted(unexpected)}")
+        say(f"initialised from {args.init}" + (f" ({len(new)} new zone-prior tensors at their "
+                                                "initial values)" if new else ""))
     fq = None
     if getattr(args, "qat", False):
         h, w = net.cfg.height, net.cfg.width
@@ -849,7 +867,7 @@ def _train(args: argparse.Namespace, d: dist.Dist) -> dict:
         if by_time:  # OneCycle over training seconds instead of steps
             lr, beta1 = onecycle_at(wall / args.schedule_s, args.max_lr)
             for grp in opt.param_groups:
-                grp["lr"] = lr
+                grp["lr"] = lr * grp.get("lr_scale", 1.0)
                 grp["betas"] = (beta1, grp["betas"][1])
         lr = opt.param_groups[0]["lr"]
         opt.step()
