@@ -15,11 +15,12 @@ the interpolation) and where they do not (keep the network).
     python -m depthor_models.zone_gate eval --gate gate.pt --features F.npz [--int8-dir D]
         [--eval-json summary.json]
 
-`features` runs the float network (default: the shipped mcu_lite weights) and the two
-interpolations on a recording; `eval` scores net, gate and the interpolations, optionally with
-the int8 engine's depth PNGs (`depthor eval --save-depth`) as the net candidate and the best
-baseline RMSE of `depthor eval --json` as the reference. Figures:
-docs/results/models_zone_gate.md.
+`features` runs the float network (default: the shipped mcu_lite weights; `--variant
+phone_lite --weights phone_lite/train/model_final.pt` for the phone) and the two interpolations
+on a recording, resampled to the network's input as `depthor eval` resamples it; `eval` scores
+net, gate and the interpolations, optionally with the int8 engine's depth PNGs (`depthor eval
+--save-depth`) as the net candidate and the best baseline RMSE of `depthor eval --json` as the
+reference. Figures: docs/results/models_zone_gate.md (mcu_lite, and the "phone_lite" section).
 """
 
 from __future__ import annotations
@@ -129,11 +130,15 @@ def image_rmse(pred: torch.Tensor, gt: torch.Tensor, max_depth: float = 10.0) ->
 def features(recording: str, frames: int, out: str | Path, weights: str | Path = SHIPPED,
              variant: str = "mcu_lite", seed: int = 0) -> None:
     """Candidates of `frames` frames drawn without replacement (seeded; 0 = every frame, in
-    order) of `recording`, saved as npz: rgb, gt (m), sparse (m), cand [N,3,H,W], ids."""
+    order) of `recording`, saved as npz: rgb, gt (m), sparse (m), cand [N,3,H,W], ids. Frames
+    are resampled to the network's input size the way `depthor eval` resamples them (a no-op
+    when the recording is already at that size, e.g. mcu frames or `depthor sim --width/--height`
+    output)."""
     from .export import build_trained
     from .train import zone_baselines
 
-    reader = data.FrameReader(recording)
+    net = build_trained(variant, weights)
+    reader = data.FrameReader(recording, size=(net.cfg.height, net.cfg.width))
     if frames <= 0 or frames >= len(reader):
         idx = np.arange(len(reader))
     else:
@@ -142,7 +147,6 @@ def features(recording: str, frames: int, out: str | Path, weights: str | Path =
     all_idx = np.arange(len(rec))
     sparse = data.sparse_maps(rec, all_idx)
     bilinear = zone_baselines(rec, all_idx)["bilinear"]
-    net = build_trained(variant, weights)
     cand = np.empty((len(rec), len(CANDIDATES), rec.height, rec.width), np.float32)
     for i in all_idx:
         rgb = torch.from_numpy(rec.rgb[i].astype(np.float32).transpose(2, 0, 1)[None] / 255)

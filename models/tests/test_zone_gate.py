@@ -1,12 +1,14 @@
 """The zone gate prototype (depthor_models/zone_gate.py): the joint bilateral candidate follows
 the host baseline's definition, and the gate learns to pick the candidate that is right."""
 
+import json
 import math
 
 import numpy as np
 import torch
 
-from depthor_models import zone_gate
+from depthor_models import data, zone_gate
+from depthor_models.net import build
 
 
 def test_joint_bilateral_weights_points_by_distance_and_colour():
@@ -58,3 +60,45 @@ def test_gate_learns_to_follow_the_candidate_that_is_right():
 def test_gate_macs_at_the_mcu_size():
     # 30×40 positions × (8·16 + 16·16 + 16·16 + 16·3)·9
     assert zone_gate.ZoneGate(16).macs(120, 160) == 1200 * (128 + 256 + 256 + 48) * 9
+
+
+def test_gate_macs_at_the_phone_size():
+    # 80×60 positions at 320×240 (phone_lite's input): 29.7 M MACs beside phone_lite's ~84 M
+    assert zone_gate.ZoneGate(16).macs(320, 240) == 4800 * (128 + 256 + 256 + 48) * 9
+
+
+def test_features_resample_frames_to_the_network_input(tmp_path):
+    """A recording at twice mcu_lite's input (as the phone's rendered frames are larger than
+    phone_lite's input): the candidates come out at the network's size, with the ground truth
+    resampled the way `depthor eval` resamples it."""
+    from PIL import Image
+
+    h, w, n = 240, 320, 2
+    rng = np.random.default_rng(0)
+    rects = [[y0, x0, y0 + 120, x0 + 160] for y0 in (0, 120) for x0 in (0, 160)]
+    meta = {"format": "depthor-recording/1",
+            "camera": {"width": w, "height": h, "fx": 200.0, "fy": 200.0, "cx": 160.0,
+                       "cy": 120.0},
+            "dtof": {"rows": 2, "cols": 2, "fov_deg": [60.0, 60.0], "distance": "z",
+                     "max_range_m": 4.0, "zone_rects_px": rects},
+            "frames": [{"id": f"{i:06d}", "t_s": float(i)} for i in range(n)]}
+    rec = tmp_path / "rec"
+    rec.mkdir()
+    (rec / "recording.json").write_text(json.dumps(meta))
+    depth = (1000 + 5 * np.arange(w)[None, :] + 3 * np.arange(h)[:, None]).astype(np.uint16)
+    for i in range(n):
+        f = rec / "frames" / f"{i:06d}"
+        f.mkdir(parents=True)
+        Image.fromarray(rng.integers(0, 256, (h, w, 3), dtype=np.uint8)).save(f / "rgb.png")
+        Image.fromarray(depth).save(f / "depth.png")
+        (f / "dtof.json").write_text(json.dumps({"distance_mm": [1000.0, 2000.0, 3000.0, 4000.0],
+                                                 "status": [5, 5, 5, 5]}))
+    weights = tmp_path / "w.pt"
+    torch.save(build("mcu_lite", calibrate_bn=False).state_dict(), weights)
+    out = tmp_path / "f.npz"
+    zone_gate.features(str(rec), 0, out, weights=weights, variant="mcu_lite")
+    z = np.load(out)
+    assert z["cand"].shape == (n, 3, 120, 160) and z["rgb"].shape == (n, 120, 160, 3)
+    _, gt_mm = data.resample(np.zeros((1, h, w, 3), np.uint8), depth[None], (120, 160))
+    assert np.allclose(z["gt"][0], gt_mm[0] / 1000)
+    assert np.isfinite(z["cand"]).all() and (z["cand"][:, 1:] >= 1.0).all()
