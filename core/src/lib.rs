@@ -16,6 +16,9 @@ pub mod calibration;
 
 pub mod projection;
 
+// 2b. Zones → dense depth without a network (joint bilateral upsampling).
+pub mod interp;
+
 // 3. The model: blob, engine, kernels.
 pub mod blob;
 pub mod engine;

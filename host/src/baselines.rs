@@ -2,6 +2,7 @@
 //! nearest-zone fill, bilinear interpolation of the zone grid, and joint bilateral upsampling
 //! guided by the RGB (Kopf et al., SIGGRAPH 2007). Outputs are dense depth maps in metres.
 
+use depthor_core::interp;
 use depthor_core::projection::ProjectedPoint;
 use rayon::prelude::*;
 
@@ -149,52 +150,30 @@ fn fill_positions(acc: &[(f64, u32)]) -> Vec<f32> {
 /// Joint bilateral upsampling of the points guided by the RGB: each pixel averages the points
 /// within two point spacings, weighted by a spatial Gaussian (σ = one spacing) times a range
 /// Gaussian on the RGB difference between the pixel and the point's pixel (σ = 20 levels); a
-/// pixel with no point in reach takes the nearest point.
+/// pixel with no point in reach takes the nearest point. The core's
+/// [`depthor_core::interp::JointBilateral`] (the same bits as on a device), bands of rows in
+/// parallel; points out of zone order or a wrong-sized `rgb` give [`nearest_fill`].
 pub fn joint_bilateral(s: &SparseFrame<'_>, rgb: &[u8]) -> Vec<f32> {
     let (w, h) = (s.width as usize, s.height as usize);
-    if s.points.is_empty() || rgb.len() != 3 * w * h {
+    let grid = (usize::from(s.rows), usize::from(s.cols));
+    let mut scratch = vec![0u32; interp::scratch_words(w, h, grid.0, grid.1)];
+    let Ok(jb) = interp::JointBilateral::prepare(s.points, rgb, (w, h), grid, &mut scratch) else {
         return nearest_fill(s);
-    }
-    let spacing = ((w * h) as f32 / s.points.len() as f32).sqrt();
-    let (sigma_s, sigma_r) = (spacing, 20.0f32);
-    let reach2 = (2.0 * spacing).powi(2);
-    let colour = |x: usize, y: usize| -> [f32; 3] {
-        let i = 3 * (y.min(h - 1) * w + x.min(w - 1));
-        [rgb[i] as f32, rgb[i + 1] as f32, rgb[i + 2] as f32]
     };
-    let point_colour: Vec<[f32; 3]> = s
-        .points
-        .iter()
-        .map(|p| colour(p.x as usize, p.y as usize))
-        .collect();
-    let nearest = nearest_fill(s);
     let mut out = vec![0.0f32; w * h];
-    out.par_chunks_mut(w.max(1))
+    const BAND: usize = 16;
+    let filled = out
+        .par_chunks_mut((w * BAND).max(1))
         .enumerate()
-        .for_each(|(y, row)| {
-            for (x, o) in row.iter_mut().enumerate() {
-                let c = colour(x, y);
-                let (mut num, mut den) = (0.0f32, 0.0f32);
-                for (p, pc) in s.points.iter().zip(&point_colour) {
-                    let d2 = (p.u - x as f32).powi(2) + (p.v - y as f32).powi(2);
-                    if d2 > reach2 {
-                        continue;
-                    }
-                    let r2 =
-                        (c[0] - pc[0]).powi(2) + (c[1] - pc[1]).powi(2) + (c[2] - pc[2]).powi(2);
-                    let wgt =
-                        (-d2 / (2.0 * sigma_s * sigma_s) - r2 / (2.0 * sigma_r * sigma_r)).exp();
-                    num += wgt * p.depth_m;
-                    den += wgt;
-                }
-                *o = if den > 1e-12 {
-                    num / den
-                } else {
-                    nearest[y * w + x]
-                };
-            }
+        .all(|(i, band)| {
+            let y0 = i * BAND;
+            jb.rows(y0..y0 + band.len() / w.max(1), band).is_ok()
         });
-    out
+    if filled {
+        out
+    } else {
+        nearest_fill(s)
+    }
 }
 
 #[cfg(test)]
@@ -259,26 +238,44 @@ mod tests {
     }
 
     #[test]
-    fn joint_bilateral_respects_colour_edges() {
-        // Left half black at 1 m, right half white at 3 m: a pixel next to the edge on the black
-        // side stays near 1 m although the white point is almost as close.
-        let (w, h) = (16usize, 4usize);
-        let mut rgb = vec![0u8; 3 * w * h];
-        for y in 0..h {
-            for x in 8..w {
-                rgb[3 * (y * w + x)..3 * (y * w + x) + 3].copy_from_slice(&[255, 255, 255]);
-            }
-        }
-        let pts = [pt(0, 4.0, 2.0, 1.0), pt(1, 12.0, 2.0, 3.0)];
+    fn joint_bilateral_in_bands_is_the_cores_whole_frame() {
+        // Colour edges and the definition are the core's tests (core/src/interp.rs); here the
+        // parallel bands (16 rows each) must give the core's one-call result.
+        let (w, h) = (24usize, 40usize);
+        let rgb: Vec<u8> = (0..3 * w * h).map(|i| (i * 37 % 251) as u8).collect();
+        let pts: Vec<ProjectedPoint> = (0..12u16)
+            .map(|z| {
+                pt(
+                    z,
+                    2.0 + 6.0 * f32::from(z % 4),
+                    3.0 + 12.0 * f32::from(z / 4),
+                    1.0 + f32::from(z) / 4.0,
+                )
+            })
+            .collect();
         let s = SparseFrame {
             width: w as u32,
             height: h as u32,
-            rows: 1,
-            cols: 2,
+            rows: 3,
+            cols: 4,
             points: &pts,
         };
-        let j = joint_bilateral(&s, &rgb);
-        assert!((j[2 * w + 7] - 1.0).abs() < 0.01, "{}", j[2 * w + 7]);
-        assert!((j[2 * w + 8] - 3.0).abs() < 0.01, "{}", j[2 * w + 8]);
+        let mut scratch = vec![0u32; interp::scratch_words(w, h, 3, 4)];
+        let jb = interp::JointBilateral::prepare(&pts, &rgb, (w, h), (3, 4), &mut scratch).unwrap();
+        let mut whole = vec![0.0f32; w * h];
+        jb.rows(0..h, &mut whole).unwrap();
+        let banded = joint_bilateral(&s, &rgb);
+        assert!(whole
+            .iter()
+            .zip(&banded)
+            .all(|(a, b)| a.to_bits() == b.to_bits()));
+        // Points out of zone order: the nearest fill.
+        let mut shuffled = pts.clone();
+        shuffled.swap(0, 5);
+        let s = SparseFrame {
+            points: &shuffled,
+            ..s
+        };
+        assert_eq!(joint_bilateral(&s, &rgb), nearest_fill(&s));
     }
 }
