@@ -44,13 +44,29 @@ pub enum InterpError {
     BadPoint,
     /// The band's rows are not inside the image.
     Rows,
+    /// The zone grid is empty, holds more than 65 536 zones (zone indices are `u16`) or has more
+    /// than 65 535 rows or columns.
+    Grid,
 }
 
 /// Words of scratch [`JointBilateral::prepare`] needs for an image of `width × height` and a
 /// zone grid of `rows × cols` (4 bytes each): the zone table, each zone row's and column's span
-/// of positions, and each pixel row's and column's range of zones.
+/// of positions, and each pixel row's and column's range of zones (saturating: sizes no buffer
+/// can hold give `usize::MAX`).
 pub fn scratch_words(width: usize, height: usize, rows: usize, cols: usize) -> usize {
-    rows * cols + 2 * rows + 2 * cols + 2 * height + 2 * width
+    [
+        rows.saturating_mul(cols),
+        rows,
+        rows,
+        cols,
+        cols,
+        height,
+        height,
+        width,
+        width,
+    ]
+    .iter()
+    .fold(0usize, |a, &b| a.saturating_add(b))
 }
 
 /// The prepared interpolation of one frame (borrows its inputs and tables).
@@ -85,6 +101,10 @@ impl<'a> JointBilateral<'a> {
             || width.checked_mul(height).and_then(|n| n.checked_mul(3)) != Some(rgb.len())
         {
             return Err(InterpError::RgbSize);
+        }
+        let bounded = rows <= 0xffff && cols <= 0xffff && rows * cols <= 1 << 16;
+        if rows == 0 || cols == 0 || !bounded {
+            return Err(InterpError::Grid);
         }
         let need = scratch_words(width, height, rows, cols);
         if scratch.len() < need || width > u16::MAX as usize || height > u16::MAX as usize {
@@ -433,6 +453,11 @@ mod tests {
             e(&[pt(4, 1.0, 1.0, 1.0)], &rgb, &mut scratch),
             Some(InterpError::ZoneOrder)
         );
+        for grid in [(0, 2), (usize::MAX, 3), (1 << 17, 1), (1 << 16, 1)] {
+            let got = JointBilateral::prepare(&good, &rgb, (w, h), grid, &mut scratch).err();
+            assert_eq!(got, Some(InterpError::Grid), "{grid:?}");
+        }
+        assert_eq!(scratch_words(w, h, usize::MAX, 3), usize::MAX);
         assert_eq!(
             e(&[pt(0, f32::NAN, 1.0, 1.0)], &rgb, &mut scratch),
             Some(InterpError::BadPoint)
