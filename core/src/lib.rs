@@ -19,6 +19,9 @@ pub mod projection;
 // 2b. Zones → dense depth without a network (joint bilateral upsampling).
 pub mod interp;
 
+// 3b. The learned blend of the network and the zone interpolations.
+pub mod zone_gate;
+
 // 3. The model: blob, engine, kernels.
 pub mod blob;
 pub mod engine;

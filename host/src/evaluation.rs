@@ -5,7 +5,9 @@
 //! Methods: the core's int8 model, the float network in tract, and the baselines run on the same
 //! projected dToF points: nearest zone, bilinear zones, joint bilateral upsampling guided by the
 //! RGB, and the monocular prior fitted to the points by least-squares scale and shift in inverse
-//! depth (the paper's "DAv2-RS" protocol with our prior).
+//! depth (the paper's "DAv2-RS" protocol with our prior). A model folder with a
+//! `zone_gate.bin` adds the int8 model blended with the bilinear and joint bilateral zones by
+//! that gate (`depthor_core::zone_gate`).
 
 use depthor_core::calibration::CameraIntrinsics;
 use depthor_core::metrics::{Metrics, MetricsAccumulator};
@@ -56,6 +58,22 @@ pub enum EvalError {
     /// A rendered scene's RGB does not have `width × height` pixels.
     #[error("scene size")]
     SceneSize,
+    /// The model's zone gate file could not be read.
+    #[error("zone gate {path}: {source}")]
+    ZoneGateRead {
+        /// The gate file.
+        path: String,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The model's zone gate file is malformed, or refused a frame.
+    #[error("zone gate {path}: {detail:?}")]
+    ZoneGate {
+        /// The gate file.
+        path: String,
+        /// What the core's parser or run said.
+        detail: depthor_core::zone_gate::GateError,
+    },
     /// The float network was asked of the embedded `mcu` model, which has none.
     #[error(
         "model mcu: no models/mcu folder found (looked in {looked}); the embedded int8 blob has \
@@ -375,12 +393,16 @@ pub enum Method {
     JointBilateral,
     /// The monocular prior fitted to the points (scale and shift in inverse depth).
     PriorFit,
+    /// The int8 model, the joint bilateral and the bilinear zones blended by the model's
+    /// learned zone gate (core).
+    Gate,
 }
 
 impl Method {
     /// Every method, models first.
-    pub const ALL: [Method; 6] = [
+    pub const ALL: [Method; 7] = [
         Method::Int8,
+        Method::Gate,
         Method::Float,
         Method::Nearest,
         Method::Bilinear,
@@ -397,6 +419,7 @@ impl Method {
             Method::Bilinear => "bilinear",
             Method::JointBilateral => "joint_bilateral",
             Method::PriorFit => "prior_fit",
+            Method::Gate => "int8_gate",
         }
     }
 
@@ -409,12 +432,13 @@ impl Method {
             Method::Bilinear => "bilinear zones",
             Method::JointBilateral => "joint bilateral",
             Method::PriorFit => "prior + LS fit",
+            Method::Gate => "int8 + zone gate (core)",
         }
     }
 
     /// Whether this is a baseline (not the model itself).
     pub fn is_baseline(self) -> bool {
-        !matches!(self, Method::Int8 | Method::Float)
+        !matches!(self, Method::Int8 | Method::Float | Method::Gate)
     }
 }
 
@@ -434,7 +458,56 @@ pub struct Evaluator {
     int8: Int8Model,
     float: Option<FloatReference>,
     prior: Option<PriorReference>,
+    gate: Option<LoadedGate>,
     depth_range_m: (f32, f32),
+}
+
+/// A zone gate file's bytes (checked by the core's parser when loaded) and its path.
+struct LoadedGate {
+    path: PathBuf,
+    bytes: Vec<u8>,
+}
+
+impl LoadedGate {
+    fn load(path: &Path) -> Result<Self> {
+        let bytes = std::fs::read(path).map_err(|e| EvalError::ZoneGateRead {
+            path: path.display().to_string(),
+            source: e,
+        })?;
+        let gate = LoadedGate {
+            path: path.to_path_buf(),
+            bytes,
+        };
+        gate.parse()?;
+        Ok(gate)
+    }
+
+    fn error(&self, detail: depthor_core::zone_gate::GateError) -> EvalError {
+        EvalError::ZoneGate {
+            path: self.path.display().to_string(),
+            detail,
+        }
+    }
+
+    fn parse(&self) -> Result<depthor_core::zone_gate::ZoneGate<'_>> {
+        depthor_core::zone_gate::ZoneGate::parse(&self.bytes).map_err(|e| self.error(e))
+    }
+
+    /// The blend of `[net, joint bilateral, bilinear]` on a `width × height` frame.
+    fn run(
+        &self,
+        candidates: [&[f32]; 3],
+        rgb: &[u8],
+        width: usize,
+        height: usize,
+    ) -> Result<Vec<f32>> {
+        let gate = self.parse()?;
+        let mut scratch = vec![0.0f32; gate.scratch_floats(width, height)];
+        let mut out = vec![0.0f32; width * height];
+        gate.run(candidates, rgb, (width, height), &mut scratch, &mut out)
+            .map_err(|e| self.error(e))?;
+        Ok(out)
+    }
 }
 
 impl Evaluator {
@@ -451,8 +524,15 @@ impl Evaluator {
             int8,
             float,
             prior,
+            gate: None,
             depth_range_m,
         }
+    }
+
+    /// Adds the zone gate at `path` (its method then runs on every frame).
+    pub fn with_zone_gate(mut self, path: &Path) -> Result<Self> {
+        self.gate = Some(LoadedGate::load(path)?);
+        Ok(self)
     }
 
     /// Loads a model's int8 blob and, when `with_float`, its float network and prior (tract).
@@ -481,7 +561,12 @@ impl Evaluator {
         } else {
             None
         };
-        Ok(Self::new(int8, float, depth_range_m))
+        let eval = Self::new(int8, float, depth_range_m);
+        let gate = files.zone_gate();
+        if !files.embedded && gate.is_file() {
+            return eval.with_zone_gate(&gate);
+        }
+        Ok(eval)
     }
 
     /// The int8 model (sizes, blob).
@@ -494,6 +579,7 @@ impl Evaluator {
         Method::ALL
             .into_iter()
             .filter(|m| !matches!(m, Method::Float | Method::PriorFit) || self.float.is_some())
+            .filter(|m| *m != Method::Gate || self.gate.is_some())
             .collect()
     }
 
@@ -528,6 +614,33 @@ impl Evaluator {
         out.push(timed(Method::JointBilateral, &mut || {
             Ok(baselines::joint_bilateral(&s, rgb))
         })?);
+        if let Some(gate) = &self.gate {
+            let get = |m: Method| out.iter().find(|p: &&Prediction| p.method == m);
+            let (net, jbu, bil) = (
+                get(Method::Int8),
+                get(Method::JointBilateral),
+                get(Method::Bilinear),
+            );
+            if let (Some(net), Some(jbu), Some(bil)) = (net, jbu, bil) {
+                let t = Instant::now();
+                let depth_m = gate.run(
+                    [&net.depth_m, &jbu.depth_m, &bil.depth_m],
+                    rgb,
+                    frame.width() as usize,
+                    frame.height() as usize,
+                )?;
+                // The gate's time includes the two interpolations it reads.
+                let seconds = t.elapsed().as_secs_f64() + jbu.seconds + bil.seconds;
+                out.insert(
+                    1,
+                    Prediction {
+                        method: Method::Gate,
+                        depth_m,
+                        seconds,
+                    },
+                );
+            }
+        }
         if let Some(prior) = &self.prior {
             let (lo, hi) = self.depth_range_m;
             out.push(timed(Method::PriorFit, &mut || {

@@ -141,6 +141,11 @@ impl ModelFiles {
         self.dir.join("prior.nnef.tgz")
     }
 
+    /// The learned zone gate (`depthor_core::zone_gate`), shipped with some models only.
+    pub fn zone_gate(&self) -> PathBuf {
+        self.dir.join("zone_gate.bin")
+    }
+
     /// Simulator preset for this model's inputs: that of the shipped network the folder holds
     /// ([`Self::network`], [`PRESETS`]), else `mcu`.
     pub fn preset(&self) -> &str {

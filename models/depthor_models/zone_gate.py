@@ -14,6 +14,8 @@ the interpolation) and where they do not (keep the network).
     python -m depthor_models.zone_gate train --features A.npz,B.npz --out gate.pt [--steps 1500]
     python -m depthor_models.zone_gate eval --gate gate.pt --features F.npz [--int8-dir D]
         [--eval-json summary.json]
+    python -m depthor_models.zone_gate export --gate gate.pt --out zone_gate.bin
+        [--golden-features F.npz --golden-out zone_gate_golden.bin]
 
 `features` runs the float network (default: the shipped mcu_lite weights; `--variant
 phone_lite --weights phone_lite/train/model_final.pt` for the phone) and the two interpolations
@@ -169,10 +171,14 @@ def _load(paths: list[str]) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
 
 def train(cand: torch.Tensor, rgb: torch.Tensor, gt: torch.Tensor, steps: int,
           channels: int = 16, batch: int = 16, lr: float = 1e-3, seed: int = 1,
-          log_every: int = 0) -> ZoneGate:
+          log_every: int = 0, norm: str = "net") -> ZoneGate:
     """Trains a gate on candidate tensors: AdamW, one-cycle schedule, random left-right flips;
-    loss = mean over the batch of (gate RMSE) / (net RMSE + 2 cm), so that near and far scenes
-    weigh alike."""
+    loss = mean over the batch of (gate RMSE) / (reference RMSE + 2 cm), so that near and far
+    scenes weigh alike; the reference is the network's (`norm="net"`) or the best candidate's
+    on that frame (`norm="best"`: frames where the network fails weigh as much as the others,
+    and the loss reads as the figure the evaluation grid reports)."""
+    if norm not in ("net", "best"):
+        raise ValueError(f"norm: {norm!r} is not 'net' or 'best'")
     torch.manual_seed(seed)
     gate = ZoneGate(channels, cand.shape[1])
     opt = torch.optim.AdamW(gate.parameters(), lr, weight_decay=1e-4)
@@ -184,7 +190,11 @@ def train(cand: torch.Tensor, rgb: torch.Tensor, gt: torch.Tensor, steps: int,
         if rng.random() < 0.5:
             c, r, g = c.flip(3), r.flip(3), g.flip(3)
         with torch.no_grad():
-            ref = image_rmse(c[:, :1], g) + 0.02
+            if norm == "net":
+                ref = image_rmse(c[:, :1], g) + 0.02
+            else:
+                ref = torch.stack([image_rmse(c[:, k:k + 1], g)
+                                   for k in range(c.shape[1])]).min(0).values + 0.02
         loss = (image_rmse(gate(c, r)[0], g) / ref).mean()
         opt.zero_grad()
         loss.backward()
@@ -223,6 +233,33 @@ def evaluate(gate: ZoneGate, path: str | Path, int8_dir: str | Path | None = Non
     return out
 
 
+def to_bytes(gate: ZoneGate) -> bytes:
+    """The gate in the core's file format (`depthor_core::zone_gate`, `DZG1`, little-endian):
+    header (magic, candidates, channels, layers, pooling 4, leaky slope 0.1), then per layer its
+    dilation, a reserved 0, the weights [out][in][3][3] and the biases, all f32."""
+    layers = [*gate.convs, gate.out]
+    b = bytearray(b"DZG1")
+    b += np.array([gate.out.out_channels, gate.convs[0].out_channels, len(layers), 4],
+                  "<u2").tobytes()
+    b += np.array([0.1], "<f4").tobytes()
+    for conv in layers:
+        b += np.array([conv.dilation[0], 0], "<u2").tobytes()
+        b += conv.weight.detach().numpy().astype("<f4").tobytes()
+        b += conv.bias.detach().numpy().astype("<f4").tobytes()
+    return bytes(b)
+
+
+def golden_bytes(gate: ZoneGate, cand: np.ndarray, rgb: np.ndarray) -> bytes:
+    """A test vector for the core's gate: u32 width, u32 height, the candidates f32 [3][H][W]
+    (metres), the RGB u8 [H][W][3] and PyTorch's blend f32 [H][W]."""
+    h, w = cand.shape[1:]
+    with torch.no_grad():
+        fused, _ = gate(torch.from_numpy(cand[None]),
+                        torch.from_numpy(rgb.transpose(2, 0, 1)[None].astype(np.float32) / 255))
+    return (np.array([w, h], "<u4").tobytes() + cand.astype("<f4").tobytes()
+            + rgb.astype(np.uint8).tobytes() + fused[0, 0].numpy().astype("<f4").tobytes())
+
+
 def main(argv: list[str] | None = None) -> None:
     """Command line: features, train, eval (see the module docstring)."""
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -239,23 +276,45 @@ def main(argv: list[str] | None = None) -> None:
     t.add_argument("--steps", type=int, default=1500)
     t.add_argument("--channels", type=int, default=16)
     t.add_argument("--threads", type=int, default=1)
+    t.add_argument("--norm", choices=("net", "best"), default="net",
+                   help="loss reference: the network's RMSE or the best candidate's")
     e = sub.add_parser("eval", help="score a gate on a features file")
     e.add_argument("--gate", required=True)
     e.add_argument("--channels", type=int, default=16)
     e.add_argument("--features", required=True)
     e.add_argument("--int8-dir")
     e.add_argument("--eval-json")
+    x = sub.add_parser("export", help="write a gate in the core's file format")
+    x.add_argument("--gate", required=True)
+    x.add_argument("--channels", type=int, default=16)
+    x.add_argument("--out", required=True)
+    x.add_argument("--golden-features", help="features npz whose first frame's centre makes "
+                   "the test vector")
+    x.add_argument("--golden-out")
+    x.add_argument("--golden-size", type=int, default=32)
     a = p.parse_args(argv)
     if a.cmd == "features":
         features(a.recording, a.frames, a.out, a.weights, a.variant)
     elif a.cmd == "train":
         torch.set_num_threads(a.threads)
-        gate = train(*_load(a.features.split(",")), a.steps, a.channels, log_every=100)
+        gate = train(*_load(a.features.split(",")), a.steps, a.channels, log_every=100,
+                     norm=a.norm)
         torch.save(gate.state_dict(), a.out)
     else:
         gate = ZoneGate(a.channels)
         gate.load_state_dict(torch.load(a.gate, map_location="cpu"))
-        print(json.dumps(evaluate(gate.eval(), a.features, a.int8_dir, a.eval_json)))
+        gate.eval()
+        if a.cmd == "eval":
+            print(json.dumps(evaluate(gate, a.features, a.int8_dir, a.eval_json)))
+            return
+        Path(a.out).write_bytes(to_bytes(gate))
+        if a.golden_features and a.golden_out:
+            z = np.load(a.golden_features)
+            n = a.golden_size
+            h, w = z["cand"].shape[2:]
+            y, x = (h - n) // 2 // 4 * 4, (w - n) // 2 // 4 * 4
+            Path(a.golden_out).write_bytes(golden_bytes(
+                gate, z["cand"][0, :, y:y + n, x:x + n].copy(), z["rgb"][0, y:y + n, x:x + n]))
 
 
 if __name__ == "__main__":

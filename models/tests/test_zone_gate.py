@@ -102,3 +102,48 @@ def test_features_resample_frames_to_the_network_input(tmp_path):
     _, gt_mm = data.resample(np.zeros((1, h, w, 3), np.uint8), depth[None], (120, 160))
     assert np.allclose(z["gt"][0], gt_mm[0] / 1000)
     assert np.isfinite(z["cand"]).all() and (z["cand"][:, 1:] >= 1.0).all()
+
+
+def test_export_writes_the_core_format_and_a_golden_vector():
+    """The DZG1 file has the header and layer layout `depthor_core::zone_gate` parses, and the
+    golden vector holds the inputs and PyTorch's blend (host/tests/zone_gate.rs compares the
+    core against it)."""
+    torch.manual_seed(0)
+    gate = zone_gate.ZoneGate(4).eval()
+    b = zone_gate.to_bytes(gate)
+    assert b[:4] == b"DZG1"
+    assert list(np.frombuffer(b[4:12], "<u2")) == [3, 4, 4, 4]
+    assert np.frombuffer(b[12:16], "<f4")[0] == np.float32(0.1)
+    widths = [(8, 4), (4, 4), (4, 4), (4, 3)]
+    assert len(b) == 16 + sum(4 + 4 * (o * i * 9 + o) for i, o in widths)
+    # dilations 1, 2, 4, 1 in the layer headers
+    at, dil = 16, []
+    for i, o in widths:
+        dil.append(int(np.frombuffer(b[at:at + 2], "<u2")[0]))
+        at += 4 + 4 * (o * i * 9 + o)
+    assert dil == [1, 2, 4, 1]
+    cand = (1 + np.random.default_rng(0).random((3, 8, 12))).astype(np.float32)
+    rgb = np.random.default_rng(1).integers(0, 256, (8, 12, 3), dtype=np.uint8)
+    g = zone_gate.golden_bytes(gate, cand, rgb)
+    assert list(np.frombuffer(g[:8], "<u4")) == [12, 8]
+    assert len(g) == 8 + 4 * 3 * 96 + 3 * 96 + 4 * 96
+    blend = np.frombuffer(g[-4 * 96:], "<f4").reshape(8, 12)
+    assert np.all(blend >= cand.min(0) - 1e-6) and np.all(blend <= cand.max(0) + 1e-6)
+
+
+def test_best_candidate_norm_trains_and_a_bad_norm_is_refused():
+    g = torch.Generator().manual_seed(0)
+    gt = 1.0 + torch.rand(8, 1, 8, 8, generator=g)
+    cand = torch.cat([gt * 1.2, gt, gt * 0.7], 1)
+    rgb = torch.rand(8, 3, 8, 8, generator=g)
+    gate = zone_gate.train(cand, rgb, gt, steps=300, channels=4, batch=4, lr=3e-3, norm="best")
+    with torch.no_grad():
+        _, wts = gate(cand, rgb)
+    # from 0.11 at the start (the initial bias prefers candidate 0) toward the exact one
+    assert wts[:, 1].mean() > 0.3
+    try:
+        zone_gate.train(cand, rgb, gt, steps=1, norm="median")
+    except ValueError as e:
+        assert "norm" in str(e)
+    else:
+        raise AssertionError("norm='median' was accepted")

@@ -182,7 +182,9 @@ pub fn handle(args: Args) -> Result<()> {
                     &acc.finish(),
                     p.seconds,
                 ));
-                if args.save_depth && matches!(p.method, Method::Int8 | Method::Float) {
+                if args.save_depth
+                    && matches!(p.method, Method::Int8 | Method::Float | Method::Gate)
+                {
                     save_depth(&out, &name, p.method, &frame.id, &pred, sw, sh)?;
                 }
             }

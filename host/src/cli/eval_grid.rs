@@ -12,7 +12,7 @@ use depthor_host::evaluation::grid::{
     with_means, CellSummary, Condition, GridOptions, GridSet, BUILT_IN,
 };
 use depthor_host::evaluation::output::{csv_row, relative, summary_json, SummaryInfo, CSV_HEADER};
-use depthor_host::evaluation::{Aggregate, Evaluator, RecordingFrames};
+use depthor_host::evaluation::{Aggregate, Evaluator, Method, RecordingFrames};
 use depthor_host::models::ModelFiles;
 use depthor_host::sim::preset;
 use std::path::{Path, PathBuf};
@@ -193,12 +193,23 @@ pub fn handle(args: Args) -> Result<()> {
     }
     heat_map(
         &out.join("heatmap.png"),
-        &files.variant,
+        (&files.variant, Method::Int8),
         &conditions,
         &sets,
         &result,
         how,
     )?;
+    let gated = result.methods.contains(&Method::Gate);
+    if gated {
+        heat_map(
+            &out.join("heatmap_gate.png"),
+            (&files.variant, Method::Gate),
+            &conditions,
+            &sets,
+            &result,
+            how,
+        )?;
+    }
     // The eval contract's provenance and union over every cell, then the grid.
     let mut union =
         depthor_host::evaluation::output::Totals::new(result.methods.len(), args.max_depth);
@@ -265,6 +276,20 @@ pub fn handle(args: Args) -> Result<()> {
         &sets,
         &with_means(&cell_table(&result, how, CellSummary::abs_rel_ratio)),
     );
+    if gated {
+        print_table(
+            "int8 + zone gate RMSE / best baseline RMSE",
+            &conditions,
+            &sets,
+            &with_means(&cell_table(&result, how, CellSummary::gate_rmse_ratio)),
+        );
+        print_table(
+            "int8 + zone gate Rel / Rel of that baseline",
+            &conditions,
+            &sets,
+            &with_means(&cell_table(&result, how, CellSummary::gate_abs_rel_ratio)),
+        );
+    }
     if !args.no_float {
         print_table(
             "int8 vs float RMSE, (int8 − float) / float",

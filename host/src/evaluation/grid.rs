@@ -385,6 +385,8 @@ pub struct CellSummary {
     pub int8: Metrics,
     /// The float model, when it ran.
     pub float: Option<Metrics>,
+    /// The int8 model blended by the model's zone gate, when the model has one.
+    pub gate: Option<Metrics>,
     /// The baseline with the lowest RMSE, and its metrics.
     pub best: (Method, Metrics),
 }
@@ -406,6 +408,7 @@ impl CellSummary {
             frames: totals.frames,
             int8: get(Method::Int8)?,
             float: get(Method::Float),
+            gate: get(Method::Gate),
             best,
         })
     }
@@ -413,6 +416,17 @@ impl CellSummary {
     /// int8 RMSE / best baseline RMSE.
     pub fn rmse_ratio(&self) -> f64 {
         self.int8.rmse / self.best.1.rmse
+    }
+
+    /// int8 + zone gate RMSE / best baseline RMSE; NaN without a gate.
+    pub fn gate_rmse_ratio(&self) -> f64 {
+        self.gate.map_or(f64::NAN, |g| g.rmse / self.best.1.rmse)
+    }
+
+    /// int8 + zone gate Rel / the best (by RMSE) baseline's Rel; NaN without a gate.
+    pub fn gate_abs_rel_ratio(&self) -> f64 {
+        self.gate
+            .map_or(f64::NAN, |g| g.abs_rel / self.best.1.abs_rel)
     }
 
     /// int8 Rel / the best (by RMSE) baseline's Rel.
@@ -528,7 +542,8 @@ pub fn cell_table(
 
 /// The grid part of `summary.json`: the conditions (with their effective configurations), the
 /// sets, every cell's comparison (as `depthor eval`'s summary has it, plus `abs_rel_ratio`) and
-/// the grid means of the RMSE and Rel ratios and of int8 vs float.
+/// the grid means of the RMSE and Rel ratios and of int8 vs float (and of the zone gate's
+/// ratios when the model has one).
 pub fn grid_json(
     conditions: &[Condition],
     sets: &[GridSet],
@@ -545,6 +560,12 @@ pub fn grid_json(
             v["frames"] = json!(t.frames);
             if let Some(x) = CellSummary::of(t, &result.methods, how) {
                 v["int8_vs_best_baseline"]["abs_rel_ratio"] = json!(x.abs_rel_ratio());
+                if x.gate.is_some() {
+                    v["int8_gate_vs_best_baseline"] = json!({
+                        "rmse_ratio": finite(x.gate_rmse_ratio()),
+                        "abs_rel_ratio": finite(x.gate_abs_rel_ratio()),
+                    });
+                }
             }
             cells.push(v);
         }
@@ -562,6 +583,15 @@ pub fn grid_json(
             "grid": finite(*last.last().unwrap_or(&f64::NAN)),
         })
     };
+    let mut mean_ratios = json!({
+        "rmse_ratio": means(&|x| x.rmse_ratio()),
+        "abs_rel_ratio": means(&|x| x.abs_rel_ratio()),
+        "int8_vs_float_rmse": means(&|x| x.int8_vs_float()),
+    });
+    if result.methods.contains(&Method::Gate) {
+        mean_ratios["gate_rmse_ratio"] = means(&|x| x.gate_rmse_ratio());
+        mean_ratios["gate_abs_rel_ratio"] = means(&|x| x.gate_abs_rel_ratio());
+    }
     json!({
         "conditions": conditions.iter().map(|c| json!({
             "name": c.name, "description": c.description, "files": c.files,
@@ -573,11 +603,7 @@ pub fn grid_json(
             "frames": result.cells.first().map_or(0, |row| row[k].frames),
         })).collect::<Vec<_>>(),
         "cells": cells,
-        "means": {
-            "rmse_ratio": means(&|x| x.rmse_ratio()),
-            "abs_rel_ratio": means(&|x| x.abs_rel_ratio()),
-            "int8_vs_float_rmse": means(&|x| x.int8_vs_float()),
-        },
+        "means": mean_ratios,
     })
 }
 
@@ -587,16 +613,22 @@ fn finite(x: f64) -> Option<f64> {
 }
 
 /// The grid's heat map at `path` (and its numbers as `<path>.csv`): rows conditions, columns
-/// sets, colour and number the int8 RMSE over the best baseline's, with the grid means.
+/// sets, colour and number the RMSE of `method` (int8, or int8 + zone gate) over the best
+/// baseline's, with the grid means.
 pub fn heat_map(
     path: &Path,
-    model: &str,
+    (model, method): (&str, Method),
     conditions: &[Condition],
     sets: &[GridSet],
     result: &GridResult,
     how: Aggregate,
 ) -> Result<(), GridError> {
-    let table = with_means(&cell_table(result, how, CellSummary::rmse_ratio));
+    let ratio = if method == Method::Gate {
+        CellSummary::gate_rmse_ratio
+    } else {
+        CellSummary::rmse_ratio
+    };
+    let table = with_means(&cell_table(result, how, ratio));
     let mut rows: Vec<String> = conditions.iter().map(|c| c.name.clone()).collect();
     rows.push("grid mean".into());
     let mut cols: Vec<String> = sets.iter().map(|s| s.name.clone()).collect();
@@ -604,7 +636,12 @@ pub fn heat_map(
     crate::plot::ratio_heat_map(
         path,
         &format!(
-            "{model}: int8 RMSE / best baseline RMSE per condition and set ({})",
+            "{model}: {} RMSE / best baseline RMSE per condition and set ({})",
+            if method == Method::Gate {
+                "int8 + zone gate"
+            } else {
+                "int8"
+            },
             how.key()
         ),
         "RMSE ratio (< 1: model better)",

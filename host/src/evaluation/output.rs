@@ -71,6 +71,9 @@ pub fn comparison_json(results: &[(Method, Metrics, f64)]) -> Value {
             "delta1_gain": i8m.delta1 - bd.1.delta1,
         });
     }
+    if let (Some(g), Some(br)) = (get(Method::Gate), best_rmse) {
+        s["int8_gate_vs_best_baseline"] = json!({ "rmse_ratio": g.rmse / br.1.rmse });
+    }
     if let (Some(q), Some(f)) = (get(Method::Int8), get(Method::Float)) {
         s["int8_vs_float"] = json!({
             "rmse_rel_diff": (q.rmse - f.rmse) / f.rmse,
