@@ -12,7 +12,7 @@ secs=${1:?usage: run.sh SECONDS [TARGET...]}
 shift
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
-  targets=(parse_blob engine_run projection zone_bridge replay_image vl53l5cx_results vl53l5cx_driver)
+  targets=(parse_blob engine_run projection zone_bridge replay_image vl53l5cx_results vl53l5cx_driver zone_gate)
 fi
 mkdir -p fuzz/logs
 # AddressSanitizer's checks as calls, not inline shadow compares: the coverage build traces

@@ -207,7 +207,9 @@ impl<'a> ZoneGate<'a> {
 
     /// Blends `candidates` (`[network, joint bilateral, bilinear]`, metres, `width · height`
     /// each, row-major) into `out` with the gate's weights, guided by `rgb` (interleaved, `3 ·
-    /// width · height` bytes). `width` and `height` must be multiples of [`POOL`].
+    /// width · height` bytes). `width` and `height` must be multiples of [`POOL`]. With finite
+    /// candidates the output is finite and lies between the smallest and the largest candidate
+    /// of its pixel.
     pub fn run(
         &self,
         candidates: [&[f32]; CANDIDATES],
@@ -352,7 +354,8 @@ fn source(i: usize, n: usize) -> (usize, usize, f32) {
     (i0, (i0 + 1).min(n - 1), s - i0 as f32)
 }
 
-/// Upsamples the logits bilinearly and blends the candidates with their softmax.
+/// Upsamples the logits bilinearly and blends the candidates with their softmax (a pixel whose
+/// blend is not finite takes the network's depth).
 fn blend(
     candidates: &[&[f32]; CANDIDATES],
     logits: &[f32],
@@ -380,7 +383,10 @@ fn blend(
                 num += e * candidates[k][p];
                 den += e;
             }
-            out[p] = num / den;
+            // Finite weights can still overflow the activations to ±inf (then NaN logits):
+            // such a pixel keeps the network's depth rather than a NaN.
+            let v = num / den;
+            out[p] = if v.is_finite() { v } else { candidates[0][p] };
         }
     }
 }
