@@ -150,6 +150,34 @@ pub(crate) fn exp_f32(x: f32) -> f32 {
     exp_reduced(x, k)
 }
 
+/// Natural logarithm in `f32` of a positive normal `x` (NaN for NaN, zero, negative or
+/// subnormal input, `+inf` for `+inf`).
+///
+/// Writes `x = m · 2^e` with `m ∈ [√½, √2)`, then `ln m = 2·atanh(s)`, `s = (m−1)/(m+1)`,
+/// `|s| ≤ 0.172`, summed to `s⁹/9` in Horner form (truncation below 4e-9 relative), plus
+/// `e·ln2` with ln2 split as in `exp_f32` (so `e·LN2_HI` is exact).
+#[inline(always)]
+pub(crate) fn ln_f32(x: f32) -> f32 {
+    if x.is_nan() || x < f32::MIN_POSITIVE {
+        return f32::NAN;
+    }
+    if x == f32::INFINITY {
+        return x;
+    }
+    let bits = x.to_bits();
+    let mut e = ((bits >> 23) & 0xff) as i32 - 127;
+    let mut m = f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000); // [1, 2)
+    if m > core::f32::consts::SQRT_2 {
+        m *= 0.5;
+        e += 1;
+    }
+    let s = (m - 1.0) / (m + 1.0);
+    let s2 = s * s;
+    let series = s * (2.0 + s2 * (2.0 / 3.0 + s2 * (0.4 + s2 * (2.0 / 7.0 + s2 * (2.0 / 9.0)))));
+    let ef = e as f32;
+    ef * LN2_HI + (series + ef * LN2_LO)
+}
+
 /// `log2 e` in f32.
 const LOG2_E: f32 = core::f32::consts::LOG2_E;
 
@@ -328,6 +356,24 @@ mod tests {
         assert!(sqrt(f64::NAN).is_nan());
         assert_eq!(sqrt(0.0), 0.0);
         assert_eq!(sqrt(f64::INFINITY), f64::INFINITY);
+    }
+
+    #[test]
+    fn ln_f32_within_two_ulp_of_std() {
+        let mut x = 1.0e-30f32;
+        while x < 1.0e30 {
+            let want = std::primitive::f32::ln(x);
+            let got = ln_f32(x);
+            let ulp = f32::EPSILON * want.abs().max(f32::MIN_POSITIVE);
+            assert!(
+                (got - want).abs() <= 2.0 * ulp.max(1e-7),
+                "ln_f32({x}) = {got}, std {want}"
+            );
+            x *= 1.000_37;
+        }
+        assert_eq!(ln_f32(1.0), 0.0);
+        assert!(ln_f32(0.0).is_nan() && ln_f32(-1.0).is_nan() && ln_f32(f32::NAN).is_nan());
+        assert_eq!(ln_f32(f32::INFINITY), f32::INFINITY);
     }
 
     #[test]

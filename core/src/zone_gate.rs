@@ -31,7 +31,7 @@
 //! before): `u16` dilation (1–8), `u16` 0, `f32` weights `[out][in][3][3]`, `f32` biases `[out]`;
 //! nothing after the last layer. Every value must be finite.
 
-use crate::fmath::{exp_f32, ln};
+use crate::fmath::{exp_f32, ln_f32};
 
 /// Magic of a gate file.
 pub const MAGIC: [u8; 4] = *b"DZG1";
@@ -311,7 +311,7 @@ fn pool_features(
         } else {
             MIN_DEPTH_M
         };
-        ln(f64::from(d)) as f32
+        ln_f32(d)
     };
     for cy in 0..qh {
         for cx in 0..qw {
