@@ -1,6 +1,7 @@
 //! The learned zone gate (issue 39; docs/results/models_zone_gate.md): per pixel, a blend of
 //! three depth candidates, the network's output, the joint bilateral upsampling of the zones
-//! ([`crate::interp`]) and the bilinear interpolation of the zone grid, with softmax weights that
+//! ([`crate::interp`]) and the bilinear interpolation of the zone grid
+//! ([`crate::interp::bilinear`]), with softmax weights that
 //! a small CNN predicts at 1/4 resolution from the candidates and the RGB. Where the zones agree
 //! with the image it follows them; where they do not it keeps the network.
 //!

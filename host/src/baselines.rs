@@ -48,103 +48,27 @@ pub fn nearest_fill(s: &SparseFrame<'_>) -> Vec<f32> {
 /// Bilinear interpolation of the zone grid: zones without a point take the value of the nearest
 /// valid zone (grid distance), zone centres come from the points (mean position per row and
 /// column, linearly extended where a row or column has no point), and pixels outside the grid
-/// of centres take the value at the nearest edge.
+/// of centres take the value at the nearest edge. The core's
+/// [`depthor_core::interp::bilinear::BilinearZones`] (the same bits as on a device), bands of
+/// rows in parallel; 0 everywhere without points or zones.
 pub fn bilinear_zones(s: &SparseFrame<'_>) -> Vec<f32> {
-    let (rows, cols) = (s.rows as usize, s.cols as usize);
-    let w = s.width as usize;
-    let mut out = vec![0.0f32; w * s.height as usize];
-    if s.points.is_empty() || rows == 0 || cols == 0 {
+    use depthor_core::interp::bilinear::{scratch_floats, BilinearZones};
+    let (w, h) = (s.width as usize, s.height as usize);
+    let grid = (usize::from(s.rows), usize::from(s.cols));
+    let mut out = vec![0.0f32; w * h];
+    let mut scratch = vec![0.0f64; scratch_floats(grid.0, grid.1)];
+    let Ok(b) = BilinearZones::prepare(s.points, (w, h), grid, &mut scratch) else {
         return out;
-    }
-    // Zone values and centre positions.
-    let mut grid = vec![None::<f32>; rows * cols];
-    let (mut col_u, mut row_v) = (vec![(0.0f64, 0u32); cols], vec![(0.0f64, 0u32); rows]);
-    for p in s.points {
-        let z = p.zone as usize;
-        if z >= rows * cols {
-            continue;
-        }
-        grid[z] = Some(p.depth_m);
-        col_u[z % cols].0 += f64::from(p.u);
-        col_u[z % cols].1 += 1;
-        row_v[z / cols].0 += f64::from(p.v);
-        row_v[z / cols].1 += 1;
-    }
-    let col_u = fill_positions(&col_u);
-    let row_v = fill_positions(&row_v);
-    let filled: Vec<f32> = (0..rows * cols)
-        .map(|z| {
-            grid[z].unwrap_or_else(|| {
-                let (r, c) = ((z / cols) as i64, (z % cols) as i64);
-                let mut best = (i64::MAX, 0.0);
-                for (k, g) in grid.iter().enumerate() {
-                    if let Some(d) = g {
-                        let dist = (r - (k / cols) as i64).pow(2) + (c - (k % cols) as i64).pow(2);
-                        if dist < best.0 {
-                            best = (dist, *d);
-                        }
-                    }
-                }
-                best.1
-            })
-        })
-        .collect();
-    let locate = |centres: &[f32], x: f32| -> (usize, usize, f32) {
-        if centres.len() == 1 || x <= centres[0] {
-            return (0, 0, 0.0);
-        }
-        let last = centres.len() - 1;
-        if x >= centres[last] {
-            return (last, last, 0.0);
-        }
-        let i = centres.iter().position(|&c| c > x).unwrap_or(last).max(1) - 1;
-        let span = (centres[i + 1] - centres[i]).max(1e-6);
-        (i, i + 1, (x - centres[i]) / span)
     };
-    out.par_chunks_mut(w.max(1))
+    let band = 16;
+    out.par_chunks_mut((w * band).max(1))
         .enumerate()
-        .for_each(|(y, row)| {
-            let (r0, r1, fy) = locate(&row_v, y as f32);
-            for (x, o) in row.iter_mut().enumerate() {
-                let (c0, c1, fx) = locate(&col_u, x as f32);
-                let v = |r: usize, c: usize| filled[r * cols + c];
-                let top = v(r0, c0) * (1.0 - fx) + v(r0, c1) * fx;
-                let bottom = v(r1, c0) * (1.0 - fx) + v(r1, c1) * fx;
-                *o = top * (1.0 - fy) + bottom * fy;
-            }
+        .for_each(|(i, chunk)| {
+            let y0 = i * band;
+            // A band inside the image with its own width: cannot fail.
+            let _ = b.rows(y0..y0 + chunk.len() / w.max(1), chunk);
         });
     out
-}
-
-/// Mean positions per grid line, with missing lines extended linearly from the known ones
-/// (monotone increasing result; one known line gives a constant spacing of 1 px).
-fn fill_positions(acc: &[(f64, u32)]) -> Vec<f32> {
-    let known: Vec<(usize, f64)> = acc
-        .iter()
-        .enumerate()
-        .filter(|(_, (_, n))| *n > 0)
-        .map(|(i, (s, n))| (i, s / f64::from(*n)))
-        .collect();
-    (0..acc.len())
-        .map(|i| {
-            let pos = match known.as_slice() {
-                [] => i as f64,
-                [(k, p)] => p + (i as f64 - *k as f64),
-                _ => {
-                    // Interpolate between the nearest known lines on each side (or extrapolate
-                    // from the two nearest at an end).
-                    let right = known.iter().position(|(k, _)| *k >= i);
-                    let (a, b) = match right {
-                        Some(0) => (known[0], known[1]),
-                        Some(j) => (known[j - 1], known[j]),
-                        None => (known[known.len() - 2], known[known.len() - 1]),
-                    };
-                    a.1 + (b.1 - a.1) * (i as f64 - a.0 as f64) / (b.0 as f64 - a.0 as f64)
-                }
-            };
-            pos as f32
-        })
-        .collect()
 }
 
 /// Joint bilateral upsampling of the points guided by the RGB: each pixel averages the points

@@ -1,5 +1,6 @@
-//! Joint bilateral upsampling of the projected zones guided by the RGB image (Kopf et al.,
-//! SIGGRAPH 2007), on the device: the classical completion that wins where the zones are clean
+//! Zone interpolations without a network: [`bilinear`] interpolation of the zone grid, and
+//! (this module) joint bilateral upsampling of the projected zones guided by the RGB image (Kopf
+//! et al., SIGGRAPH 2007), on the device: the classical completion that wins where the zones are clean
 //! (issue 39), and the edge-aware candidate of the learned zone gate
 //! (docs/results/models_zone_gate.md).
 //!
@@ -19,6 +20,8 @@
 //! No allocation: [`JointBilateral::prepare`] lays its tables in the caller's words
 //! ([`scratch_words`]), then [`JointBilateral::rows`] fills any band of output rows (bands are
 //! independent, so a host may run them in parallel).
+
+pub mod bilinear;
 
 use crate::fmath::exp_f32;
 use crate::projection::ProjectedPoint;
