@@ -660,13 +660,19 @@ impl Evaluator {
 
 /// A fixed-width table of metrics, one row per `(label, metrics)`, with a header.
 pub fn metrics_table(rows: &[(&str, Metrics)]) -> String {
+    let w = rows
+        .iter()
+        .map(|(name, _)| name.chars().count())
+        .max()
+        .unwrap_or(0)
+        .max(20);
     let mut t = format!(
-        "{:<20} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7}\n",
+        "{:<w$} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7} {:>7}\n",
         "method", "δ1", "δ2", "δ3", "Rel", "RMSE", "log10", "EWMAE"
     );
     for (name, m) in rows {
         t += &format!(
-            "{:<20} {:>7.3} {:>7.3} {:>7.3} {:>7.3} {:>7.3} {:>7.3} {:>7.3}\n",
+            "{:<w$} {:>7.3} {:>7.3} {:>7.3} {:>7.3} {:>7.3} {:>7.3} {:>7.3}\n",
             name, m.delta1, m.delta2, m.delta3, m.abs_rel, m.rmse, m.log10, m.ewmae
         );
     }

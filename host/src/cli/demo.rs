@@ -4,7 +4,8 @@
 //! another variant on its own preset; `--recording DIR` runs on the user's recording (its own dToF
 //! if it has some, else the simulated sensor on its reference depth). Writes
 //! `<out>/depth_<id>.png` (16-bit mm) and `<out>/mosaic_<id>.png` (RGB with the points |
-//! reference | int8 model | |error| | joint bilateral baseline).
+//! reference | int8 model | |error| | joint bilateral baseline); for a model with a zone gate
+//! (`zone_gate.bin`, phone_lite) the depth and the mosaic are the gated output.
 
 use anyhow::{Context, Result};
 use depthor_core::metrics::MetricsAccumulator;
@@ -97,7 +98,14 @@ pub fn handle(args: Args) -> Result<()> {
             a.add_image(&frame);
         }
         let pick = |m: Method| preds.iter().find(|p| p.method == m).map(|p| &p.depth_m[..]);
-        let pred = pick(Method::Int8).context("no int8 prediction")?;
+        // The product's output: the gated depth when the model ships a zone gate.
+        let pred = match pick(Method::Gate) {
+            Some(g) => ("int8 model + zone gate", g),
+            None => (
+                "int8 model",
+                pick(Method::Int8).context("no int8 prediction")?,
+            ),
+        };
         model_time += preds[0].seconds;
         write_outputs(staging.path(), f, pred, pick(Method::JointBilateral))?;
     }
@@ -146,8 +154,13 @@ pub fn handle(args: Args) -> Result<()> {
     Ok(())
 }
 
-/// depth_<id>.png (16-bit mm) and mosaic_<id>.png.
-fn write_outputs(out: &Path, f: &EvalFrame, pred: &[f32], jbu: Option<&[f32]>) -> Result<()> {
+/// depth_<id>.png (16-bit mm) and mosaic_<id>.png of the labelled prediction.
+fn write_outputs(
+    out: &Path,
+    f: &EvalFrame,
+    (label, pred): (&str, &[f32]),
+    jbu: Option<&[f32]>,
+) -> Result<()> {
     let (w, h) = (f.width(), f.height());
     let mm: Vec<u16> = pred.iter().map(|&d| depth_m_to_mm(d)).collect();
     let depth_png: ImageBuffer<Luma<u16>, Vec<u16>> =
@@ -159,7 +172,7 @@ fn write_outputs(out: &Path, f: &EvalFrame, pred: &[f32], jbu: Option<&[f32]>) -
     write_mosaic(
         &out.join(format!("mosaic_{}.png", f.id)),
         f,
-        ("int8 model", pred),
+        (label, pred),
         jbu.map(|d| ("joint bilateral", d)),
     )?;
     Ok(())
