@@ -135,10 +135,10 @@ pub(crate) fn exp_f32(x: f32) -> f32 {
     if x.is_nan() {
         return x;
     }
-    if x > 88.722_84 {
+    if x > EXP_MAX {
         return f32::INFINITY;
     }
-    if x < -103.972_08 {
+    if x < EXP_MIN {
         return 0.0;
     }
     let kf = x * LOG2_E;
@@ -148,6 +148,36 @@ pub(crate) fn exp_f32(x: f32) -> f32 {
         (kf - 0.5) as i32
     };
     exp_reduced(x, k)
+}
+
+/// [`exp_f32`] on `N` lanes at once, bit for bit: the same operations on each lane, with the
+/// special cases (NaN, overflow, underflow) selected after the arithmetic instead of branched
+/// around it, and `2^k` always applied in [`exp_reduced`]'s two steps (equal to its one step
+/// wherever that one is taken), so that the compiler can keep the lanes in SIMD registers.
+#[inline(always)]
+pub(crate) fn exp_f32_lanes<const N: usize>(x: [f32; N]) -> [f32; N] {
+    let mut out = [0.0f32; N];
+    for (o, &xl) in out.iter_mut().zip(x.iter()) {
+        // Inside the range the clamp changes nothing; outside it the value is selected away.
+        // `max` turns NaN into the bound (`clamp` would keep it), as the conversion below needs.
+        #[allow(clippy::manual_clamp)]
+        let xc = xl.max(EXP_MIN).min(EXP_MAX);
+        let kf = xc * LOG2_E;
+        // `kf ± 0.5` by the sign bit: only −0 takes −0.5 where `exp_f32` adds 0.5, and both
+        // truncate to 0.
+        let kr = kf + 0.5f32.copysign(kf);
+        // SAFETY: `xc` is finite and within [EXP_MIN, EXP_MAX], so `|kr| < 151`: finite and
+        // inside `i32`, where the unchecked conversion is the truncation `as i32` makes (and,
+        // without `as`'s saturation, one the compiler can vectorise).
+        let k: i32 = unsafe { kr.to_int_unchecked() };
+        let (k1, k2) = (k / 2, k - k / 2);
+        let p = exp_poly((xc - k as f32 * LN2_HI) - k as f32 * LN2_LO);
+        let v = p * pow2i(k1) * pow2i(k2);
+        let v = if xl < EXP_MIN { 0.0 } else { v };
+        let v = if xl > EXP_MAX { f32::INFINITY } else { v };
+        *o = if xl.is_nan() { xl } else { v };
+    }
+    out
 }
 
 /// Natural logarithm in `f32` of a positive normal `x` (NaN for NaN, zero, negative or
@@ -179,12 +209,16 @@ pub(crate) fn ln_f32(x: f32) -> f32 {
 }
 
 /// `log2 e` in f32.
-const LOG2_E: f32 = core::f32::consts::LOG2_E;
+pub(crate) const LOG2_E: f32 = core::f32::consts::LOG2_E;
+/// Above this [`exp_f32`] is `+inf`.
+pub(crate) const EXP_MAX: f32 = 88.722_84;
+/// Below this [`exp_f32`] is 0.
+pub(crate) const EXP_MIN: f32 = -103.972_08;
 
 /// `ln 2` split for the Cody–Waite reduction: 16 significant bits (`0x3f31_7200`, so `k·LN2_HI`
 /// is exact) and the rest.
-const LN2_HI: f32 = 0.693_145_75;
-const LN2_LO: f32 = 1.428_606_8e-6;
+pub(crate) const LN2_HI: f32 = 0.693_145_75;
+pub(crate) const LN2_LO: f32 = 1.428_606_8e-6;
 
 /// `e^r` for the reduced `|r| ≤ ln2/2`: the degree-7 Taylor polynomial in Horner form.
 #[inline(always)]
@@ -325,6 +359,44 @@ mod tests {
                 "entry {j}"
             );
         }
+    }
+
+    /// The lane form equals the scalar one bit for bit: a sweep of every 613th f32 bit pattern
+    /// of both signs (NaN, infinities, subnormals, both range limits and their neighbours).
+    #[test]
+    fn exp_f32_lanes_equals_exp_f32() {
+        let mut xs: std::vec::Vec<f32> = (0..=u32::MAX / 613)
+            .map(|i| f32::from_bits(i * 613))
+            .collect();
+        for b in [
+            EXP_MAX,
+            EXP_MIN,
+            0.0,
+            -0.0,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+        ] {
+            for d in -3i32..=3 {
+                xs.push(f32::from_bits(b.to_bits().wrapping_add_signed(d)));
+            }
+        }
+        xs.push(f32::NAN);
+        let mut in_range = 0;
+        for c in xs.chunks(4) {
+            let mut lanes = [0.0f32; 4];
+            lanes[..c.len()].copy_from_slice(c);
+            let got = exp_f32_lanes(lanes);
+            for (g, &x) in got.iter().zip(lanes.iter()) {
+                let want = exp_f32(x);
+                assert!(
+                    g.to_bits() == want.to_bits() || (g.is_nan() && want.is_nan()),
+                    "x {x:e} ({:#x}): lanes {g:e}, scalar {want:e}",
+                    x.to_bits()
+                );
+                in_range += usize::from((EXP_MIN..=EXP_MAX).contains(&x));
+            }
+        }
+        assert!(in_range > 1_000_000, "{in_range} inputs in range");
     }
 
     #[test]

@@ -23,12 +23,48 @@
 
 pub mod bilinear;
 
-use crate::fmath::exp_f32;
+use crate::fmath::exp_f32_lanes;
 use crate::projection::ProjectedPoint;
 use core::ops::Range;
 
 /// Range σ of the colour term, RGB levels.
 pub const SIGMA_RGB: f32 = 20.0;
+/// Pixels of a row filled together (the lanes of one SIMD register of `f32` on NEON and SSE2;
+/// each lane runs the scalar definition's operations in its order).
+pub(crate) const LANES: usize = 4;
+/// The frame's constants of the weight `exp(−d²/spacing − r²/colour)`, taken within `reach2`.
+pub(crate) struct Terms {
+    /// `2σs²`, pixels².
+    pub spacing: f32,
+    /// `2σr²`, levels².
+    pub colour: f32,
+    /// `(2σs)²`, pixels²: farther points are not taken.
+    pub reach2: f32,
+}
+
+/// `LANES` adjacent pixels of one row, filled together.
+pub(crate) struct Group {
+    /// The row.
+    pub y: usize,
+    /// Each lane's column as `f32`.
+    pub xf: [f32; LANES],
+    /// Each lane's R, G and B (planes).
+    pub rgb: [[f32; LANES]; 3],
+    /// Each lane's zone columns `col_lo..col_hi` (empty past the row's end).
+    pub col_lo: [u32; LANES],
+    /// See `col_lo`.
+    pub col_hi: [u32; LANES],
+    /// The zone rows in reach of the row.
+    pub zone_rows: (u32, u32),
+    /// The union of the lanes' zone columns (`(u32::MAX, 0)`: none).
+    pub zone_cols: (u32, u32),
+}
+
+/// `[f(0), …, f(LANES − 1)]`.
+#[inline(always)]
+fn lanes<T>(f: impl FnMut(usize) -> T) -> [T; LANES] {
+    core::array::from_fn(f)
+}
 /// No point in this zone (the zone table's empty slot).
 const NONE: u32 = u32::MAX;
 
@@ -207,52 +243,130 @@ impl<'a> JointBilateral<'a> {
             out.fill(0.0);
             return Ok(());
         }
-        let (w, h) = (self.width, self.height);
-        let sigma_s = self.spacing;
-        let reach2 = (2.0 * self.spacing) * (2.0 * self.spacing);
-        let colour = |x: usize, y: usize| -> [f32; 3] {
-            let i = 3 * (y.min(h - 1) * w + x.min(w - 1));
-            [
-                f32::from(self.rgb[i]),
-                f32::from(self.rgb[i + 1]),
-                f32::from(self.rgb[i + 2]),
-            ]
+        let w = self.width;
+        let terms = Terms {
+            spacing: 2.0 * self.spacing * self.spacing,
+            colour: 2.0 * SIGMA_RGB * SIGMA_RGB,
+            reach2: (2.0 * self.spacing) * (2.0 * self.spacing),
         };
-        let span = |z: u32| (z >> 16) as usize..(z & 0xffff) as usize;
         for (y, row) in rows.clone().zip(out.chunks_exact_mut(w)) {
-            for (x, o) in row.iter_mut().enumerate() {
-                let c = colour(x, y);
-                let (mut num, mut den) = (0.0f32, 0.0f32);
-                for zr in span(self.row_zones[y]) {
-                    for zc in span(self.col_zones[x]) {
-                        let i = self.table[zr * self.cols + zc];
-                        if i == NONE {
-                            continue;
-                        }
-                        let p = &self.points[i as usize];
-                        let (du, dv) = (p.u - x as f32, p.v - y as f32);
-                        let d2 = du * du + dv * dv;
-                        if d2 > reach2 {
-                            continue;
-                        }
-                        let pc = colour(p.x as usize, p.y as usize);
-                        let (r, g, b) = (c[0] - pc[0], c[1] - pc[1], c[2] - pc[2]);
-                        let r2 = r * r + g * g + b * b;
-                        let wgt = exp_f32(
-                            -d2 / (2.0 * sigma_s * sigma_s) - r2 / (2.0 * SIGMA_RGB * SIGMA_RGB),
-                        );
-                        num += wgt * p.depth_m;
-                        den += wgt;
-                    }
+            for (x0, pixels) in (0..w).step_by(LANES).zip(row.chunks_mut(LANES)) {
+                let group = self.group(y, x0, pixels.len());
+                let (num, den) = self.group_sums(&group, &terms);
+                for (l, o) in pixels.iter_mut().enumerate() {
+                    *o = if den[l] > 1e-12 {
+                        num[l] / den[l]
+                    } else {
+                        self.nearest(x0 + l, y)
+                    };
                 }
-                *o = if den > 1e-12 {
-                    num / den
-                } else {
-                    self.nearest(x, y)
-                };
             }
         }
         Ok(())
+    }
+
+    /// The RGB of pixel `(x, y)` (clamped into the image) as `f32` levels.
+    #[inline(always)]
+    fn colour(&self, x: usize, y: usize) -> [f32; 3] {
+        let i = 3 * (y.min(self.height - 1) * self.width + x.min(self.width - 1));
+        [
+            f32::from(self.rgb[i]),
+            f32::from(self.rgb[i + 1]),
+            f32::from(self.rgb[i + 2]),
+        ]
+    }
+
+    /// The `n ≤ LANES` pixels of row `y` from column `x0`.
+    fn group(&self, y: usize, x0: usize, n: usize) -> Group {
+        let span = |z: u32| ((z >> 16), (z & 0xffff));
+        let mut g = Group {
+            y,
+            xf: [0.0; LANES],
+            rgb: [[0.0; LANES]; 3],
+            col_lo: [0; LANES],
+            col_hi: [0; LANES],
+            zone_rows: span(self.row_zones[y]),
+            zone_cols: (u32::MAX, 0),
+        };
+        for l in 0..LANES {
+            let c = self.colour(x0 + l, y);
+            for (plane, v) in g.rgb.iter_mut().zip(c) {
+                plane[l] = v;
+            }
+            g.xf[l] = (x0 + l) as f32;
+            // Lanes past the row's end keep no zone columns: they add nothing.
+            if l < n {
+                (g.col_lo[l], g.col_hi[l]) = span(self.col_zones[x0 + l]);
+                if g.col_lo[l] < g.col_hi[l] {
+                    g.zone_cols.0 = g.zone_cols.0.min(g.col_lo[l]);
+                    g.zone_cols.1 = g.zone_cols.1.max(g.col_hi[l]);
+                }
+            }
+        }
+        g
+    }
+
+    /// Each point a group's pixels may take, in zone order, with its zone column and colour.
+    #[inline(always)]
+    fn candidates<'g>(
+        &'g self,
+        g: &'g Group,
+    ) -> impl Iterator<Item = (u32, &'g ProjectedPoint, [f32; 3])> + 'g {
+        (g.zone_rows.0..g.zone_rows.1).flat_map(move |zr| {
+            (g.zone_cols.0..g.zone_cols.1).filter_map(move |zc| {
+                let i = self.table[zr as usize * self.cols + zc as usize];
+                (i != NONE).then(|| {
+                    let p = &self.points[i as usize];
+                    (zc, p, self.colour(p.x as usize, p.y as usize))
+                })
+            })
+        })
+    }
+
+    /// The weighted sums `(Σ w·depth, Σ w)` of a group's pixels, over its candidates in zone
+    /// order: NEON where the CPU has it, else the portable lanes (the same bits).
+    fn group_sums(&self, g: &Group, t: &Terms) -> ([f32; LANES], [f32; LANES]) {
+        #[cfg(target_arch = "aarch64")]
+        if crate::kernels::isa::Isa::Neon.available() {
+            // SAFETY: NEON is available (checked just above).
+            return unsafe {
+                crate::kernels::aarch64::joint_bilateral::group_sums(self.candidates(g), g, t)
+            };
+        }
+        let mut num = [0.0f32; LANES];
+        let mut den = [0.0f32; LANES];
+        let yf = g.y as f32;
+        for (zc, p, pc) in self.candidates(g) {
+            // Stage by stage over the lanes, each lane the definition's operations in order.
+            let dv = p.v - yf;
+            let dv2 = dv * dv;
+            let du = lanes(|l| p.u - g.xf[l]);
+            let d2 = lanes(|l| du[l] * du[l] + dv2);
+            let r = lanes(|l| g.rgb[0][l] - pc[0]);
+            let gr = lanes(|l| g.rgb[1][l] - pc[1]);
+            let b = lanes(|l| g.rgb[2][l] - pc[2]);
+            let r2 = lanes(|l| r[l] * r[l] + gr[l] * gr[l] + b[l] * b[l]);
+            let arg = lanes(|l| -d2[l] / t.spacing - r2[l] / t.colour);
+            // 1 where the lane takes the point: its zone column and within reach.
+            let take = lanes(|l| {
+                let inside = g.col_lo[l] <= zc && zc < g.col_hi[l] && d2[l] <= t.reach2;
+                if inside {
+                    1.0
+                } else {
+                    0.0
+                }
+            });
+            if take == [0.0; LANES] {
+                continue;
+            }
+            // A lane that does not take the point adds +0 (a weight times 0) to sums that are
+            // ≥ +0: they keep their bits, as if it had been skipped.
+            let wgt = exp_f32_lanes(arg);
+            let wl = lanes(|l| wgt[l] * take[l]);
+            num = lanes(|l| num[l] + wl[l] * p.depth_m);
+            den = lanes(|l| den[l] + wl[l]);
+        }
+        (num, den)
     }
 
     /// The depth of the point nearest pixel `(x, y)` (the first of equals).
@@ -272,6 +386,7 @@ impl<'a> JointBilateral<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fmath::exp_f32;
     use std::vec;
     use std::vec::Vec;
 

@@ -5,6 +5,7 @@ pub mod bins;
 pub mod depthwise;
 pub mod dotprod;
 pub mod elementwise;
+pub mod joint_bilateral;
 pub mod neon;
 pub mod pack;
 pub mod pool;

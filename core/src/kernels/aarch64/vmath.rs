@@ -1,8 +1,12 @@
-//! NEON softmax weight, bit for bit `crate::fmath::softmax_exp` per lane: the same IEEE
+//! NEON `e^x`, bit for bit the scalar routines per lane: the softmax weight
+//! (`crate::fmath::softmax_exp`) and the general `crate::fmath::exp_f32`. The same IEEE
 //! operations in the same order (separate multiplies and adds, never fused), `FCVTZS`
-//! truncating as Rust's `as` does (NaN → 0, saturating), the table's bytes read with `TBL`.
+//! truncating as Rust's `as` does (NaN → 0, saturating), the softmax table's bytes read with
+//! `TBL`.
 
-use crate::fmath::{EXP2_32THS, SOFTMAX_FLOOR, SOFTMAX_T, SOFTMAX_U};
+use crate::fmath::{
+    EXP2_32THS, EXP_MAX, EXP_MIN, LN2_HI, LN2_LO, LOG2_E, SOFTMAX_FLOOR, SOFTMAX_T, SOFTMAX_U,
+};
 use core::arch::aarch64::*;
 
 /// `fmath`'s 2^(j/32) table at one address (it is a `const` there).
@@ -41,9 +45,96 @@ pub unsafe fn softmax_exp_f32x4(x: float32x4_t) -> float32x4_t {
     vreinterpretq_f32_u32(vbicq_u32(vreinterpretq_u32_f32(y), below))
 }
 
+/// `exp_f32` of 4 lanes (any input: NaN, infinities and both range limits as the scalar
+/// routine treats them), written as `crate::fmath::exp_f32_lanes` writes it.
+///
+/// # Safety
+/// The CPU must have NEON.
+#[target_feature(enable = "neon")]
+#[inline]
+pub unsafe fn exp_f32x4(x: float32x4_t) -> float32x4_t {
+    let xc = vminq_f32(vmaxq_f32(x, vdupq_n_f32(EXP_MIN)), vdupq_n_f32(EXP_MAX));
+    let kf = vmulq_f32(xc, vdupq_n_f32(LOG2_E));
+    // `kf ± 0.5`, the sign taken from `kf`.
+    let half = vbslq_f32(vdupq_n_u32(0x8000_0000), kf, vdupq_n_f32(0.5));
+    let k = vcvtq_s32_f32(vaddq_f32(kf, half));
+    let kfl = vcvtq_f32_s32(k);
+    let r = vsubq_f32(
+        vsubq_f32(xc, vmulq_f32(kfl, vdupq_n_f32(LN2_HI))),
+        vmulq_f32(kfl, vdupq_n_f32(LN2_LO)),
+    );
+    // The degree-7 Horner polynomial of `exp_poly`, innermost first.
+    let mut p = vaddq_f32(
+        vdupq_n_f32(1.0 / 720.0),
+        vmulq_f32(r, vdupq_n_f32(1.0 / 5040.0)),
+    );
+    for c in [1.0 / 120.0, 1.0 / 24.0, 1.0 / 6.0, 0.5, 1.0, 1.0] {
+        p = vaddq_f32(vdupq_n_f32(c), vmulq_f32(r, p));
+    }
+    // 2^k in two steps: k1 = k / 2 (toward zero), k2 = k − k1.
+    let sign = vreinterpretq_s32_u32(vshrq_n_u32::<31>(vreinterpretq_u32_s32(k)));
+    let k1 = vshrq_n_s32::<1>(vaddq_s32(k, sign));
+    let k2 = vsubq_s32(k, k1);
+    let pow2 =
+        |e: int32x4_t| vreinterpretq_f32_s32(vshlq_n_s32::<23>(vaddq_s32(e, vdupq_n_s32(127))));
+    let v = vmulq_f32(vmulq_f32(p, pow2(k1)), pow2(k2));
+    let v = vreinterpretq_f32_u32(vbicq_u32(
+        vreinterpretq_u32_f32(v),
+        vcltq_f32(x, vdupq_n_f32(EXP_MIN)),
+    ));
+    let v = vbslq_f32(
+        vcgtq_f32(x, vdupq_n_f32(EXP_MAX)),
+        vdupq_n_f32(f32::INFINITY),
+        v,
+    );
+    // NaN lanes (the only ones unequal to themselves) return themselves.
+    vbslq_f32(vceqq_f32(x, x), v, x)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn exp_lanes_equal_the_scalar_exp_bit_for_bit() {
+        let mut xs: std::vec::Vec<f32> = (0..=u32::MAX / 4099)
+            .map(|i| f32::from_bits(i * 4099))
+            .collect();
+        let mut x = -110.0f32;
+        while x < 90.0 {
+            xs.push(x);
+            x += 0.000_917;
+        }
+        for b in [
+            EXP_MAX,
+            EXP_MIN,
+            0.0,
+            -0.0,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+        ] {
+            for d in -3i32..=3 {
+                xs.push(f32::from_bits(b.to_bits().wrapping_add_signed(d)));
+            }
+        }
+        xs.push(f32::NAN);
+        while !xs.len().is_multiple_of(4) {
+            xs.push(-1.0);
+        }
+        for c in xs.chunks_exact(4) {
+            let mut got = [0f32; 4];
+            // SAFETY: NEON is part of every aarch64 target these tests run on; `got` and `c`
+            // hold 4 floats each.
+            unsafe { vst1q_f32(got.as_mut_ptr(), exp_f32x4(vld1q_f32(c.as_ptr()))) };
+            for (g, &x) in got.iter().zip(c) {
+                let want = crate::fmath::exp_f32(x);
+                assert!(
+                    g.to_bits() == want.to_bits() || (g.is_nan() && want.is_nan()),
+                    "exp_f32({x:e}) = {g:e} vs {want:e}"
+                );
+            }
+        }
+    }
 
     #[test]
     fn lanes_equal_the_scalar_softmax_weight_bit_for_bit() {
