@@ -254,41 +254,59 @@ impl<'a> ZoneGate<'a> {
     }
 
     /// One 3×3 convolution at `qw × qh`, zero padding equal to the dilation; each output sums
-    /// its bias, then the inputs in (channel, row, column) order.
+    /// its bias, then the inputs in (channel, row, column) order (in NEON on aarch64:
+    /// `kernels::aarch64::zone_gate`, the same bits).
     fn conv(&self, layer: &Layer, (qw, qh): (usize, usize), src: &[f32], dst: &mut [f32]) {
-        let plane = qw * qh;
-        let d = layer.dilation as isize;
-        let bias_at = layer.offset + 4 * layer.outputs * layer.inputs * 9;
-        for (o, out) in dst[..layer.outputs * plane]
-            .chunks_exact_mut(plane)
-            .enumerate()
-        {
-            out.fill(f32_at(self.bytes, bias_at + 4 * o));
-            for (i, input) in src[..layer.inputs * plane].chunks_exact(plane).enumerate() {
-                for tap in 0..9 {
-                    let w = f32_at(
-                        self.bytes,
-                        layer.offset + 4 * ((o * layer.inputs + i) * 9 + tap),
-                    );
-                    let (dy, dx) = ((tap / 3) as isize - 1, (tap % 3) as isize - 1);
-                    let (dy, dx) = (dy * d, dx * d);
-                    // Output columns whose input column x + dx is inside the plane.
-                    let x0 = (-dx).clamp(0, qw as isize) as usize;
-                    let x1 = (qw as isize - dx).clamp(0, qw as isize) as usize;
-                    if x0 >= x1 {
+        let end = layer.offset + 4 * (layer.outputs * layer.inputs * 9 + layer.outputs);
+        let shape = (layer.inputs, layer.outputs, layer.dilation);
+        let body = &self.bytes[layer.offset..end];
+        #[cfg(target_arch = "aarch64")]
+        if crate::kernels::isa::Isa::Neon.available() {
+            // SAFETY: NEON is available (checked just above).
+            unsafe { crate::kernels::aarch64::zone_gate::conv3x3(body, shape, (qw, qh), src, dst) };
+            return;
+        }
+        conv3x3(body, shape, (qw, qh), src, dst);
+    }
+}
+
+/// The portable 3×3 convolution of a layer (`layer`: `outputs · inputs · 9` little-endian
+/// weights, then `outputs` biases) at `qw × qh`, zero padding equal to the dilation: each
+/// output starts at its bias and adds `weight · input` for its inputs in (channel, row, column)
+/// order, skipping the taps outside the plane.
+pub(crate) fn conv3x3(
+    layer: &[u8],
+    (inputs, outputs, dilation): (usize, usize, usize),
+    (qw, qh): (usize, usize),
+    src: &[f32],
+    dst: &mut [f32],
+) {
+    let plane = qw * qh;
+    let d = dilation as isize;
+    let bias_at = 4 * outputs * inputs * 9;
+    for (o, out) in dst[..outputs * plane].chunks_exact_mut(plane).enumerate() {
+        out.fill(f32_at(layer, bias_at + 4 * o));
+        for (i, input) in src[..inputs * plane].chunks_exact(plane).enumerate() {
+            for tap in 0..9 {
+                let w = f32_at(layer, 4 * ((o * inputs + i) * 9 + tap));
+                let (dy, dx) = ((tap / 3) as isize - 1, (tap % 3) as isize - 1);
+                let (dy, dx) = (dy * d, dx * d);
+                // Output columns whose input column x + dx is inside the plane.
+                let x0 = (-dx).clamp(0, qw as isize) as usize;
+                let x1 = (qw as isize - dx).clamp(0, qw as isize) as usize;
+                if x0 >= x1 {
+                    continue;
+                }
+                for y in 0..qh {
+                    let sy = y as isize + dy;
+                    if sy < 0 || sy >= qh as isize {
                         continue;
                     }
-                    for y in 0..qh {
-                        let sy = y as isize + dy;
-                        if sy < 0 || sy >= qh as isize {
-                            continue;
-                        }
-                        let row = &mut out[y * qw + x0..y * qw + x1];
-                        let start = (sy as usize * qw) as isize + x0 as isize + dx;
-                        let inp = &input[start as usize..start as usize + (x1 - x0)];
-                        for (r, v) in row.iter_mut().zip(inp) {
-                            *r += w * *v;
-                        }
+                    let row = &mut out[y * qw + x0..y * qw + x1];
+                    let start = (sy as usize * qw) as isize + x0 as isize + dx;
+                    let inp = &input[start as usize..start as usize + (x1 - x0)];
+                    for (r, v) in row.iter_mut().zip(inp) {
+                        *r += w * *v;
                     }
                 }
             }
@@ -306,25 +324,15 @@ fn pool_features(
     dst: &mut [f32],
 ) {
     let plane = qw * qh;
-    let log_depth = |d: f32| -> f32 {
-        let d = if d.is_finite() {
-            d.max(MIN_DEPTH_M)
-        } else {
-            MIN_DEPTH_M
-        };
-        ln_f32(d)
-    };
     for cy in 0..qh {
         for cx in 0..qw {
             let mut sum = [0.0f32; FEATURES];
             for y in cy * POOL..(cy + 1) * POOL {
-                for x in cx * POOL..(cx + 1) * POOL {
-                    let p = y * width + x;
-                    let l = [
-                        log_depth(candidates[0][p]),
-                        log_depth(candidates[1][p]),
-                        log_depth(candidates[2][p]),
-                    ];
+                let p0 = y * width + cx * POOL;
+                let [l0, l1, l2] = candidates.map(|c| log_depths(&c[p0..p0 + POOL]));
+                for (j, ((&a, &b), &c)) in l0.iter().zip(&l1).zip(&l2).enumerate() {
+                    let p = p0 + j;
+                    let l = [a, b, c];
                     let f = [
                         l[0],
                         l[1],
@@ -347,9 +355,35 @@ fn pool_features(
     }
 }
 
+/// `ln` of [`POOL`] depths, each first made finite and at least [`MIN_DEPTH_M`] (NaN and ±inf
+/// become [`MIN_DEPTH_M`]): in NEON on aarch64, else one by one (the same bits).
+#[inline(always)]
+fn log_depths(d: &[f32]) -> [f32; POOL] {
+    let mut v = [0.0f32; POOL];
+    for (o, &x) in v.iter_mut().zip(d) {
+        *o = if x.is_finite() {
+            x.max(MIN_DEPTH_M)
+        } else {
+            MIN_DEPTH_M
+        };
+    }
+    #[cfg(target_arch = "aarch64")]
+    if crate::kernels::isa::Isa::Neon.available() {
+        use core::arch::aarch64::{vld1q_f32, vst1q_f32};
+        const _: () = assert!(POOL == 4, "one NEON register per row of a cell");
+        // SAFETY: NEON is available (checked just above); `v` holds 4 floats.
+        unsafe {
+            let l = crate::kernels::aarch64::vmath::ln_f32x4(vld1q_f32(v.as_ptr()));
+            vst1q_f32(v.as_mut_ptr(), l);
+        }
+        return v;
+    }
+    v.map(ln_f32)
+}
+
 /// Source cell and weight of output coordinate `i` when upsampling `n` cells by [`POOL`]
 /// (pixel centres aligned, clamped at 0 and at the last cell).
-fn source(i: usize, n: usize) -> (usize, usize, f32) {
+pub(crate) fn upsample_source(i: usize, n: usize) -> (usize, usize, f32) {
     let s = ((i as f32 + 0.5) / POOL as f32 - 0.5).max(0.0);
     let i0 = (s as usize).min(n - 1);
     (i0, (i0 + 1).min(n - 1), s - i0 as f32)
@@ -364,11 +398,36 @@ fn blend(
     (qw, qh): (usize, usize),
     out: &mut [f32],
 ) {
+    #[cfg(target_arch = "aarch64")]
+    if crate::kernels::isa::Isa::Neon.available() && width % 4 == 0 {
+        // SAFETY: NEON is available (checked just above).
+        unsafe {
+            crate::kernels::aarch64::zone_gate::blend(
+                candidates,
+                logits,
+                (width, height),
+                (qw, qh),
+                out,
+            )
+        };
+        return;
+    }
+    blend_portable(candidates, logits, (width, height), (qw, qh), out);
+}
+
+/// [`blend`] in portable code (each pixel on its own).
+pub(crate) fn blend_portable(
+    candidates: &[&[f32]; CANDIDATES],
+    logits: &[f32],
+    (width, height): (usize, usize),
+    (qw, qh): (usize, usize),
+    out: &mut [f32],
+) {
     let plane = qw * qh;
     for y in 0..height {
-        let (y0, y1, fy) = source(y, qh);
+        let (y0, y1, fy) = upsample_source(y, qh);
         for x in 0..width {
-            let (x0, x1, fx) = source(x, qw);
+            let (x0, x1, fx) = upsample_source(x, qw);
             let mut z = [0.0f32; CANDIDATES];
             for (k, zk) in z.iter_mut().enumerate() {
                 let l = &logits[k * plane..(k + 1) * plane];

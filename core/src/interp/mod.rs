@@ -62,8 +62,12 @@ pub(crate) struct Group {
 
 /// `[f(0), …, f(LANES − 1)]`.
 #[inline(always)]
-fn lanes<T>(f: impl FnMut(usize) -> T) -> [T; LANES] {
-    core::array::from_fn(f)
+fn lanes(mut f: impl FnMut(usize) -> f32) -> [f32; LANES] {
+    let mut v = [0.0; LANES];
+    for (l, x) in v.iter_mut().enumerate() {
+        *x = f(l);
+    }
+    v
 }
 /// No point in this zone (the zone table's empty slot).
 const NONE: u32 = u32::MAX;

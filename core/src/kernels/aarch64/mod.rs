@@ -13,3 +13,4 @@ pub mod refine;
 pub mod requant;
 pub mod resize;
 pub mod vmath;
+pub mod zone_gate;

@@ -1,5 +1,5 @@
-//! NEON `e^x`, bit for bit the scalar routines per lane: the softmax weight
-//! (`crate::fmath::softmax_exp`) and the general `crate::fmath::exp_f32`. The same IEEE
+//! NEON `e^x` and `ln x`, bit for bit the scalar routines per lane: the softmax weight
+//! (`crate::fmath::softmax_exp`), the general `crate::fmath::exp_f32` and `crate::fmath::ln_f32`. The same IEEE
 //! operations in the same order (separate multiplies and adds, never fused), `FCVTZS`
 //! truncating as Rust's `as` does (NaN → 0, saturating), the softmax table's bytes read with
 //! `TBL`.
@@ -91,9 +91,94 @@ pub unsafe fn exp_f32x4(x: float32x4_t) -> float32x4_t {
     vbslq_f32(vceqq_f32(x, x), v, x)
 }
 
+/// `ln_f32` of 4 lanes (NaN for NaN, zero, negative or subnormal lanes, `+inf` for `+inf`).
+///
+/// # Safety
+/// The CPU must have NEON.
+#[target_feature(enable = "neon")]
+#[inline]
+pub unsafe fn ln_f32x4(x: float32x4_t) -> float32x4_t {
+    let bits = vreinterpretq_u32_f32(x);
+    let e = vsubq_s32(
+        vreinterpretq_s32_u32(vandq_u32(vshrq_n_u32::<23>(bits), vdupq_n_u32(0xff))),
+        vdupq_n_s32(127),
+    );
+    let m = vreinterpretq_f32_u32(vorrq_u32(
+        vandq_u32(bits, vdupq_n_u32(0x007f_ffff)),
+        vdupq_n_u32(0x3f80_0000),
+    ));
+    // m > √2: halve it and count one more in the exponent (the mask is −1).
+    let big = vcgtq_f32(m, vdupq_n_f32(core::f32::consts::SQRT_2));
+    let m = vbslq_f32(big, vmulq_f32(m, vdupq_n_f32(0.5)), m);
+    let e = vsubq_s32(e, vreinterpretq_s32_u32(big));
+    let one = vdupq_n_f32(1.0);
+    let s = vdivq_f32(vsubq_f32(m, one), vaddq_f32(m, one));
+    let s2 = vmulq_f32(s, s);
+    let mut t = vaddq_f32(
+        vdupq_n_f32(2.0 / 7.0),
+        vmulq_f32(s2, vdupq_n_f32(2.0 / 9.0)),
+    );
+    for c in [0.4, 2.0 / 3.0, 2.0] {
+        t = vaddq_f32(vdupq_n_f32(c), vmulq_f32(s2, t));
+    }
+    let series = vmulq_f32(s, t);
+    let ef = vcvtq_f32_s32(e);
+    let v = vaddq_f32(
+        vmulq_f32(ef, vdupq_n_f32(LN2_HI)),
+        vaddq_f32(series, vmulq_f32(ef, vdupq_n_f32(LN2_LO))),
+    );
+    let v = vbslq_f32(vceqq_f32(x, vdupq_n_f32(f32::INFINITY)), x, v);
+    // Not ≥ the smallest normal (NaN included): NaN.
+    vbslq_f32(
+        vcgeq_f32(x, vdupq_n_f32(f32::MIN_POSITIVE)),
+        v,
+        vdupq_n_f32(f32::NAN),
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn ln_lanes_equal_the_scalar_ln_bit_for_bit() {
+        let mut xs: std::vec::Vec<f32> = (0..=u32::MAX / 4099)
+            .map(|i| f32::from_bits(i * 4099))
+            .collect();
+        let mut x = 0.05f32;
+        while x < 20.0 {
+            xs.push(x);
+            x *= 1.000_13;
+        }
+        for b in [
+            f32::MIN_POSITIVE,
+            core::f32::consts::SQRT_2,
+            1.0,
+            f32::INFINITY,
+            0.0,
+        ] {
+            for d in -3i32..=3 {
+                xs.push(f32::from_bits(b.to_bits().wrapping_add_signed(d)));
+            }
+        }
+        xs.extend([f32::NAN, -1.0, -0.0, f32::NEG_INFINITY]);
+        while !xs.len().is_multiple_of(4) {
+            xs.push(1.0);
+        }
+        for c in xs.chunks_exact(4) {
+            let mut got = [0f32; 4];
+            // SAFETY: NEON is part of every aarch64 target these tests run on; `got` and `c`
+            // hold 4 floats each.
+            unsafe { vst1q_f32(got.as_mut_ptr(), ln_f32x4(vld1q_f32(c.as_ptr()))) };
+            for (g, &x) in got.iter().zip(c) {
+                let want = crate::fmath::ln_f32(x);
+                assert!(
+                    g.to_bits() == want.to_bits() || (g.is_nan() && want.is_nan()),
+                    "ln_f32({x:e}) = {g:e} vs {want:e}"
+                );
+            }
+        }
+    }
 
     #[test]
     fn exp_lanes_equal_the_scalar_exp_bit_for_bit() {
