@@ -329,7 +329,9 @@ fn pool_features(
             let mut sum = [0.0f32; FEATURES];
             for y in cy * POOL..(cy + 1) * POOL {
                 let p0 = y * width + cx * POOL;
-                let [l0, l1, l2] = candidates.map(|c| log_depths(&c[p0..p0 + POOL]));
+                let l0 = log_depths(&candidates[0][p0..p0 + POOL]);
+                let l1 = log_depths(&candidates[1][p0..p0 + POOL]);
+                let l2 = log_depths(&candidates[2][p0..p0 + POOL]);
                 for (j, ((&a, &b), &c)) in l0.iter().zip(&l1).zip(&l2).enumerate() {
                     let p = p0 + j;
                     let l = [a, b, c];

@@ -2,7 +2,7 @@
 //!
 //! [`conv3x3`]: every output starts at its bias and adds `weight · input` for its inputs in (channel, row,
 //! column) order, taps outside the plane skipped (zero padding), with separate multiplies and
-//! adds. Here 4 output channels × 4 columns are kept in registers over all the taps; near the
+//! adds. Here 4 output channels × 8 (or 4) columns are kept in registers over all the taps; near the
 //! sides a lane keeps its sum (a select) where its tap leaves the plane.
 //!
 //! [`blend`]: 4 pixels of a row at once, each lane the portable blend's operations in order
@@ -70,10 +70,42 @@ pub(crate) unsafe fn conv3x3(
             for (ky, r) in rows.iter_mut().enumerate() {
                 *r = (y + ky * d).checked_sub(d).filter(|&sy| sy < qh);
             }
-            for x in (0..qw).step_by(4) {
+            // Inside the plane 8 columns at a time (two vectors share each weight load), else 4.
+            let mut x = 0;
+            while x < qw {
                 let mut acc = [vdupq_n_f32(0.0); 4];
                 for (k, a) in acc.iter_mut().enumerate().take(n) {
                     *a = vdupq_n_f32(bias(ob + k));
+                }
+                if x >= d && x + 8 + d <= qw {
+                    let mut acc2 = acc;
+                    // SAFETY: `x − d ≥ 0` and `x + 7 + d < qw`: every load reads 4 floats of
+                    // row `sy < qh` of plane `i < inputs`, inside `src`.
+                    unsafe {
+                        for i in 0..inputs {
+                            let base = src.as_ptr().add(i * plane);
+                            for (ky, sy) in rows.iter().enumerate() {
+                                let Some(sy) = *sy else { continue };
+                                let row = base.add(sy * qw + x - d);
+                                for kx in 0..3 {
+                                    let w = vld1q_f32(wv[i * 9 + ky * 3 + kx].as_ptr());
+                                    acc = madd4(acc, vld1q_f32(row.add(kx * d)), w);
+                                    acc2 = madd4(acc2, vld1q_f32(row.add(kx * d + 4)), w);
+                                }
+                            }
+                        }
+                    }
+                    for (k, (a, a2)) in acc.iter().zip(&acc2).enumerate().take(n) {
+                        let at = (ob + k) * plane + y * qw + x;
+                        let out = &mut dst[at..at + 8];
+                        // SAFETY: `out` holds 8 floats.
+                        unsafe {
+                            vst1q_f32(out.as_mut_ptr(), *a);
+                            vst1q_f32(out.as_mut_ptr().add(4), *a2);
+                        }
+                    }
+                    x += 8;
+                    continue;
                 }
                 if x >= d && x + 4 + d <= qw {
                     // SAFETY: `x − d ≥ 0` and `x + 3 + d < qw`: every load reads 4 floats of
@@ -141,6 +173,7 @@ pub(crate) unsafe fn conv3x3(
                     unsafe { vst1q_f32(lanes.as_mut_ptr(), *a) };
                     dst[at..at + valid].copy_from_slice(&lanes[..valid]);
                 }
+                x += 4;
             }
         }
     }
@@ -170,11 +203,12 @@ pub(crate) unsafe fn blend(
         let (fy, gy) = (vdupq_n_f32(fy), vdupq_n_f32(1.0 - fy));
         for x in (0..width).step_by(4) {
             let mut s = [(0usize, 0usize, 0.0f32); 4];
+            let (mut fxa, mut gxa) = ([0.0f32; 4], [0.0f32; 4]);
             for (l, c) in s.iter_mut().enumerate() {
                 *c = source(x + l, qw);
+                (fxa[l], gxa[l]) = (c.2, 1.0 - c.2);
             }
-            let fx = load(s.map(|c| c.2));
-            let gx = load(s.map(|c| 1.0 - c.2));
+            let (fx, gx) = (load(fxa), load(gxa));
             let mut z = [vdupq_n_f32(0.0); 3];
             for (k, zk) in z.iter_mut().enumerate() {
                 let l = &logits[k * plane..(k + 1) * plane];
@@ -186,7 +220,7 @@ pub(crate) unsafe fn blend(
                     g[2][i] = l[y1 * qw + c.0];
                     g[3][i] = l[y1 * qw + c.1];
                 }
-                let [a, b, c, e] = g.map(load);
+                let (a, b, c, e) = (load(g[0]), load(g[1]), load(g[2]), load(g[3]));
                 let top = vaddq_f32(vmulq_f32(a, gx), vmulq_f32(b, fx));
                 let bottom = vaddq_f32(vmulq_f32(c, gx), vmulq_f32(e, fx));
                 *zk = vaddq_f32(vmulq_f32(top, gy), vmulq_f32(bottom, fy));
