@@ -126,6 +126,10 @@ pub struct JointBilateral<'a> {
     row_zones: &'a [u32],
     /// Per pixel column, the zone columns likewise.
     col_zones: &'a [u32],
+    /// Per zone row, the smallest and largest `v` of its points (f32 bits; +inf, −inf: none).
+    row_span: &'a [u32],
+    /// Per zone column, the same of `u`.
+    col_span: &'a [u32],
     spacing: f32,
 }
 
@@ -231,6 +235,8 @@ impl<'a> JointBilateral<'a> {
             table,
             row_zones,
             col_zones,
+            row_span,
+            col_span,
             spacing,
         })
     }
@@ -374,13 +380,59 @@ impl<'a> JointBilateral<'a> {
     }
 
     /// The depth of the point nearest pixel `(x, y)` (the first of equals).
+    ///
+    /// Zone rows and columns whose points all lie farther than a point already found are
+    /// skipped: a row's `|p.v − y|` is at least its span's distance from `y` (rounding is
+    /// monotonic, so the f32 `d` of each of its points is at least that distance squared), and
+    /// a skipped point is strictly farther than the nearest one, so neither the nearest point
+    /// nor the first of equals changes. The first bound is the nearest of the pixel's reach
+    /// rectangle.
     fn nearest(&self, x: usize, y: usize) -> f32 {
+        let (xf, yf) = (x as f32, y as f32);
+        let dist = |p: &ProjectedPoint| {
+            let (du, dv) = (p.u - xf, p.v - yf);
+            du * du + dv * dv
+        };
+        let point = |zr: usize, zc: usize| {
+            let i = self.table[zr * self.cols + zc];
+            (i != NONE).then(|| &self.points[i as usize])
+        };
+        let span = |z: u32| (z >> 16) as usize..(z & 0xffff) as usize;
+        let mut bound = f32::INFINITY;
+        for zr in span(self.row_zones[y]) {
+            for zc in span(self.col_zones[x]) {
+                if let Some(p) = point(zr, zc) {
+                    bound = bound.min(dist(p));
+                }
+            }
+        }
+        // The square of `at`'s distance from the span `[lo, hi]` (f32 bits), in f32.
+        let below = |span: &[u32], at: f32| {
+            let (lo, hi) = (f32::from_bits(span[0]), f32::from_bits(span[1]));
+            let gap = if at < lo {
+                lo - at
+            } else if at > hi {
+                at - hi
+            } else {
+                0.0
+            };
+            gap * gap
+        };
         let mut best = (f32::INFINITY, 0.0);
-        for p in self.points {
-            let (du, dv) = (p.u - x as f32, p.v - y as f32);
-            let d = du * du + dv * dv;
-            if d < best.0 {
-                best = (d, p.depth_m);
+        for (zr, rs) in self.row_span.chunks_exact(2).enumerate() {
+            if below(rs, yf) > bound {
+                continue;
+            }
+            for (zc, cs) in self.col_span.chunks_exact(2).enumerate() {
+                if below(cs, xf) > bound {
+                    continue;
+                }
+                if let Some(p) = point(zr, zc) {
+                    let d = dist(p);
+                    if d < best.0 {
+                        best = (d, p.depth_m);
+                    }
+                }
             }
         }
         best.1
@@ -513,10 +565,22 @@ mod tests {
             (64, 48, 30, 40, 4),
         ] {
             let (points, rgb) = scene(w, h, rows, cols, seed);
-            let got = run(&points, &rgb, w, h, (rows, cols));
-            let want = every_point(&points, &rgb, w, h);
-            for (i, (g, e)) in got.iter().zip(&want).enumerate() {
-                assert_eq!(g.to_bits(), e.to_bits(), "{w}x{h} pixel {i}: {g} vs {e}");
+            // Also with colours random over the whole range: most weights underflow, so most
+            // pixels take the nearest point.
+            let mut s = seed;
+            let noisy: Vec<u8> = rgb
+                .iter()
+                .map(|_| {
+                    s = s.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                    (s >> 24) as u8
+                })
+                .collect();
+            for rgb in [rgb, noisy] {
+                let got = run(&points, &rgb, w, h, (rows, cols));
+                let want = every_point(&points, &rgb, w, h);
+                for (i, (g, e)) in got.iter().zip(&want).enumerate() {
+                    assert_eq!(g.to_bits(), e.to_bits(), "{w}x{h} pixel {i}: {g} vs {e}");
+                }
             }
         }
     }
