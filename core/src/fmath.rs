@@ -294,7 +294,7 @@ fn pow2i(k: i32) -> f32 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     fn rel(a: f64, b: f64) -> f64 {
@@ -361,26 +361,36 @@ mod tests {
         }
     }
 
-    /// The lane form equals the scalar one bit for bit: a sweep of every 613th f32 bit pattern
-    /// of both signs (NaN, infinities, subnormals, both range limits and their neighbours).
-    #[test]
-    fn exp_f32_lanes_equals_exp_f32() {
-        let mut xs: std::vec::Vec<f32> = (0..=u32::MAX / 613)
-            .map(|i| f32::from_bits(i * 613))
+    /// Test inputs: every `step`-th f32 bit pattern (both signs: NaN, infinities, subnormals),
+    /// each of `points` with its 3 neighbours on either side, and NaN.
+    pub(crate) fn bit_sweep(step: u32, points: &[f32]) -> std::vec::Vec<f32> {
+        let mut xs: std::vec::Vec<f32> = (0..=u32::MAX / step)
+            .map(|i| f32::from_bits(i * step))
             .collect();
-        for b in [
-            EXP_MAX,
-            EXP_MIN,
-            0.0,
-            -0.0,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-        ] {
+        for b in points {
             for d in -3i32..=3 {
                 xs.push(f32::from_bits(b.to_bits().wrapping_add_signed(d)));
             }
         }
         xs.push(f32::NAN);
+        xs
+    }
+
+    /// `exp_f32`'s range limits and the signed zeros and infinities.
+    pub(crate) const EXP_EDGES: [f32; 6] = [
+        EXP_MAX,
+        EXP_MIN,
+        0.0,
+        -0.0,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+    ];
+
+    /// The lane form equals the scalar one bit for bit: a sweep of every 613th f32 bit pattern
+    /// and both range limits with their neighbours.
+    #[test]
+    fn exp_f32_lanes_equals_exp_f32() {
+        let xs = bit_sweep(613, &EXP_EDGES);
         let mut in_range = 0;
         for c in xs.chunks(4) {
             let mut lanes = [0.0f32; 4];

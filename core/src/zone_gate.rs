@@ -101,7 +101,8 @@ fn u16_at(bytes: &[u8], at: usize, field: &'static str) -> Result<u16, GateError
         .ok_or(GateError::Truncated(field))
 }
 
-fn f32_at(bytes: &[u8], at: usize) -> f32 {
+/// The little-endian `f32` at byte `at` (0 past the end: `parse` checked every offset).
+pub(crate) fn f32_at(bytes: &[u8], at: usize) -> f32 {
     // Offsets were checked against the length by `parse`.
     bytes
         .get(at..at + 4)

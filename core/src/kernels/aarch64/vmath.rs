@@ -139,86 +139,63 @@ pub unsafe fn ln_f32x4(x: float32x4_t) -> float32x4_t {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fmath::tests::{bit_sweep, EXP_EDGES};
 
-    #[test]
-    fn ln_lanes_equal_the_scalar_ln_bit_for_bit() {
-        let mut xs: std::vec::Vec<f32> = (0..=u32::MAX / 4099)
-            .map(|i| f32::from_bits(i * 4099))
-            .collect();
-        let mut x = 0.05f32;
-        while x < 20.0 {
-            xs.push(x);
-            x *= 1.000_13;
-        }
-        for b in [
-            f32::MIN_POSITIVE,
-            core::f32::consts::SQRT_2,
-            1.0,
-            f32::INFINITY,
-            0.0,
-        ] {
-            for d in -3i32..=3 {
-                xs.push(f32::from_bits(b.to_bits().wrapping_add_signed(d)));
-            }
-        }
-        xs.extend([f32::NAN, -1.0, -0.0, f32::NEG_INFINITY]);
+    /// Runs `lanes` on `xs` 4 at a time (padded with `pad`) and compares each lane with
+    /// `scalar` bit for bit (any NaN equals any NaN).
+    fn assert_lanes_equal(
+        mut xs: std::vec::Vec<f32>,
+        pad: f32,
+        // SAFETY: a NEON routine, called below on the aarch64 targets these tests run on.
+        lanes: unsafe fn(float32x4_t) -> float32x4_t,
+        scalar: fn(f32) -> f32,
+    ) {
         while !xs.len().is_multiple_of(4) {
-            xs.push(1.0);
+            xs.push(pad);
         }
         for c in xs.chunks_exact(4) {
             let mut got = [0f32; 4];
             // SAFETY: NEON is part of every aarch64 target these tests run on; `got` and `c`
             // hold 4 floats each.
-            unsafe { vst1q_f32(got.as_mut_ptr(), ln_f32x4(vld1q_f32(c.as_ptr()))) };
+            unsafe { vst1q_f32(got.as_mut_ptr(), lanes(vld1q_f32(c.as_ptr()))) };
             for (g, &x) in got.iter().zip(c) {
-                let want = crate::fmath::ln_f32(x);
+                let want = scalar(x);
                 assert!(
                     g.to_bits() == want.to_bits() || (g.is_nan() && want.is_nan()),
-                    "ln_f32({x:e}) = {g:e} vs {want:e}"
+                    "f({x:e}) = {g:e} vs {want:e}"
                 );
             }
         }
     }
 
     #[test]
+    fn ln_lanes_equal_the_scalar_ln_bit_for_bit() {
+        let edges = [
+            f32::MIN_POSITIVE,
+            core::f32::consts::SQRT_2,
+            1.0,
+            f32::INFINITY,
+            0.0,
+        ];
+        let mut xs = bit_sweep(4099, &edges);
+        let mut x = 0.05f32;
+        while x < 20.0 {
+            xs.push(x);
+            x *= 1.000_13;
+        }
+        xs.extend([-1.0, -0.0, f32::NEG_INFINITY]);
+        assert_lanes_equal(xs, 1.0, ln_f32x4, crate::fmath::ln_f32);
+    }
+
+    #[test]
     fn exp_lanes_equal_the_scalar_exp_bit_for_bit() {
-        let mut xs: std::vec::Vec<f32> = (0..=u32::MAX / 4099)
-            .map(|i| f32::from_bits(i * 4099))
-            .collect();
+        let mut xs = bit_sweep(4099, &EXP_EDGES);
         let mut x = -110.0f32;
         while x < 90.0 {
             xs.push(x);
             x += 0.000_917;
         }
-        for b in [
-            EXP_MAX,
-            EXP_MIN,
-            0.0,
-            -0.0,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-        ] {
-            for d in -3i32..=3 {
-                xs.push(f32::from_bits(b.to_bits().wrapping_add_signed(d)));
-            }
-        }
-        xs.push(f32::NAN);
-        while !xs.len().is_multiple_of(4) {
-            xs.push(-1.0);
-        }
-        for c in xs.chunks_exact(4) {
-            let mut got = [0f32; 4];
-            // SAFETY: NEON is part of every aarch64 target these tests run on; `got` and `c`
-            // hold 4 floats each.
-            unsafe { vst1q_f32(got.as_mut_ptr(), exp_f32x4(vld1q_f32(c.as_ptr()))) };
-            for (g, &x) in got.iter().zip(c) {
-                let want = crate::fmath::exp_f32(x);
-                assert!(
-                    g.to_bits() == want.to_bits() || (g.is_nan() && want.is_nan()),
-                    "exp_f32({x:e}) = {g:e} vs {want:e}"
-                );
-            }
-        }
+        assert_lanes_equal(xs, -1.0, exp_f32x4, crate::fmath::exp_f32);
     }
 
     #[test]
@@ -230,20 +207,6 @@ mod tests {
             x += 0.000_731;
         }
         xs.extend([0.0, -0.0, f32::NAN, f32::NEG_INFINITY, -80.0, -80.000_01]);
-        while xs.len() % 4 != 0 {
-            xs.push(-1.0);
-        }
-        for c in xs.chunks_exact(4) {
-            let mut got = [0f32; 4];
-            // SAFETY: NEON is part of every aarch64 target these tests run on.
-            unsafe { vst1q_f32(got.as_mut_ptr(), softmax_exp_f32x4(vld1q_f32(c.as_ptr()))) };
-            for (g, &x) in got.iter().zip(c) {
-                let want = crate::fmath::softmax_exp(x);
-                assert!(
-                    g.to_bits() == want.to_bits() || (g.is_nan() && want.is_nan()),
-                    "softmax_exp({x}) = {g} vs {want}"
-                );
-            }
-        }
+        assert_lanes_equal(xs, -1.0, softmax_exp_f32x4, crate::fmath::softmax_exp);
     }
 }

@@ -9,15 +9,8 @@
 //! (bilinear logits, their maximum, `exp`, the weighted sums, the finite check).
 
 use super::vmath::exp_f32x4;
+use crate::zone_gate::f32_at;
 use core::arch::aarch64::*;
-
-/// The weight of output `o`, input `i`, tap `t` of a layer stored as `outputs · inputs · 9`
-/// little-endian `f32` (the biases follow).
-#[inline(always)]
-fn weight(bytes: &[u8], inputs: usize, o: usize, i: usize, t: usize) -> f32 {
-    let a = 4 * ((o * inputs + i) * 9 + t);
-    f32::from_le_bytes([bytes[a], bytes[a + 1], bytes[a + 2], bytes[a + 3]])
-}
 
 /// `acc[k] + v · w[k]` for the 4 output channels `k` (a multiply, then an add).
 #[target_feature(enable = "neon")]
@@ -48,10 +41,6 @@ pub(crate) unsafe fn conv3x3(
     let plane = qw * qh;
     let d = dilation;
     let bias_at = 4 * outputs * inputs * 9;
-    let bias = |o: usize| {
-        let a = bias_at + 4 * o;
-        f32::from_le_bytes([layer[a], layer[a + 1], layer[a + 2], layer[a + 3]])
-    };
     let src = &src[..inputs * plane];
     let dst = &mut dst[..outputs * plane];
     for ob in (0..outputs).step_by(4) {
@@ -61,8 +50,12 @@ pub(crate) unsafe fn conv3x3(
         let mut wv = [[0.0f32; 4]; crate::zone_gate::MAX_CHANNELS * 9];
         for (it, w) in wv.iter_mut().enumerate().take(inputs * 9) {
             for (k, v) in w.iter_mut().enumerate().take(n) {
-                *v = weight(layer, inputs, ob + k, it / 9, it % 9);
+                *v = f32_at(layer, 4 * ((ob + k) * inputs * 9 + it));
             }
+        }
+        let mut bias = [vdupq_n_f32(0.0); 4];
+        for (k, b) in bias.iter_mut().enumerate().take(n) {
+            *b = vdupq_n_f32(f32_at(layer, bias_at + 4 * (ob + k)));
         }
         for y in 0..qh {
             // The kernel rows inside the plane for this output row.
@@ -70,112 +63,145 @@ pub(crate) unsafe fn conv3x3(
             for (ky, r) in rows.iter_mut().enumerate() {
                 *r = (y + ky * d).checked_sub(d).filter(|&sy| sy < qh);
             }
+            let at = Taps {
+                src,
+                wv: &wv[..inputs * 9],
+                rows,
+                plane,
+                qw,
+                d,
+            };
             // Inside the plane 8 columns at a time (two vectors share each weight load), else 4.
             let mut x = 0;
             while x < qw {
-                let mut acc = [vdupq_n_f32(0.0); 4];
-                for (k, a) in acc.iter_mut().enumerate().take(n) {
-                    *a = vdupq_n_f32(bias(ob + k));
-                }
-                if x >= d && x + 8 + d <= qw {
-                    let mut acc2 = acc;
-                    // SAFETY: `x − d ≥ 0` and `x + 7 + d < qw`: every load reads 4 floats of
-                    // row `sy < qh` of plane `i < inputs`, inside `src`.
-                    unsafe {
-                        for i in 0..inputs {
-                            let base = src.as_ptr().add(i * plane);
-                            for (ky, sy) in rows.iter().enumerate() {
-                                let Some(sy) = *sy else { continue };
-                                let row = base.add(sy * qw + x - d);
-                                for kx in 0..3 {
-                                    let w = vld1q_f32(wv[i * 9 + ky * 3 + kx].as_ptr());
-                                    acc = madd4(acc, vld1q_f32(row.add(kx * d)), w);
-                                    acc2 = madd4(acc2, vld1q_f32(row.add(kx * d + 4)), w);
-                                }
-                            }
-                        }
-                    }
-                    for (k, (a, a2)) in acc.iter().zip(&acc2).enumerate().take(n) {
-                        let at = (ob + k) * plane + y * qw + x;
-                        let out = &mut dst[at..at + 8];
-                        // SAFETY: `out` holds 8 floats.
-                        unsafe {
-                            vst1q_f32(out.as_mut_ptr(), *a);
-                            vst1q_f32(out.as_mut_ptr().add(4), *a2);
-                        }
-                    }
-                    x += 8;
-                    continue;
-                }
-                if x >= d && x + 4 + d <= qw {
-                    // SAFETY: `x − d ≥ 0` and `x + 3 + d < qw`: every load reads 4 floats of
-                    // row `sy < qh` of plane `i < inputs`, inside `src`.
-                    unsafe {
-                        for i in 0..inputs {
-                            let base = src.as_ptr().add(i * plane);
-                            for (ky, sy) in rows.iter().enumerate() {
-                                let Some(sy) = *sy else { continue };
-                                let row = base.add(sy * qw + x - d);
-                                for kx in 0..3 {
-                                    let v = vld1q_f32(row.add(kx * d));
-                                    let w = vld1q_f32(wv[i * 9 + ky * 3 + kx].as_ptr());
-                                    acc = madd4(acc, v, w);
-                                }
-                            }
-                        }
-                    }
+                let mut acc = [bias; 2];
+                let cols = if x >= d && x + 8 + d <= qw {
+                    // SAFETY: NEON is available (this function's contract); the 8 columns'
+                    // taps lie inside the plane.
+                    acc = unsafe { at.inside::<2>(acc, x) };
+                    8
+                } else if x >= d && x + 4 + d <= qw {
+                    // SAFETY: as above, for 4 columns.
+                    acc[0] = unsafe { at.inside::<1>([bias], x) }[0];
+                    4
                 } else {
-                    // Near the sides (or past the row's end) a lane adds a tap only where its
-                    // input column is inside the row, else keeps its sum as it was.
-                    let mut col = [[0usize; 4]; 3];
-                    let mut inside = [[0u32; 4]; 3];
-                    for kx in 0..3 {
-                        for l in 0..4 {
-                            let sx = (x + l + kx * d).checked_sub(d);
-                            if let Some(sx) = sx.filter(|&sx| sx < qw && x + l < qw) {
-                                (col[kx][l], inside[kx][l]) = (sx, u32::MAX);
-                            }
-                        }
+                    // SAFETY: NEON is available (this function's contract).
+                    acc[0] = unsafe { at.sides(bias, x) };
+                    4
+                };
+                let valid = (qw - x).min(cols);
+                for (k, (a0, a1)) in acc[0].iter().zip(&acc[1]).enumerate().take(n) {
+                    let mut lanes = [0.0f32; 8];
+                    // SAFETY: `lanes` holds 8 floats.
+                    unsafe {
+                        vst1q_f32(lanes.as_mut_ptr(), *a0);
+                        vst1q_f32(lanes.as_mut_ptr().add(4), *a1);
                     }
-                    // SAFETY: the 4-lane arrays are read and written whole.
-                    let masks = inside.map(|m| unsafe { vld1q_u32(m.as_ptr()) });
-                    for i in 0..inputs {
-                        for (ky, sy) in rows.iter().enumerate() {
-                            let Some(sy) = *sy else { continue };
-                            let row = &src[i * plane + sy * qw..i * plane + (sy + 1) * qw];
-                            for kx in 0..3 {
-                                let mut lanes = [0.0f32; 4];
-                                for (l, v) in lanes.iter_mut().enumerate() {
-                                    if inside[kx][l] != 0 {
-                                        *v = row[col[kx][l]];
-                                    }
-                                }
-                                // SAFETY: as above.
-                                let (v, w) = unsafe {
-                                    (
-                                        vld1q_f32(lanes.as_ptr()),
-                                        vld1q_f32(wv[i * 9 + ky * 3 + kx].as_ptr()),
-                                    )
-                                };
-                                let sum = madd4(acc, v, w);
-                                for (a, s) in acc.iter_mut().zip(sum) {
-                                    *a = vbslq_f32(masks[kx], s, *a);
-                                }
-                            }
-                        }
-                    }
+                    let o = (ob + k) * plane + y * qw + x;
+                    dst[o..o + valid].copy_from_slice(&lanes[..valid]);
                 }
-                let valid = (qw - x).min(4);
-                for (k, a) in acc.iter().enumerate().take(n) {
-                    let at = (ob + k) * plane + y * qw + x;
-                    let mut lanes = [0.0f32; 4];
-                    // SAFETY: `lanes` holds 4 floats.
-                    unsafe { vst1q_f32(lanes.as_mut_ptr(), *a) };
-                    dst[at..at + valid].copy_from_slice(&lanes[..valid]);
-                }
-                x += 4;
+                x += cols;
             }
         }
+    }
+}
+
+/// What the taps of one output row read: the input planes, the output block's weight vectors
+/// per (input, tap), the kernel rows inside the plane, and the geometry.
+struct Taps<'a> {
+    src: &'a [f32],
+    wv: &'a [[f32; 4]],
+    rows: [Option<usize>; 3],
+    plane: usize,
+    qw: usize,
+    d: usize,
+}
+
+impl Taps<'_> {
+    /// Adds every tap of the `4·V` columns from `x` to `acc` (vector `v` holds columns
+    /// `x + 4v ..`), all of whose taps lie inside the row: `x ≥ d`, `x + 4·V + d ≤ qw`.
+    ///
+    /// # Safety
+    /// The CPU must have NEON; the columns as stated.
+    #[target_feature(enable = "neon")]
+    #[inline]
+    unsafe fn inside<const V: usize>(
+        &self,
+        mut acc: [[float32x4_t; 4]; V],
+        x: usize,
+    ) -> [[float32x4_t; 4]; V] {
+        for (i, w9) in self.wv.chunks_exact(9).enumerate() {
+            let base = self.src[i * self.plane..].as_ptr();
+            for (ky, sy) in self.rows.iter().enumerate() {
+                let Some(sy) = *sy else { continue };
+                // SAFETY: row `sy < qh` of plane `i`, from column `x − d ≥ 0`.
+                let row = unsafe { base.add(sy * self.qw + x - self.d) };
+                for kx in 0..3 {
+                    // SAFETY: the 4 weights of the vector; each load reads 4 floats of the row
+                    // ending at column `x + 4·V − 1 + d < qw` at most.
+                    unsafe {
+                        let w = vld1q_f32(w9[ky * 3 + kx].as_ptr());
+                        for (v, a) in acc.iter_mut().enumerate() {
+                            *a = madd4(*a, vld1q_f32(row.add(kx * self.d + 4 * v)), w);
+                        }
+                    }
+                }
+            }
+        }
+        acc
+    }
+
+    /// Adds the taps of the 4 columns from `x` near the sides (or past the row's end) to
+    /// `acc`: a lane adds a tap only where its input column is inside the row, else keeps its
+    /// sum as it was.
+    ///
+    /// # Safety
+    /// The CPU must have NEON.
+    #[target_feature(enable = "neon")]
+    #[inline]
+    unsafe fn sides(&self, mut acc: [float32x4_t; 4], x: usize) -> [float32x4_t; 4] {
+        let (qw, d) = (self.qw, self.d);
+        let mut col = [[0usize; 4]; 3];
+        let mut inside = [[0u32; 4]; 3];
+        for kx in 0..3 {
+            for l in 0..4 {
+                let sx = (x + l + kx * d).checked_sub(d);
+                if let Some(sx) = sx.filter(|&sx| sx < qw && x + l < qw) {
+                    (col[kx][l], inside[kx][l]) = (sx, u32::MAX);
+                }
+            }
+        }
+        let mut masks = [vdupq_n_u32(0); 3];
+        for (m, lanes) in masks.iter_mut().zip(&inside) {
+            // SAFETY: `lanes` holds 4 words.
+            *m = unsafe { vld1q_u32(lanes.as_ptr()) };
+        }
+        for (i, w9) in self.wv.chunks_exact(9).enumerate() {
+            for (ky, sy) in self.rows.iter().enumerate() {
+                let Some(sy) = *sy else { continue };
+                let row = &self.src[i * self.plane + sy * qw..i * self.plane + (sy + 1) * qw];
+                for kx in 0..3 {
+                    let mut lanes = [0.0f32; 4];
+                    for (l, v) in lanes.iter_mut().enumerate() {
+                        if inside[kx][l] != 0 {
+                            *v = row[col[kx][l]];
+                        }
+                    }
+                    // SAFETY: `lanes` and the weight vector hold 4 floats each.
+                    let (v, w) = unsafe {
+                        (
+                            vld1q_f32(lanes.as_ptr()),
+                            vld1q_f32(w9[ky * 3 + kx].as_ptr()),
+                        )
+                    };
+                    let sum = madd4(acc, v, w);
+                    for (a, s) in acc.iter_mut().zip(sum) {
+                        *a = vbslq_f32(masks[kx], s, *a);
+                    }
+                }
+            }
+        }
+        acc
     }
 }
 
